@@ -1,0 +1,23 @@
+//! Holodeck protocol: the shared vocabulary of every holodeck process.
+//!
+//! This crate holds section geometry ([`Section`]), the bijection between beam
+//! indices and pairs of wall cells ([`beam`]), and the 10-byte ray record
+//! ([`RayRecord`]) with its RGBE color ([`Rgbe`]) and 16-bit depth code
+//! ([`DepthCode`]). It is pure data and arithmetic: it must never touch files,
+//! sockets or clocks, so that the storage engine, the samplers and the displays
+//! all agree on the same bits.
+
+pub mod beam;
+pub mod depth;
+pub mod record;
+pub mod rgbe;
+pub mod section;
+
+pub use beam::{BeamIndex, BeamKey, BeamRay, CellPair, LocatedRay, WallCell};
+pub use depth::DepthCode;
+pub use record::{DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
+pub use rgbe::Rgbe;
+pub use section::{
+    beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind,
+    Wall, MAX_BEAMS_PER_SECTION, MAX_GRID,
+};

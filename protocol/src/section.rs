@@ -1,0 +1,447 @@
+//! A holodeck section: a gridded parallelepiped that rays enter through one wall
+//! cell and leave through another.
+//!
+//! Coordinates come in two frames: *world* (the scene's units) and *unit*
+//! (section space, the parallelepiped mapped to [0,1]^3 along its three axes).
+//! This module owns the section's shape and grid; beam indexing lives in
+//! [`crate::beam`].
+
+use glam::{DMat3, DVec3};
+use serde::{Deserialize, Serialize};
+
+/// Largest grid size along one axis: one byte per cell coordinate, as in the ray record's cells.
+pub const MAX_GRID: u16 = 255;
+
+/// Most beams one section may have. The paper advises 50k–500k; this bound keeps
+/// the in-memory directory (16 bytes per beam) under 2 GiB.
+pub const MAX_BEAMS_PER_SECTION: u64 = 1 << 27;
+
+/// Errors in defining a section or addressing its beams.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SectionError {
+    /// A coordinate is NaN or infinite.
+    #[error("section {what} is not finite: {value:?}")]
+    NonFinite {
+        /// Which vector ("origin", "axis 0", ...).
+        what: &'static str,
+        /// Its value.
+        value: [f64; 3],
+    },
+    /// The three axes span no volume.
+    #[error("section axes {0:?} are degenerate: they span no volume")]
+    Degenerate([[f64; 3]; 3]),
+    /// A grid size is zero or above [`MAX_GRID`].
+    #[error("section grid size {size} along axis {axis} is outside 1..={max}", max = MAX_GRID)]
+    GridOutOfRange {
+        /// Axis 0, 1 or 2.
+        axis: usize,
+        /// The size given.
+        size: u32,
+    },
+    /// The grid gives more beams than [`MAX_BEAMS_PER_SECTION`].
+    #[error("section grid {grid:?} gives {count} beams, more than the {max} a section may hold; use a coarser grid", max = MAX_BEAMS_PER_SECTION)]
+    TooManyBeams {
+        /// The grid.
+        grid: [u16; 3],
+        /// Its beam count.
+        count: u64,
+    },
+    /// A beam index at or beyond the section's beam count.
+    #[error("beam index {beam} is out of range: the section has {count} beams")]
+    BeamOutOfRange {
+        /// The index given.
+        beam: u32,
+        /// The section's beam count.
+        count: u32,
+    },
+    /// A wall cell outside the wall's grid.
+    #[error("cell {cell:?} is outside wall {wall}'s grid")]
+    CellOutOfRange {
+        /// The wall.
+        wall: u8,
+        /// The cell coordinates.
+        cell: [u16; 2],
+    },
+    /// Entry and exit cells on the same wall do not make a beam.
+    #[error("entry and exit cells are both on wall {0}: no ray crosses a wall twice")]
+    SameWall(u8),
+    /// A grid length (Radiance's GRID) that is not a positive finite number.
+    #[error("grid length {0} must be a positive finite number")]
+    BadGridLength(f64),
+}
+
+/// Whether views look out of the section (interior) or into it (exterior).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SectionKind {
+    /// A region of free movement: geometry lies outside; rays are traced from the exit wall outward.
+    Interior,
+    /// An object viewed from outside: geometry lies inside; rays are traced from the entry wall inward.
+    Exterior,
+}
+
+impl SectionKind {
+    /// The lowercase name used in settings text.
+    pub fn name(self) -> &'static str {
+        match self {
+            SectionKind::Interior => "interior",
+            SectionKind::Exterior => "exterior",
+        }
+    }
+}
+
+/// One of the six walls: `2 * axis + side`, where side 0 lies at unit coordinate 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Wall(pub u8);
+
+impl Wall {
+    /// All six walls in index order.
+    pub const ALL: [Wall; 6] = [Wall(0), Wall(1), Wall(2), Wall(3), Wall(4), Wall(5)];
+
+    /// The axis (0, 1, 2) the wall is perpendicular to.
+    pub fn axis(self) -> usize {
+        usize::from(self.0 / 2)
+    }
+    /// 0 for the wall at unit coordinate 0 along its axis, 1 for the one at 1.
+    pub fn side(self) -> u8 {
+        self.0 % 2
+    }
+    /// The section axes that index the wall's cells, in (u, v) order.
+    pub fn cell_axes(self) -> [usize; 2] {
+        let a = self.axis();
+        [(a + 1) % 3, (a + 2) % 3]
+    }
+}
+
+/// Plain description of a section, as written in settings and on the wire.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SectionSpec {
+    /// World position of the corner at unit coordinates (0,0,0).
+    pub origin: [f64; 3],
+    /// The three edge vectors from the origin, in world units.
+    pub axes: [[f64; 3]; 3],
+    /// Cells along each axis.
+    pub grid: [u16; 3],
+    /// Interior or exterior.
+    pub kind: SectionKind,
+}
+
+/// A validated section with its derived beam-indexing tables.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SectionSpec", into = "SectionSpec")]
+pub struct Section {
+    origin: DVec3,
+    axes: [DVec3; 3],
+    grid: [u16; 3],
+    kind: SectionKind,
+    to_unit: DMat3,
+    /// (entry wall, exit wall, first beam index) for the 30 ordered wall pairs, in index order.
+    pairs: [(Wall, Wall, u32); 30],
+    beam_count: u32,
+    diagonal: f64,
+}
+
+/// The paper's beam count N = 2W²D² + 2W²H² + 2D²H² + 8W²DH + 8WD²H + 8WDH².
+pub fn beam_count_for_grid(grid: [u16; 3]) -> u64 {
+    let [w, d, h] = grid.map(u64::from);
+    2 * w * w * d * d
+        + 2 * w * w * h * h
+        + 2 * d * d * h * h
+        + 8 * w * w * d * h
+        + 8 * w * d * d * h
+        + 8 * w * d * h * h
+}
+
+/// Grid from a cell length like Radiance's GRID: each axis length / `length`,
+/// rounded up, clamped to 1..=[`MAX_GRID`].
+pub fn grid_for_length(axes: [[f64; 3]; 3], length: f64) -> Result<[u16; 3], SectionError> {
+    if !(length.is_finite() && length > 0.0) {
+        return Err(SectionError::BadGridLength(length));
+    }
+    Ok(axes.map(|a| {
+        let n = (DVec3::from(a).length() / length).ceil();
+        n.clamp(1.0, f64::from(MAX_GRID)) as u16
+    }))
+}
+
+/// The grid (from some cell length) whose beam count is closest to `target`,
+/// measured by ratio. Useful to follow the paper's advice of 50k–500k beams.
+pub fn grid_for_beam_count(axes: [[f64; 3]; 3], target: u64) -> Result<[u16; 3], SectionError> {
+    let longest = axes
+        .iter()
+        .map(|a| DVec3::from(*a).length())
+        .fold(0.0, f64::max);
+    if !(longest.is_finite() && longest > 0.0) {
+        return Err(SectionError::Degenerate(axes));
+    }
+    let target = target.max(1) as f64;
+    // Beam count falls as the cell length grows: bisect on the log of the length.
+    let (mut fine, mut coarse) = (
+        (longest / f64::from(MAX_GRID)).ln() - 1.0,
+        longest.ln() + 1.0,
+    );
+    for _ in 0..80 {
+        let mid = 0.5 * (fine + coarse);
+        let count = beam_count_for_grid(grid_for_length(axes, mid.exp())?) as f64;
+        if count > target {
+            fine = mid;
+        } else {
+            coarse = mid;
+        }
+    }
+    let candidates = [
+        grid_for_length(axes, fine.exp())?,
+        grid_for_length(axes, coarse.exp())?,
+    ];
+    let misfit = |g: &[u16; 3]| (beam_count_for_grid(*g) as f64 / target).ln().abs();
+    let best = if misfit(&candidates[0]) < misfit(&candidates[1]) {
+        candidates[0]
+    } else {
+        candidates[1]
+    };
+    Ok(best)
+}
+
+fn finite(what: &'static str, v: [f64; 3]) -> Result<DVec3, SectionError> {
+    if v.iter().all(|c| c.is_finite()) {
+        Ok(DVec3::from(v))
+    } else {
+        Err(SectionError::NonFinite { what, value: v })
+    }
+}
+
+impl Section {
+    /// Builds a section, checking that it is finite, spans a volume and has a valid grid.
+    pub fn new(
+        origin: [f64; 3],
+        axes: [[f64; 3]; 3],
+        grid: [u16; 3],
+        kind: SectionKind,
+    ) -> Result<Section, SectionError> {
+        let origin = finite("origin", origin)?;
+        let axis_vecs = [
+            finite("axis 0", axes[0])?,
+            finite("axis 1", axes[1])?,
+            finite("axis 2", axes[2])?,
+        ];
+        for (axis, &size) in grid.iter().enumerate() {
+            if size == 0 || size > MAX_GRID {
+                return Err(SectionError::GridOutOfRange {
+                    axis,
+                    size: u32::from(size),
+                });
+            }
+        }
+        let count = beam_count_for_grid(grid);
+        if count > MAX_BEAMS_PER_SECTION {
+            return Err(SectionError::TooManyBeams { grid, count });
+        }
+        let m = DMat3::from_cols(axis_vecs[0], axis_vecs[1], axis_vecs[2]);
+        let scale = axis_vecs.iter().map(|a| a.length()).product::<f64>();
+        let det = m.determinant();
+        if !(scale > 0.0 && (det / scale).abs() > 1e-9) {
+            return Err(SectionError::Degenerate(axes));
+        }
+        let cells = |w: Wall| {
+            let [u, v] = w.cell_axes();
+            u64::from(grid[u]) * u64::from(grid[v])
+        };
+        let mut pairs = [(Wall(0), Wall(0), 0u32); 30];
+        let mut base = 0u64;
+        let mut k = 0;
+        for entry in Wall::ALL {
+            for exit in Wall::ALL {
+                if entry != exit {
+                    pairs[k] = (entry, exit, base as u32);
+                    base += cells(entry) * cells(exit);
+                    k += 1;
+                }
+            }
+        }
+        debug_assert_eq!(base, count);
+        Ok(Section {
+            origin,
+            axes: axis_vecs,
+            grid,
+            kind,
+            to_unit: m.inverse(),
+            pairs,
+            beam_count: count as u32,
+            diagonal: (axis_vecs[0] + axis_vecs[1] + axis_vecs[2]).length(),
+        })
+    }
+
+    /// Builds a section whose grid follows a cell length (Radiance's GRID).
+    pub fn with_grid_length(
+        origin: [f64; 3],
+        axes: [[f64; 3]; 3],
+        length: f64,
+        kind: SectionKind,
+    ) -> Result<Section, SectionError> {
+        Section::new(origin, axes, grid_for_length(axes, length)?, kind)
+    }
+
+    /// The plain description (for settings text and the wire).
+    pub fn spec(&self) -> SectionSpec {
+        SectionSpec {
+            origin: self.origin.to_array(),
+            axes: self.axes.map(|a| a.to_array()),
+            grid: self.grid,
+            kind: self.kind,
+        }
+    }
+
+    /// World position of the corner at unit coordinates (0,0,0).
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+    /// The three edge vectors, world units.
+    pub fn axes(&self) -> [DVec3; 3] {
+        self.axes
+    }
+    /// Cells along each axis.
+    pub fn grid(&self) -> [u16; 3] {
+        self.grid
+    }
+    /// Interior or exterior.
+    pub fn kind(&self) -> SectionKind {
+        self.kind
+    }
+    /// Number of beams (ordered pairs of cells on different walls).
+    pub fn beam_count(&self) -> u32 {
+        self.beam_count
+    }
+    /// Length of the main diagonal, world units; the scale of the depth code.
+    pub fn diagonal(&self) -> f64 {
+        self.diagonal
+    }
+    /// World volume of the parallelepiped.
+    pub fn volume(&self) -> f64 {
+        self.axes[0].dot(self.axes[1].cross(self.axes[2])).abs()
+    }
+    /// Number of cells on one wall.
+    pub fn wall_cells(&self, wall: Wall) -> u32 {
+        let [u, v] = wall.cell_axes();
+        u32::from(self.grid[u]) * u32::from(self.grid[v])
+    }
+    /// The 30 ordered (entry wall, exit wall, first beam index) triples in index order.
+    pub(crate) fn wall_pairs(&self) -> &[(Wall, Wall, u32); 30] {
+        &self.pairs
+    }
+
+    /// Maps a unit-frame point to world coordinates.
+    pub fn unit_to_world(&self, unit: DVec3) -> DVec3 {
+        self.origin + self.axes[0] * unit.x + self.axes[1] * unit.y + self.axes[2] * unit.z
+    }
+    /// Maps a world point to the unit frame.
+    pub fn world_to_unit(&self, world: DVec3) -> DVec3 {
+        self.to_unit * (world - self.origin)
+    }
+    /// Maps a world direction (or difference of points) to the unit frame.
+    pub fn world_dir_to_unit(&self, dir: DVec3) -> DVec3 {
+        self.to_unit * dir
+    }
+    /// True when a world point lies inside the section (boundary included).
+    pub fn contains(&self, world: DVec3) -> bool {
+        let u = self.world_to_unit(world);
+        (0.0..=1.0).contains(&u.x) && (0.0..=1.0).contains(&u.y) && (0.0..=1.0).contains(&u.z)
+    }
+}
+
+impl TryFrom<SectionSpec> for Section {
+    type Error = SectionError;
+    fn try_from(s: SectionSpec) -> Result<Self, Self::Error> {
+        Section::new(s.origin, s.axes, s.grid, s.kind)
+    }
+}
+
+impl From<Section> for SectionSpec {
+    fn from(s: Section) -> Self {
+        s.spec()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const BOX: [[f64; 3]; 3] = [[10.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 3.0]];
+
+    #[test]
+    fn beam_count_matches_the_formula_by_brute_force() {
+        for grid in [[1, 1, 1], [2, 3, 4], [7, 1, 5], [12, 9, 4]] {
+            let walls = Wall::ALL.map(|w| {
+                let [u, v] = w.cell_axes();
+                u64::from(grid[u]) * u64::from(grid[v])
+            });
+            let total: u64 = walls.iter().sum();
+            let same_wall: u64 = walls.iter().map(|c| c * c).sum();
+            assert_eq!(
+                beam_count_for_grid(grid),
+                total * total - same_wall,
+                "{grid:?}"
+            );
+            let s = Section::new([0.0; 3], BOX, grid, SectionKind::Interior).unwrap();
+            assert_eq!(u64::from(s.beam_count()), beam_count_for_grid(grid));
+        }
+        assert_eq!(beam_count_for_grid([1, 1, 1]), 30);
+    }
+
+    #[test]
+    fn grid_from_length_rounds_up_and_clamps() {
+        assert_eq!(grid_for_length(BOX, 1.0).unwrap(), [10, 6, 3]);
+        assert_eq!(grid_for_length(BOX, 0.9).unwrap(), [12, 7, 4]);
+        assert_eq!(grid_for_length(BOX, 100.0).unwrap(), [1, 1, 1]);
+        assert_eq!(grid_for_length(BOX, 1e-6).unwrap(), [255, 255, 255]);
+        assert!(grid_for_length(BOX, 0.0).is_err());
+        assert!(grid_for_length(BOX, f64::NAN).is_err());
+    }
+
+    #[test]
+    fn grid_for_target_beam_count_lands_near_target() {
+        for target in [1_000u64, 50_000, 154_728, 500_000] {
+            let g = grid_for_beam_count(BOX, target).unwrap();
+            let n = beam_count_for_grid(g) as f64;
+            let ratio = n / target as f64;
+            assert!(
+                (0.5..2.0).contains(&ratio),
+                "target {target}: grid {g:?} gives {n}"
+            );
+        }
+    }
+
+    #[test]
+    fn invalid_sections_are_refused_with_reasons() {
+        let k = SectionKind::Interior;
+        assert!(matches!(
+            Section::new([f64::NAN, 0.0, 0.0], BOX, [1, 1, 1], k),
+            Err(SectionError::NonFinite { what: "origin", .. })
+        ));
+        let flat = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+        assert!(matches!(
+            Section::new([0.0; 3], flat, [1, 1, 1], k),
+            Err(SectionError::Degenerate(_))
+        ));
+        assert!(matches!(
+            Section::new([0.0; 3], BOX, [0, 1, 1], k),
+            Err(SectionError::GridOutOfRange { axis: 0, size: 0 })
+        ));
+        assert!(matches!(
+            Section::new([0.0; 3], BOX, [256, 1, 1], k),
+            Err(SectionError::GridOutOfRange { axis: 0, size: 256 })
+        ));
+        let err = Section::new([0.0; 3], BOX, [255, 255, 255], k).unwrap_err();
+        assert!(err.to_string().contains("coarser grid"), "{err}");
+    }
+
+    #[test]
+    fn unit_frame_round_trips_on_sheared_sections() {
+        let axes = [[3.0, 0.5, 0.0], [0.2, 2.0, 0.1], [0.0, -0.3, 1.5]];
+        let s = Section::new([1.0, -2.0, 0.5], axes, [4, 4, 2], SectionKind::Exterior).unwrap();
+        let p = DVec3::new(0.25, 0.5, 0.75);
+        let back = s.world_to_unit(s.unit_to_world(p));
+        assert!((back - p).length() < 1e-12);
+        assert!(s.contains(s.unit_to_world(p)));
+        assert!(!s.contains(s.unit_to_world(DVec3::new(1.01, 0.5, 0.5))));
+    }
+}
