@@ -1,1 +1,8 @@
-//! placeholder
+//! The holodeck server: the storage engine that owns a holodeck file and the
+//! settings it records. Network service and scheduler build on these.
+
+pub mod settings;
+pub mod storage;
+
+pub use settings::{ControlFile, Settings, SettingsError};
+pub use storage::{HoloFile, OpenOptions, StorageError};

@@ -1,0 +1,507 @@
+//! The holodeck's settings, stored as `KEY=value` text in the file header, like
+//! Radiance's holodeck variables, and read from TOML control files.
+//!
+//! Settings are pure data: this module parses and prints them and never opens
+//! files itself.
+
+use std::fmt::Write as _;
+use std::time::Duration;
+
+use holodeck_protocol::{grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind};
+use serde::Deserialize;
+
+/// Default beam cache budget: 64 MiB.
+pub const DEFAULT_CACHE_BYTES: u64 = 64 << 20;
+
+/// Everything a holodeck file records about how it was set up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    /// The sections, in index order.
+    pub sections: Vec<Section>,
+    /// Cell length used to size grids (Radiance's GRID), if one was given.
+    pub grid: Option<f64>,
+    /// Whether sections may contain geometry (trace rays from the entry wall).
+    pub obstructions: bool,
+    /// Whether to record virtual distances through flat mirrors and glass.
+    pub vdistance: bool,
+    /// Beam cache budget in bytes.
+    pub cache_bytes: u64,
+    /// Largest file size in bytes; 0 means unlimited.
+    pub diskspace_bytes: u64,
+    /// Longest batch run; zero means unlimited.
+    pub time: Duration,
+    /// Interval between progress reports; zero means none.
+    pub report: Duration,
+    /// Content hash of the scene the rays were traced in, if known.
+    pub scene: Option<String>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            sections: Vec::new(),
+            grid: None,
+            obstructions: false,
+            vdistance: false,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+            diskspace_bytes: 0,
+            time: Duration::ZERO,
+            report: Duration::ZERO,
+            scene: None,
+        }
+    }
+}
+
+/// A problem in settings text or a control file, with its line where known.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SettingsError {
+    /// A line could not be understood.
+    #[error("line {line}: {message}")]
+    Line {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A section is invalid.
+    #[error("section {index}: {source}")]
+    Section {
+        /// Index of the section.
+        index: usize,
+        /// Why.
+        source: SectionError,
+    },
+    /// The holodeck has no section.
+    #[error("no section is defined: a holodeck needs at least one (SECTION= line, or [[section]] in a control file)")]
+    NoSections,
+    /// The TOML could not be parsed.
+    #[error("{0}")]
+    Toml(String),
+}
+
+const KEYS: &[&str] = &[
+    "SECTION",
+    "GRID",
+    "OBSTRUCTIONS",
+    "VDISTANCE",
+    "CACHE",
+    "DISKSPACE",
+    "TIME",
+    "REPORT",
+    "SCENE",
+];
+
+/// Parses a byte size such as `64M`, `1.5G`, `4096` or `0`.
+pub fn parse_size(s: &str) -> Result<u64, String> {
+    let s = s.trim();
+    let (num, mult) = match s.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => {
+            let mult = match c.to_ascii_uppercase() {
+                'K' => 1u64 << 10,
+                'M' => 1 << 20,
+                'G' => 1 << 30,
+                'T' => 1 << 40,
+                _ => return Err(format!("size {s:?} has an unknown unit (use K, M, G or T)")),
+            };
+            (&s[..i], mult)
+        }
+        _ => (s, 1),
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("size {s:?} is not a number with an optional K/M/G/T unit"))?;
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(format!("size {s:?} must be a non-negative number"));
+    }
+    Ok((v * mult as f64).round() as u64)
+}
+
+/// Formats a byte size compactly, exactly (`64M`, `1536K`, `1000`).
+pub fn format_size(bytes: u64) -> String {
+    for (unit, shift) in [("T", 40), ("G", 30), ("M", 20), ("K", 10)] {
+        if bytes != 0 && bytes % (1u64 << shift) == 0 {
+            return format!("{}{unit}", bytes >> shift);
+        }
+    }
+    bytes.to_string()
+}
+
+/// Parses a duration such as `90s`, `15m`, `2h`; a bare number takes `default_unit` seconds.
+pub fn parse_duration(s: &str, default_unit: f64) -> Result<Duration, String> {
+    let s = s.trim();
+    let (num, unit) = match s.chars().last() {
+        Some('s') => (&s[..s.len() - 1], 1.0),
+        Some('m') => (&s[..s.len() - 1], 60.0),
+        Some('h') => (&s[..s.len() - 1], 3600.0),
+        _ => (s, default_unit),
+    };
+    let v: f64 = num
+        .trim()
+        .parse()
+        .map_err(|_| format!("duration {s:?} is not a number with an optional s/m/h unit"))?;
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(format!("duration {s:?} must be non-negative"));
+    }
+    Ok(Duration::from_secs_f64(v * unit))
+}
+
+fn format_duration(d: Duration) -> String {
+    format!("{}s", d.as_secs_f64())
+}
+
+fn parse_bool(s: &str) -> Result<bool, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "1" | "true" | "yes" | "on" | "t" | "y" => Ok(true),
+        "0" | "false" | "no" | "off" | "f" | "n" => Ok(false),
+        other => Err(format!("{other:?} is not a boolean (use true or false)")),
+    }
+}
+
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("{s:?} is not three comma-separated numbers"));
+    }
+    let mut v = [0.0; 3];
+    for (k, p) in parts.iter().enumerate() {
+        v[k] = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("{p:?} in {s:?} is not a number"))?;
+    }
+    Ok(v)
+}
+
+fn vec3_text(v: [f64; 3]) -> String {
+    // `{}` prints the shortest text that reads back to the same f64.
+    format!("{},{},{}", v[0], v[1], v[2])
+}
+
+/// One section line: `interior origin=X,Y,Z x=.. y=.. z=.. grid=W,D,H`.
+pub fn section_text(s: &Section) -> String {
+    let spec = s.spec();
+    format!(
+        "{} origin={} x={} y={} z={} grid={},{},{}",
+        spec.kind.name(),
+        vec3_text(spec.origin),
+        vec3_text(spec.axes[0]),
+        vec3_text(spec.axes[1]),
+        vec3_text(spec.axes[2]),
+        spec.grid[0],
+        spec.grid[1],
+        spec.grid[2]
+    )
+}
+
+/// Parses a section line (the inverse of [`section_text`]).
+pub fn parse_section(text: &str) -> Result<Section, String> {
+    let mut words = text.split_whitespace();
+    let kind = match words.next() {
+        Some("interior") => SectionKind::Interior,
+        Some("exterior") => SectionKind::Exterior,
+        other => {
+            return Err(format!(
+                "section must start with interior or exterior, not {other:?}"
+            ))
+        }
+    };
+    let (mut origin, mut axes, mut grid) = (None, [None; 3], None);
+    for w in words {
+        let (k, v) = w
+            .split_once('=')
+            .ok_or_else(|| format!("{w:?} is not key=value"))?;
+        match k {
+            "origin" => origin = Some(parse_vec3(v)?),
+            "x" => axes[0] = Some(parse_vec3(v)?),
+            "y" => axes[1] = Some(parse_vec3(v)?),
+            "z" => axes[2] = Some(parse_vec3(v)?),
+            "grid" => {
+                let g = parse_vec3(v)?;
+                let mut out = [0u16; 3];
+                for (k, x) in g.iter().enumerate() {
+                    if x.fract() != 0.0 || !(0.0..=65535.0).contains(x) {
+                        return Err(format!("grid size {x} is not a whole number of cells"));
+                    }
+                    out[k] = *x as u16;
+                }
+                grid = Some(out);
+            }
+            other => {
+                return Err(format!(
+                    "unknown section field {other:?} (expected origin, x, y, z, grid)"
+                ))
+            }
+        }
+    }
+    let origin = origin.ok_or("section has no origin=")?;
+    let axes = [
+        axes[0].ok_or("section has no x= axis")?,
+        axes[1].ok_or("section has no y= axis")?,
+        axes[2].ok_or("section has no z= axis")?,
+    ];
+    let grid = grid.ok_or("section has no grid=")?;
+    Section::new(origin, axes, grid, kind).map_err(|e| e.to_string())
+}
+
+impl Settings {
+    /// Prints the settings as `KEY=value` lines.
+    pub fn to_text(&self) -> String {
+        let mut t = String::from("# holodeck settings\n");
+        for s in &self.sections {
+            let _ = writeln!(t, "SECTION={}", section_text(s));
+        }
+        if let Some(g) = self.grid {
+            let _ = writeln!(t, "GRID={g}");
+        }
+        let _ = writeln!(t, "OBSTRUCTIONS={}", self.obstructions);
+        let _ = writeln!(t, "VDISTANCE={}", self.vdistance);
+        let _ = writeln!(t, "CACHE={}", format_size(self.cache_bytes));
+        let _ = writeln!(t, "DISKSPACE={}", format_size(self.diskspace_bytes));
+        let _ = writeln!(t, "TIME={}", format_duration(self.time));
+        let _ = writeln!(t, "REPORT={}", format_duration(self.report));
+        if let Some(h) = &self.scene {
+            let _ = writeln!(t, "SCENE={h}");
+        }
+        t
+    }
+
+    /// Parses `KEY=value` lines (`#` starts a comment). Bare TIME values are
+    /// hours and bare REPORT values minutes, as in Radiance.
+    pub fn from_text(text: &str) -> Result<Settings, SettingsError> {
+        let mut s = Settings::default();
+        for (i, raw) in text.lines().enumerate() {
+            let line = i + 1;
+            let err = |message: String| SettingsError::Line { line, message };
+            let content = raw.split('#').next().unwrap_or("").trim();
+            if content.is_empty() {
+                continue;
+            }
+            let (key, value) = content
+                .split_once('=')
+                .ok_or_else(|| err(format!("{content:?} is not KEY=value")))?;
+            let (key, value) = (key.trim().to_ascii_uppercase(), value.trim());
+            match key.as_str() {
+                "SECTION" => s.sections.push(parse_section(value).map_err(err)?),
+                "GRID" => {
+                    let g: f64 = value
+                        .parse()
+                        .map_err(|_| err(format!("GRID {value:?} is not a number")))?;
+                    s.grid = Some(g);
+                }
+                "OBSTRUCTIONS" => s.obstructions = parse_bool(value).map_err(err)?,
+                "VDISTANCE" => s.vdistance = parse_bool(value).map_err(err)?,
+                "CACHE" => s.cache_bytes = parse_size(value).map_err(err)?,
+                "DISKSPACE" => s.diskspace_bytes = parse_size(value).map_err(err)?,
+                "TIME" => s.time = parse_duration(value, 3600.0).map_err(err)?,
+                "REPORT" => s.report = parse_duration(value, 60.0).map_err(err)?,
+                "SCENE" => s.scene = Some(value.to_string()),
+                other => {
+                    return Err(err(format!(
+                        "unknown setting {other:?}; known settings are {}",
+                        KEYS.join(", ")
+                    )))
+                }
+            }
+        }
+        if s.sections.is_empty() {
+            return Err(SettingsError::NoSections);
+        }
+        Ok(s)
+    }
+
+    /// Parses a TOML control file (see [`ControlFile`]).
+    pub fn from_toml(text: &str) -> Result<Settings, SettingsError> {
+        let c: ControlFile =
+            toml::from_str(text).map_err(|e| SettingsError::Toml(e.to_string()))?;
+        c.resolve()
+    }
+}
+
+/// A section in a control file: the grid comes from `grid`, else the global
+/// cell length, else `beams` (a target beam count), else 150,000 beams.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionEntry {
+    /// interior (default) or exterior.
+    #[serde(default = "interior")]
+    pub kind: SectionKind,
+    /// World corner.
+    pub origin: [f64; 3],
+    /// The three edge vectors.
+    pub axes: [[f64; 3]; 3],
+    /// Explicit cells per axis.
+    pub grid: Option<[u16; 3]>,
+    /// Target beam count for an automatic grid.
+    pub beams: Option<u64>,
+}
+
+fn interior() -> SectionKind {
+    SectionKind::Interior
+}
+
+/// A TOML control file: lowercase versions of the settings plus `[[section]]` tables.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlFile {
+    /// The sections.
+    #[serde(default, rename = "section")]
+    pub sections: Vec<SectionEntry>,
+    /// Cell length for grids.
+    pub grid: Option<f64>,
+    /// OBSTRUCTIONS.
+    #[serde(default)]
+    pub obstructions: bool,
+    /// VDISTANCE.
+    #[serde(default)]
+    pub vdistance: bool,
+    /// CACHE, e.g. "64M".
+    pub cache: Option<String>,
+    /// DISKSPACE, e.g. "2G".
+    pub diskspace: Option<String>,
+    /// TIME, e.g. "2h".
+    pub time: Option<String>,
+    /// REPORT, e.g. "1m".
+    pub report: Option<String>,
+    /// Scene identity.
+    pub scene: Option<String>,
+}
+
+/// Beam count aimed at when a section gives neither a grid nor a cell length.
+pub const DEFAULT_TARGET_BEAMS: u64 = 150_000;
+
+impl ControlFile {
+    /// Validates and converts to [`Settings`].
+    pub fn resolve(&self) -> Result<Settings, SettingsError> {
+        let toml_err = |what: &str, e: String| SettingsError::Toml(format!("{what}: {e}"));
+        let mut s = Settings {
+            grid: self.grid,
+            obstructions: self.obstructions,
+            vdistance: self.vdistance,
+            scene: self.scene.clone(),
+            ..Settings::default()
+        };
+        if let Some(c) = &self.cache {
+            s.cache_bytes = parse_size(c).map_err(|e| toml_err("cache", e))?;
+        }
+        if let Some(d) = &self.diskspace {
+            s.diskspace_bytes = parse_size(d).map_err(|e| toml_err("diskspace", e))?;
+        }
+        if let Some(t) = &self.time {
+            s.time = parse_duration(t, 3600.0).map_err(|e| toml_err("time", e))?;
+        }
+        if let Some(r) = &self.report {
+            s.report = parse_duration(r, 60.0).map_err(|e| toml_err("report", e))?;
+        }
+        for (index, e) in self.sections.iter().enumerate() {
+            let wrap = |source| SettingsError::Section { index, source };
+            let grid = match (e.grid, self.grid, e.beams) {
+                (Some(g), _, _) => g,
+                (None, Some(len), None) => grid_for_length(e.axes, len).map_err(wrap)?,
+                (None, _, target) => {
+                    grid_for_beam_count(e.axes, target.unwrap_or(DEFAULT_TARGET_BEAMS))
+                        .map_err(wrap)?
+                }
+            };
+            s.sections
+                .push(Section::new(e.origin, e.axes, grid, e.kind).map_err(wrap)?);
+        }
+        if s.sections.is_empty() {
+            return Err(SettingsError::NoSections);
+        }
+        Ok(s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Settings {
+        let a = Section::new(
+            [0.1, -2.0, 0.3],
+            [[10.0, 0.0, 0.0], [0.0, 6.5, 0.0], [0.0, 0.0, 1.0 / 3.0]],
+            [20, 13, 3],
+            SectionKind::Interior,
+        )
+        .unwrap();
+        let b = Section::new(
+            [5.0, 5.0, 5.0],
+            [[1.0, 1.0, 0.0], [-1.0, 1.0, 0.0], [0.0, 0.0, 2.0]],
+            [4, 4, 5],
+            SectionKind::Exterior,
+        )
+        .unwrap();
+        Settings {
+            sections: vec![a, b],
+            grid: Some(0.5),
+            obstructions: true,
+            cache_bytes: 96 << 20,
+            diskspace_bytes: 3 << 30,
+            time: Duration::from_secs(5400),
+            report: Duration::from_secs(60),
+            scene: Some("blake3:0123abcd".into()),
+            ..Settings::default()
+        }
+    }
+
+    #[test]
+    fn text_round_trips_exactly() {
+        let s = sample();
+        let text = s.to_text();
+        assert!(text.contains("CACHE=96M"), "{text}");
+        assert_eq!(Settings::from_text(&text).unwrap(), s);
+    }
+
+    #[test]
+    fn radiance_units_and_errors_name_the_line() {
+        let base = "SECTION=interior origin=0,0,0 x=1,0,0 y=0,1,0 z=0,0,1 grid=2,2,2\n";
+        let s = Settings::from_text(&format!("{base}TIME=1.5\nREPORT=2\ncache=1.5M\n")).unwrap();
+        assert_eq!(s.time, Duration::from_secs(5400));
+        assert_eq!(s.report, Duration::from_secs(120));
+        assert_eq!(s.cache_bytes, 1_572_864);
+        let e = Settings::from_text(&format!("{base}\nFOO=1\n")).unwrap_err();
+        assert!(
+            e.to_string().starts_with("line 3: unknown setting \"FOO\""),
+            "{e}"
+        );
+        let e = Settings::from_text("SECTION=interior origin=0,0,0 x=1,0,0 y=0,1,0 grid=2,2,2")
+            .unwrap_err();
+        assert!(e.to_string().contains("no z= axis"), "{e}");
+        assert_eq!(
+            Settings::from_text("# nothing\n"),
+            Err(SettingsError::NoSections)
+        );
+        assert!(Settings::from_text(&format!("{base}CACHE=12Q"))
+            .unwrap_err()
+            .to_string()
+            .contains("unknown unit"));
+    }
+
+    #[test]
+    fn control_file_sizes_grids() {
+        let toml = r#"
+            grid = 0.5
+            cache = "32M"
+            time = "2h"
+            [[section]]
+            origin = [0, 0, 0]
+            axes = [[4, 0, 0], [0, 3, 0], [0, 0, 2.2]]
+            [[section]]
+            kind = "exterior"
+            origin = [10, 0, 0]
+            axes = [[2, 0, 0], [0, 2, 0], [0, 0, 2]]
+            grid = [3, 3, 3]
+        "#;
+        let s = Settings::from_toml(toml).unwrap();
+        assert_eq!(s.sections[0].grid(), [8, 6, 5]);
+        assert_eq!(s.sections[1].grid(), [3, 3, 3]);
+        assert_eq!(s.sections[1].kind(), SectionKind::Exterior);
+        assert_eq!(s.cache_bytes, 32 << 20);
+        assert_eq!(s.time, Duration::from_secs(7200));
+        let bad = Settings::from_toml(
+            "[[section]]\norigin=[0,0,0]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\ngird=[1,1,1]\n",
+        );
+        assert!(bad.unwrap_err().to_string().contains("gird"));
+    }
+}

@@ -1,0 +1,104 @@
+//! Errors of the storage engine. Each names the file and, where it applies, the
+//! section, beam and byte range involved, so a user knows what broke and where.
+
+use std::io;
+use std::path::PathBuf;
+
+use holodeck_protocol::{BeamKey, SectionError};
+
+use super::format::FormatError;
+use crate::settings::SettingsError;
+
+/// Anything that can go wrong reading or writing a holodeck file.
+#[derive(Debug, thiserror::Error)]
+pub enum StorageError {
+    /// The operating system refused an operation.
+    #[error("{path}: {op}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What was being done.
+        op: &'static str,
+        /// The OS error.
+        source: io::Error,
+    },
+    /// Bytes in the file are not a valid holodeck.
+    #[error("{path}: {source}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What and where.
+        source: FormatError,
+    },
+    /// The settings text in the header is invalid.
+    #[error("{path}: settings in the file header: {source}")]
+    Settings {
+        /// The file.
+        path: PathBuf,
+        /// What.
+        source: SettingsError,
+    },
+    /// Neither commit slot leads to a consistent state.
+    #[error("{path}: no consistent commit found; `holodeck check --repair` can salvage the beams that verify.\n{problems}")]
+    NoValidCommit {
+        /// The file.
+        path: PathBuf,
+        /// Why each candidate failed, one per line.
+        problems: String,
+    },
+    /// A beam's records fail their checksum.
+    #[error("{path}: beam {} of section {} (bytes {start}..{end}) fails its checksum; `holodeck check --repair` salvages the other beams", key.beam, key.section)]
+    BeamCorrupt {
+        /// The file.
+        path: PathBuf,
+        /// Which beam.
+        key: BeamKey,
+        /// First byte of its run.
+        start: u64,
+        /// One past its last byte.
+        end: u64,
+    },
+    /// A section index beyond the holodeck's sections.
+    #[error("section {section} does not exist: the holodeck has {count}")]
+    NoSuchSection {
+        /// Index asked for.
+        section: u32,
+        /// Sections present.
+        count: usize,
+    },
+    /// A beam index beyond its section's beams.
+    #[error("section {section}: {source}")]
+    Beam {
+        /// The section.
+        section: u32,
+        /// Why.
+        source: SectionError,
+    },
+    /// A beam would exceed the 2^32-1 rays its directory entry can count.
+    #[error("beam {} of section {} would hold more than {} rays", key.beam, key.section, u32::MAX)]
+    BeamFull {
+        /// Which beam.
+        key: BeamKey,
+    },
+    /// Another process holds the file.
+    #[error("{path} is in use by another holodeck process")]
+    Locked {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Creating a file that exists.
+    #[error("{path} already exists; remove it or choose another name")]
+    Exists {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Writing to a file opened for reading.
+    #[error("{path} is open read-only")]
+    ReadOnly {
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// Result type of the storage engine.
+pub type Result<T> = std::result::Result<T, StorageError>;

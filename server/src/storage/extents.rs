@@ -1,0 +1,247 @@
+//! The fragment list: which byte ranges of the file are free for new runs.
+//!
+//! Space released by a change is *pending* until the commit that stops
+//! referring to it is durable; only then may it be reused. That is what keeps
+//! the previous commit intact while the next one is being written, so a crash at
+//! any instant leaves at least one complete, consistent commit on disk.
+//!
+//! The list is never stored: on open it is derived from the gaps between the
+//! runs the current commit refers to.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::format::Extent;
+
+/// Free and pending byte ranges above the fixed header, and the logical end of the file.
+#[derive(Debug, Clone, Default)]
+pub struct Extents {
+    /// Free ranges by offset (value: length), coalesced.
+    free: BTreeMap<u64, u64>,
+    /// The same ranges by (length, offset) for best-fit allocation.
+    by_size: BTreeSet<(u64, u64)>,
+    /// Released since the last commit; reusable once the next commit is durable.
+    pending: Vec<Extent>,
+    /// One past the last byte in use (the file may be longer until it is trimmed).
+    end: u64,
+}
+
+/// Found while deriving the free list: two runs claim the same bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Overlap {
+    /// The earlier run.
+    pub first: Extent,
+    /// The run that starts inside it.
+    pub second: Extent,
+}
+
+impl Extents {
+    /// Derives the free list from the extents in use (any order) above `start`.
+    pub fn from_used(start: u64, mut used: Vec<Extent>) -> Result<Extents, Overlap> {
+        used.retain(|e| e.len > 0);
+        used.sort_unstable();
+        let mut x = Extents {
+            end: start,
+            ..Extents::default()
+        };
+        let mut prev: Option<Extent> = None;
+        for e in used {
+            if let Some(p) = prev {
+                if e.offset < p.end() {
+                    return Err(Overlap {
+                        first: p,
+                        second: e,
+                    });
+                }
+            }
+            if e.offset > x.end {
+                x.insert_free(Extent {
+                    offset: x.end,
+                    len: e.offset - x.end,
+                });
+            }
+            x.end = x.end.max(e.end());
+            prev = Some(e);
+        }
+        Ok(x)
+    }
+
+    /// One past the last byte in use.
+    pub fn end(&self) -> u64 {
+        self.end
+    }
+
+    /// Total free bytes below the end (holes in the file).
+    pub fn free_bytes(&self) -> u64 {
+        self.free.values().sum::<u64>() + self.pending.iter().map(|e| e.len).sum::<u64>()
+    }
+
+    /// Number of separate holes.
+    pub fn fragments(&self) -> usize {
+        self.free.len() + self.pending.len()
+    }
+
+    fn insert_free(&mut self, mut e: Extent) {
+        if e.len == 0 {
+            return;
+        }
+        if let Some((&off, &len)) = self.free.range(..e.offset).next_back() {
+            if off + len == e.offset {
+                self.remove(off, len);
+                e = Extent {
+                    offset: off,
+                    len: len + e.len,
+                };
+            }
+        }
+        if let Some(&len) = self.free.get(&e.end()) {
+            self.remove(e.end(), len);
+            e.len += len;
+        }
+        if e.end() == self.end {
+            self.end = e.offset;
+        } else {
+            self.free.insert(e.offset, e.len);
+            self.by_size.insert((e.len, e.offset));
+        }
+    }
+
+    fn remove(&mut self, off: u64, len: u64) {
+        self.free.remove(&off);
+        self.by_size.remove(&(len, off));
+    }
+
+    /// Finds room for `len` bytes: the smallest free hole that fits, else the end.
+    pub fn allocate(&mut self, len: u64) -> u64 {
+        if len == 0 {
+            return self.end;
+        }
+        if let Some(&(hole, off)) = self.by_size.range((len, 0)..).next() {
+            self.remove(off, hole);
+            if hole > len {
+                self.free.insert(off + len, hole - len);
+                self.by_size.insert((hole - len, off + len));
+            }
+            return off;
+        }
+        let off = self.end;
+        self.end += len;
+        off
+    }
+
+    /// Claims exactly `[at, at + len)` if it is free (or at the end): used to
+    /// grow a run in place.
+    pub fn try_claim(&mut self, at: u64, len: u64) -> bool {
+        if at == self.end {
+            self.end += len;
+            return true;
+        }
+        match self.free.get(&at) {
+            Some(&hole) if hole >= len => {
+                self.remove(at, hole);
+                if hole > len {
+                    self.free.insert(at + len, hole - len);
+                    self.by_size.insert((hole - len, at + len));
+                }
+                true
+            }
+            Some(&hole) if at + hole == self.end => {
+                self.remove(at, hole);
+                self.end = at + len;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Releases a range that the last durable commit may still refer to.
+    pub fn release(&mut self, e: Extent) {
+        if e.len > 0 {
+            self.pending.push(e);
+        }
+    }
+
+    /// Releases a range no commit refers to: reusable at once.
+    pub fn release_now(&mut self, e: Extent) {
+        self.insert_free(e);
+    }
+
+    /// The commit that stopped referring to the pending ranges is durable.
+    pub fn commit_done(&mut self) {
+        for e in std::mem::take(&mut self.pending) {
+            self.insert_free(e);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn ext(offset: u64, len: u64) -> Extent {
+        Extent { offset, len }
+    }
+
+    #[test]
+    fn derives_holes_and_detects_overlaps() {
+        let x = Extents::from_used(100, vec![ext(150, 10), ext(100, 20), ext(300, 5)]).unwrap();
+        assert_eq!(x.end(), 305);
+        assert_eq!(x.free_bytes(), 30 + 140);
+        assert_eq!(x.fragments(), 2);
+        let o = Extents::from_used(100, vec![ext(100, 20), ext(110, 5)]).unwrap_err();
+        assert_eq!(o.second, ext(110, 5));
+    }
+
+    #[test]
+    fn pending_space_is_not_reused_before_commit() {
+        let mut x = Extents::from_used(0, vec![ext(0, 100)]).unwrap();
+        x.release(ext(0, 50));
+        assert_eq!(
+            x.allocate(10),
+            100,
+            "pending space must wait for the commit"
+        );
+        x.commit_done();
+        assert_eq!(x.allocate(10), 0);
+        assert_eq!(x.allocate(40), 10);
+        assert_eq!(x.free_bytes(), 0);
+    }
+
+    #[test]
+    fn coalesces_and_trims_the_tail() {
+        let mut x =
+            Extents::from_used(0, vec![ext(0, 10), ext(10, 10), ext(20, 10), ext(30, 10)]).unwrap();
+        x.release_now(ext(10, 10));
+        x.release_now(ext(20, 10));
+        assert_eq!(x.fragments(), 1);
+        assert_eq!(x.allocate(20), 10, "the two holes merged into one");
+        x.release_now(ext(30, 10));
+        assert_eq!(x.end(), 30, "free space at the end shortens the file");
+        assert!(x.try_claim(30, 25));
+        assert_eq!(x.end(), 55);
+    }
+
+    proptest! {
+        #[test]
+        fn allocations_never_overlap(ops in prop::collection::vec((1u64..50, any::<bool>(), any::<bool>()), 1..200)) {
+            let mut x = Extents::from_used(64, vec![]).unwrap();
+            let mut live: Vec<Extent> = Vec::new();
+            for (len, free_one, commit) in ops {
+                let off = x.allocate(len);
+                let e = ext(off, len);
+                prop_assert!(off >= 64);
+                for l in &live {
+                    prop_assert!(e.end() <= l.offset || l.end() <= e.offset, "{e:?} overlaps {l:?}");
+                }
+                live.push(e);
+                if free_one && live.len() > 1 {
+                    let gone = live.remove(live.len() / 2);
+                    x.release(gone);
+                }
+                if commit { x.commit_done(); }
+            }
+            let used: u64 = live.iter().map(|e| e.len).sum();
+            prop_assert_eq!(used + x.free_bytes(), x.end() - 64);
+        }
+    }
+}

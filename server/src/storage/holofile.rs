@@ -1,0 +1,482 @@
+//! [`HoloFile`]: a holodeck file opened for use — append rays to beams, read
+//! beams (from the cache, else from disk in file order), and flush.
+//!
+//! Memory stays within the cache budget plus the directories (16 bytes per
+//! beam) plus the free list and a read buffer of a few MiB, whatever the file size.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use holodeck_protocol::{BeamKey, RayRecord, Section, SectionError, RAY_RECORD_BYTES};
+
+use super::bulk::SequentialWriter;
+use super::cache::BeamCache;
+use super::error::{Result, StorageError};
+use super::format::BeamEntry;
+use super::store::{IoStats, OpenInfo, Store};
+use crate::settings::Settings;
+
+/// Runs closer than this are read in one request, gap included.
+const MERGE_GAP: u64 = 64 << 10;
+/// Largest single read when merging runs.
+const MERGE_LIMIT: u64 = 8 << 20;
+/// Default interval between automatic flushes.
+pub const DEFAULT_FLUSH_INTERVAL: Duration = Duration::from_secs(2);
+
+/// How to open a holodeck file.
+#[derive(Clone, Debug)]
+pub struct OpenOptions {
+    /// Open for writing (takes an exclusive lock) or reading (shared lock).
+    pub writable: bool,
+    /// Cache budget in bytes; `None` uses the file's CACHE setting.
+    pub cache_bytes: Option<u64>,
+    /// Flush automatically when this much time has passed since the last flush.
+    pub flush_interval: Option<Duration>,
+}
+
+impl Default for OpenOptions {
+    fn default() -> Self {
+        OpenOptions {
+            writable: true,
+            cache_bytes: None,
+            flush_interval: Some(DEFAULT_FLUSH_INTERVAL),
+        }
+    }
+}
+
+impl OpenOptions {
+    /// Options for reading only.
+    pub fn read_only() -> Self {
+        OpenOptions {
+            writable: false,
+            flush_interval: None,
+            ..Self::default()
+        }
+    }
+}
+
+/// What a batch read delivered.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ReadReport {
+    /// Beams delivered.
+    pub beams: u64,
+    /// Rays delivered.
+    pub rays: u64,
+    /// Beams served from the cache.
+    pub cache_hits: u64,
+    /// Beams whose records failed their checksum (not delivered).
+    pub corrupt: Vec<BeamKey>,
+}
+
+/// Per-file summary for reports (like Radiance's rhinfo).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileSummary {
+    /// Per section: (beams, beams holding rays, rays).
+    pub sections: Vec<(u32, u32, u64)>,
+    /// Bytes in the file.
+    pub file_bytes: u64,
+    /// Bytes of ray records.
+    pub ray_bytes: u64,
+    /// Bytes of the current directories and root.
+    pub metadata_bytes: u64,
+    /// Free bytes inside the file.
+    pub free_bytes: u64,
+    /// Number of free holes.
+    pub fragments: usize,
+    /// Generation of the current commit.
+    pub generation: u64,
+}
+
+impl FileSummary {
+    /// Rays in all sections.
+    pub fn rays(&self) -> u64 {
+        self.sections.iter().map(|s| s.2).sum()
+    }
+    /// Whole-file bytes per ray.
+    pub fn bytes_per_ray(&self) -> f64 {
+        self.file_bytes as f64 / self.rays().max(1) as f64
+    }
+}
+
+/// An open holodeck file.
+pub struct HoloFile {
+    store: Store,
+    settings: Settings,
+    cache: BeamCache,
+    flush_interval: Option<Duration>,
+    last_flush: Instant,
+    read_buf: Vec<u8>,
+}
+
+impl HoloFile {
+    /// Creates a new, empty holodeck file with these settings. Refuses to replace an existing file.
+    pub fn create(path: &Path, settings: &Settings) -> Result<()> {
+        if path.exists() {
+            return Err(StorageError::Exists {
+                path: path.to_path_buf(),
+            });
+        }
+        SequentialWriter::create(path, settings)?.finish()
+    }
+
+    /// Opens an existing file.
+    pub fn open(path: &Path, options: &OpenOptions) -> Result<HoloFile> {
+        let (store, settings) = Store::open(path, options.writable)?;
+        let budget = options.cache_bytes.unwrap_or(settings.cache_bytes);
+        Ok(HoloFile {
+            store,
+            cache: BeamCache::new(usize::try_from(budget).unwrap_or(usize::MAX)),
+            settings,
+            flush_interval: options.flush_interval,
+            last_flush: Instant::now(),
+            read_buf: Vec::new(),
+        })
+    }
+
+    /// The file's settings (sections included).
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+    /// The sections.
+    pub fn sections(&self) -> &[Section] {
+        &self.settings.sections
+    }
+    /// The path opened.
+    pub fn path(&self) -> &Path {
+        &self.store.path
+    }
+    /// How the current commit was found.
+    pub fn open_info(&self) -> &OpenInfo {
+        &self.store.info
+    }
+    /// I/O counters since open.
+    pub fn io_stats(&self) -> IoStats {
+        self.store.stats
+    }
+    /// Bytes now charged to the cache, and its budget.
+    pub fn cache_usage(&self) -> (usize, usize) {
+        (self.cache.bytes(), self.cache.budget())
+    }
+
+    fn check_key(&self, key: BeamKey) -> Result<()> {
+        let count = self.settings.sections.len();
+        let section = self.settings.sections.get(key.section as usize).ok_or(
+            StorageError::NoSuchSection {
+                section: key.section,
+                count,
+            },
+        )?;
+        if key.beam >= section.beam_count() {
+            let source = SectionError::BeamOutOfRange {
+                beam: key.beam,
+                count: section.beam_count(),
+            };
+            return Err(StorageError::Beam {
+                section: key.section,
+                source,
+            });
+        }
+        Ok(())
+    }
+
+    fn entry(&self, key: BeamKey) -> BeamEntry {
+        self.store.dirs[key.section as usize][key.beam as usize]
+    }
+
+    /// Rays stored in a beam, written or not.
+    pub fn beam_len(&self, key: BeamKey) -> Result<u64> {
+        self.check_key(key)?;
+        let on_disk = u64::from(self.entry(key).count);
+        Ok(match self.cache.peek(&key) {
+            Some(e) if e.loaded => e.rays.len() as u64,
+            Some(e) => on_disk + e.unwritten as u64,
+            None => on_disk,
+        })
+    }
+
+    /// Appends rays to a beam. They are durable after the next flush.
+    pub fn append(&mut self, key: BeamKey, rays: &[RayRecord]) -> Result<()> {
+        if !self.store.writable {
+            return Err(StorageError::ReadOnly {
+                path: self.store.path.clone(),
+            });
+        }
+        if self.beam_len(key)? + rays.len() as u64 > u64::from(u32::MAX) {
+            return Err(StorageError::BeamFull { key });
+        }
+        let empty_on_disk = self.entry(key).count == 0;
+        self.cache.update(key, |e| {
+            if e.rays.is_empty() && e.unwritten == 0 {
+                // A beam with nothing on disk is whole in memory from its first ray.
+                e.loaded = empty_on_disk;
+            }
+            e.rays.extend_from_slice(rays);
+            e.unwritten += rays.len();
+        });
+        if self.cache.over_budget() {
+            self.evict()?;
+        }
+        if self
+            .flush_interval
+            .is_some_and(|i| self.last_flush.elapsed() >= i)
+        {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Writes least-recently-used beams until the cache is 10% under budget.
+    fn evict(&mut self) -> Result<()> {
+        let target = self.cache.budget() / 10 * 9;
+        let mut dirty = Vec::new();
+        while self.cache.bytes() > target {
+            let Some((key, e)) = self.cache.pop_lru() else {
+                break;
+            };
+            if e.unwritten > 0 {
+                dirty.push((key, e));
+            }
+        }
+        dirty.sort_by_key(|(k, _)| self.entry(*k).offset);
+        for (key, e) in dirty {
+            let on_disk = e.loaded.then(|| &e.rays[..e.rays.len() - e.unwritten]);
+            self.store.write_tail(key, on_disk, e.tail())?;
+        }
+        Ok(())
+    }
+
+    /// Writes every unwritten ray and commits, so that all appended rays survive a crash.
+    pub fn flush(&mut self) -> Result<()> {
+        let mut keys = self.cache.dirty_keys();
+        keys.sort_by_key(|k| self.entry(*k).offset);
+        for key in keys {
+            if let Some(e) = self.cache.peek(&key) {
+                let on_disk = e.loaded.then(|| &e.rays[..e.rays.len() - e.unwritten]);
+                self.store.write_tail(key, on_disk, e.tail())?;
+                self.cache.mark_written(&key);
+            }
+        }
+        self.store.commit()?;
+        self.last_flush = Instant::now();
+        Ok(())
+    }
+
+    /// Flushes and closes, reporting any error (dropping flushes too, but can only log).
+    pub fn close(mut self) -> Result<()> {
+        if self.store.writable {
+            self.flush()?;
+        }
+        self.store.writable = false;
+        Ok(())
+    }
+
+    /// Closes without flushing, losing unflushed rays exactly as a crash would.
+    /// For tests of crash recovery.
+    #[doc(hidden)]
+    pub fn abandon(mut self) {
+        self.store.writable = false;
+    }
+
+    /// Reads one beam, verifying its checksum.
+    pub fn read_beam(&mut self, key: BeamKey) -> Result<Vec<RayRecord>> {
+        let mut out = Vec::new();
+        let report = self.read_beams(&[key], |_, rays| out.extend_from_slice(rays))?;
+        if !report.corrupt.is_empty() {
+            let e = self.entry(key);
+            return Err(StorageError::BeamCorrupt {
+                path: self.store.path.clone(),
+                key,
+                start: e.offset,
+                end: e.extent().end(),
+            });
+        }
+        Ok(out)
+    }
+
+    /// Delivers each requested beam's rays to `visit`: cached beams first, then
+    /// the rest read from disk in file order, nearby runs merged into large reads.
+    /// Beams that fail their checksum are reported, not delivered.
+    pub fn read_beams(
+        &mut self,
+        keys: &[BeamKey],
+        mut visit: impl FnMut(BeamKey, &[RayRecord]),
+    ) -> Result<ReadReport> {
+        let mut report = ReadReport::default();
+        let mut misses = Vec::new();
+        for &key in keys {
+            self.check_key(key)?;
+            let on_disk = self.entry(key).count;
+            match self.cache.touch(&key) {
+                Some(e) if e.loaded => {
+                    report.cache_hits += 1;
+                    report.beams += 1;
+                    report.rays += e.rays.len() as u64;
+                    visit(key, &e.rays);
+                }
+                _ if on_disk == 0 => {
+                    report.beams += 1;
+                    visit(key, &[]);
+                }
+                _ => misses.push(key),
+            }
+        }
+        misses.sort_by_key(|k| self.entry(*k).offset);
+        misses.dedup();
+        let mut start = 0;
+        while start < misses.len() {
+            // Grow a group while the next run is close and the read stays bounded.
+            let first = self.entry(misses[start]).offset;
+            let mut end = start + 1;
+            let mut group_end = self.entry(misses[start]).extent().end();
+            while end < misses.len() {
+                let e = self.entry(misses[end]).extent();
+                if e.offset > group_end + MERGE_GAP || e.end().max(group_end) - first > MERGE_LIMIT
+                {
+                    break;
+                }
+                group_end = group_end.max(e.end());
+                end += 1;
+            }
+            let mut buf = std::mem::take(&mut self.read_buf);
+            self.store
+                .read_into(first, (group_end - first) as usize, &mut buf)?;
+            for &key in &misses[start..end] {
+                let e = self.entry(key);
+                let bytes = &buf[(e.offset - first) as usize..][..e.extent().len as usize];
+                if crc32c::crc32c(bytes) != e.crc {
+                    tracing::error!(
+                        section = key.section,
+                        beam = key.beam,
+                        "beam fails its checksum at bytes {}..{}",
+                        e.offset,
+                        e.extent().end()
+                    );
+                    report.corrupt.push(key);
+                    continue;
+                }
+                self.deliver(key, bytes, &mut report, &mut visit)?;
+            }
+            self.read_buf = buf;
+            start = end;
+        }
+        if self.read_buf.capacity() > 2 * MERGE_LIMIT as usize {
+            self.read_buf = Vec::new();
+        }
+        Ok(report)
+    }
+
+    /// Joins a beam's disk records with any cached unwritten tail, caches it if it fits, and visits it.
+    fn deliver(
+        &mut self,
+        key: BeamKey,
+        bytes: &[u8],
+        report: &mut ReadReport,
+        visit: &mut impl FnMut(BeamKey, &[RayRecord]),
+    ) -> Result<()> {
+        let tail: &[RayRecord] = self.cache.peek(&key).map(|e| e.tail()).unwrap_or(&[]);
+        let mut rays = Vec::with_capacity(bytes.len() / RAY_RECORD_BYTES + tail.len());
+        rays.extend_from_slice(RayRecord::slice_from_bytes(bytes).unwrap_or(&[]));
+        rays.extend_from_slice(tail);
+        let unwritten = tail.len();
+        report.beams += 1;
+        report.rays += rays.len() as u64;
+        visit(key, &rays);
+        if rays.len() * RAY_RECORD_BYTES <= self.cache.budget() / 8 || unwritten > 0 {
+            self.cache.remove(&key);
+            self.cache.insert_loaded(key, rays);
+            self.cache.update(key, |e| e.unwritten = unwritten);
+            if self.cache.over_budget() {
+                self.evict()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Summary counts for reports.
+    pub fn summary(&self) -> FileSummary {
+        let sections = self
+            .store
+            .dirs
+            .iter()
+            .map(|d| {
+                let filled = d.iter().filter(|e| e.count > 0).count() as u32;
+                (
+                    d.len() as u32,
+                    filled,
+                    d.iter().map(|e| u64::from(e.count)).sum(),
+                )
+            })
+            .collect::<Vec<_>>();
+        let rays: u64 = sections.iter().map(|s: &(u32, u32, u64)| s.2).sum();
+        FileSummary {
+            sections,
+            file_bytes: self.store.file_len(),
+            ray_bytes: rays * RAY_RECORD_BYTES as u64,
+            metadata_bytes: self.store.metadata_bytes(),
+            free_bytes: self.store.extents.free_bytes(),
+            fragments: self.store.extents.fragments(),
+            generation: self.store.info.generation,
+        }
+    }
+
+    /// The directory entry of every beam (section, beam, entry), for tools that walk the file.
+    pub fn directory(&self, section: u32) -> Option<&[BeamEntry]> {
+        self.store.dirs.get(section as usize).map(|d| d.as_slice())
+    }
+
+    /// Asks the OS to forget its cached pages of this file (for cold-read measurements).
+    pub fn drop_os_cache(&self) {
+        super::io::drop_page_cache(&self.store.file);
+    }
+
+    /// Reads runs straight from disk in file order, bypassing the cache; used by
+    /// maintenance tools on closed files. `visit` gets `Err(key)` for a bad checksum.
+    pub fn scan_disk(
+        &mut self,
+        keys: &mut [BeamKey],
+        mut visit: impl FnMut(std::result::Result<(BeamKey, &[RayRecord]), BeamKey>) -> Result<()>,
+    ) -> Result<()> {
+        keys.sort_by_key(|k| self.entry(*k).offset);
+        let mut buf = Vec::new();
+        let mut i = 0;
+        while i < keys.len() {
+            let first = self.entry(keys[i]).offset;
+            let mut j = i;
+            let mut end = first;
+            while j < keys.len() {
+                let e = self.entry(keys[j]).extent();
+                if j > i && (e.offset > end + MERGE_GAP || e.end().max(end) - first > MERGE_LIMIT) {
+                    break;
+                }
+                end = end.max(e.end());
+                j += 1;
+            }
+            self.store
+                .read_into(first, (end - first) as usize, &mut buf)?;
+            for &key in &keys[i..j] {
+                let e = self.entry(key);
+                let bytes = &buf[(e.offset - first) as usize..][..e.extent().len as usize];
+                if crc32c::crc32c(bytes) == e.crc {
+                    visit(Ok((key, RayRecord::slice_from_bytes(bytes).unwrap_or(&[]))))?;
+                } else {
+                    visit(Err(key))?;
+                }
+            }
+            i = j;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for HoloFile {
+    fn drop(&mut self) {
+        if self.store.writable {
+            if let Err(e) = self.flush() {
+                tracing::error!(
+                    "flushing {} on close failed: {e}",
+                    self.store.path.display()
+                );
+            }
+        }
+    }
+}

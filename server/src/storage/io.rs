@@ -1,0 +1,134 @@
+//! Positioned file I/O for the engine: a write batch that merges adjacent
+//! writes into few large ones, advisory locking, and durable renames.
+
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::os::unix::io::AsRawFd;
+use std::path::Path;
+
+use super::error::{Result, StorageError};
+
+/// Largest batch held before it is written.
+const BATCH_LIMIT: usize = 8 << 20;
+
+/// Adjacent writes gathered into one buffer.
+#[derive(Default)]
+pub struct WriteBatch {
+    start: u64,
+    buf: Vec<u8>,
+}
+
+impl WriteBatch {
+    /// Queues `bytes` for `offset`, writing out what was queued first if it is not adjacent.
+    pub fn push(&mut self, file: &File, path: &Path, offset: u64, bytes: &[u8]) -> Result<()> {
+        let adjacent = !self.buf.is_empty() && offset == self.start + self.buf.len() as u64;
+        if !adjacent || self.buf.len() + bytes.len() > BATCH_LIMIT {
+            self.flush(file, path)?;
+        }
+        if self.buf.is_empty() {
+            if bytes.len() >= BATCH_LIMIT {
+                return write_at(file, path, offset, bytes);
+            }
+            self.start = offset;
+        }
+        self.buf.extend_from_slice(bytes);
+        Ok(())
+    }
+
+    /// Writes out whatever is queued.
+    pub fn flush(&mut self, file: &File, path: &Path) -> Result<()> {
+        if !self.buf.is_empty() {
+            write_at(file, path, self.start, &self.buf)?;
+            self.buf.clear();
+            if self.buf.capacity() > BATCH_LIMIT {
+                self.buf.shrink_to(BATCH_LIMIT);
+            }
+        }
+        Ok(())
+    }
+}
+
+fn io_err<'a>(
+    path: &'a Path,
+    op: &'static str,
+) -> impl FnOnce(std::io::Error) -> StorageError + 'a {
+    move |source| StorageError::Io {
+        path: path.to_path_buf(),
+        op,
+        source,
+    }
+}
+
+/// Writes all of `bytes` at `offset`.
+pub fn write_at(file: &File, path: &Path, offset: u64, bytes: &[u8]) -> Result<()> {
+    file.write_all_at(bytes, offset)
+        .map_err(io_err(path, "writing"))
+}
+
+/// Reads exactly `len` bytes at `offset` into `buf` (resized).
+pub fn read_at(file: &File, path: &Path, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
+    buf.resize(len, 0);
+    file.read_exact_at(buf, offset)
+        .map_err(io_err(path, "reading"))
+}
+
+/// Flushes file data (and the size needed to read it) to stable storage.
+pub fn sync(file: &File, path: &Path) -> Result<()> {
+    file.sync_data().map_err(io_err(path, "syncing"))
+}
+
+/// Length of the file.
+pub fn file_len(file: &File, path: &Path) -> Result<u64> {
+    Ok(file
+        .metadata()
+        .map_err(io_err(path, "reading metadata"))?
+        .len())
+}
+
+/// Takes an advisory lock: exclusive for writers, shared for readers.
+pub fn lock(file: &File, path: &Path, exclusive: bool) -> Result<()> {
+    let op = if exclusive {
+        libc::LOCK_EX
+    } else {
+        libc::LOCK_SH
+    } | libc::LOCK_NB;
+    // SAFETY: flock on a valid open descriptor has no memory effects.
+    let rc = unsafe { libc::flock(file.as_raw_fd(), op) };
+    if rc == 0 {
+        return Ok(());
+    }
+    let err = std::io::Error::last_os_error();
+    if err.raw_os_error() == Some(libc::EWOULDBLOCK) {
+        Err(StorageError::Locked {
+            path: path.to_path_buf(),
+        })
+    } else {
+        Err(StorageError::Io {
+            path: path.to_path_buf(),
+            op: "locking",
+            source: err,
+        })
+    }
+}
+
+/// Renames `from` over `to` and makes the rename durable.
+pub fn durable_rename(from: &Path, to: &Path) -> Result<()> {
+    std::fs::rename(from, to).map_err(io_err(to, "renaming into place"))?;
+    let dir = to
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if let Ok(d) = File::open(dir) {
+        // Directory fsync is best effort: some filesystems refuse it.
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+/// Asks the kernel to drop its cached pages of the file (for cold-read measurements).
+pub fn drop_page_cache(file: &File) {
+    // SAFETY: advisory call on a valid descriptor.
+    unsafe {
+        libc::posix_fadvise(file.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED);
+    }
+}

@@ -1,0 +1,22 @@
+//! The holodeck storage engine: a portable, checksummed, crash-safe file of
+//! beams, with an LRU beam cache. It never touches sockets.
+//!
+//! Layout and codecs are in [`format`]; the fragment list in [`extents`]; the
+//! cache in [`cache`]; crash-safe commits in [`store`]; the user-facing API in
+//! [`HoloFile`]; whole-file tools in [`maintain`].
+
+pub mod bulk;
+pub mod cache;
+pub mod error;
+pub mod extents;
+pub mod format;
+pub mod holofile;
+mod io;
+pub mod maintain;
+pub mod store;
+
+pub use bulk::SequentialWriter;
+pub use error::{Result, StorageError};
+pub use holofile::{FileSummary, HoloFile, OpenOptions, ReadReport, DEFAULT_FLUSH_INTERVAL};
+pub use maintain::{check, optimize, repair, CheckReport, OptimizeReport, RepairReport};
+pub use store::{IoStats, OpenInfo};

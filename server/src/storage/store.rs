@@ -1,0 +1,469 @@
+//! The on-disk side of the engine: loads the current commit, writes beam runs,
+//! and commits directories. Knows nothing of the cache.
+//!
+//! Crash safety rests on three rules. (1) Bytes the durable commit refers to are
+//! never overwritten: new runs go to free space, and space released by a change
+//! becomes free only after the commit that drops it is durable. (2) A commit
+//! writes its directory blocks and root to free space, syncs, then writes the
+//! slot that is *not* the one the current state was loaded from, and syncs
+//! again. (3) Opening takes the highest-generation slot whose checksums, root
+//! and directories all verify; a torn last commit falls back to the one before.
+
+use std::collections::HashSet;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use holodeck_protocol::{BeamKey, RayRecord, Section};
+
+use super::error::{Result, StorageError};
+use super::extents::Extents;
+use super::format::{self, BeamEntry, DirRef, Extent, Slot, SLOT_LEN, SLOT_OFFSETS};
+use super::io::{self, WriteBatch};
+use crate::settings::Settings;
+
+/// How the current state was found on open.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OpenInfo {
+    /// Generation of the commit in use.
+    pub generation: u64,
+    /// Slot (0 or 1) it was read from.
+    pub slot: usize,
+    /// Why newer commits were passed over (a torn or corrupt last commit), if any.
+    pub skipped: Vec<String>,
+}
+
+/// Counters of engine work since open.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct IoStats {
+    /// Rays written to beam runs.
+    pub rays_written: u64,
+    /// Runs written or extended.
+    pub runs_written: u64,
+    /// Runs moved because they could not grow in place.
+    pub relocations: u64,
+    /// Commits made.
+    pub commits: u64,
+}
+
+/// One loaded commit: directories and where they and the root live.
+pub(crate) struct Loaded {
+    pub dirs: Vec<Vec<BeamEntry>>,
+    pub blocks: Vec<Extent>,
+    pub root: Extent,
+    pub extents: Extents,
+}
+
+/// The file and its in-memory directories.
+pub struct Store {
+    pub(crate) path: PathBuf,
+    pub(crate) file: File,
+    pub(crate) writable: bool,
+    pub(crate) dirs: Vec<Vec<BeamEntry>>,
+    dir_dirty: Vec<bool>,
+    blocks: Vec<Extent>,
+    root: Extent,
+    generation: u64,
+    next_slot: usize,
+    pub(crate) extents: Extents,
+    writes: WriteBatch,
+    /// Offsets of runs written since the last commit: no commit refers to them,
+    /// so they can be freed at once when their beam moves again.
+    fresh: HashSet<u64>,
+    file_len: u64,
+    pub(crate) stats: IoStats,
+    pub(crate) info: OpenInfo,
+}
+
+fn format_err(path: &Path) -> impl Fn(format::FormatError) -> StorageError + '_ {
+    move |source| StorageError::Format {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Reads the prefix and settings text; returns them with the data start offset.
+pub(crate) fn read_header(file: &File, path: &Path, file_len: u64) -> Result<(Settings, u64)> {
+    let mut buf = Vec::new();
+    io::read_at(
+        file,
+        path,
+        0,
+        file_len.min(format::PREFIX_LEN) as usize,
+        &mut buf,
+    )?;
+    let text_len = format::decode_prefix(&buf).map_err(format_err(path))?;
+    let data_start = format::data_start(text_len);
+    if file_len < data_start {
+        return Err(StorageError::Format {
+            path: path.to_path_buf(),
+            source: format::FormatError::Truncated {
+                what: "file header".into(),
+                start: 0,
+                end: data_start,
+                have: file_len,
+            },
+        });
+    }
+    io::read_at(
+        file,
+        path,
+        format::TEXT_OFFSET,
+        text_len as usize + 4,
+        &mut buf,
+    )?;
+    let text = format::decode_text(&buf).map_err(format_err(path))?;
+    let settings = Settings::from_text(&text).map_err(|source| StorageError::Settings {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok((settings, data_start))
+}
+
+/// Reads both slots; returns (slot index, slot) for those that decode, and problems.
+pub(crate) fn read_slots(file: &File, path: &Path) -> Result<(Vec<(usize, Slot)>, Vec<String>)> {
+    let mut buf = Vec::new();
+    io::read_at(file, path, SLOT_OFFSETS[0], 2 * SLOT_LEN as usize, &mut buf)?;
+    let (mut slots, mut problems) = (Vec::new(), Vec::new());
+    for (i, &at) in SLOT_OFFSETS.iter().enumerate() {
+        let bytes = &buf[(at - SLOT_OFFSETS[0]) as usize..][..SLOT_LEN as usize];
+        match format::decode_slot(bytes, at) {
+            Ok(Some(s)) => slots.push((i, s)),
+            Ok(None) => {}
+            Err(e) => problems.push(e.to_string()),
+        }
+    }
+    slots.sort_by_key(|(_, s)| std::cmp::Reverse(s.generation));
+    Ok((slots, problems))
+}
+
+fn read_extent(file: &File, path: &Path, e: Extent, file_len: u64, what: &str) -> Result<Vec<u8>> {
+    if e.end() > file_len {
+        return Err(StorageError::Format {
+            path: path.to_path_buf(),
+            source: format::FormatError::Truncated {
+                what: what.into(),
+                start: e.offset,
+                end: e.end(),
+                have: file_len.saturating_sub(e.offset),
+            },
+        });
+    }
+    let mut buf = Vec::new();
+    io::read_at(file, path, e.offset, e.len as usize, &mut buf)?;
+    Ok(buf)
+}
+
+/// Loads and fully validates the commit a slot points to.
+pub(crate) fn load_commit(
+    file: &File,
+    path: &Path,
+    slot: &Slot,
+    sections: &[Section],
+    data_start: u64,
+    file_len: u64,
+) -> Result<Loaded> {
+    let root_bytes = read_extent(file, path, slot.root, file_len, "commit root")?;
+    if crc32c::crc32c(&root_bytes) != slot.root_crc {
+        return Err(StorageError::Format {
+            path: path.to_path_buf(),
+            source: format::FormatError::Checksum {
+                what: format!("root of commit {}", slot.generation),
+                start: slot.root.offset,
+                end: slot.root.end(),
+                stored: slot.root_crc,
+                computed: crc32c::crc32c(&root_bytes),
+            },
+        });
+    }
+    let refs = format::decode_root(
+        &root_bytes,
+        slot.root.offset,
+        slot.generation,
+        sections.len(),
+    )
+    .map_err(format_err(path))?;
+    let mut dirs = Vec::with_capacity(sections.len());
+    let mut used = vec![slot.root];
+    for (s, (r, section)) in refs.iter().zip(sections).enumerate() {
+        let bytes = read_extent(
+            file,
+            path,
+            r.block,
+            file_len,
+            &format!("directory of section {s}"),
+        )?;
+        let d = format::decode_directory(
+            &bytes,
+            r.block.offset,
+            s as u32,
+            section.beam_count(),
+            data_start,
+            file_len,
+        )
+        .map_err(format_err(path))?;
+        used.push(r.block);
+        used.extend(d.iter().map(|e| e.extent()));
+        dirs.push(d);
+    }
+    let extents = Extents::from_used(data_start, used).map_err(|o| StorageError::Format {
+        path: path.to_path_buf(),
+        source: format::FormatError::Invalid {
+            what: format!("commit {}", slot.generation),
+            at: o.second.offset,
+            detail: format!(
+                "bytes {}..{} are claimed twice (also by {}..{})",
+                o.second.offset,
+                o.second.end(),
+                o.first.offset,
+                o.first.end()
+            ),
+        },
+    })?;
+    Ok(Loaded {
+        dirs,
+        blocks: refs.iter().map(|r| r.block).collect(),
+        root: slot.root,
+        extents,
+    })
+}
+
+impl Store {
+    /// Opens the file's current commit. Returns the settings too.
+    pub fn open(path: &Path, writable: bool) -> Result<(Store, Settings)> {
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(writable)
+            .open(path)
+            .map_err(|source| StorageError::Io {
+                path: path.to_path_buf(),
+                op: "opening",
+                source,
+            })?;
+        io::lock(&file, path, writable)?;
+        let file_len = io::file_len(&file, path)?;
+        let (settings, data_start) = read_header(&file, path, file_len)?;
+        let (slots, mut problems) = read_slots(&file, path)?;
+        let newest = slots.first().map(|(_, s)| s.generation).unwrap_or(0);
+        for (slot_index, slot) in &slots {
+            match load_commit(&file, path, slot, &settings.sections, data_start, file_len) {
+                Ok(l) => {
+                    if !problems.is_empty() {
+                        tracing::warn!(path = %path.display(), "using commit {}: {}", slot.generation, problems.join("; "));
+                    }
+                    let n = settings.sections.len();
+                    let store = Store {
+                        path: path.to_path_buf(),
+                        file,
+                        writable,
+                        dirs: l.dirs,
+                        dir_dirty: vec![false; n],
+                        blocks: l.blocks,
+                        root: l.root,
+                        generation: newest,
+                        next_slot: 1 - slot_index,
+                        extents: l.extents,
+                        writes: WriteBatch::default(),
+                        fresh: HashSet::new(),
+                        file_len,
+                        stats: IoStats::default(),
+                        info: OpenInfo {
+                            generation: slot.generation,
+                            slot: *slot_index,
+                            skipped: problems,
+                        },
+                    };
+                    return Ok((store, settings));
+                }
+                Err(e) => problems.push(format!(
+                    "commit {} (slot {slot_index}): {e}",
+                    slot.generation
+                )),
+            }
+        }
+        if slots.is_empty() {
+            problems.push("neither commit slot holds a commit".into());
+        }
+        Err(StorageError::NoValidCommit {
+            path: path.to_path_buf(),
+            problems: problems.join("\n"),
+        })
+    }
+
+    fn push_write(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {
+        self.file_len = self.file_len.max(offset + bytes.len() as u64);
+        self.writes.push(&self.file, &self.path, offset, bytes)
+    }
+
+    /// Reads `len` bytes at `offset`, seeing every write made so far.
+    pub(crate) fn read_into(&mut self, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
+        self.writes.flush(&self.file, &self.path)?;
+        io::read_at(&self.file, &self.path, offset, len, buf)
+    }
+
+    /// Reads one beam's run and verifies its checksum.
+    pub(crate) fn read_run(&mut self, key: BeamKey) -> Result<Vec<u8>> {
+        let e = self.dirs[key.section as usize][key.beam as usize];
+        let mut buf = Vec::new();
+        self.read_into(e.offset, e.extent().len as usize, &mut buf)?;
+        if crc32c::crc32c(&buf) != e.crc {
+            return Err(StorageError::BeamCorrupt {
+                path: self.path.clone(),
+                key,
+                start: e.offset,
+                end: e.extent().end(),
+            });
+        }
+        Ok(buf)
+    }
+
+    /// Writes rays appended to a beam: in place if the bytes after its run are
+    /// free, else the whole beam moves to a new run. `on_disk` supplies the
+    /// beam's existing rays when it must move and they are already in memory.
+    pub(crate) fn write_tail(
+        &mut self,
+        key: BeamKey,
+        on_disk: Option<&[RayRecord]>,
+        tail: &[RayRecord],
+    ) -> Result<()> {
+        if tail.is_empty() {
+            return Ok(());
+        }
+        let tail_bytes = RayRecord::slice_as_bytes(tail);
+        let len = tail_bytes.len() as u64;
+        let old = self.dirs[key.section as usize][key.beam as usize];
+        let count = old.count + tail.len() as u32;
+        let new = if old.count == 0 {
+            let offset = self.extents.allocate(len);
+            self.push_write(offset, tail_bytes)?;
+            self.fresh.insert(offset);
+            BeamEntry {
+                offset,
+                count,
+                crc: crc32c::crc32c(tail_bytes),
+            }
+        } else if self.extents.try_claim(old.extent().end(), len) {
+            self.push_write(old.extent().end(), tail_bytes)?;
+            BeamEntry {
+                offset: old.offset,
+                count,
+                crc: crc32c::crc32c_append(old.crc, tail_bytes),
+            }
+        } else {
+            let existing = match on_disk {
+                Some(rays) if rays.len() == old.count as usize => {
+                    RayRecord::slice_as_bytes(rays).to_vec()
+                }
+                _ => self.read_run(key)?,
+            };
+            let offset = self.extents.allocate(existing.len() as u64 + len);
+            self.push_write(offset, &existing)?;
+            self.push_write(offset + existing.len() as u64, tail_bytes)?;
+            if self.fresh.remove(&old.offset) {
+                self.extents.release_now(old.extent());
+            } else {
+                self.extents.release(old.extent());
+            }
+            self.fresh.insert(offset);
+            self.stats.relocations += 1;
+            BeamEntry {
+                offset,
+                count,
+                crc: crc32c::crc32c_append(old.crc, tail_bytes),
+            }
+        };
+        self.dirs[key.section as usize][key.beam as usize] = new;
+        self.dir_dirty[key.section as usize] = true;
+        self.stats.rays_written += tail.len() as u64;
+        self.stats.runs_written += 1;
+        Ok(())
+    }
+
+    /// True when something was written since the last commit.
+    pub fn has_changes(&self) -> bool {
+        self.dir_dirty.iter().any(|&d| d)
+    }
+
+    /// Makes everything written so far durable as a new commit.
+    pub fn commit(&mut self) -> Result<()> {
+        if !self.has_changes() {
+            return self.writes.flush(&self.file, &self.path);
+        }
+        let generation = self.generation + 1;
+        for s in 0..self.dirs.len() {
+            if !self.dir_dirty[s] {
+                continue;
+            }
+            let bytes = format::encode_directory(s as u32, &self.dirs[s]);
+            let block = Extent {
+                offset: self.extents.allocate(bytes.len() as u64),
+                len: bytes.len() as u64,
+            };
+            self.push_write(block.offset, &bytes)?;
+            self.extents.release(self.blocks[s]);
+            self.blocks[s] = block;
+        }
+        let refs: Vec<DirRef> = self
+            .dirs
+            .iter()
+            .zip(&self.blocks)
+            .map(|(d, b)| DirRef {
+                block: *b,
+                beams: d.len() as u32,
+                rays: d.iter().map(|e| u64::from(e.count)).sum(),
+            })
+            .collect();
+        let root_bytes = format::encode_root(generation, &refs);
+        let root = Extent {
+            offset: self.extents.allocate(root_bytes.len() as u64),
+            len: root_bytes.len() as u64,
+        };
+        self.push_write(root.offset, &root_bytes)?;
+        self.writes.flush(&self.file, &self.path)?;
+        io::sync(&self.file, &self.path)?;
+        let slot = Slot {
+            generation,
+            root,
+            root_crc: crc32c::crc32c(&root_bytes),
+        };
+        io::write_at(
+            &self.file,
+            &self.path,
+            SLOT_OFFSETS[self.next_slot],
+            &format::encode_slot(&slot),
+        )?;
+        io::sync(&self.file, &self.path)?;
+        // The new commit is durable: the old root and everything released may be reused.
+        self.extents.release(self.root);
+        self.root = root;
+        self.extents.commit_done();
+        self.fresh.clear();
+        self.generation = generation;
+        self.info.generation = generation;
+        self.info.slot = self.next_slot;
+        self.next_slot = 1 - self.next_slot;
+        self.dir_dirty.iter_mut().for_each(|d| *d = false);
+        self.stats.commits += 1;
+        if self.file_len > self.extents.end() {
+            // Space past the end is referenced by no commit: give it back.
+            self.file
+                .set_len(self.extents.end())
+                .map_err(|source| StorageError::Io {
+                    path: self.path.clone(),
+                    op: "trimming",
+                    source,
+                })?;
+            self.file_len = self.extents.end();
+        }
+        Ok(())
+    }
+
+    /// Current length of the file in bytes.
+    pub fn file_len(&self) -> u64 {
+        self.file_len
+    }
+
+    /// Bytes taken by the directory blocks and root of the current commit.
+    pub fn metadata_bytes(&self) -> u64 {
+        self.blocks.iter().map(|b| b.len).sum::<u64>() + self.root.len
+    }
+}

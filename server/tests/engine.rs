@@ -1,0 +1,508 @@
+//! The storage engine through its public API: round trips, eviction, crash
+//! recovery, damaged files, the fragment list and the optimizer.
+
+use std::fs;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+
+use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
+use holodeck_server::settings::Settings;
+use holodeck_server::storage::{self, format, HoloFile, OpenOptions, StorageError};
+
+/// Ray `j` of a beam: content fixed by (section, beam, j), so any misplaced,
+/// duplicated or invented record is detected.
+fn ray(key: BeamKey, j: u64) -> RayRecord {
+    let h = (u64::from(key.section) << 40 ^ u64::from(key.beam) << 20 ^ j)
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    let b = h.to_le_bytes();
+    RayRecord::new(
+        [b[0], b[1]],
+        [b[2], b[3]],
+        Rgbe([b[4], b[5], b[6], 130]),
+        DepthCode(u16::from_le_bytes([b[7], b[1]])),
+    )
+}
+
+fn rays(key: BeamKey, from: u64, n: u64) -> Vec<RayRecord> {
+    (from..from + n).map(|j| ray(key, j)).collect()
+}
+
+fn settings() -> Settings {
+    let room = Section::new(
+        [0.0; 3],
+        [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.5]],
+        [4, 3, 2],
+        SectionKind::Interior,
+    )
+    .unwrap();
+    let object = Section::new(
+        [10.0, 0.0, 0.0],
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        [2, 2, 2],
+        SectionKind::Exterior,
+    )
+    .unwrap();
+    Settings {
+        sections: vec![room, object],
+        cache_bytes: 1 << 20,
+        ..Settings::default()
+    }
+}
+
+fn new_file(dir: &Path) -> PathBuf {
+    let path = dir.join("test.hdk");
+    HoloFile::create(&path, &settings()).unwrap();
+    path
+}
+
+fn writable(cache: u64) -> OpenOptions {
+    OpenOptions {
+        writable: true,
+        cache_bytes: Some(cache),
+        flush_interval: None,
+    }
+}
+
+/// Asserts every beam holds exactly `expected[key]` rays with the right contents.
+fn assert_contents(path: &Path, expected: &std::collections::HashMap<BeamKey, u64>) {
+    let mut f = HoloFile::open(path, &OpenOptions::read_only()).unwrap();
+    let mut keys = Vec::new();
+    for (s, sec) in f.sections().iter().enumerate() {
+        keys.extend((0..sec.beam_count()).map(|b| BeamKey::new(s as u32, b)));
+    }
+    let mut seen = 0;
+    let report = f
+        .read_beams(&keys, |k, got| {
+            let n = expected.get(&k).copied().unwrap_or(0);
+            assert_eq!(got.len() as u64, n, "beam {k:?}");
+            assert_eq!(got, rays(k, 0, n).as_slice(), "contents of {k:?}");
+            seen += 1;
+        })
+        .unwrap();
+    assert!(report.corrupt.is_empty());
+    assert_eq!(seen, keys.len());
+}
+
+#[test]
+fn appended_rays_read_back_before_and_after_reopen() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let mut expected = std::collections::HashMap::new();
+    {
+        let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+        for round in 0..5u64 {
+            for b in [0u32, 7, 100, 575] {
+                let k = BeamKey::new(0, b);
+                let have = expected.get(&k).copied().unwrap_or(0);
+                f.append(k, &rays(k, have, 3 + round)).unwrap();
+                expected.insert(k, have + 3 + round);
+            }
+            let k = BeamKey::new(1, round as u32);
+            f.append(k, &rays(k, 0, 1)).unwrap();
+            expected.insert(k, 1);
+            if round == 2 {
+                f.flush().unwrap();
+            }
+        }
+        assert_eq!(f.beam_len(BeamKey::new(0, 7)).unwrap(), 3 + 4 + 5 + 6 + 7);
+        assert_eq!(
+            f.read_beam(BeamKey::new(0, 7)).unwrap(),
+            rays(BeamKey::new(0, 7), 0, 25)
+        );
+        f.close().unwrap();
+    }
+    assert_contents(&path, &expected);
+    let f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    let s = f.summary();
+    assert_eq!(s.rays(), expected.values().sum::<u64>());
+    assert_eq!(s.sections[0].1, 4);
+    assert_eq!(s.sections[1], (f.sections()[1].beam_count(), 5, 5));
+}
+
+#[test]
+fn a_tiny_cache_evicts_relocates_and_stays_within_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let budget = 8 << 10;
+    let mut expected = std::collections::HashMap::new();
+    let mut f = HoloFile::open(&path, &writable(budget)).unwrap();
+    let mut state = 12345u64;
+    for step in 0..4000u64 {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let k = BeamKey::new(0, ((state >> 33) % 60) as u32 * 7);
+        let n = 1 + (state >> 50) % 20;
+        let have = expected.get(&k).copied().unwrap_or(0);
+        f.append(k, &rays(k, have, n)).unwrap();
+        expected.insert(k, have + n);
+        assert!(
+            f.cache_usage().0 <= budget as usize,
+            "cache {} over budget",
+            f.cache_usage().0
+        );
+        if step % 500 == 499 {
+            f.flush().unwrap();
+        }
+        if step % 97 == 0 {
+            // Reads mixed with writes see every appended ray, flushed or not.
+            assert_eq!(f.read_beam(k).unwrap(), rays(k, 0, have + n));
+        }
+    }
+    let stats = f.io_stats();
+    assert!(
+        stats.relocations > 0,
+        "beams should have had to move: {stats:?}"
+    );
+    f.close().unwrap();
+    assert_contents(&path, &expected);
+    // Freed runs are reused: the file holds little beyond the live rays.
+    let s = HoloFile::open(&path, &OpenOptions::read_only())
+        .unwrap()
+        .summary();
+    assert!(
+        s.file_bytes < 2 * s.ray_bytes + 64 * 1024,
+        "file {} bytes for {} ray bytes",
+        s.file_bytes,
+        s.ray_bytes
+    );
+}
+
+#[test]
+fn unflushed_rays_are_lost_but_flushed_ones_survive_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let k = BeamKey::new(0, 42);
+    let mut f = HoloFile::open(&path, &writable(4096)).unwrap();
+    f.append(k, &rays(k, 0, 10)).unwrap();
+    f.flush().unwrap();
+    // Enough to force eviction writes, but no commit.
+    for b in 0..50 {
+        let kb = BeamKey::new(0, 1000 + b);
+        f.append(kb, &rays(kb, 0, 30)).unwrap();
+    }
+    f.append(k, &rays(k, 10, 5)).unwrap();
+    f.abandon();
+    let mut expected = std::collections::HashMap::new();
+    expected.insert(k, 10);
+    assert_contents(&path, &expected);
+}
+
+fn flip_byte(path: &Path, at: u64) {
+    let f = fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .unwrap();
+    let mut b = [0u8];
+    f.read_exact_at(&mut b, at).unwrap();
+    f.write_all_at(&[b[0] ^ 0x5a], at).unwrap();
+}
+
+#[test]
+fn a_torn_last_commit_falls_back_to_the_previous_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let (a, b) = (BeamKey::new(0, 1), BeamKey::new(0, 2));
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    f.append(a, &rays(a, 0, 4)).unwrap();
+    f.flush().unwrap();
+    f.append(b, &rays(b, 0, 6)).unwrap();
+    f.flush().unwrap();
+    let newest_slot = f.open_info().slot;
+    f.close().unwrap();
+    // Tear the newest slot, as a crash during its write would.
+    flip_byte(&path, format::SLOT_OFFSETS[newest_slot] + 20);
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    assert_eq!(f.open_info().skipped.len(), 1, "{:?}", f.open_info());
+    assert_eq!(f.read_beam(a).unwrap().len(), 4);
+    assert_eq!(f.beam_len(b).unwrap(), 0);
+    // Writing goes on from the surviving commit, and the next commit wins.
+    f.append(b, &rays(b, 0, 2)).unwrap();
+    f.close().unwrap();
+    let mut expected = std::collections::HashMap::new();
+    expected.insert(a, 4);
+    expected.insert(b, 2);
+    assert_contents(&path, &expected);
+    assert!(HoloFile::open(&path, &OpenOptions::read_only())
+        .unwrap()
+        .open_info()
+        .skipped
+        .is_empty());
+}
+
+#[test]
+fn corrupt_beams_are_detected_checked_and_salvaged() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let mut expected = std::collections::HashMap::new();
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    for b in 0..20 {
+        let k = BeamKey::new(0, b * 11);
+        f.append(k, &rays(k, 0, 8)).unwrap();
+        expected.insert(k, 8);
+    }
+    f.close().unwrap();
+    let victim = BeamKey::new(0, 77);
+    let offset = HoloFile::open(&path, &OpenOptions::read_only())
+        .unwrap()
+        .directory(0)
+        .unwrap()[77]
+        .offset;
+    flip_byte(&path, offset + 13);
+    let before = fs::read(&path).unwrap();
+
+    let mut f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    let err = f.read_beam(victim).unwrap_err();
+    assert!(
+        matches!(err, StorageError::BeamCorrupt { key, .. } if key == victim),
+        "{err}"
+    );
+    assert!(err.to_string().contains("beam 77 of section 0"), "{err}");
+    drop(f);
+
+    let report = storage::check(&path, |_, _| {}).unwrap();
+    assert_eq!(report.corrupt, vec![victim]);
+    assert_eq!(report.beams_ok, 19);
+    assert!(
+        storage::optimize(&path, |_, _| {}).is_err(),
+        "optimize must refuse a corrupt file"
+    );
+
+    let fixed = dir.path().join("fixed.hdk");
+    let r = storage::repair(&path, &fixed).unwrap();
+    assert_eq!((r.beams, r.rays, r.beams_lost), (19, 152, 1));
+    assert_eq!(
+        fs::read(&path).unwrap(),
+        before,
+        "the damaged original must be untouched"
+    );
+    expected.remove(&victim);
+    assert_contents(&fixed, &expected);
+    assert!(storage::check(&fixed, |_, _| {}).unwrap().is_clean());
+}
+
+#[test]
+fn damaged_files_give_errors_that_say_what_and_where() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    {
+        let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+        let k = BeamKey::new(0, 3);
+        f.append(k, &rays(k, 0, 100)).unwrap();
+        f.close().unwrap();
+    }
+    let good = fs::read(&path).unwrap();
+    let open = |bytes: &[u8]| {
+        let p = dir.path().join("bad.hdk");
+        fs::write(&p, bytes).unwrap();
+        HoloFile::open(&p, &OpenOptions::read_only())
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default()
+    };
+    assert!(open(b"").contains("not a holodeck file"));
+    assert!(open(b"#?RADIANCE\nFORMAT=holodeck\n").contains("Radiance"));
+    assert!(open(&good[..40]).contains("truncated"));
+    assert!(
+        open(&good[..300]).contains("truncated"),
+        "{}",
+        open(&good[..300])
+    );
+    let mut future = good.clone();
+    future[8] = 2;
+    assert!(open(&future).contains("version 2 is newer"));
+    let mut text = good.clone();
+    text[format::TEXT_OFFSET as usize + 5] ^= 1;
+    assert!(open(&text).contains("settings text"));
+    // Cut off the end: the newest commit's root is gone, the one before is intact.
+    let cut = dir.path().join("cut.hdk");
+    fs::write(&cut, &good[..good.len() - 30]).unwrap();
+    let f = HoloFile::open(&cut, &OpenOptions::read_only()).unwrap();
+    assert!(
+        f.open_info()
+            .skipped
+            .iter()
+            .any(|p| p.contains("truncated")),
+        "{:?}",
+        f.open_info()
+    );
+    assert_eq!(f.summary().rays(), 0);
+    drop(f);
+    // A directory whose checksum is fine but which points outside the file.
+    let lying = dir.path().join("lying.hdk");
+    fs::write(&lying, &good).unwrap();
+    point_a_beam_outside_the_file(&lying);
+    let e = HoloFile::open(&lying, &OpenOptions::read_only())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("beam 3 says its 100 rays lie at byte") && e.contains("outside the data area"),
+        "{e}"
+    );
+    // Zero both slots.
+    let mut noslots = good.clone();
+    noslots[64..192].fill(0);
+    assert!(open(&noslots).contains("neither commit slot"));
+}
+
+/// Rewrites the newest commit so that beam 3 of section 0 points past the end
+/// of the file, with every checksum valid, and makes the other slot unusable.
+fn point_a_beam_outside_the_file(path: &Path) {
+    let f = fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .unwrap();
+    let len = f.metadata().unwrap().len();
+    let slots: Vec<_> = format::SLOT_OFFSETS
+        .iter()
+        .map(|&at| {
+            let mut b = [0u8; 64];
+            f.read_exact_at(&mut b, at).unwrap();
+            format::decode_slot(&b, at).unwrap()
+        })
+        .collect();
+    let (newest, slot) = slots
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| s.map(|s| (i, s)))
+        .max_by_key(|(_, s)| s.generation)
+        .unwrap();
+    let mut root = vec![0u8; slot.root.len as usize];
+    f.read_exact_at(&mut root, slot.root.offset).unwrap();
+    let mut refs = format::decode_root(&root, slot.root.offset, slot.generation, 2).unwrap();
+    let mut block = vec![0u8; refs[0].block.len as usize];
+    f.read_exact_at(&mut block, refs[0].block.offset).unwrap();
+    let beams = settings().sections[0].beam_count();
+    let mut dir =
+        format::decode_directory(&block, refs[0].block.offset, 0, beams, 0, u64::MAX).unwrap();
+    dir[3].offset = len + 4096;
+    let block = format::encode_directory(0, &dir);
+    refs[0].block = format::Extent {
+        offset: len,
+        len: block.len() as u64,
+    };
+    f.write_all_at(&block, len).unwrap();
+    let root = format::encode_root(slot.generation, &refs);
+    let root_at = len + block.len() as u64;
+    f.write_all_at(&root, root_at).unwrap();
+    let new_slot = format::Slot {
+        root: format::Extent {
+            offset: root_at,
+            len: root.len() as u64,
+        },
+        root_crc: crc32c(&root),
+        ..slot
+    };
+    f.write_all_at(
+        &format::encode_slot(&new_slot),
+        format::SLOT_OFFSETS[newest],
+    )
+    .unwrap();
+    f.write_all_at(&[0xffu8; 64], format::SLOT_OFFSETS[1 - newest])
+        .unwrap();
+}
+
+fn crc32c(bytes: &[u8]) -> u32 {
+    // CRC-32C (Castagnoli), bitwise: the test's own check on the engine's checksums.
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0x82F6_3B78
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+#[test]
+fn optimize_collates_beams_and_removes_fragments() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let mut expected = std::collections::HashMap::new();
+    let mut f = HoloFile::open(&path, &writable(2048)).unwrap();
+    for round in 0..30u64 {
+        for b in (0..200u32).rev().step_by(3) {
+            let k = BeamKey::new(0, b);
+            let have = expected.get(&k).copied().unwrap_or(0);
+            f.append(k, &rays(k, have, 1 + (b as u64 + round) % 4))
+                .unwrap();
+            expected.insert(k, have + 1 + (b as u64 + round) % 4);
+        }
+        f.flush().unwrap();
+    }
+    f.close().unwrap();
+    let before = HoloFile::open(&path, &OpenOptions::read_only())
+        .unwrap()
+        .summary();
+    assert!(before.fragments > 0);
+    let r = storage::optimize(&path, |_, _| {}).unwrap();
+    assert_eq!(r.rays, before.rays());
+    assert_contents(&path, &expected);
+    let f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    let after = f.summary();
+    assert_eq!((after.free_bytes, after.fragments), (0, 0));
+    assert!(r.bytes_after < r.bytes_before);
+    // Nothing but header, rays and one compact directory: one byte per empty
+    // beam, at most seven per filled one, and the root.
+    let header = format::data_start(settings().to_text().len() as u32);
+    assert_eq!(
+        after.file_bytes,
+        header + after.ray_bytes + after.metadata_bytes
+    );
+    let (beams, filled): (u64, u64) = after
+        .sections
+        .iter()
+        .map(|s| (u64::from(s.0), u64::from(s.1)))
+        .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    assert!(
+        after.metadata_bytes <= beams + 6 * filled + 2 * 16 + 80,
+        "{} metadata bytes",
+        after.metadata_bytes
+    );
+    let offsets: Vec<u64> = f
+        .directory(0)
+        .unwrap()
+        .iter()
+        .filter(|e| e.count > 0)
+        .map(|e| e.offset)
+        .collect();
+    assert!(
+        offsets.windows(2).all(|w| w[0] < w[1]),
+        "beams collated in beam order"
+    );
+}
+
+#[test]
+fn locks_read_only_and_bad_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let _writer = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    let e = HoloFile::open(&path, &writable(1 << 20)).err().unwrap();
+    assert!(matches!(e, StorageError::Locked { .. }), "{e}");
+    drop(_writer);
+    let mut r = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    assert!(matches!(
+        r.append(BeamKey::new(0, 0), &[RayRecord::default()]),
+        Err(StorageError::ReadOnly { .. })
+    ));
+    assert!(matches!(
+        r.read_beam(BeamKey::new(5, 0)),
+        Err(StorageError::NoSuchSection {
+            section: 5,
+            count: 2
+        })
+    ));
+    let e = r.read_beam(BeamKey::new(1, 1_000_000)).unwrap_err();
+    assert!(e.to_string().contains("out of range"), "{e}");
+    assert!(matches!(
+        HoloFile::create(&path, &settings()),
+        Err(StorageError::Exists { .. })
+    ));
+}
