@@ -1,1 +1,86 @@
-fn main() {}
+//! `holodeck`: the one command users learn. It parses arguments and calls into
+//! the libraries; no holodeck logic lives here.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+mod human;
+mod progress;
+
+/// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
+#[derive(Parser)]
+#[command(name = "holodeck", version, about, long_about = None, after_help = EXAMPLES)]
+struct Cli {
+    /// More log output (-v info, -vv debug, -vvv trace).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    /// Only errors.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+const EXAMPLES: &str = "\
+Examples:
+  holodeck create room.hdk --section 'interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5' --grid 0.25
+  holodeck create room.hdk --control room.toml
+  holodeck info room.hdk
+  holodeck check room.hdk --repair salvaged.hdk
+  holodeck optimize room.hdk
+  holodeck grid room.hdk -o grid.obj
+  holodeck bench storage --rays 50M";
+
+#[derive(Subcommand)]
+enum Command {
+    /// Create an empty holodeck file from sections or a TOML control file.
+    Create(cmd::create::Args),
+    /// Show sections, grids, beams, rays, size and fragmentation (like rhinfo).
+    Info(cmd::info::Args),
+    /// Verify every checksum; optionally salvage what verifies into a new file.
+    Check(cmd::check::Args),
+    /// Rewrite a file with beams collated in beam order and no free space (like rhoptimize).
+    Optimize(cmd::optimize::Args),
+    /// Write the section grids as an OBJ line mesh for any 3D viewer.
+    Grid(cmd::grid::Args),
+    /// Measure the storage engine (append, recall, optimize, memory).
+    Bench(cmd::bench::Args),
+}
+
+fn init_logging(verbose: u8, quiet: bool) {
+    let level = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, 2) => "debug",
+        _ => "trace",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_env("HOLODECK_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.verbose, cli.quiet);
+    let result = match cli.command {
+        Command::Create(a) => cmd::create::run(a),
+        Command::Info(a) => cmd::info::run(a),
+        Command::Check(a) => cmd::check::run(a),
+        Command::Optimize(a) => cmd::optimize::run(a),
+        Command::Grid(a) => cmd::grid::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("holodeck: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -341,6 +341,34 @@ impl Section {
     pub fn world_dir_to_unit(&self, dir: DVec3) -> DVec3 {
         self.to_unit * dir
     }
+    /// World line segments drawing the section's box and its wall grids, each
+    /// line once: for viewing the holodeck layout in any mesh viewer.
+    pub fn grid_lines(&self) -> Vec<[DVec3; 2]> {
+        let mut lines = Vec::new();
+        // For each axis a, lines parallel to a at every grid coordinate on the walls
+        // perpendicular to the other two axes: (b, c) on the boundary of the wall grid.
+        for a in 0..3 {
+            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+            let (gb, gc) = (self.grid[b], self.grid[c]);
+            for i in 0..=gb {
+                for j in 0..=gc {
+                    let on_b_wall = i == 0 || i == gb;
+                    let on_c_wall = j == 0 || j == gc;
+                    if !(on_b_wall || on_c_wall) {
+                        continue;
+                    }
+                    let mut p = DVec3::ZERO;
+                    p[b] = f64::from(i) / f64::from(gb);
+                    p[c] = f64::from(j) / f64::from(gc);
+                    let mut q = p;
+                    q[a] = 1.0;
+                    lines.push([self.unit_to_world(p), self.unit_to_world(q)]);
+                }
+            }
+        }
+        lines
+    }
+
     /// True when a world point lies inside the section (boundary included).
     pub fn contains(&self, world: DVec3) -> bool {
         let u = self.world_to_unit(world);
@@ -432,6 +460,20 @@ mod tests {
         ));
         let err = Section::new([0.0; 3], BOX, [255, 255, 255], k).unwrap_err();
         assert!(err.to_string().contains("coarser grid"), "{err}");
+    }
+
+    #[test]
+    fn grid_lines_cover_every_wall_line_once() {
+        let s = Section::new([0.0; 3], BOX, [2, 3, 1], SectionKind::Interior).unwrap();
+        let lines = s.grid_lines();
+        // Lines along axis a: the boundary points of the other two axes' grid,
+        // (gb+1)(gc+1) - (gb-1)(gc-1): 8 along x (3 by 1), 6 along y (1 by 2), 10 along z (2 by 3).
+        assert_eq!(lines.len(), 8 + 6 + 10);
+        let mut keys: Vec<String> = lines.iter().map(|l| format!("{:?}", l)).collect();
+        keys.sort();
+        keys.dedup();
+        assert_eq!(keys.len(), lines.len(), "no line drawn twice");
+        assert!(lines.iter().all(|[p, q]| s.contains(*p) && s.contains(*q)));
     }
 
     #[test]

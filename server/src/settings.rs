@@ -194,8 +194,18 @@ pub fn section_text(s: &Section) -> String {
     )
 }
 
-/// Parses a section line (the inverse of [`section_text`]).
+/// Parses a section line (the inverse of [`section_text`]); `grid=` is required.
 pub fn parse_section(text: &str) -> Result<Section, String> {
+    parse_section_line(text, None, None)
+}
+
+/// Parses a section line whose `grid=` may be left out: the grid then comes from
+/// `grid_length` (Radiance's GRID), else from `target_beams`, else 150,000 beams.
+pub fn parse_section_line(
+    text: &str,
+    grid_length: Option<f64>,
+    target_beams: Option<u64>,
+) -> Result<Section, String> {
     let mut words = text.split_whitespace();
     let kind = match words.next() {
         Some("interior") => SectionKind::Interior,
@@ -240,7 +250,14 @@ pub fn parse_section(text: &str) -> Result<Section, String> {
         axes[1].ok_or("section has no y= axis")?,
         axes[2].ok_or("section has no z= axis")?,
     ];
-    let grid = grid.ok_or("section has no grid=")?;
+    let grid = match (grid, grid_length, target_beams) {
+        (Some(g), _, _) => g,
+        (None, Some(len), _) => grid_for_length(axes, len).map_err(|e| e.to_string())?,
+        (None, None, Some(n)) => grid_for_beam_count(axes, n).map_err(|e| e.to_string())?,
+        (None, None, None) => {
+            return Err("section has no grid= (give one, or a cell length)".into())
+        }
+    };
     Section::new(origin, axes, grid, kind).map_err(|e| e.to_string())
 }
 

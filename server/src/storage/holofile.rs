@@ -17,9 +17,11 @@ use super::store::{IoStats, OpenInfo, Store};
 use crate::settings::Settings;
 
 /// Runs closer than this are read in one request, gap included.
-const MERGE_GAP: u64 = 64 << 10;
+const MERGE_GAP: u64 = 16 << 10;
 /// Largest single read when merging runs.
 const MERGE_LIMIT: u64 = 8 << 20;
+/// How far ahead of the current read the kernel is told what comes next.
+const READ_AHEAD: u64 = 32 << 20;
 /// Default interval between automatic flushes.
 pub const DEFAULT_FLUSH_INTERVAL: Duration = Duration::from_secs(2);
 
@@ -79,7 +81,7 @@ pub struct FileSummary {
     pub ray_bytes: u64,
     /// Bytes of the current directories and root.
     pub metadata_bytes: u64,
-    /// Free bytes inside the file.
+    /// Free bytes inside the file (holes, plus growth reserves that reopening frees).
     pub free_bytes: u64,
     /// Number of free holes.
     pub fragments: usize,
@@ -322,21 +324,11 @@ impl HoloFile {
         }
         misses.sort_by_key(|k| self.entry(*k).offset);
         misses.dedup();
+        let groups = self.read_groups(&misses);
+        let mut announced = 0;
         let mut start = 0;
-        while start < misses.len() {
-            // Grow a group while the next run is close and the read stays bounded.
-            let first = self.entry(misses[start]).offset;
-            let mut end = start + 1;
-            let mut group_end = self.entry(misses[start]).extent().end();
-            while end < misses.len() {
-                let e = self.entry(misses[end]).extent();
-                if e.offset > group_end + MERGE_GAP || e.end().max(group_end) - first > MERGE_LIMIT
-                {
-                    break;
-                }
-                group_end = group_end.max(e.end());
-                end += 1;
-            }
+        for (k, &(end, first, group_end)) in groups.iter().enumerate() {
+            announced = self.announce(&groups, k, announced);
             let mut buf = std::mem::take(&mut self.read_buf);
             self.store
                 .read_into(first, (group_end - first) as usize, &mut buf)?;
@@ -363,6 +355,49 @@ impl HoloFile {
             self.read_buf = Vec::new();
         }
         Ok(report)
+    }
+
+    /// Splits keys sorted by offset into reads: (index one past the group's last
+    /// key, first byte, one past the last byte). Nearby runs share a read.
+    fn read_groups(&self, sorted: &[BeamKey]) -> Vec<(usize, u64, u64)> {
+        let mut groups = Vec::new();
+        let mut i = 0;
+        while i < sorted.len() {
+            let first = self.entry(sorted[i]).offset;
+            let mut end = self.entry(sorted[i]).extent().end();
+            let mut j = i + 1;
+            while j < sorted.len() {
+                let e = self.entry(sorted[j]).extent();
+                if e.offset > end + MERGE_GAP || e.end().max(end) - first > MERGE_LIMIT {
+                    break;
+                }
+                end = end.max(e.end());
+                j += 1;
+            }
+            groups.push((j, first, end));
+            i = j;
+        }
+        groups
+    }
+
+    /// Keeps the kernel told of the reads up to [`READ_AHEAD`] bytes past group
+    /// `at`, so the disk works on many at once; returns how many groups are announced.
+    fn announce(&self, groups: &[(usize, u64, u64)], at: usize, announced: usize) -> usize {
+        if announced > at + 1 {
+            return announced;
+        }
+        let mut bytes = 0;
+        let mut upto = announced.max(at);
+        while upto < groups.len() && bytes < READ_AHEAD {
+            bytes += groups[upto].2 - groups[upto].1;
+            upto += 1;
+        }
+        let window: Vec<(u64, u64)> = groups[announced.max(at)..upto]
+            .iter()
+            .map(|g| (g.1, g.2))
+            .collect();
+        self.store.will_need(&window);
+        upto
     }
 
     /// Joins a beam's disk records with any cached unwritten tail, caches it if it fits, and visits it.
@@ -413,7 +448,7 @@ impl HoloFile {
             file_bytes: self.store.file_len(),
             ray_bytes: rays * RAY_RECORD_BYTES as u64,
             metadata_bytes: self.store.metadata_bytes(),
-            free_bytes: self.store.extents.free_bytes(),
+            free_bytes: self.store.extents.free_bytes() + self.store.reserved_bytes(),
             fragments: self.store.extents.fragments(),
             generation: self.store.info.generation,
         }
@@ -437,23 +472,15 @@ impl HoloFile {
         mut visit: impl FnMut(std::result::Result<(BeamKey, &[RayRecord]), BeamKey>) -> Result<()>,
     ) -> Result<()> {
         keys.sort_by_key(|k| self.entry(*k).offset);
+        let groups = self.read_groups(keys);
         let mut buf = Vec::new();
-        let mut i = 0;
-        while i < keys.len() {
-            let first = self.entry(keys[i]).offset;
-            let mut j = i;
-            let mut end = first;
-            while j < keys.len() {
-                let e = self.entry(keys[j]).extent();
-                if j > i && (e.offset > end + MERGE_GAP || e.end().max(end) - first > MERGE_LIMIT) {
-                    break;
-                }
-                end = end.max(e.end());
-                j += 1;
-            }
+        let mut announced = 0;
+        let mut start = 0;
+        for (k, &(end, first, group_end)) in groups.iter().enumerate() {
+            announced = self.announce(&groups, k, announced);
             self.store
-                .read_into(first, (end - first) as usize, &mut buf)?;
-            for &key in &keys[i..j] {
+                .read_into(first, (group_end - first) as usize, &mut buf)?;
+            for &key in &keys[start..end] {
                 let e = self.entry(key);
                 let bytes = &buf[(e.offset - first) as usize..][..e.extent().len as usize];
                 if crc32c::crc32c(bytes) == e.crc {
@@ -462,7 +489,7 @@ impl HoloFile {
                     visit(Err(key))?;
                 }
             }
-            i = j;
+            start = end;
         }
         Ok(())
     }

@@ -125,6 +125,20 @@ pub fn durable_rename(from: &Path, to: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Tells the kernel these bytes will be read soon, so it can fetch many runs
+/// concurrently instead of one read at a time.
+pub fn will_need(file: &File, offset: u64, len: u64) {
+    // SAFETY: advisory call on a valid descriptor.
+    unsafe {
+        libc::posix_fadvise(
+            file.as_raw_fd(),
+            offset as libc::off_t,
+            len as libc::off_t,
+            libc::POSIX_FADV_WILLNEED,
+        );
+    }
+}
+
 /// Asks the kernel to drop its cached pages of the file (for cold-read measurements).
 pub fn drop_page_cache(file: &File) {
     // SAFETY: advisory call on a valid descriptor.

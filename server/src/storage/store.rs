@@ -59,6 +59,9 @@ pub struct Store {
     pub(crate) file: File,
     pub(crate) writable: bool,
     pub(crate) dirs: Vec<Vec<BeamEntry>>,
+    /// Records each beam's run has room for (its count plus an in-memory growth
+    /// reserve). No commit refers to the reserve, so reopening frees it.
+    capacity: Vec<Vec<u32>>,
     dir_dirty: Vec<bool>,
     blocks: Vec<Extent>,
     root: Extent,
@@ -72,6 +75,14 @@ pub struct Store {
     file_len: u64,
     pub(crate) stats: IoStats,
     pub(crate) info: OpenInfo,
+}
+
+const RECORD: u64 = holodeck_protocol::RAY_RECORD_BYTES as u64;
+
+/// Room given to a run that must move: half again its size, so that a beam
+/// growing by small appends moves O(log n) times instead of O(n).
+fn grow(count: u32) -> u32 {
+    count.saturating_add(count / 2).max(count.saturating_add(4))
 }
 
 fn format_err(path: &Path) -> impl Fn(format::FormatError) -> StorageError + '_ {
@@ -255,6 +266,11 @@ impl Store {
                         path: path.to_path_buf(),
                         file,
                         writable,
+                        capacity: l
+                            .dirs
+                            .iter()
+                            .map(|d| d.iter().map(|e| e.count).collect())
+                            .collect(),
                         dirs: l.dirs,
                         dir_dirty: vec![false; n],
                         blocks: l.blocks,
@@ -300,6 +316,13 @@ impl Store {
         io::read_at(&self.file, &self.path, offset, len, buf)
     }
 
+    /// Announces reads about to be made (see [`io::will_need`]).
+    pub(crate) fn will_need(&self, groups: &[(u64, u64)]) {
+        for &(offset, end) in groups {
+            io::will_need(&self.file, offset, end - offset);
+        }
+    }
+
     /// Reads one beam's run and verifies its checksum.
     pub(crate) fn read_run(&mut self, key: BeamKey) -> Result<Vec<u8>> {
         let e = self.dirs[key.section as usize][key.beam as usize];
@@ -316,9 +339,10 @@ impl Store {
         Ok(buf)
     }
 
-    /// Writes rays appended to a beam: in place if the bytes after its run are
-    /// free, else the whole beam moves to a new run. `on_disk` supplies the
-    /// beam's existing rays when it must move and they are already in memory.
+    /// Writes rays appended to a beam: into its run's reserve, or by growing the
+    /// run in place if the bytes after it are free, else by moving the whole
+    /// beam to a new run with room to grow. `on_disk` supplies the beam's
+    /// existing rays when it must move and they are already in memory.
     pub(crate) fn write_tail(
         &mut self,
         key: BeamKey,
@@ -328,54 +352,88 @@ impl Store {
         if tail.is_empty() {
             return Ok(());
         }
+        let (s, b) = (key.section as usize, key.beam as usize);
         let tail_bytes = RayRecord::slice_as_bytes(tail);
-        let len = tail_bytes.len() as u64;
-        let old = self.dirs[key.section as usize][key.beam as usize];
+        let old = self.dirs[s][b];
+        let cap = u64::from(self.capacity[s][b]);
         let count = old.count + tail.len() as u32;
-        let new = if old.count == 0 {
-            let offset = self.extents.allocate(len);
-            self.push_write(offset, tail_bytes)?;
-            self.fresh.insert(offset);
+        let run_end = old.extent().end();
+        let reserve_end = old.offset + cap * RECORD;
+        let new = if old.count > 0 && u64::from(count) <= cap {
+            self.push_write(run_end, tail_bytes)?;
             BeamEntry {
-                offset,
+                offset: old.offset,
                 count,
-                crc: crc32c::crc32c(tail_bytes),
+                crc: crc32c::crc32c_append(old.crc, tail_bytes),
             }
-        } else if self.extents.try_claim(old.extent().end(), len) {
-            self.push_write(old.extent().end(), tail_bytes)?;
+        } else if old.count > 0
+            && self
+                .extents
+                .try_claim(reserve_end, u64::from(count) * RECORD - cap * RECORD)
+        {
+            self.push_write(run_end, tail_bytes)?;
+            self.capacity[s][b] = count;
             BeamEntry {
                 offset: old.offset,
                 count,
                 crc: crc32c::crc32c_append(old.crc, tail_bytes),
             }
         } else {
-            let existing = match on_disk {
-                Some(rays) if rays.len() == old.count as usize => {
+            let existing = match (old.count, on_disk) {
+                (0, _) => Vec::new(),
+                (_, Some(rays)) if rays.len() == old.count as usize => {
                     RayRecord::slice_as_bytes(rays).to_vec()
                 }
                 _ => self.read_run(key)?,
             };
-            let offset = self.extents.allocate(existing.len() as u64 + len);
+            let room = grow(count);
+            let offset = self.extents.allocate(u64::from(room) * RECORD);
             self.push_write(offset, &existing)?;
             self.push_write(offset + existing.len() as u64, tail_bytes)?;
-            if self.fresh.remove(&old.offset) {
-                self.extents.release_now(old.extent());
-            } else {
-                self.extents.release(old.extent());
+            if old.count > 0 {
+                let unreferenced = Extent {
+                    offset: run_end,
+                    len: reserve_end - run_end,
+                };
+                if self.fresh.remove(&old.offset) {
+                    self.extents.release_now(Extent {
+                        offset: old.offset,
+                        len: cap * RECORD,
+                    });
+                } else {
+                    self.extents.release(old.extent());
+                    self.extents.release_now(unreferenced);
+                }
+                self.stats.relocations += 1;
             }
             self.fresh.insert(offset);
-            self.stats.relocations += 1;
-            BeamEntry {
-                offset,
-                count,
-                crc: crc32c::crc32c_append(old.crc, tail_bytes),
-            }
+            self.capacity[s][b] = room;
+            let crc = if old.count == 0 {
+                crc32c::crc32c(tail_bytes)
+            } else {
+                crc32c::crc32c_append(old.crc, tail_bytes)
+            };
+            BeamEntry { offset, count, crc }
         };
-        self.dirs[key.section as usize][key.beam as usize] = new;
-        self.dir_dirty[key.section as usize] = true;
+        self.dirs[s][b] = new;
+        self.dir_dirty[s] = true;
         self.stats.rays_written += tail.len() as u64;
         self.stats.runs_written += 1;
         Ok(())
+    }
+
+    /// Bytes held in growth reserves (free once the file is reopened or optimized).
+    pub fn reserved_bytes(&self) -> u64 {
+        self.dirs
+            .iter()
+            .zip(&self.capacity)
+            .map(|(d, c)| {
+                d.iter()
+                    .zip(c)
+                    .map(|(e, &c)| u64::from(c - e.count) * RECORD)
+                    .sum::<u64>()
+            })
+            .sum()
     }
 
     /// True when something was written since the last commit.

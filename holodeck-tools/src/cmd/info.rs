@@ -1,0 +1,76 @@
+//! `holodeck info`: what a holodeck file holds (like Radiance's rhinfo).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Result;
+use holodeck_server::settings::section_text;
+use holodeck_server::{HoloFile, OpenOptions};
+
+use crate::human::{bytes, count};
+
+/// Arguments of `holodeck info`.
+#[derive(clap::Args)]
+#[command(after_help = "Example:\n  holodeck info room.hdk")]
+pub struct Args {
+    /// The holodeck file.
+    file: PathBuf,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let f = HoloFile::open(&a.file, &OpenOptions::read_only())?;
+    let s = f.summary();
+    println!("{}: holodeck, commit {}", a.file.display(), s.generation);
+    for skipped in &f.open_info().skipped {
+        println!("  note: passed over a damaged newer commit: {skipped}");
+    }
+    for (i, (section, (beams, filled, rays))) in f.sections().iter().zip(&s.sections).enumerate() {
+        let g = section.grid();
+        println!("section {i}: {}", section_text(section));
+        println!(
+            "  grid {} x {} x {}, {} beams, {} holding rays ({:.1}%), {} rays ({:.1} per filled beam)",
+            g[0],
+            g[1],
+            g[2],
+            count(u64::from(*beams)),
+            count(u64::from(*filled)),
+            100.0 * f64::from(*filled) / f64::from((*beams).max(1)),
+            count(*rays),
+            *rays as f64 / f64::from((*filled).max(1))
+        );
+    }
+    println!(
+        "file: {}, {} rays, {:.3} bytes per ray",
+        bytes(s.file_bytes),
+        count(s.rays()),
+        s.bytes_per_ray()
+    );
+    println!(
+        "space: {} rays, {} directories, {} free in {} fragments ({:.1}% of the file)",
+        bytes(s.ray_bytes),
+        bytes(s.metadata_bytes),
+        bytes(s.free_bytes),
+        count(s.fragments as u64),
+        100.0 * s.free_bytes as f64 / s.file_bytes.max(1) as f64
+    );
+    let st = f.settings();
+    println!(
+        "settings: OBSTRUCTIONS={} VDISTANCE={} CACHE={} DISKSPACE={} TIME={:?} REPORT={:?}{}",
+        st.obstructions,
+        st.vdistance,
+        bytes(st.cache_bytes),
+        if st.diskspace_bytes == 0 {
+            "unlimited".to_string()
+        } else {
+            bytes(st.diskspace_bytes)
+        },
+        st.time,
+        st.report,
+        st.scene
+            .as_ref()
+            .map(|h| format!(" SCENE={h}"))
+            .unwrap_or_default()
+    );
+    Ok(ExitCode::SUCCESS)
+}

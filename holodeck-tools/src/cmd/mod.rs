@@ -1,0 +1,8 @@
+//! One module per subcommand: argument definitions and a `run` that calls the libraries.
+
+pub mod bench;
+pub mod check;
+pub mod create;
+pub mod grid;
+pub mod info;
+pub mod optimize;

@@ -1,0 +1,45 @@
+//! `holodeck optimize`: collate beams in beam order, drop free space (like rhoptimize).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::Result;
+use holodeck_server::storage;
+
+use crate::human::{bytes, count};
+
+/// Arguments of `holodeck optimize`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+The file is rewritten beside the original and renamed over it only once complete and
+synced: a crash or a damaged beam leaves the original untouched. No server may hold
+the file meanwhile.
+
+Example:
+  holodeck optimize room.hdk")]
+pub struct Args {
+    /// The holodeck file.
+    file: PathBuf,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let bar = crate::progress::bytes_bar("optimizing");
+    let start = Instant::now();
+    let r = storage::optimize(&a.file, |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    let r = r?;
+    println!(
+        "{}: {} rays, {} -> {} in {:.2} s",
+        a.file.display(),
+        count(r.rays),
+        bytes(r.bytes_before),
+        bytes(r.bytes_after),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(ExitCode::SUCCESS)
+}
