@@ -183,8 +183,8 @@ impl Section {
             }
         }
         let (entry_wall, exit_wall) = (entry_wall?, exit_wall?);
-        if !(t_near < t_far) || !t_near.is_finite() || !t_far.is_finite() || entry_wall == exit_wall
-        {
+        // Finite first: then the comparison cannot meet a NaN.
+        if !t_near.is_finite() || !t_far.is_finite() || t_near >= t_far || entry_wall == exit_wall {
             return None;
         }
         let (entry, entry_sub) = self.wall_position(entry_wall, p + d * t_near);
@@ -200,12 +200,7 @@ impl Section {
     }
 
     /// The ray a beam sample stands for, from sub-cell centers of its entry and exit cells.
-    pub fn beam_ray(
-        &self,
-        beam: BeamIndex,
-        entry_sub: [u8; 2],
-        exit_sub: [u8; 2],
-    ) -> Result<BeamRay, SectionError> {
+    pub fn beam_ray(&self, beam: BeamIndex, entry_sub: [u8; 2], exit_sub: [u8; 2]) -> Result<BeamRay, SectionError> {
         let cells = self.beam_cells(beam)?;
         let a = self.unit_to_world(self.wall_point(cells.entry, entry_sub));
         let b = self.unit_to_world(self.wall_point(cells.exit, exit_sub));
@@ -223,8 +218,7 @@ impl Section {
     /// centers, times that line's length. Exact for a prism between facing cells.
     pub fn beam_volume(&self, beam: BeamIndex) -> Result<f64, SectionError> {
         let cells = self.beam_cells(beam)?;
-        let centre =
-            |c: WallCell| self.unit_to_world(self.wall_point(c, [127, 127]) + self.half_sub(c));
+        let centre = |c: WallCell| self.unit_to_world(self.wall_point(c, [127, 127]) + self.half_sub(c));
         let area = |c: WallCell| {
             let [u, v] = c.wall.cell_axes();
             let eu = self.axes()[u] / f64::from(self.grid()[u]);
@@ -300,10 +294,7 @@ mod tests {
             cell: [2, 0],
         };
         assert!(matches!(
-            s.beam_index(CellPair {
-                entry: c,
-                exit: far
-            }),
+            s.beam_index(CellPair { entry: c, exit: far }),
             Err(SectionError::CellOutOfRange { .. })
         ));
     }
@@ -319,15 +310,11 @@ mod tests {
         assert_eq!(cells.entry.cell, [1, 1]);
         assert!((hit.t_entry - 1.0).abs() < 1e-12 && (hit.t_exit - 5.0).abs() < 1e-12);
         // Reversed direction swaps entry and exit walls.
-        let back = s
-            .locate(o + DVec3::new(-1.0, 1.5, 1.25), -DVec3::X)
-            .unwrap();
+        let back = s.locate(o + DVec3::new(-1.0, 1.5, 1.25), -DVec3::X).unwrap();
         assert_eq!(s.beam_cells(back.beam).unwrap().entry.wall, Wall(1));
         // Parallel to a wall but outside: miss. Zero direction: miss.
         assert!(s.locate(o + DVec3::new(0.0, 5.0, 1.0), DVec3::X).is_none());
-        assert!(s
-            .locate(o + DVec3::new(1.0, 1.0, 1.0), DVec3::ZERO)
-            .is_none());
+        assert!(s.locate(o + DVec3::new(1.0, 1.0, 1.0), DVec3::ZERO).is_none());
         // Lying in a wall's plane is inside the closed slab: still a beam.
         assert!(s.locate(o + DVec3::new(-1.0, 0.0, 1.0), DVec3::X).is_some());
     }
@@ -353,13 +340,15 @@ mod tests {
     }
 
     fn any_section() -> impl Strategy<Value = Section> {
-        (1u16..10, 1u16..10, 1u16..10, any::<bool>()).prop_map(|(w, d, h, shear)| {
-            if shear {
-                sheared([w, d, h])
-            } else {
-                room([w, d, h])
-            }
-        })
+        (1u16..10, 1u16..10, 1u16..10, any::<bool>()).prop_map(
+            |(w, d, h, shear)| {
+                if shear {
+                    sheared([w, d, h])
+                } else {
+                    room([w, d, h])
+                }
+            },
+        )
     }
 
     proptest! {

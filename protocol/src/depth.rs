@@ -51,9 +51,7 @@ impl DepthCode {
     pub fn decode(self, diagonal: f64) -> Option<f64> {
         match self.0 {
             DEPTH_INFINITE => None,
-            c if c < DEPTH_LINEAR_CODES => {
-                Some(f64::from(c) * diagonal / f64::from(DEPTH_LINEAR_CODES))
-            }
+            c if c < DEPTH_LINEAR_CODES => Some(f64::from(c) * diagonal / f64::from(DEPTH_LINEAR_CODES)),
             c => Some(diagonal * LOG_STEP.powi(i32::from(c - DEPTH_LINEAR_CODES))),
         }
     }
@@ -65,9 +63,7 @@ impl DepthCode {
 
     /// Largest finite distance that can be encoded, in world units.
     pub fn max_finite(diagonal: f64) -> f64 {
-        DepthCode(DEPTH_INFINITE - 1)
-            .decode(diagonal)
-            .unwrap_or(f64::MAX)
+        DepthCode(DEPTH_INFINITE - 1).decode(diagonal).unwrap_or(f64::MAX)
     }
 }
 
@@ -87,10 +83,7 @@ mod tests {
         assert_eq!(DepthCode::encode(1e300, diag), DepthCode::INFINITE);
         assert_eq!(DepthCode::INFINITE.decode(diag), None);
         let max = DepthCode::max_finite(diag) / diag;
-        assert!(
-            max > 1e13 && max < 1e14,
-            "max finite distance {max} diagonals"
-        );
+        assert!(max > 1e13 && max < 1e14, "max finite distance {max} diagonals");
         // Decoding is monotonic and continuous across the linear/log border.
         let below = DepthCode(DEPTH_LINEAR_CODES - 1).decode(diag).unwrap();
         let at = DepthCode(DEPTH_LINEAR_CODES).decode(diag).unwrap();

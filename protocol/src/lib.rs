@@ -18,6 +18,6 @@ pub use depth::DepthCode;
 pub use record::{DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
 pub use rgbe::Rgbe;
 pub use section::{
-    beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind,
-    Wall, MAX_BEAMS_PER_SECTION, MAX_GRID,
+    beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind, Wall,
+    MAX_BEAMS_PER_SECTION, MAX_GRID,
 };

@@ -88,11 +88,7 @@ pub struct DecodedRay {
 
 impl Section {
     /// Decodes a record of `beam` into its world ray, color and hit point.
-    pub fn decode_record(
-        &self,
-        beam: BeamIndex,
-        rec: &RayRecord,
-    ) -> Result<DecodedRay, SectionError> {
+    pub fn decode_record(&self, beam: BeamIndex, rec: &RayRecord) -> Result<DecodedRay, SectionError> {
         let ray = self.beam_ray(beam, rec.entry, rec.exit)?;
         let hit = match rec.depth_code().decode(self.diagonal()) {
             Some(d) => Hit::Point(ray.origin + ray.direction * d),
@@ -138,10 +134,7 @@ mod tests {
     #[test]
     fn layout_is_ten_bytes_in_paper_order() {
         let r = RayRecord::new([1, 2], [3, 4], Rgbe([5, 6, 7, 8]), DepthCode(0x0a09));
-        assert_eq!(
-            RayRecord::slice_as_bytes(&[r]),
-            &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
-        );
+        assert_eq!(RayRecord::slice_as_bytes(&[r]), &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
         let bytes = [9u8; 25];
         assert!(RayRecord::vec_from_bytes(&bytes).is_none());
         assert_eq!(RayRecord::vec_from_bytes(&bytes[..20]).unwrap().len(), 2);

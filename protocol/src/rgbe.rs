@@ -13,9 +13,7 @@ const EXPONENT_BIAS: i32 = 128;
 
 /// A color in RGBE format: bytes are red, green and blue mantissas then the shared exponent.
 #[repr(transparent)]
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable, Serialize, Deserialize,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Pod, Zeroable, Serialize, Deserialize)]
 pub struct Rgbe(pub [u8; 4]);
 
 /// Largest value one channel can hold: mantissa 255 with exponent byte 255.
@@ -98,10 +96,7 @@ mod tests {
         assert_eq!(Rgbe::from_rgb([0.0; 3]), Rgbe::ZERO);
         assert_eq!(Rgbe::ZERO.to_rgb(), [0.0; 3]);
         assert_eq!(Rgbe::from_rgb([1e-45, 0.0, 0.0]), Rgbe::ZERO);
-        assert_eq!(
-            Rgbe::from_rgb([f32::NAN, -1.0, f32::NEG_INFINITY]),
-            Rgbe::ZERO
-        );
+        assert_eq!(Rgbe::from_rgb([f32::NAN, -1.0, f32::NEG_INFINITY]), Rgbe::ZERO);
         let inf = Rgbe::from_rgb([f32::INFINITY, 1.0, 0.0]);
         assert_eq!(inf.0[3], 255);
         assert!(inf.to_rgb().iter().all(|c| c.is_finite()));

@@ -167,19 +167,13 @@ pub fn grid_for_length(axes: [[f64; 3]; 3], length: f64) -> Result<[u16; 3], Sec
 /// The grid (from some cell length) whose beam count is closest to `target`,
 /// measured by ratio. Useful to follow the paper's advice of 50k–500k beams.
 pub fn grid_for_beam_count(axes: [[f64; 3]; 3], target: u64) -> Result<[u16; 3], SectionError> {
-    let longest = axes
-        .iter()
-        .map(|a| DVec3::from(*a).length())
-        .fold(0.0, f64::max);
+    let longest = axes.iter().map(|a| DVec3::from(*a).length()).fold(0.0, f64::max);
     if !(longest.is_finite() && longest > 0.0) {
         return Err(SectionError::Degenerate(axes));
     }
     let target = target.max(1) as f64;
     // Beam count falls as the cell length grows: bisect on the log of the length.
-    let (mut fine, mut coarse) = (
-        (longest / f64::from(MAX_GRID)).ln() - 1.0,
-        longest.ln() + 1.0,
-    );
+    let (mut fine, mut coarse) = ((longest / f64::from(MAX_GRID)).ln() - 1.0, longest.ln() + 1.0);
     for _ in 0..80 {
         let mid = 0.5 * (fine + coarse);
         let count = beam_count_for_grid(grid_for_length(axes, mid.exp())?) as f64;
@@ -189,10 +183,7 @@ pub fn grid_for_beam_count(axes: [[f64; 3]; 3], target: u64) -> Result<[u16; 3],
             coarse = mid;
         }
     }
-    let candidates = [
-        grid_for_length(axes, fine.exp())?,
-        grid_for_length(axes, coarse.exp())?,
-    ];
+    let candidates = [grid_for_length(axes, fine.exp())?, grid_for_length(axes, coarse.exp())?];
     let misfit = |g: &[u16; 3]| (beam_count_for_grid(*g) as f64 / target).ln().abs();
     let best = if misfit(&candidates[0]) < misfit(&candidates[1]) {
         candidates[0]
@@ -404,11 +395,7 @@ mod tests {
             });
             let total: u64 = walls.iter().sum();
             let same_wall: u64 = walls.iter().map(|c| c * c).sum();
-            assert_eq!(
-                beam_count_for_grid(grid),
-                total * total - same_wall,
-                "{grid:?}"
-            );
+            assert_eq!(beam_count_for_grid(grid), total * total - same_wall, "{grid:?}");
             let s = Section::new([0.0; 3], BOX, grid, SectionKind::Interior).unwrap();
             assert_eq!(u64::from(s.beam_count()), beam_count_for_grid(grid));
         }
@@ -431,10 +418,7 @@ mod tests {
             let g = grid_for_beam_count(BOX, target).unwrap();
             let n = beam_count_for_grid(g) as f64;
             let ratio = n / target as f64;
-            assert!(
-                (0.5..2.0).contains(&ratio),
-                "target {target}: grid {g:?} gives {n}"
-            );
+            assert!((0.5..2.0).contains(&ratio), "target {target}: grid {g:?} gives {n}");
         }
     }
 

@@ -196,31 +196,27 @@ pub fn section_text(s: &Section) -> String {
 
 /// Parses a section line (the inverse of [`section_text`]); `grid=` is required.
 pub fn parse_section(text: &str) -> Result<Section, String> {
-    parse_section_line(text, None, None)
+    parse_section_with(text, None)
 }
 
 /// Parses a section line whose `grid=` may be left out: the grid then comes from
-/// `grid_length` (Radiance's GRID), else from `target_beams`, else 150,000 beams.
-pub fn parse_section_line(
-    text: &str,
-    grid_length: Option<f64>,
-    target_beams: Option<u64>,
-) -> Result<Section, String> {
+/// `grid_length` (Radiance's GRID), else from `target_beams`, else
+/// [`DEFAULT_TARGET_BEAMS`] beams.
+pub fn parse_section_line(text: &str, grid_length: Option<f64>, target_beams: Option<u64>) -> Result<Section, String> {
+    parse_section_with(text, Some((grid_length, target_beams)))
+}
+
+/// `auto` is `None` when the grid must be explicit.
+fn parse_section_with(text: &str, auto: Option<(Option<f64>, Option<u64>)>) -> Result<Section, String> {
     let mut words = text.split_whitespace();
     let kind = match words.next() {
         Some("interior") => SectionKind::Interior,
         Some("exterior") => SectionKind::Exterior,
-        other => {
-            return Err(format!(
-                "section must start with interior or exterior, not {other:?}"
-            ))
-        }
+        other => return Err(format!("section must start with interior or exterior, not {other:?}")),
     };
     let (mut origin, mut axes, mut grid) = (None, [None; 3], None);
     for w in words {
-        let (k, v) = w
-            .split_once('=')
-            .ok_or_else(|| format!("{w:?} is not key=value"))?;
+        let (k, v) = w.split_once('=').ok_or_else(|| format!("{w:?} is not key=value"))?;
         match k {
             "origin" => origin = Some(parse_vec3(v)?),
             "x" => axes[0] = Some(parse_vec3(v)?),
@@ -250,13 +246,13 @@ pub fn parse_section_line(
         axes[1].ok_or("section has no y= axis")?,
         axes[2].ok_or("section has no z= axis")?,
     ];
-    let grid = match (grid, grid_length, target_beams) {
-        (Some(g), _, _) => g,
-        (None, Some(len), _) => grid_for_length(axes, len).map_err(|e| e.to_string())?,
-        (None, None, Some(n)) => grid_for_beam_count(axes, n).map_err(|e| e.to_string())?,
-        (None, None, None) => {
-            return Err("section has no grid= (give one, or a cell length)".into())
+    let grid = match (grid, auto) {
+        (Some(g), _) => g,
+        (None, Some((Some(len), _))) => grid_for_length(axes, len).map_err(|e| e.to_string())?,
+        (None, Some((None, target))) => {
+            grid_for_beam_count(axes, target.unwrap_or(DEFAULT_TARGET_BEAMS)).map_err(|e| e.to_string())?
         }
+        (None, None) => return Err("section has no grid=".into()),
     };
     Section::new(origin, axes, grid, kind).map_err(|e| e.to_string())
 }
@@ -329,8 +325,7 @@ impl Settings {
 
     /// Parses a TOML control file (see [`ControlFile`]).
     pub fn from_toml(text: &str) -> Result<Settings, SettingsError> {
-        let c: ControlFile =
-            toml::from_str(text).map_err(|e| SettingsError::Toml(e.to_string()))?;
+        let c: ControlFile = toml::from_str(text).map_err(|e| SettingsError::Toml(e.to_string()))?;
         c.resolve()
     }
 }
@@ -416,8 +411,7 @@ impl ControlFile {
                 (Some(g), _, _) => g,
                 (None, Some(len), None) => grid_for_length(e.axes, len).map_err(wrap)?,
                 (None, _, target) => {
-                    grid_for_beam_count(e.axes, target.unwrap_or(DEFAULT_TARGET_BEAMS))
-                        .map_err(wrap)?
+                    grid_for_beam_count(e.axes, target.unwrap_or(DEFAULT_TARGET_BEAMS)).map_err(wrap)?
                 }
             };
             s.sections
@@ -478,17 +472,10 @@ mod tests {
         assert_eq!(s.report, Duration::from_secs(120));
         assert_eq!(s.cache_bytes, 1_572_864);
         let e = Settings::from_text(&format!("{base}\nFOO=1\n")).unwrap_err();
-        assert!(
-            e.to_string().starts_with("line 3: unknown setting \"FOO\""),
-            "{e}"
-        );
-        let e = Settings::from_text("SECTION=interior origin=0,0,0 x=1,0,0 y=0,1,0 grid=2,2,2")
-            .unwrap_err();
+        assert!(e.to_string().starts_with("line 3: unknown setting \"FOO\""), "{e}");
+        let e = Settings::from_text("SECTION=interior origin=0,0,0 x=1,0,0 y=0,1,0 grid=2,2,2").unwrap_err();
         assert!(e.to_string().contains("no z= axis"), "{e}");
-        assert_eq!(
-            Settings::from_text("# nothing\n"),
-            Err(SettingsError::NoSections)
-        );
+        assert_eq!(Settings::from_text("# nothing\n"), Err(SettingsError::NoSections));
         assert!(Settings::from_text(&format!("{base}CACHE=12Q"))
             .unwrap_err()
             .to_string()
@@ -516,9 +503,7 @@ mod tests {
         assert_eq!(s.sections[1].kind(), SectionKind::Exterior);
         assert_eq!(s.cache_bytes, 32 << 20);
         assert_eq!(s.time, Duration::from_secs(7200));
-        let bad = Settings::from_toml(
-            "[[section]]\norigin=[0,0,0]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\ngird=[1,1,1]\n",
-        );
+        let bad = Settings::from_toml("[[section]]\norigin=[0,0,0]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\ngird=[1,1,1]\n");
         assert!(bad.unwrap_err().to_string().contains("gird"));
     }
 }

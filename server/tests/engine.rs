@@ -12,8 +12,7 @@ use holodeck_server::storage::{self, format, HoloFile, OpenOptions, StorageError
 /// Ray `j` of a beam: content fixed by (section, beam, j), so any misplaced,
 /// duplicated or invented record is detected.
 fn ray(key: BeamKey, j: u64) -> RayRecord {
-    let h = (u64::from(key.section) << 40 ^ u64::from(key.beam) << 20 ^ j)
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    let h = (u64::from(key.section) << 40 ^ u64::from(key.beam) << 20 ^ j).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     let b = h.to_le_bytes();
     RayRecord::new(
         [b[0], b[1]],
@@ -150,16 +149,11 @@ fn a_tiny_cache_evicts_relocates_and_stays_within_budget() {
         }
     }
     let stats = f.io_stats();
-    assert!(
-        stats.relocations > 0,
-        "beams should have had to move: {stats:?}"
-    );
+    assert!(stats.relocations > 0, "beams should have had to move: {stats:?}");
     f.close().unwrap();
     assert_contents(&path, &expected);
     // Freed runs are reused: the file holds little beyond the live rays.
-    let s = HoloFile::open(&path, &OpenOptions::read_only())
-        .unwrap()
-        .summary();
+    let s = HoloFile::open(&path, &OpenOptions::read_only()).unwrap().summary();
     assert!(
         s.file_bytes < 2 * s.ray_bytes + 64 * 1024,
         "file {} bytes for {} ray bytes",
@@ -189,11 +183,7 @@ fn unflushed_rays_are_lost_but_flushed_ones_survive_a_crash() {
 }
 
 fn flip_byte(path: &Path, at: u64) {
-    let f = fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(path)
-        .unwrap();
+    let f = fs::OpenOptions::new().read(true).write(true).open(path).unwrap();
     let mut b = [0u8];
     f.read_exact_at(&mut b, at).unwrap();
     f.write_all_at(&[b[0] ^ 0x5a], at).unwrap();
@@ -304,11 +294,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     assert!(open(b"").contains("not a holodeck file"));
     assert!(open(b"#?RADIANCE\nFORMAT=holodeck\n").contains("Radiance"));
     assert!(open(&good[..40]).contains("truncated"));
-    assert!(
-        open(&good[..300]).contains("truncated"),
-        "{}",
-        open(&good[..300])
-    );
+    assert!(open(&good[..300]).contains("truncated"), "{}", open(&good[..300]));
     let mut future = good.clone();
     future[8] = 2;
     assert!(open(&future).contains("version 2 is newer"));
@@ -320,10 +306,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     fs::write(&cut, &good[..good.len() - 30]).unwrap();
     let f = HoloFile::open(&cut, &OpenOptions::read_only()).unwrap();
     assert!(
-        f.open_info()
-            .skipped
-            .iter()
-            .any(|p| p.contains("truncated")),
+        f.open_info().skipped.iter().any(|p| p.contains("truncated")),
         "{:?}",
         f.open_info()
     );
@@ -350,11 +333,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
 /// Rewrites the newest commit so that beam 3 of section 0 points past the end
 /// of the file, with every checksum valid, and makes the other slot unusable.
 fn point_a_beam_outside_the_file(path: &Path) {
-    let f = fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(path)
-        .unwrap();
+    let f = fs::OpenOptions::new().read(true).write(true).open(path).unwrap();
     let len = f.metadata().unwrap().len();
     let slots: Vec<_> = format::SLOT_OFFSETS
         .iter()
@@ -376,8 +355,7 @@ fn point_a_beam_outside_the_file(path: &Path) {
     let mut block = vec![0u8; refs[0].block.len as usize];
     f.read_exact_at(&mut block, refs[0].block.offset).unwrap();
     let beams = settings().sections[0].beam_count();
-    let mut dir =
-        format::decode_directory(&block, refs[0].block.offset, 0, beams, 0, u64::MAX).unwrap();
+    let mut dir = format::decode_directory(&block, refs[0].block.offset, 0, beams, 0, u64::MAX).unwrap();
     dir[3].offset = len + 4096;
     let block = format::encode_directory(0, &dir);
     refs[0].block = format::Extent {
@@ -396,13 +374,9 @@ fn point_a_beam_outside_the_file(path: &Path) {
         root_crc: crc32c(&root),
         ..slot
     };
-    f.write_all_at(
-        &format::encode_slot(&new_slot),
-        format::SLOT_OFFSETS[newest],
-    )
-    .unwrap();
-    f.write_all_at(&[0xffu8; 64], format::SLOT_OFFSETS[1 - newest])
+    f.write_all_at(&format::encode_slot(&new_slot), format::SLOT_OFFSETS[newest])
         .unwrap();
+    f.write_all_at(&[0xffu8; 64], format::SLOT_OFFSETS[1 - newest]).unwrap();
 }
 
 fn crc32c(bytes: &[u8]) -> u32 {
@@ -431,16 +405,13 @@ fn optimize_collates_beams_and_removes_fragments() {
         for b in (0..200u32).rev().step_by(3) {
             let k = BeamKey::new(0, b);
             let have = expected.get(&k).copied().unwrap_or(0);
-            f.append(k, &rays(k, have, 1 + (b as u64 + round) % 4))
-                .unwrap();
+            f.append(k, &rays(k, have, 1 + (b as u64 + round) % 4)).unwrap();
             expected.insert(k, have + 1 + (b as u64 + round) % 4);
         }
         f.flush().unwrap();
     }
     f.close().unwrap();
-    let before = HoloFile::open(&path, &OpenOptions::read_only())
-        .unwrap()
-        .summary();
+    let before = HoloFile::open(&path, &OpenOptions::read_only()).unwrap().summary();
     assert!(before.fragments > 0);
     let r = storage::optimize(&path, |_, _| {}).unwrap();
     assert_eq!(r.rays, before.rays());
@@ -452,10 +423,7 @@ fn optimize_collates_beams_and_removes_fragments() {
     // Nothing but header, rays and one compact directory: one byte per empty
     // beam, at most seven per filled one, and the root.
     let header = format::data_start(settings().to_text().len() as u32);
-    assert_eq!(
-        after.file_bytes,
-        header + after.ray_bytes + after.metadata_bytes
-    );
+    assert_eq!(after.file_bytes, header + after.ray_bytes + after.metadata_bytes);
     let (beams, filled): (u64, u64) = after
         .sections
         .iter()
@@ -473,10 +441,7 @@ fn optimize_collates_beams_and_removes_fragments() {
         .filter(|e| e.count > 0)
         .map(|e| e.offset)
         .collect();
-    assert!(
-        offsets.windows(2).all(|w| w[0] < w[1]),
-        "beams collated in beam order"
-    );
+    assert!(offsets.windows(2).all(|w| w[0] < w[1]), "beams collated in beam order");
 }
 
 #[test]
@@ -494,10 +459,7 @@ fn locks_read_only_and_bad_keys() {
     ));
     assert!(matches!(
         r.read_beam(BeamKey::new(5, 0)),
-        Err(StorageError::NoSuchSection {
-            section: 5,
-            count: 2
-        })
+        Err(StorageError::NoSuchSection { section: 5, count: 2 })
     ));
     let e = r.read_beam(BeamKey::new(1, 1_000_000)).unwrap_err();
     assert!(e.to_string().contains("out of range"), "{e}");
@@ -505,4 +467,61 @@ fn locks_read_only_and_bad_keys() {
         HoloFile::create(&path, &settings()),
         Err(StorageError::Exists { .. })
     ));
+}
+
+#[test]
+fn random_damage_never_panics_and_never_yields_unwritten_rays() {
+    use rand::{Rng, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let mut expected = std::collections::HashMap::new();
+    {
+        let mut f = HoloFile::open(&path, &writable(4096)).unwrap();
+        for round in 0..6u64 {
+            for b in 0..40u32 {
+                let k = BeamKey::new(b % 2, b * 5 + round as u32 % 3);
+                let have = expected.get(&k).copied().unwrap_or(0);
+                f.append(k, &rays(k, have, 2 + round)).unwrap();
+                expected.insert(k, have + 2 + round);
+            }
+            f.flush().unwrap();
+        }
+        f.close().unwrap();
+    }
+    let good = fs::read(&path).unwrap();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(99);
+    let bad = dir.path().join("damaged.hdk");
+    for trial in 0..300 {
+        let mut bytes = good.clone();
+        match trial % 3 {
+            0 => bytes.truncate(rng.gen_range(0..good.len())),
+            1 => {
+                for _ in 0..rng.gen_range(1..8) {
+                    let at = rng.gen_range(0..bytes.len());
+                    bytes[at] ^= 1 << rng.gen_range(0..8);
+                }
+            }
+            _ => {
+                let at = rng.gen_range(0..bytes.len() - 8);
+                let v: u64 = rng.gen();
+                bytes[at..at + 8].copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        fs::write(&bad, &bytes).unwrap();
+        // Whatever opens must only ever deliver rays that were really written.
+        if let Ok(mut f) = HoloFile::open(&bad, &OpenOptions::read_only()) {
+            let keys: Vec<BeamKey> = expected.keys().copied().collect();
+            f.read_beams(&keys, |k, got| {
+                assert!(got.len() as u64 <= expected[&k]);
+                assert_eq!(got, rays(k, 0, got.len() as u64).as_slice(), "trial {trial}: {k:?}");
+            })
+            .unwrap();
+        }
+        let _ = storage::check(&bad, |_, _| {});
+        let out = dir.path().join(format!("salvage{trial}.hdk"));
+        if storage::repair(&bad, &out).is_ok() {
+            assert!(storage::check(&out, |_, _| {}).unwrap().is_clean());
+            fs::remove_file(&out).unwrap();
+        }
+    }
 }

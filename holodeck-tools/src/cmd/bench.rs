@@ -67,9 +67,7 @@ fn parse_count(s: &str) -> std::result::Result<u64, String> {
         Some('G' | 'g') => (&s[..s.len() - 1], 1e9),
         _ => (s, 1.0),
     };
-    let v: f64 = num
-        .parse()
-        .map_err(|_| format!("{s:?} is not a count like 50M"))?;
+    let v: f64 = num.parse().map_err(|_| format!("{s:?} is not a count like 50M"))?;
     Ok((v * mult).round() as u64)
 }
 
@@ -111,10 +109,7 @@ fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<f64> {
     while done < rays {
         let n = rng.gen_range(1..=21u64).min(rays - done) as usize;
         let at = rng.gen_range(0..packet.len() - n);
-        f.append(
-            BeamKey::new(0, rng.gen_range(0..beams)),
-            &packet[at..at + n],
-        )?;
+        f.append(BeamKey::new(0, rng.gen_range(0..beams)), &packet[at..at + n])?;
         done += n as u64;
         if done % (1 << 20) < 21 {
             bar.set_position(done);
@@ -178,10 +173,7 @@ fn view_request(section: &Section, want: usize) -> Vec<BeamKey> {
         let eye = section.unit_to_world(glam::DVec3::new(0.3 + 0.01 * f64::from(step), 0.5, 0.45));
         for i in 0..200 {
             for j in 0..150 {
-                let (x, y) = (
-                    f64::from(i) / 199.0 * 2.0 - 1.0,
-                    f64::from(j) / 149.0 * 1.5 - 0.75,
-                );
+                let (x, y) = (f64::from(i) / 199.0 * 2.0 - 1.0, f64::from(j) / 149.0 * 1.5 - 0.75);
                 let dir = glam::DVec3::new(1.0, x, y);
                 if let Some(hit) = section.locate(eye, dir) {
                     if seen.insert(hit.beam) {

@@ -38,10 +38,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             if r.sections_lost.is_empty() {
                 String::new()
             } else {
-                format!(
-                    "; sections with no readable directory: {:?}",
-                    r.sections_lost
-                )
+                format!("; sections with no readable directory: {:?}", r.sections_lost)
             }
         );
         return Ok(ExitCode::SUCCESS);
@@ -73,10 +70,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         println!("all checksums verify");
         return Ok(ExitCode::SUCCESS);
     }
-    println!(
-        "{} beams fail their checksum:",
-        count(report.corrupt.len() as u64)
-    );
+    println!("{} beams fail their checksum:", count(report.corrupt.len() as u64));
     for k in report.corrupt.iter().take(20) {
         println!("  section {} beam {}", k.section, k.beam);
     }

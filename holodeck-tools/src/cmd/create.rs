@@ -55,15 +55,11 @@ pub struct Args {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let mut settings = if let Some(control) = &a.control {
-        let text = std::fs::read_to_string(control)
-            .with_context(|| format!("reading {}", control.display()))?;
-        Settings::from_toml(&text)
-            .with_context(|| format!("in control file {}", control.display()))?
+        let text = std::fs::read_to_string(control).with_context(|| format!("reading {}", control.display()))?;
+        Settings::from_toml(&text).with_context(|| format!("in control file {}", control.display()))?
     } else {
         if a.sections.is_empty() {
-            bail!(
-                "give at least one --section, or --control FILE.toml (see holodeck create --help)"
-            );
+            bail!("give at least one --section, or --control FILE.toml (see holodeck create --help)");
         }
         let mut s = Settings {
             grid: a.grid,
@@ -78,14 +74,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         s
     };
     if let Some(c) = &a.cache {
-        settings.cache_bytes = parse_size(c)
-            .map_err(anyhow::Error::msg)
-            .context("--cache")?;
+        settings.cache_bytes = parse_size(c).map_err(anyhow::Error::msg).context("--cache")?;
     }
     if let Some(d) = &a.diskspace {
-        settings.diskspace_bytes = parse_size(d)
-            .map_err(anyhow::Error::msg)
-            .context("--diskspace")?;
+        settings.diskspace_bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
     }
     settings.obstructions |= a.obstructions;
     settings.vdistance |= a.vdistance;
@@ -93,11 +85,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         settings.scene = a.scene.clone();
     }
     HoloFile::create(&a.file, &settings)?;
-    let beams: u64 = settings
-        .sections
-        .iter()
-        .map(|s| u64::from(s.beam_count()))
-        .sum();
+    let beams: u64 = settings.sections.iter().map(|s| u64::from(s.beam_count())).sum();
     println!(
         "created {} with {} section(s), {} beams",
         a.file.display(),

@@ -38,9 +38,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     match &a.output {
-        Some(path) => {
-            std::fs::write(path, obj).with_context(|| format!("writing {}", path.display()))?
-        }
+        Some(path) => std::fs::write(path, obj).with_context(|| format!("writing {}", path.display()))?,
         None => print!("{obj}"),
     }
     Ok(ExitCode::SUCCESS)

@@ -67,10 +67,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         },
         st.time,
         st.report,
-        st.scene
-            .as_ref()
-            .map(|h| format!(" SCENE={h}"))
-            .unwrap_or_default()
+        st.scene.as_ref().map(|h| format!(" SCENE={h}")).unwrap_or_default()
     );
     Ok(ExitCode::SUCCESS)
 }

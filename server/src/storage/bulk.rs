@@ -80,13 +80,10 @@ impl SequentialWriter {
     /// Writes a beam's whole run. Each beam may be written once; out-of-range keys are refused.
     pub fn push_beam(&mut self, key: BeamKey, rays: &[RayRecord]) -> Result<()> {
         let count = self.dirs.len();
-        let dir = self
-            .dirs
-            .get(key.section as usize)
-            .ok_or(StorageError::NoSuchSection {
-                section: key.section,
-                count,
-            })?;
+        let dir = self.dirs.get(key.section as usize).ok_or(StorageError::NoSuchSection {
+            section: key.section,
+            count,
+        })?;
         let beams = dir.len() as u32;
         if key.beam >= beams {
             let source = holodeck_protocol::SectionError::BeamOutOfRange {
@@ -149,12 +146,7 @@ impl SequentialWriter {
             root,
             root_crc: crc32c::crc32c(&root_bytes),
         };
-        io::write_at(
-            &file,
-            &self.tmp,
-            SLOT_OFFSETS[0],
-            &format::encode_slot(&slot),
-        )?;
+        io::write_at(&file, &self.tmp, SLOT_OFFSETS[0], &format::encode_slot(&slot))?;
         file.sync_all().map_err(|source| StorageError::Io {
             path: self.tmp.clone(),
             op: "syncing",

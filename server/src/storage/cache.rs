@@ -162,16 +162,12 @@ mod tests {
         assert_eq!(c.pop_lru().unwrap().0, BeamKey::new(0, 1));
         c.update(BeamKey::new(0, 7), |e| {
             e.rays.reserve_exact(50);
-            e.rays
-                .extend(std::iter::repeat(RayRecord::default()).take(50));
+            e.rays.extend(std::iter::repeat(RayRecord::default()).take(50));
             e.unwritten = 50;
         });
         assert_eq!(c.dirty_keys(), vec![BeamKey::new(0, 7)]);
         c.mark_written(&BeamKey::new(0, 7));
-        assert!(
-            c.peek(&BeamKey::new(0, 7)).is_none(),
-            "a written tail is dropped"
-        );
+        assert!(c.peek(&BeamKey::new(0, 7)).is_none(), "a written tail is dropped");
         assert_eq!(c.bytes(), 2 * (1000 + ENTRY_OVERHEAD));
         while c.pop_lru().is_some() {}
         assert_eq!(c.bytes(), 0);

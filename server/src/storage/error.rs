@@ -39,7 +39,9 @@ pub enum StorageError {
         source: SettingsError,
     },
     /// Neither commit slot leads to a consistent state.
-    #[error("{path}: no consistent commit found; `holodeck check --repair` can salvage the beams that verify.\n{problems}")]
+    #[error(
+        "{path}: no consistent commit found; `holodeck check --repair` can salvage the beams that verify.\n{problems}"
+    )]
     NoValidCommit {
         /// The file.
         path: PathBuf,

@@ -47,10 +47,7 @@ impl Extents {
         for e in used {
             if let Some(p) = prev {
                 if e.offset < p.end() {
-                    return Err(Overlap {
-                        first: p,
-                        second: e,
-                    });
+                    return Err(Overlap { first: p, second: e });
                 }
             }
             if e.offset > x.end {
@@ -196,11 +193,7 @@ mod tests {
     fn pending_space_is_not_reused_before_commit() {
         let mut x = Extents::from_used(0, vec![ext(0, 100)]).unwrap();
         x.release(ext(0, 50));
-        assert_eq!(
-            x.allocate(10),
-            100,
-            "pending space must wait for the commit"
-        );
+        assert_eq!(x.allocate(10), 100, "pending space must wait for the commit");
         x.commit_done();
         assert_eq!(x.allocate(10), 0);
         assert_eq!(x.allocate(40), 10);
@@ -209,8 +202,7 @@ mod tests {
 
     #[test]
     fn coalesces_and_trims_the_tail() {
-        let mut x =
-            Extents::from_used(0, vec![ext(0, 10), ext(10, 10), ext(20, 10), ext(30, 10)]).unwrap();
+        let mut x = Extents::from_used(0, vec![ext(0, 10), ext(10, 10), ext(20, 10), ext(30, 10)]).unwrap();
         x.release_now(ext(10, 10));
         x.release_now(ext(20, 10));
         assert_eq!(x.fragments(), 1);

@@ -49,7 +49,9 @@ pub enum FormatError {
         hint: &'static str,
     },
     /// The file is written in a newer format than this program reads.
-    #[error("file format version {found} is newer than this program reads (version {supported}); use a newer holodeck")]
+    #[error(
+        "file format version {found} is newer than this program reads (version {supported}); use a newer holodeck"
+    )]
     FutureVersion {
         /// Version in the file.
         found: u32,
@@ -158,11 +160,7 @@ impl<'a> Reader<'a> {
                 return Ok(value);
             }
         }
-        Err(invalid(
-            self.what,
-            at,
-            "variable-length integer is longer than 64 bits",
-        ))
+        Err(invalid(self.what, at, "variable-length integer is longer than 64 bits"))
     }
     fn magic(&mut self, expected: [u8; 4]) -> Result<(), FormatError> {
         let at = self.at();
@@ -398,23 +396,14 @@ pub fn encode_root(generation: u64, dirs: &[DirRef]) -> Vec<u8> {
 }
 
 /// Decodes a root read from `base`, checking its generation and section count.
-pub fn decode_root(
-    bytes: &[u8],
-    base: u64,
-    generation: u64,
-    sections: usize,
-) -> Result<Vec<DirRef>, FormatError> {
+pub fn decode_root(bytes: &[u8], base: u64, generation: u64, sections: usize) -> Result<Vec<DirRef>, FormatError> {
     let what = format!("root of commit {generation}");
     check_trailing_crc(bytes, base, &what)?;
     let mut r = Reader::new(&bytes[..bytes.len() - 4], base, &what);
     r.magic(ROOT_MAGIC)?;
     let found = r.u64()?;
     if found != generation {
-        return Err(invalid(
-            &what,
-            base + 4,
-            format!("root is of commit {found}"),
-        ));
+        return Err(invalid(&what, base + 4, format!("root is of commit {found}")));
     }
     let n = r.u32()? as usize;
     if n != sections {
@@ -506,11 +495,7 @@ pub fn decode_directory(
     r.magic(DIR_MAGIC)?;
     let found = r.u32()?;
     if found != section {
-        return Err(invalid(
-            &what,
-            base + 4,
-            format!("block belongs to section {found}"),
-        ));
+        return Err(invalid(&what, base + 4, format!("block belongs to section {found}")));
     }
     let n = r.u32()?;
     if n != beams {
@@ -526,11 +511,7 @@ pub fn decode_directory(
         let at = r.at();
         let count = r.varint()?;
         if count > u64::from(u32::MAX) {
-            return Err(invalid(
-                &what,
-                at,
-                format!("beam {beam} claims {count} rays"),
-            ));
+            return Err(invalid(&what, at, format!("beam {beam} claims {count} rays")));
         }
         if count == 0 {
             out.push(BeamEntry::default());
@@ -559,11 +540,7 @@ pub fn decode_directory(
         out.push(entry);
     }
     if r.pos != r.bytes.len() {
-        return Err(invalid(
-            &what,
-            r.at(),
-            "unexpected bytes after the last beam",
-        ));
+        return Err(invalid(&what, r.at(), "unexpected bytes after the last beam"));
     }
     Ok(out)
 }
@@ -580,10 +557,7 @@ mod tests {
         assert!(
             matches!(decode_prefix(b"#?RADIANCE\nformat"), Err(FormatError::NotHolodeck { hint, .. }) if !hint.is_empty())
         );
-        assert!(matches!(
-            decode_prefix(&p[..30]),
-            Err(FormatError::Truncated { .. })
-        ));
+        assert!(matches!(decode_prefix(&p[..30]), Err(FormatError::Truncated { .. })));
         let mut future = p;
         future[8] = 9;
         assert!(matches!(
@@ -592,20 +566,14 @@ mod tests {
         ));
         let mut flipped = p;
         flipped[13] ^= 1;
-        assert!(matches!(
-            decode_prefix(&flipped),
-            Err(FormatError::Checksum { .. })
-        ));
+        assert!(matches!(decode_prefix(&flipped), Err(FormatError::Checksum { .. })));
     }
 
     #[test]
     fn slots_round_trip_and_detect_tears() {
         let s = Slot {
             generation: 7,
-            root: Extent {
-                offset: 4096,
-                len: 48,
-            },
+            root: Extent { offset: 4096, len: 48 },
             root_crc: 0xdead_beef,
         };
         let b = encode_slot(&s);
@@ -620,10 +588,7 @@ mod tests {
     #[test]
     fn root_checks_generation_and_sections() {
         let dirs = [DirRef {
-            block: Extent {
-                offset: 300,
-                len: 20,
-            },
+            block: Extent { offset: 300, len: 20 },
             beams: 30,
             rays: 5,
         }];
@@ -653,10 +618,7 @@ mod tests {
         let b = encode_directory(0, &entries);
         // Header 16 bytes, 6 per beam, plus the first beam's absolute offset.
         assert!(b.len() <= 16 + 6 * entries.len() + 8, "{} bytes", b.len());
-        assert_eq!(
-            decode_directory(&b, 0, 0, 1000, 1000, off).unwrap(),
-            entries
-        );
+        assert_eq!(decode_directory(&b, 0, 0, 1000, 1000, off).unwrap(), entries);
         let err = decode_directory(&b, 0, 0, 1000, 1000, off - 1).unwrap_err();
         assert!(err.to_string().contains("beam 999"), "{err}");
     }

@@ -162,12 +162,14 @@ impl HoloFile {
 
     fn check_key(&self, key: BeamKey) -> Result<()> {
         let count = self.settings.sections.len();
-        let section = self.settings.sections.get(key.section as usize).ok_or(
-            StorageError::NoSuchSection {
+        let section = self
+            .settings
+            .sections
+            .get(key.section as usize)
+            .ok_or(StorageError::NoSuchSection {
                 section: key.section,
                 count,
-            },
-        )?;
+            })?;
         if key.beam >= section.beam_count() {
             let source = SectionError::BeamOutOfRange {
                 beam: key.beam,
@@ -218,10 +220,7 @@ impl HoloFile {
         if self.cache.over_budget() {
             self.evict()?;
         }
-        if self
-            .flush_interval
-            .is_some_and(|i| self.last_flush.elapsed() >= i)
-        {
+        if self.flush_interval.is_some_and(|i| self.last_flush.elapsed() >= i) {
             self.flush()?;
         }
         Ok(())
@@ -298,11 +297,7 @@ impl HoloFile {
     /// Delivers each requested beam's rays to `visit`: cached beams first, then
     /// the rest read from disk in file order, nearby runs merged into large reads.
     /// Beams that fail their checksum are reported, not delivered.
-    pub fn read_beams(
-        &mut self,
-        keys: &[BeamKey],
-        mut visit: impl FnMut(BeamKey, &[RayRecord]),
-    ) -> Result<ReadReport> {
+    pub fn read_beams(&mut self, keys: &[BeamKey], mut visit: impl FnMut(BeamKey, &[RayRecord])) -> Result<ReadReport> {
         let mut report = ReadReport::default();
         let mut misses = Vec::new();
         for &key in keys {
@@ -330,8 +325,7 @@ impl HoloFile {
         for (k, &(end, first, group_end)) in groups.iter().enumerate() {
             announced = self.announce(&groups, k, announced);
             let mut buf = std::mem::take(&mut self.read_buf);
-            self.store
-                .read_into(first, (group_end - first) as usize, &mut buf)?;
+            self.store.read_into(first, (group_end - first) as usize, &mut buf)?;
             for &key in &misses[start..end] {
                 let e = self.entry(key);
                 let bytes = &buf[(e.offset - first) as usize..][..e.extent().len as usize];
@@ -392,10 +386,7 @@ impl HoloFile {
             bytes += groups[upto].2 - groups[upto].1;
             upto += 1;
         }
-        let window: Vec<(u64, u64)> = groups[announced.max(at)..upto]
-            .iter()
-            .map(|g| (g.1, g.2))
-            .collect();
+        let window: Vec<(u64, u64)> = groups[announced.max(at)..upto].iter().map(|g| (g.1, g.2)).collect();
         self.store.will_need(&window);
         upto
     }
@@ -435,11 +426,7 @@ impl HoloFile {
             .iter()
             .map(|d| {
                 let filled = d.iter().filter(|e| e.count > 0).count() as u32;
-                (
-                    d.len() as u32,
-                    filled,
-                    d.iter().map(|e| u64::from(e.count)).sum(),
-                )
+                (d.len() as u32, filled, d.iter().map(|e| u64::from(e.count)).sum())
             })
             .collect::<Vec<_>>();
         let rays: u64 = sections.iter().map(|s: &(u32, u32, u64)| s.2).sum();
@@ -478,8 +465,7 @@ impl HoloFile {
         let mut start = 0;
         for (k, &(end, first, group_end)) in groups.iter().enumerate() {
             announced = self.announce(&groups, k, announced);
-            self.store
-                .read_into(first, (group_end - first) as usize, &mut buf)?;
+            self.store.read_into(first, (group_end - first) as usize, &mut buf)?;
             for &key in &keys[start..end] {
                 let e = self.entry(key);
                 let bytes = &buf[(e.offset - first) as usize..][..e.extent().len as usize];
@@ -499,10 +485,7 @@ impl Drop for HoloFile {
     fn drop(&mut self) {
         if self.store.writable {
             if let Err(e) = self.flush() {
-                tracing::error!(
-                    "flushing {} on close failed: {e}",
-                    self.store.path.display()
-                );
+                tracing::error!("flushing {} on close failed: {e}", self.store.path.display());
             }
         }
     }

@@ -48,10 +48,7 @@ impl WriteBatch {
     }
 }
 
-fn io_err<'a>(
-    path: &'a Path,
-    op: &'static str,
-) -> impl FnOnce(std::io::Error) -> StorageError + 'a {
+fn io_err<'a>(path: &'a Path, op: &'static str) -> impl FnOnce(std::io::Error) -> StorageError + 'a {
     move |source| StorageError::Io {
         path: path.to_path_buf(),
         op,
@@ -61,15 +58,13 @@ fn io_err<'a>(
 
 /// Writes all of `bytes` at `offset`.
 pub fn write_at(file: &File, path: &Path, offset: u64, bytes: &[u8]) -> Result<()> {
-    file.write_all_at(bytes, offset)
-        .map_err(io_err(path, "writing"))
+    file.write_all_at(bytes, offset).map_err(io_err(path, "writing"))
 }
 
 /// Reads exactly `len` bytes at `offset` into `buf` (resized).
 pub fn read_at(file: &File, path: &Path, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
     buf.resize(len, 0);
-    file.read_exact_at(buf, offset)
-        .map_err(io_err(path, "reading"))
+    file.read_exact_at(buf, offset).map_err(io_err(path, "reading"))
 }
 
 /// Flushes file data (and the size needed to read it) to stable storage.
@@ -79,19 +74,12 @@ pub fn sync(file: &File, path: &Path) -> Result<()> {
 
 /// Length of the file.
 pub fn file_len(file: &File, path: &Path) -> Result<u64> {
-    Ok(file
-        .metadata()
-        .map_err(io_err(path, "reading metadata"))?
-        .len())
+    Ok(file.metadata().map_err(io_err(path, "reading metadata"))?.len())
 }
 
 /// Takes an advisory lock: exclusive for writers, shared for readers.
 pub fn lock(file: &File, path: &Path, exclusive: bool) -> Result<()> {
-    let op = if exclusive {
-        libc::LOCK_EX
-    } else {
-        libc::LOCK_SH
-    } | libc::LOCK_NB;
+    let op = if exclusive { libc::LOCK_EX } else { libc::LOCK_SH } | libc::LOCK_NB;
     // SAFETY: flock on a valid open descriptor has no memory effects.
     let rc = unsafe { libc::flock(file.as_raw_fd(), op) };
     if rc == 0 {

@@ -108,20 +108,12 @@ pub fn repair(src: &Path, dest: &Path) -> Result<RepairReport> {
     })?;
     let file_len = io::file_len(&file, src)?;
     let (settings, data_start) = store::read_header(&file, src, file_len)?;
-    let (slots, _) = store::read_slots(&file, src)?;
+    let slots = store::read_slots(&file, src)?.slots;
     let mut out = SequentialWriter::create(dest, &settings)?;
     let mut report = RepairReport::default();
     let mut buf = Vec::new();
     for (s, section) in settings.sections.iter().enumerate() {
-        let Some(dir) = newest_directory(
-            &file,
-            src,
-            &slots,
-            s,
-            section.beam_count(),
-            data_start,
-            file_len,
-        ) else {
+        let Some(dir) = newest_directory(&file, src, &slots, s, section.beam_count(), data_start, file_len) else {
             report.sections_lost.push(s as u32);
             continue;
         };
@@ -158,14 +150,7 @@ fn newest_directory(
     let mut buf = Vec::new();
     for (_, slot) in slots {
         if slot.root.end() > file_len
-            || io::read_at(
-                file,
-                path,
-                slot.root.offset,
-                slot.root.len as usize,
-                &mut buf,
-            )
-            .is_err()
+            || io::read_at(file, path, slot.root.offset, slot.root.len as usize, &mut buf).is_err()
         {
             continue;
         }
@@ -176,20 +161,12 @@ fn newest_directory(
         };
         let Some(r) = refs.get(section) else { continue };
         let mut dbuf = Vec::new();
-        if r.block.end() > file_len
-            || io::read_at(file, path, r.block.offset, r.block.len as usize, &mut dbuf).is_err()
+        if r.block.end() > file_len || io::read_at(file, path, r.block.offset, r.block.len as usize, &mut dbuf).is_err()
         {
             continue;
         }
         // Beams outside the file are caught one by one when copying.
-        if let Ok(d) = format::decode_directory(
-            &dbuf,
-            r.block.offset,
-            section as u32,
-            beams,
-            data_start,
-            u64::MAX,
-        ) {
+        if let Ok(d) = format::decode_directory(&dbuf, r.block.offset, section as u32, beams, data_start, u64::MAX) {
             return Some(d);
         }
     }
@@ -197,10 +174,7 @@ fn newest_directory(
 }
 
 /// Decodes a root without knowing how many sections it should list.
-fn decode_root_any(
-    bytes: &[u8],
-    slot: &Slot,
-) -> std::result::Result<Vec<format::DirRef>, format::FormatError> {
+fn decode_root_any(bytes: &[u8], slot: &Slot) -> std::result::Result<Vec<format::DirRef>, format::FormatError> {
     let n = bytes
         .get(12..16)
         .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
@@ -243,10 +217,7 @@ pub fn optimize(path: &Path, mut progress: impl FnMut(u64, u64)) -> Result<Optim
             let end = beams.min(start.saturating_add(1 << 16));
             let mut keys: Vec<BeamKey> = (start..end)
                 .map(|b| BeamKey::new(s, b))
-                .filter(|k| {
-                    src.directory(s)
-                        .is_some_and(|d| d[k.beam as usize].count > 0)
-                })
+                .filter(|k| src.directory(s).is_some_and(|d| d[k.beam as usize].count > 0))
                 .collect();
             let mut chunk = Vec::with_capacity(keys.len());
             let mut corrupt = None;

@@ -95,13 +95,7 @@ fn format_err(path: &Path) -> impl Fn(format::FormatError) -> StorageError + '_ 
 /// Reads the prefix and settings text; returns them with the data start offset.
 pub(crate) fn read_header(file: &File, path: &Path, file_len: u64) -> Result<(Settings, u64)> {
     let mut buf = Vec::new();
-    io::read_at(
-        file,
-        path,
-        0,
-        file_len.min(format::PREFIX_LEN) as usize,
-        &mut buf,
-    )?;
+    io::read_at(file, path, 0, file_len.min(format::PREFIX_LEN) as usize, &mut buf)?;
     let text_len = format::decode_prefix(&buf).map_err(format_err(path))?;
     let data_start = format::data_start(text_len);
     if file_len < data_start {
@@ -115,13 +109,7 @@ pub(crate) fn read_header(file: &File, path: &Path, file_len: u64) -> Result<(Se
             },
         });
     }
-    io::read_at(
-        file,
-        path,
-        format::TEXT_OFFSET,
-        text_len as usize + 4,
-        &mut buf,
-    )?;
+    io::read_at(file, path, format::TEXT_OFFSET, text_len as usize + 4, &mut buf)?;
     let text = format::decode_text(&buf).map_err(format_err(path))?;
     let settings = Settings::from_text(&text).map_err(|source| StorageError::Settings {
         path: path.to_path_buf(),
@@ -130,8 +118,14 @@ pub(crate) fn read_header(file: &File, path: &Path, file_len: u64) -> Result<(Se
     Ok((settings, data_start))
 }
 
-/// Reads both slots; returns (slot index, slot) for those that decode, and problems.
-pub(crate) fn read_slots(file: &File, path: &Path) -> Result<(Vec<(usize, Slot)>, Vec<String>)> {
+/// The slots that decode, as (slot index, slot), newest first, and why the others did not.
+pub(crate) struct SlotScan {
+    pub slots: Vec<(usize, Slot)>,
+    pub problems: Vec<String>,
+}
+
+/// Reads both commit slots.
+pub(crate) fn read_slots(file: &File, path: &Path) -> Result<SlotScan> {
     let mut buf = Vec::new();
     io::read_at(file, path, SLOT_OFFSETS[0], 2 * SLOT_LEN as usize, &mut buf)?;
     let (mut slots, mut problems) = (Vec::new(), Vec::new());
@@ -144,7 +138,7 @@ pub(crate) fn read_slots(file: &File, path: &Path) -> Result<(Vec<(usize, Slot)>
         }
     }
     slots.sort_by_key(|(_, s)| std::cmp::Reverse(s.generation));
-    Ok((slots, problems))
+    Ok(SlotScan { slots, problems })
 }
 
 fn read_extent(file: &File, path: &Path, e: Extent, file_len: u64, what: &str) -> Result<Vec<u8>> {
@@ -186,23 +180,12 @@ pub(crate) fn load_commit(
             },
         });
     }
-    let refs = format::decode_root(
-        &root_bytes,
-        slot.root.offset,
-        slot.generation,
-        sections.len(),
-    )
-    .map_err(format_err(path))?;
+    let refs = format::decode_root(&root_bytes, slot.root.offset, slot.generation, sections.len())
+        .map_err(format_err(path))?;
     let mut dirs = Vec::with_capacity(sections.len());
     let mut used = vec![slot.root];
     for (s, (r, section)) in refs.iter().zip(sections).enumerate() {
-        let bytes = read_extent(
-            file,
-            path,
-            r.block,
-            file_len,
-            &format!("directory of section {s}"),
-        )?;
+        let bytes = read_extent(file, path, r.block, file_len, &format!("directory of section {s}"))?;
         let d = format::decode_directory(
             &bytes,
             r.block.offset,
@@ -253,7 +236,7 @@ impl Store {
         io::lock(&file, path, writable)?;
         let file_len = io::file_len(&file, path)?;
         let (settings, data_start) = read_header(&file, path, file_len)?;
-        let (slots, mut problems) = read_slots(&file, path)?;
+        let SlotScan { slots, mut problems } = read_slots(&file, path)?;
         let newest = slots.first().map(|(_, s)| s.generation).unwrap_or(0);
         for (slot_index, slot) in &slots {
             match load_commit(&file, path, slot, &settings.sections, data_start, file_len) {
@@ -266,11 +249,7 @@ impl Store {
                         path: path.to_path_buf(),
                         file,
                         writable,
-                        capacity: l
-                            .dirs
-                            .iter()
-                            .map(|d| d.iter().map(|e| e.count).collect())
-                            .collect(),
+                        capacity: l.dirs.iter().map(|d| d.iter().map(|e| e.count).collect()).collect(),
                         dirs: l.dirs,
                         dir_dirty: vec![false; n],
                         blocks: l.blocks,
@@ -290,10 +269,7 @@ impl Store {
                     };
                     return Ok((store, settings));
                 }
-                Err(e) => problems.push(format!(
-                    "commit {} (slot {slot_index}): {e}",
-                    slot.generation
-                )),
+                Err(e) => problems.push(format!("commit {} (slot {slot_index}): {e}", slot.generation)),
             }
         }
         if slots.is_empty() {
@@ -343,12 +319,7 @@ impl Store {
     /// run in place if the bytes after it are free, else by moving the whole
     /// beam to a new run with room to grow. `on_disk` supplies the beam's
     /// existing rays when it must move and they are already in memory.
-    pub(crate) fn write_tail(
-        &mut self,
-        key: BeamKey,
-        on_disk: Option<&[RayRecord]>,
-        tail: &[RayRecord],
-    ) -> Result<()> {
+    pub(crate) fn write_tail(&mut self, key: BeamKey, on_disk: Option<&[RayRecord]>, tail: &[RayRecord]) -> Result<()> {
         if tail.is_empty() {
             return Ok(());
         }
@@ -381,9 +352,7 @@ impl Store {
         } else {
             let existing = match (old.count, on_disk) {
                 (0, _) => Vec::new(),
-                (_, Some(rays)) if rays.len() == old.count as usize => {
-                    RayRecord::slice_as_bytes(rays).to_vec()
-                }
+                (_, Some(rays)) if rays.len() == old.count as usize => RayRecord::slice_as_bytes(rays).to_vec(),
                 _ => self.read_run(key)?,
             };
             let room = grow(count);

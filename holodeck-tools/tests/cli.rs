@@ -1,0 +1,183 @@
+//! The `holodeck` binary end to end: real processes, real files, exit codes.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe};
+use holodeck_server::{HoloFile, OpenOptions};
+
+fn holodeck(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_holodeck"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+const ROOM: &str = "interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5";
+
+fn fill(path: &Path, beams: u32, rays_each: u64) {
+    let mut f = HoloFile::open(path, &OpenOptions::default()).unwrap();
+    for b in 0..beams {
+        let rays: Vec<RayRecord> = (0..rays_each)
+            .map(|j| RayRecord::new([j as u8, 1], [2, 3], Rgbe([200, 100, 50, 128]), DepthCode(j as u16)))
+            .collect();
+        f.append(BeamKey::new(0, b * 3), &rays).unwrap();
+    }
+    f.close().unwrap();
+}
+
+#[test]
+fn create_info_grid_check_optimize() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let o = holodeck(&["create", f, "--section", ROOM, "--grid", "0.5", "--cache", "8M"]);
+    assert!(o.status.success(), "{}", text(&o));
+    // Grid 12 x 8 x 5 from cell length 0.5.
+    assert_eq!(holodeck_protocol::beam_count_for_grid([12, 8, 5]), 124_832);
+    assert!(text(&o).contains("1 section(s), 124,832 beams"), "{}", text(&o));
+    fill(&file, 500, 20);
+
+    let o = holodeck(&["info", f]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains("grid 12 x 8 x 5"), "{out}");
+    assert!(out.contains("500 holding rays"), "{out}");
+    assert!(out.contains("10,000 rays"), "{out}");
+    assert!(out.contains("CACHE=8.0 MiB"), "{out}");
+
+    let obj = dir.path().join("grid.obj");
+    let o = holodeck(&["grid", f, "-o", obj.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let obj = std::fs::read_to_string(obj).unwrap();
+    let lines = obj.lines().filter(|l| l.starts_with("l ")).count();
+    let verts = obj.lines().filter(|l| l.starts_with("v ")).count();
+    // Boundary points of each wall-pair grid: (gb+1)(gc+1) - (gb-1)(gc-1) per axis.
+    let ring = |b: usize, c: usize| (b + 1) * (c + 1) - (b - 1) * (c - 1);
+    assert_eq!(lines, ring(8, 5) + ring(5, 12) + ring(12, 8));
+    assert_eq!(verts, 2 * lines);
+
+    let o = holodeck(&["check", f]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("all checksums verify"));
+
+    let o = holodeck(&["optimize", f]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("10,000 rays"), "{}", text(&o));
+    let o = holodeck(&["info", f]);
+    assert!(text(&o).contains("0 B free in 0 fragments"), "{}", text(&o));
+}
+
+#[test]
+fn create_from_a_control_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let toml = dir.path().join("room.toml");
+    std::fs::write(
+        &toml,
+        "cache = \"16M\"\nobstructions = true\n[[section]]\norigin = [0, 0, 0]\naxes = [[6, 0, 0], [0, 4, 0], [0, 0, 2.5]]\ngrid = [10, 6, 4]\n",
+    )
+    .unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = holodeck(&["create", file.to_str().unwrap(), "--control", toml.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let f = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
+    assert_eq!(f.sections()[0].grid(), [10, 6, 4]);
+    assert!(f.settings().obstructions);
+    assert_eq!(f.settings().cache_bytes, 16 << 20);
+}
+
+#[test]
+fn damage_is_reported_and_salvaged_into_a_new_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    assert!(holodeck(&["create", f, "--section", &format!("{ROOM} grid=6,4,3")])
+        .status
+        .success());
+    fill(&file, 50, 10);
+    let offset = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .directory(0)
+        .unwrap()[30]
+        .offset;
+    let mut bytes = std::fs::read(&file).unwrap();
+    bytes[offset as usize + 4] ^= 0xff;
+    std::fs::write(&file, &bytes).unwrap();
+
+    let o = holodeck(&["check", f]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(text(&o).contains("section 0 beam 30"), "{}", text(&o));
+
+    let salvaged = dir.path().join("salvaged.hdk");
+    let o = holodeck(&["check", f, "--repair", salvaged.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("salvaged 49 beams (490 rays)"), "{}", text(&o));
+    assert!(holodeck(&["check", salvaged.to_str().unwrap()]).status.success());
+    assert_eq!(
+        std::fs::read(&file).unwrap(),
+        bytes,
+        "the damaged file is never written"
+    );
+}
+
+#[test]
+fn bad_input_gets_a_clear_error_and_a_failing_exit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("x.hdk");
+    let f = file.to_str().unwrap();
+    let o = holodeck(&["create", f, "--section", "interior origin=0,0,0 x=1,0,0 y=0,1,0"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--section number 1") && text(&o).contains("no z= axis"),
+        "{}",
+        text(&o)
+    );
+    let o = holodeck(&["create", f]);
+    assert!(
+        !o.status.success() && text(&o).contains("at least one --section"),
+        "{}",
+        text(&o)
+    );
+    let o = holodeck(&["create", f, "--section", &format!("{ROOM} grid=300,1,1")]);
+    assert!(text(&o).contains("outside 1..=255"), "{}", text(&o));
+
+    std::fs::write(&file, b"hello").unwrap();
+    let o = holodeck(&["info", f]);
+    assert!(
+        !o.status.success() && text(&o).contains("not a holodeck file"),
+        "{}",
+        text(&o)
+    );
+    let o = holodeck(&["create", f, "--section", ROOM]);
+    assert!(text(&o).contains("already exists"), "{}", text(&o));
+    // Without grid= or --grid, the grid aims at 150,000 beams.
+    let auto = dir.path().join("auto.hdk");
+    let o = holodeck(&["create", auto.to_str().unwrap(), "--section", ROOM]);
+    assert!(o.status.success(), "{}", text(&o));
+    let beams = HoloFile::open(&auto, &OpenOptions::read_only()).unwrap().sections()[0].beam_count();
+    assert!((75_000..300_000).contains(&beams), "{beams}");
+    let o = holodeck(&["info", dir.path().join("missing.hdk").to_str().unwrap()]);
+    assert!(
+        !o.status.success() && text(&o).contains("missing.hdk: opening"),
+        "{}",
+        text(&o)
+    );
+}
+
+#[test]
+fn every_command_has_help_with_examples() {
+    for cmd in ["create", "info", "check", "optimize", "grid", "bench"] {
+        let o = holodeck(&[cmd, "--help"]);
+        assert!(o.status.success());
+        assert!(text(&o).contains("Example"), "{cmd} --help has no examples");
+    }
+    assert!(text(&holodeck(&["--help"])).contains("Examples:"));
+}
