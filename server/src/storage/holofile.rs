@@ -319,6 +319,10 @@ impl HoloFile {
         }
         misses.sort_by_key(|k| self.entry(*k).offset);
         misses.dedup();
+        // A request bigger than the cache would only churn it: deliver straight
+        // from the read buffer instead (scan resistance).
+        let miss_bytes: u64 = misses.iter().map(|k| self.entry(*k).extent().len).sum();
+        let keep = miss_bytes <= self.cache.budget() as u64 / 2;
         let groups = self.read_groups(&misses);
         let mut announced = 0;
         let mut start = 0;
@@ -340,7 +344,7 @@ impl HoloFile {
                     report.corrupt.push(key);
                     continue;
                 }
-                self.deliver(key, bytes, &mut report, &mut visit)?;
+                self.deliver(key, bytes, keep, &mut report, &mut visit)?;
             }
             self.read_buf = buf;
             start = end;
@@ -391,23 +395,32 @@ impl HoloFile {
         upto
     }
 
-    /// Joins a beam's disk records with any cached unwritten tail, caches it if it fits, and visits it.
+    /// Joins a beam's disk records with any cached unwritten tail, visits it, and
+    /// caches it if `keep` and it is small enough to be worth a place.
     fn deliver(
         &mut self,
         key: BeamKey,
         bytes: &[u8],
+        keep: bool,
         report: &mut ReadReport,
         visit: &mut impl FnMut(BeamKey, &[RayRecord]),
     ) -> Result<()> {
+        let on_disk = RayRecord::slice_from_bytes(bytes).unwrap_or(&[]);
         let tail: &[RayRecord] = self.cache.peek(&key).map(|e| e.tail()).unwrap_or(&[]);
-        let mut rays = Vec::with_capacity(bytes.len() / RAY_RECORD_BYTES + tail.len());
-        rays.extend_from_slice(RayRecord::slice_from_bytes(bytes).unwrap_or(&[]));
+        if tail.is_empty() && !keep {
+            report.beams += 1;
+            report.rays += on_disk.len() as u64;
+            visit(key, on_disk);
+            return Ok(());
+        }
+        let mut rays = Vec::with_capacity(on_disk.len() + tail.len());
+        rays.extend_from_slice(on_disk);
         rays.extend_from_slice(tail);
         let unwritten = tail.len();
         report.beams += 1;
         report.rays += rays.len() as u64;
         visit(key, &rays);
-        if rays.len() * RAY_RECORD_BYTES <= self.cache.budget() / 8 || unwritten > 0 {
+        if (keep && rays.len() * RAY_RECORD_BYTES <= self.cache.budget() / 8) || unwritten > 0 {
             self.cache.remove(&key);
             self.cache.insert_loaded(key, rays);
             self.cache.update(key, |e| e.unwritten = unwritten);

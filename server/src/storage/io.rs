@@ -67,6 +67,11 @@ pub fn read_at(file: &File, path: &Path, offset: u64, len: usize, buf: &mut Vec<
     file.read_exact_at(buf, offset).map_err(io_err(path, "reading"))
 }
 
+/// Reads exactly `buf.len()` bytes at `offset`.
+pub fn read_exact_at(file: &File, path: &Path, offset: u64, buf: &mut [u8]) -> Result<()> {
+    file.read_exact_at(buf, offset).map_err(io_err(path, "reading"))
+}
+
 /// Flushes file data (and the size needed to read it) to stable storage.
 pub fn sync(file: &File, path: &Path) -> Result<()> {
     file.sync_data().map_err(io_err(path, "syncing"))

@@ -79,10 +79,10 @@ pub struct Store {
 
 const RECORD: u64 = holodeck_protocol::RAY_RECORD_BYTES as u64;
 
-/// Room given to a run that must move: half again its size, so that a beam
+/// Room given to a run that must move: a quarter again its size, so that a beam
 /// growing by small appends moves O(log n) times instead of O(n).
 fn grow(count: u32) -> u32 {
-    count.saturating_add(count / 2).max(count.saturating_add(4))
+    count.saturating_add(count / 4).max(count.saturating_add(4))
 }
 
 fn format_err(path: &Path) -> impl Fn(format::FormatError) -> StorageError + '_ {
@@ -286,10 +286,15 @@ impl Store {
         self.writes.push(&self.file, &self.path, offset, bytes)
     }
 
-    /// Reads `len` bytes at `offset`, seeing every write made so far.
+    /// Reads `len` bytes at `offset` into the start of `buf`, seeing every write
+    /// made so far. `buf` only ever grows (no zero-filling per read); bytes past
+    /// `len` are stale.
     pub(crate) fn read_into(&mut self, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
         self.writes.flush(&self.file, &self.path)?;
-        io::read_at(&self.file, &self.path, offset, len, buf)
+        if buf.len() < len {
+            buf.resize(len, 0);
+        }
+        io::read_exact_at(&self.file, &self.path, offset, &mut buf[..len])
     }
 
     /// Announces reads about to be made (see [`io::will_need`]).
@@ -304,6 +309,7 @@ impl Store {
         let e = self.dirs[key.section as usize][key.beam as usize];
         let mut buf = Vec::new();
         self.read_into(e.offset, e.extent().len as usize, &mut buf)?;
+        buf.truncate(e.extent().len as usize);
         if crc32c::crc32c(&buf) != e.crc {
             return Err(StorageError::BeamCorrupt {
                 path: self.path.clone(),
