@@ -150,6 +150,19 @@ fn format_duration(d: Duration) -> String {
     format!("{}s", d.as_secs_f64())
 }
 
+/// A scene identity is one word of letters, digits and `:._-+/=` (a hash such as
+/// `blake3:...`), so it survives the settings text unchanged.
+fn check_scene(s: &str) -> Result<&str, String> {
+    let ok = !s.is_empty() && s.len() <= 256 && s.chars().all(|c| c.is_ascii_alphanumeric() || ":._-+/=".contains(c));
+    if ok {
+        Ok(s)
+    } else {
+        Err(format!(
+            "scene identity {s:?} must be 1-256 letters, digits or :._-+/= (a content hash)"
+        ))
+    }
+}
+
 fn parse_bool(s: &str) -> Result<bool, String> {
     match s.trim().to_ascii_lowercase().as_str() {
         "1" | "true" | "yes" | "on" | "t" | "y" => Ok(true),
@@ -258,6 +271,24 @@ fn parse_section_with(text: &str, auto: Option<(Option<f64>, Option<u64>)>) -> R
 }
 
 impl Settings {
+    /// Checks what parsing cannot: that there is a section and the scene identity
+    /// and text will survive a round trip through the file header.
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        if self.sections.is_empty() {
+            return Err(SettingsError::NoSections);
+        }
+        if let Some(scene) = &self.scene {
+            check_scene(scene).map_err(|message| SettingsError::Line { line: 0, message })?;
+        }
+        if self.grid.is_some_and(|g| !(g.is_finite() && g > 0.0)) {
+            return Err(SettingsError::Toml(format!(
+                "grid length {:?} must be a positive number",
+                self.grid
+            )));
+        }
+        Ok(())
+    }
+
     /// Prints the settings as `KEY=value` lines.
     pub fn to_text(&self) -> String {
         let mut t = String::from("# holodeck settings\n");
@@ -308,7 +339,7 @@ impl Settings {
                 "DISKSPACE" => s.diskspace_bytes = parse_size(value).map_err(err)?,
                 "TIME" => s.time = parse_duration(value, 3600.0).map_err(err)?,
                 "REPORT" => s.report = parse_duration(value, 60.0).map_err(err)?,
-                "SCENE" => s.scene = Some(value.to_string()),
+                "SCENE" => s.scene = Some(check_scene(value).map_err(err)?.to_string()),
                 other => {
                     return Err(err(format!(
                         "unknown setting {other:?}; known settings are {}",
@@ -317,9 +348,7 @@ impl Settings {
                 }
             }
         }
-        if s.sections.is_empty() {
-            return Err(SettingsError::NoSections);
-        }
+        s.validate()?;
         Ok(s)
     }
 
@@ -417,9 +446,7 @@ impl ControlFile {
             s.sections
                 .push(Section::new(e.origin, e.axes, grid, e.kind).map_err(wrap)?);
         }
-        if s.sections.is_empty() {
-            return Err(SettingsError::NoSections);
-        }
+        s.validate()?;
         Ok(s)
     }
 }

@@ -525,3 +525,64 @@ fn random_damage_never_panics_and_never_yields_unwritten_rays() {
         }
     }
 }
+
+#[test]
+fn flush_if_due_makes_rays_durable_after_a_quiet_spell() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let hour = Some(std::time::Duration::from_secs(3600));
+    let mut f = HoloFile::open(
+        &path,
+        &OpenOptions {
+            writable: true,
+            cache_bytes: Some(1 << 20),
+            flush_interval: hour,
+        },
+    )
+    .unwrap();
+    let k = BeamKey::new(0, 9);
+    f.append(k, &rays(k, 0, 7)).unwrap();
+    assert!(!f.flush_if_due().unwrap(), "not due for an hour");
+    f.set_flush_interval(Some(std::time::Duration::ZERO));
+    assert!(f.flush_if_due().unwrap(), "due, with rays to write");
+    assert!(!f.flush_if_due().unwrap(), "nothing left to flush");
+    f.abandon();
+    let mut expected = std::collections::HashMap::new();
+    expected.insert(k, 7);
+    assert_contents(&path, &expected);
+}
+
+#[test]
+fn reading_beams_with_unwritten_tails_through_a_tiny_cache() {
+    // Beams with rays on disk *and* unwritten tails in the cache: reading them
+    // all must join both parts and must not move runs the read is still using.
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let keys: Vec<BeamKey> = (0..60).map(|b| BeamKey::new(0, b * 9)).collect();
+    {
+        let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+        for &k in &keys {
+            f.append(k, &rays(k, 0, 40)).unwrap();
+        }
+        f.close().unwrap();
+    }
+    let mut f = HoloFile::open(&path, &writable(6 << 10)).unwrap();
+    for &k in &keys {
+        f.append(k, &rays(k, 40, 3)).unwrap();
+    }
+    for _ in 0..3 {
+        let mut seen = 0;
+        let report = f
+            .read_beams(&keys, |k, got| {
+                assert_eq!(got, rays(k, 0, 43).as_slice(), "{k:?}");
+                seen += 1;
+            })
+            .unwrap();
+        assert!(report.corrupt.is_empty(), "{:?}", report.corrupt);
+        assert_eq!(seen, keys.len());
+        assert!(f.cache_usage().0 <= f.cache_usage().1);
+    }
+    f.close().unwrap();
+    let expected = keys.iter().map(|&k| (k, 43)).collect();
+    assert_contents(&path, &expected);
+}

@@ -35,14 +35,31 @@ pub fn temp_path(dest: &Path, purpose: &str) -> PathBuf {
 impl SequentialWriter {
     /// Starts a file that will appear at `dest` on [`SequentialWriter::finish`].
     pub fn create(dest: &Path, settings: &Settings) -> Result<SequentialWriter> {
+        settings.validate().map_err(|source| StorageError::Settings {
+            path: dest.to_path_buf(),
+            source,
+        })?;
+        let text = settings.to_text();
+        let text_len = u32::try_from(text.len())
+            .ok()
+            .filter(|&n| n <= format::MAX_TEXT_LEN)
+            .ok_or_else(|| {
+                let message = format!(
+                    "settings text of {} bytes exceeds the {} allowed",
+                    text.len(),
+                    format::MAX_TEXT_LEN
+                );
+                StorageError::Settings {
+                    path: dest.to_path_buf(),
+                    source: crate::settings::SettingsError::Toml(message),
+                }
+            })?;
         let tmp = temp_path(dest, "building");
         let file = File::create(&tmp).map_err(|source| StorageError::Io {
             path: tmp.clone(),
             op: "creating",
             source,
         })?;
-        let text = settings.to_text();
-        let text_len = u32::try_from(text.len()).unwrap_or(u32::MAX);
         let mut w = SequentialWriter {
             out: Some(BufWriter::with_capacity(4 << 20, file)),
             tmp,

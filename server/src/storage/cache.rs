@@ -117,6 +117,29 @@ impl BeamCache {
         Some((k, e))
     }
 
+    /// Keys from the least recently used end whose entries add up to at least
+    /// `bytes`; with `clean_only`, entries with unwritten rays are skipped.
+    pub fn lru_keys(&self, bytes: usize, clean_only: bool) -> Vec<BeamKey> {
+        let mut keys = Vec::new();
+        let mut freed = 0;
+        for (k, e) in self.map.iter().rev() {
+            if freed >= bytes {
+                break;
+            }
+            if clean_only && e.unwritten > 0 {
+                continue;
+            }
+            freed += e.bytes();
+            keys.push(*k);
+        }
+        keys
+    }
+
+    /// Number of entries with unwritten rays.
+    pub fn dirty_count(&self) -> usize {
+        self.map.iter().filter(|(_, e)| e.unwritten > 0).count()
+    }
+
     /// Keys of entries with unwritten rays.
     pub fn dirty_keys(&self) -> Vec<BeamKey> {
         self.map

@@ -94,6 +94,12 @@ pub enum StorageError {
         /// The file.
         path: PathBuf,
     },
+    /// An earlier write or sync failed; what is on disk since the last commit is uncertain.
+    #[error("{path}: an earlier write or sync failed, so nothing more is written; reopen the file (it recovers its last commit)")]
+    Poisoned {
+        /// The file.
+        path: PathBuf,
+    },
     /// Writing to a file opened for reading.
     #[error("{path} is open read-only")]
     ReadOnly {

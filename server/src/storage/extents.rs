@@ -45,6 +45,13 @@ impl Extents {
         };
         let mut prev: Option<Extent> = None;
         for e in used {
+            if e.offset < start {
+                // Inside the fixed header: claimed by the header itself.
+                return Err(Overlap {
+                    first: Extent { offset: 0, len: start },
+                    second: e,
+                });
+            }
             if let Some(p) = prev {
                 if e.offset < p.end() {
                     return Err(Overlap { first: p, second: e });
@@ -187,6 +194,8 @@ mod tests {
         assert_eq!(x.fragments(), 2);
         let o = Extents::from_used(100, vec![ext(100, 20), ext(110, 5)]).unwrap_err();
         assert_eq!(o.second, ext(110, 5));
+        let o = Extents::from_used(100, vec![ext(64, 10)]).unwrap_err();
+        assert_eq!(o.first, ext(0, 100), "runs inside the header are refused");
     }
 
     #[test]

@@ -355,6 +355,13 @@ pub fn decode_slot(bytes: &[u8], base: u64) -> Result<Option<Slot>, FormatError>
     let offset = r.u64()?;
     let len = r.u64()?;
     let root_crc = r.u32()?;
+    if generation == 0 || generation > MAX_GENERATION {
+        return Err(invalid(
+            &what,
+            base + 4,
+            format!("generation {generation} is impossible"),
+        ));
+    }
     if offset.checked_add(len).is_none() || len > u64::from(u32::MAX) {
         return Err(invalid(
             &what,
@@ -379,6 +386,21 @@ pub struct DirRef {
     /// Rays stored in the section.
     pub rays: u64,
 }
+
+/// Byte length of a root listing `sections` sections.
+pub fn root_len(sections: usize) -> u64 {
+    20 + 28 * sections as u64
+}
+
+/// Longest possible directory block for `beams` beams: a 5-byte count, a
+/// 10-byte offset delta and a 4-byte CRC per beam, 16 bytes of framing.
+pub fn max_directory_len(beams: u32) -> u64 {
+    16 + 19 * u64::from(beams)
+}
+
+/// Largest generation accepted: far beyond any real count of commits, and far
+/// from overflow.
+pub const MAX_GENERATION: u64 = 1 << 62;
 
 /// Encodes a root.
 pub fn encode_root(generation: u64, dirs: &[DirRef]) -> Vec<u8> {
@@ -505,7 +527,8 @@ pub fn decode_directory(
             format!("block lists {n} beams, the section has {beams}"),
         ));
     }
-    let mut out = Vec::with_capacity(n as usize);
+    // Every beam takes at least one byte: never reserve more than the bytes could hold.
+    let mut out = Vec::with_capacity((n as usize).min(bytes.len()));
     let mut expected = 0u64;
     for beam in 0..n {
         let at = r.at();

@@ -220,30 +220,58 @@ impl HoloFile {
         if self.cache.over_budget() {
             self.evict()?;
         }
-        if self.flush_interval.is_some_and(|i| self.last_flush.elapsed() >= i) {
-            self.flush()?;
+        self.flush_if_due()?;
+        Ok(())
+    }
+
+    /// Changes the automatic flush interval (`None`: flush only when asked).
+    pub fn set_flush_interval(&mut self, interval: Option<Duration>) {
+        self.flush_interval = interval;
+    }
+
+    /// Flushes if the flush interval has passed since the last flush and there
+    /// is something to write; returns whether it flushed. A server calls this
+    /// on a timer so that rays appended just before a quiet spell still become
+    /// durable within the interval.
+    pub fn flush_if_due(&mut self) -> Result<bool> {
+        let due = self.flush_interval.is_some_and(|i| self.last_flush.elapsed() >= i);
+        if !due || !self.store.writable {
+            return Ok(false);
+        }
+        if self.cache.dirty_count() == 0 && !self.store.has_changes() {
+            self.last_flush = Instant::now();
+            return Ok(false);
+        }
+        self.flush()?;
+        Ok(true)
+    }
+
+    /// Writes least-recently-used beams until the cache is 10% under budget.
+    /// Each entry leaves the cache only after its rays are written, so a failed
+    /// write loses nothing: the rays stay cached for the next flush.
+    fn evict(&mut self) -> Result<()> {
+        let excess = self.cache.bytes().saturating_sub(self.cache.budget() / 10 * 9);
+        let mut victims = self.cache.lru_keys(excess, false);
+        victims.sort_by_key(|k| self.entry(*k).offset);
+        for key in victims {
+            if let Some(e) = self.cache.peek(&key) {
+                if e.unwritten > 0 {
+                    let on_disk = e.loaded.then(|| &e.rays[..e.rays.len() - e.unwritten]);
+                    self.store.write_tail(key, on_disk, e.tail())?;
+                }
+            }
+            self.cache.remove(&key);
         }
         Ok(())
     }
 
-    /// Writes least-recently-used beams until the cache is 10% under budget.
-    fn evict(&mut self) -> Result<()> {
-        let target = self.cache.budget() / 10 * 9;
-        let mut dirty = Vec::new();
-        while self.cache.bytes() > target {
-            let Some((key, e)) = self.cache.pop_lru() else {
-                break;
-            };
-            if e.unwritten > 0 {
-                dirty.push((key, e));
-            }
+    /// Drops least-recently-used beams that have nothing unwritten, touching
+    /// neither the file nor the directory (safe in the middle of a read).
+    fn evict_clean(&mut self) {
+        let excess = self.cache.bytes().saturating_sub(self.cache.budget() / 10 * 9);
+        for key in self.cache.lru_keys(excess, true) {
+            self.cache.remove(&key);
         }
-        dirty.sort_by_key(|(k, _)| self.entry(*k).offset);
-        for (key, e) in dirty {
-            let on_disk = e.loaded.then(|| &e.rays[..e.rays.len() - e.unwritten]);
-            self.store.write_tail(key, on_disk, e.tail())?;
-        }
-        Ok(())
     }
 
     /// Writes every unwritten ray and commits, so that all appended rays survive a crash.
@@ -352,6 +380,9 @@ impl HoloFile {
         if self.read_buf.capacity() > 2 * MERGE_LIMIT as usize {
             self.read_buf = Vec::new();
         }
+        if self.cache.over_budget() {
+            self.evict()?;
+        }
         Ok(report)
     }
 
@@ -406,6 +437,7 @@ impl HoloFile {
         visit: &mut impl FnMut(BeamKey, &[RayRecord]),
     ) -> Result<()> {
         let on_disk = RayRecord::slice_from_bytes(bytes).unwrap_or(&[]);
+        // Note: nothing here may write to the file (see `evict_clean`).
         let tail: &[RayRecord] = self.cache.peek(&key).map(|e| e.tail()).unwrap_or(&[]);
         if tail.is_empty() && !keep {
             report.beams += 1;
@@ -425,7 +457,8 @@ impl HoloFile {
             self.cache.insert_loaded(key, rays);
             self.cache.update(key, |e| e.unwritten = unwritten);
             if self.cache.over_budget() {
-                self.evict()?;
+                // Writing here could move runs this read is still using.
+                self.evict_clean();
             }
         }
         Ok(())

@@ -106,6 +106,7 @@ pub fn repair(src: &Path, dest: &Path) -> Result<RepairReport> {
         op: "opening",
         source,
     })?;
+    io::lock(&file, src, false)?;
     let file_len = io::file_len(&file, src)?;
     let (settings, data_start) = store::read_header(&file, src, file_len)?;
     let slots = store::read_slots(&file, src)?.slots;
@@ -161,7 +162,9 @@ fn newest_directory(
         };
         let Some(r) = refs.get(section) else { continue };
         let mut dbuf = Vec::new();
-        if r.block.end() > file_len || io::read_at(file, path, r.block.offset, r.block.len as usize, &mut dbuf).is_err()
+        if r.block.end() > file_len
+            || r.block.len > format::max_directory_len(beams)
+            || io::read_at(file, path, r.block.offset, r.block.len as usize, &mut dbuf).is_err()
         {
             continue;
         }

@@ -75,6 +75,9 @@ pub struct Store {
     file_len: u64,
     pub(crate) stats: IoStats,
     pub(crate) info: OpenInfo,
+    /// Set when a write or sync failed: what is on disk is then uncertain
+    /// (a failed fsync may drop dirty pages), so nothing more is written.
+    poisoned: bool,
 }
 
 const RECORD: u64 = holodeck_protocol::RAY_RECORD_BYTES as u64;
@@ -167,6 +170,19 @@ pub(crate) fn load_commit(
     data_start: u64,
     file_len: u64,
 ) -> Result<Loaded> {
+    let invalid = |what: String, at: u64, detail: String| StorageError::Format {
+        path: path.to_path_buf(),
+        source: format::FormatError::Invalid { what, at, detail },
+    };
+    if slot.root.len != format::root_len(sections.len()) {
+        let detail = format!(
+            "root length {} is not {} for {} sections",
+            slot.root.len,
+            format::root_len(sections.len()),
+            sections.len()
+        );
+        return Err(invalid(format!("commit {}", slot.generation), slot.root.offset, detail));
+    }
     let root_bytes = read_extent(file, path, slot.root, file_len, "commit root")?;
     if crc32c::crc32c(&root_bytes) != slot.root_crc {
         return Err(StorageError::Format {
@@ -185,6 +201,14 @@ pub(crate) fn load_commit(
     let mut dirs = Vec::with_capacity(sections.len());
     let mut used = vec![slot.root];
     for (s, (r, section)) in refs.iter().zip(sections).enumerate() {
+        if r.block.len > format::max_directory_len(section.beam_count()) {
+            let detail = format!(
+                "directory block of {} bytes is too long for {} beams",
+                r.block.len,
+                section.beam_count()
+            );
+            return Err(invalid(format!("directory of section {s}"), r.block.offset, detail));
+        }
         let bytes = read_extent(file, path, r.block, file_len, &format!("directory of section {s}"))?;
         let d = format::decode_directory(
             &bytes,
@@ -266,6 +290,7 @@ impl Store {
                             slot: *slot_index,
                             skipped: problems,
                         },
+                        poisoned: false,
                     };
                     return Ok((store, settings));
                 }
@@ -283,14 +308,43 @@ impl Store {
 
     fn push_write(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {
         self.file_len = self.file_len.max(offset + bytes.len() as u64);
-        self.writes.push(&self.file, &self.path, offset, bytes)
+        let r = self.writes.push(&self.file, &self.path, offset, bytes);
+        self.poison_on_error(r)
+    }
+
+    /// Marks the store unusable after a failed write or sync.
+    fn poison_on_error<T>(&mut self, r: Result<T>) -> Result<T> {
+        if r.is_err() {
+            self.poisoned = true;
+            tracing::error!(path = %self.path.display(), "write failed: no more writes until the file is reopened");
+        }
+        r
+    }
+
+    fn check_usable(&self) -> Result<()> {
+        if self.poisoned {
+            return Err(StorageError::Poisoned {
+                path: self.path.clone(),
+            });
+        }
+        Ok(())
+    }
+
+    fn flush_writes(&mut self) -> Result<()> {
+        let r = self.writes.flush(&self.file, &self.path);
+        self.poison_on_error(r)
+    }
+
+    fn sync(&mut self) -> Result<()> {
+        let r = io::sync(&self.file, &self.path);
+        self.poison_on_error(r)
     }
 
     /// Reads `len` bytes at `offset` into the start of `buf`, seeing every write
     /// made so far. `buf` only ever grows (no zero-filling per read); bytes past
     /// `len` are stale.
     pub(crate) fn read_into(&mut self, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
-        self.writes.flush(&self.file, &self.path)?;
+        self.flush_writes()?;
         if buf.len() < len {
             buf.resize(len, 0);
         }
@@ -326,6 +380,7 @@ impl Store {
     /// beam to a new run with room to grow. `on_disk` supplies the beam's
     /// existing rays when it must move and they are already in memory.
     pub(crate) fn write_tail(&mut self, key: BeamKey, on_disk: Option<&[RayRecord]>, tail: &[RayRecord]) -> Result<()> {
+        self.check_usable()?;
         if tail.is_empty() {
             return Ok(());
         }
@@ -418,8 +473,9 @@ impl Store {
 
     /// Makes everything written so far durable as a new commit.
     pub fn commit(&mut self) -> Result<()> {
+        self.check_usable()?;
         if !self.has_changes() {
-            return self.writes.flush(&self.file, &self.path);
+            return self.flush_writes();
         }
         let generation = self.generation + 1;
         for s in 0..self.dirs.len() {
@@ -451,20 +507,22 @@ impl Store {
             len: root_bytes.len() as u64,
         };
         self.push_write(root.offset, &root_bytes)?;
-        self.writes.flush(&self.file, &self.path)?;
-        io::sync(&self.file, &self.path)?;
+        self.flush_writes()?;
+        self.sync()?;
         let slot = Slot {
             generation,
             root,
             root_crc: crc32c::crc32c(&root_bytes),
         };
-        io::write_at(
+        // From here on a failure leaves it unknown which commit is durable: poison.
+        let r = io::write_at(
             &self.file,
             &self.path,
             SLOT_OFFSETS[self.next_slot],
             &format::encode_slot(&slot),
-        )?;
-        io::sync(&self.file, &self.path)?;
+        );
+        self.poison_on_error(r)?;
+        self.sync()?;
         // The new commit is durable: the old root and everything released may be reused.
         self.extents.release(self.root);
         self.root = root;
@@ -478,13 +536,13 @@ impl Store {
         self.stats.commits += 1;
         if self.file_len > self.extents.end() {
             // Space past the end is referenced by no commit: give it back.
-            self.file
-                .set_len(self.extents.end())
-                .map_err(|source| StorageError::Io {
-                    path: self.path.clone(),
-                    op: "trimming",
-                    source,
-                })?;
+            let r = self.file.set_len(self.extents.end());
+            let r = r.map_err(|source| StorageError::Io {
+                path: self.path.clone(),
+                op: "trimming",
+                source,
+            });
+            self.poison_on_error(r)?;
             self.file_len = self.extents.end();
         }
         Ok(())
