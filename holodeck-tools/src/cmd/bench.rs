@@ -63,6 +63,9 @@ enum Target {
     /// Internal: stream one file's beams (the child process of the memory measurement).
     #[value(hide = true)]
     Stream,
+    /// Internal: fill one file (the child process of the memory measurement).
+    #[value(hide = true)]
+    Fill,
 }
 
 fn parse_count(s: &str) -> std::result::Result<u64, String> {
@@ -229,19 +232,18 @@ fn recall(path: &Path, cache: u64, requests: &[&[BeamKey]], cold: bool) -> Resul
     Ok((rays, start.elapsed().as_secs_f64()))
 }
 
-/// Streams every beam of `path` in request lists of `request` beams in a child
-/// process (`holodeck bench stream`) and returns its peak RSS above its
-/// starting RSS, in bytes, and what it printed.
-fn child_stream_rss(path: &Path, cache: &str, request: usize) -> Result<(u64, String)> {
+/// Runs `holodeck ARGS --file PATH` as a child process that prints its starting
+/// and peak RSS first; returns the peak above the start, in bytes, and what it printed.
+fn child_rss(args: &[&str], path: &Path) -> Result<(u64, String)> {
     let exe = std::env::current_exe()?;
     let out = std::process::Command::new(exe)
-        .args(["bench", "stream", "--file"])
+        .args(args)
+        .arg("--file")
         .arg(path)
-        .args(["--cache", cache, "--request", &request.to_string()])
         .output()?;
     anyhow::ensure!(
         out.status.success(),
-        "streaming child failed: {}",
+        "child {args:?} failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
     // The child's own peak (VmHWM counts from its exec, unlike getrusage, which
@@ -276,7 +278,7 @@ fn stream(path: &Path, cache: u64, request: usize) -> Result<ExitCode> {
         rays += f.read_beams(chunk, |_, _| {})?.rays;
     }
     let (peak, _) = rss();
-    println!("{start} {peak} rays={rays}");
+    println!("{start} {peak} {rays}");
     Ok(ExitCode::SUCCESS)
 }
 
@@ -330,9 +332,23 @@ fn row(what: &str, result: String, baseline: String, ratio: f64) {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let cache = parse_size(&a.cache).map_err(anyhow::Error::msg)?;
-    if let Target::Stream = a.what {
-        let file = a.file.as_deref().context("bench stream needs --file")?;
-        return stream(file, cache, a.request);
+    match a.what {
+        Target::Stream => {
+            return stream(
+                a.file.as_deref().context("bench stream needs --file")?,
+                cache,
+                a.request,
+            )
+        }
+        Target::Fill => {
+            let file = a.file.as_deref().context("bench fill needs --file")?;
+            let (_, start) = rss();
+            let secs = fill(file, &reference_settings(cache)?, a.rays, 1)?;
+            let (peak, _) = rss();
+            println!("{start} {peak} {secs}");
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::Storage => {}
     }
     std::fs::create_dir_all(&a.dir).with_context(|| format!("creating {}", a.dir.display()))?;
     let big = a.dir.join("bench-large.hdk");
@@ -352,7 +368,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
     println!("| measurement | result | baseline (same run) | ratio |");
     println!("|---|---|---|---|");
 
-    let fill_secs = fill(&big, &settings, a.rays, 1)?;
+    // The large fill runs in a child process so its peak memory is its own.
+    let (fill_rss, fill_out) = child_rss(
+        &["bench", "fill", "--rays", &a.rays.to_string(), "--cache", &a.cache],
+        &big,
+    )?;
+    let fill_secs: f64 = fill_out
+        .split_whitespace()
+        .nth(2)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(f64::NAN);
     let (raw_secs, raw_bytes) = raw_read(&big, true)?;
     let raw = raw_bytes as f64 / 10.0 / raw_secs;
     let raw_text = format!(
@@ -367,6 +392,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         a.rays as f64 / fill_secs / raw,
     );
 
+    row(
+        &format!("peak RSS filling {} rays, child process", count(a.rays)),
+        format!("{} above its start", bytes(fill_rss)),
+        format!("CACHE {}", bytes(cache)),
+        fill_rss as f64 / cache as f64,
+    );
     let beams = section.beam_count();
     let mut all: Vec<BeamKey> = (0..beams).map(|b| BeamKey::new(0, b)).collect();
     all.shuffle(&mut StdRng::seed_from_u64(2));
@@ -472,7 +503,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     );
     drop(f);
 
-    let (above, _) = child_stream_rss(&big, &a.cache, a.request)?;
+    let request = a.request.to_string();
+    let (above, _) = child_rss(&["bench", "stream", "--cache", &a.cache, "--request", &request], &big)?;
     row(
         &format!(
             "peak RSS streaming every beam of a {} file ({:.1}x CACHE), child process",

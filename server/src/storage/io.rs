@@ -9,7 +9,7 @@ use std::path::Path;
 use super::error::{Result, StorageError};
 
 /// Largest batch held before it is written.
-const BATCH_LIMIT: usize = 8 << 20;
+const BATCH_LIMIT: usize = 2 << 20;
 
 /// Adjacent writes gathered into one buffer.
 #[derive(Default)]
