@@ -3,6 +3,7 @@
 
 pub mod settings;
 pub mod storage;
+pub mod testing;
 
 pub use settings::{ControlFile, Settings, SettingsError};
 pub use storage::{HoloFile, OpenOptions, StorageError};

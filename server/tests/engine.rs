@@ -5,47 +5,14 @@ use std::fs;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
-use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
+use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::settings::Settings;
 use holodeck_server::storage::{self, format, HoloFile, OpenOptions, StorageError};
 
-/// Ray `j` of a beam: content fixed by (section, beam, j), so any misplaced,
-/// duplicated or invented record is detected.
-fn ray(key: BeamKey, j: u64) -> RayRecord {
-    let h = (u64::from(key.section) << 40 ^ u64::from(key.beam) << 20 ^ j).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    let b = h.to_le_bytes();
-    RayRecord::new(
-        [b[0], b[1]],
-        [b[2], b[3]],
-        Rgbe([b[4], b[5], b[6], 130]),
-        DepthCode(u16::from_le_bytes([b[7], b[1]])),
-    )
-}
-
-fn rays(key: BeamKey, from: u64, n: u64) -> Vec<RayRecord> {
-    (from..from + n).map(|j| ray(key, j)).collect()
-}
+use holodeck_server::testing::{pattern_rays as rays, two_sections};
 
 fn settings() -> Settings {
-    let room = Section::new(
-        [0.0; 3],
-        [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.5]],
-        [4, 3, 2],
-        SectionKind::Interior,
-    )
-    .unwrap();
-    let object = Section::new(
-        [10.0, 0.0, 0.0],
-        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        [2, 2, 2],
-        SectionKind::Exterior,
-    )
-    .unwrap();
-    Settings {
-        sections: vec![room, object],
-        cache_bytes: 1 << 20,
-        ..Settings::default()
-    }
+    two_sections([4, 3, 2], [2, 2, 2], 1 << 20)
 }
 
 fn new_file(dir: &Path) -> PathBuf {

@@ -11,46 +11,18 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
+use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::settings::Settings;
 use holodeck_server::storage::{self, HoloFile, OpenOptions};
+use holodeck_server::testing::{pattern_ray as ray, two_sections};
 use rand::{Rng, SeedableRng};
 
 const FILE_VAR: &str = "HOLODECK_CRASH_FILE";
 const SEED_VAR: &str = "HOLODECK_CRASH_SEED";
 const MODE_VAR: &str = "HOLODECK_CRASH_MODE";
 
-/// Ray `j` of a beam: fixed by (section, beam, j), so misplaced rays show.
-fn ray(key: BeamKey, j: u64) -> RayRecord {
-    let h = (u64::from(key.section) << 40 ^ u64::from(key.beam) << 20 ^ j).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    let b = h.to_le_bytes();
-    RayRecord::new(
-        [b[0], b[1]],
-        [b[2], b[3]],
-        Rgbe([b[4], b[5], b[6], 129]),
-        DepthCode(u16::from_le_bytes([b[7], b[2]])),
-    )
-}
-
 fn settings() -> Settings {
-    let a = Section::new(
-        [0.0; 3],
-        [[3.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]],
-        [3, 2, 2],
-        SectionKind::Interior,
-    )
-    .unwrap();
-    let b = Section::new(
-        [5.0, 0.0, 0.0],
-        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        [1, 1, 2],
-        SectionKind::Exterior,
-    )
-    .unwrap();
-    Settings {
-        sections: vec![a, b],
-        ..Settings::default()
-    }
+    two_sections([3, 2, 2], [1, 1, 2], holodeck_server::settings::DEFAULT_CACHE_BYTES)
 }
 
 /// The writer run in the child process. Prints `flushed N` after each flush that

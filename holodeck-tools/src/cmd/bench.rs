@@ -211,13 +211,7 @@ fn recall(path: &Path, cache: u64, requests: &[&[BeamKey]], cold: bool) -> Resul
     if cold {
         drop_os_cache(path)?;
     }
-    let mut f = HoloFile::open(
-        path,
-        &OpenOptions {
-            cache_bytes: Some(cache),
-            ..OpenOptions::read_only()
-        },
-    )?;
+    let mut f = reader(path, cache)?;
     let mut sink: Vec<RayRecord> = Vec::with_capacity(1 << 20);
     let start = Instant::now();
     let mut rays = 0;
@@ -258,16 +252,22 @@ fn child_rss(args: &[&str], path: &Path) -> Result<(u64, String)> {
     Ok((field(1).saturating_sub(field(0)), text))
 }
 
-/// The child side of [`child_stream_rss`]: prints its starting RSS, then streams.
-fn stream(path: &Path, cache: u64, request: usize) -> Result<ExitCode> {
-    let (_, start) = rss();
-    let mut f = HoloFile::open(
+/// Opens a file for reading with a cache budget.
+fn reader(path: &Path, cache: u64) -> Result<HoloFile> {
+    Ok(HoloFile::open(
         path,
         &OpenOptions {
             cache_bytes: Some(cache),
             ..OpenOptions::read_only()
         },
-    )?;
+    )?)
+}
+
+/// The child side of the streaming memory measurement: prints its starting
+/// and peak RSS and the rays it read.
+fn stream(path: &Path, cache: u64, request: usize) -> Result<ExitCode> {
+    let (_, start) = rss();
+    let mut f = reader(path, cache)?;
     let mut keys: Vec<BeamKey> = Vec::new();
     for (s, section) in f.sections().iter().enumerate() {
         keys.extend((0..section.beam_count()).map(|b| BeamKey::new(s as u32, b)));
@@ -471,13 +471,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     );
 
     // Cache hits: the random request again, rays copied out, five times.
-    let mut f = HoloFile::open(
-        &big,
-        &OpenOptions {
-            cache_bytes: Some(cache),
-            ..OpenOptions::read_only()
-        },
-    )?;
+    let mut f = reader(&big, cache)?;
     let first = f.read_beams(random, |_, _| {})?;
     let mut sink: Vec<RayRecord> = Vec::with_capacity(1 << 20);
     let start = Instant::now();
