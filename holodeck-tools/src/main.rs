@@ -31,7 +31,9 @@ Examples:
   holodeck check room.hdk --repair salvaged.hdk
   holodeck optimize room.hdk
   holodeck grid room.hdk -o grid.obj
-  holodeck bench storage --rays 50M";
+  holodeck bench storage --rays 50M
+  holodeck scene gen landscape --triangles 10M -o landscape.toml
+  holodeck scene info landscape.toml";
 
 #[derive(Subcommand)]
 enum Command {
@@ -47,6 +49,10 @@ enum Command {
     Grid(cmd::grid::Args),
     /// Measure the storage engine (append, recall, optimize, memory).
     Bench(cmd::bench::Args),
+    /// Generate built-in scenes and inspect scene files.
+    Scene(cmd::scene::Args),
+    /// Render a view of a scene directly with the path tracer (the accuracy reference).
+    Render(cmd::render::Args),
 }
 
 fn init_logging(verbose: u8, quiet: bool) {
@@ -75,6 +81,8 @@ fn main() -> ExitCode {
         Command::Optimize(a) => cmd::optimize::run(a),
         Command::Grid(a) => cmd::grid::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::Scene(a) => cmd::scene::run(a),
+        Command::Render(a) => cmd::render::run(a),
     };
     match result {
         Ok(code) => code,

@@ -12,6 +12,7 @@ pub mod depth;
 pub mod record;
 pub mod rgbe;
 pub mod section;
+pub mod view;
 
 pub use beam::{BeamIndex, BeamKey, BeamRay, CellPair, LocatedRay, WallCell};
 pub use depth::DepthCode;
@@ -21,3 +22,4 @@ pub use section::{
     beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind, Wall,
     MAX_BEAMS_PER_SECTION, MAX_GRID,
 };
+pub use view::{View, ViewError, ViewType};

@@ -1,3 +1,15 @@
-//! The sampler: beam ray generation and the tracer (scene import, acceleration
-//! structure, out-of-core blocks, shading). Nothing is implemented yet; this
-//! crate only reserves its place in the workspace.
+//! The holodeck sampler: scenes (import, generation, description files), the
+//! kd-tree, the path tracer, and the direct reference renderer. Turning rays
+//! into radiance and distance is its whole job; it knows nothing of sockets.
+
+pub mod accel;
+pub mod error;
+pub mod geom;
+pub mod render;
+pub mod scene;
+pub mod shade;
+
+pub use accel::KdTree;
+pub use error::SceneError;
+pub use scene::{Material, Scene, SceneBuilder, Sky, Triangle};
+pub use shade::{Rng, Sample, TraceOptions, Tracer};

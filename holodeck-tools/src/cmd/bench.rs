@@ -18,7 +18,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
-use crate::human::{bytes, count};
+use crate::human::{bytes, count, parse_count};
 
 /// Arguments of `holodeck bench`.
 #[derive(clap::Args)]
@@ -26,6 +26,7 @@ use crate::human::{bytes, count};
 Example:
   holodeck bench storage --rays 50M --dir target/bench
   holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)
+  holodeck bench tracer --triangles 1M --triangles 10M
 
 Files are written under --dir and removed afterwards unless --keep is given.")]
 pub struct Args {
@@ -50,6 +51,12 @@ pub struct Args {
     /// Keep the files.
     #[arg(long)]
     keep: bool,
+    /// Landscape sizes for `tracer` (triangles; repeat for several).
+    #[arg(long, value_parser = parse_count, default_values = ["1M"])]
+    triangles: Vec<u64>,
+    /// Rays per measurement for `tracer`: a square of this many pixels per side.
+    #[arg(long, default_value_t = 512)]
+    pixels: u32,
     /// File to stream (internal, for `stream`).
     #[arg(long, hide = true)]
     file: Option<PathBuf>,
@@ -66,18 +73,8 @@ enum Target {
     /// Internal: fill one file (the child process of the memory measurement).
     #[value(hide = true)]
     Fill,
-}
-
-fn parse_count(s: &str) -> std::result::Result<u64, String> {
-    let s = s.trim();
-    let (num, mult) = match s.chars().last() {
-        Some('K' | 'k') => (&s[..s.len() - 1], 1e3),
-        Some('M' | 'm') => (&s[..s.len() - 1], 1e6),
-        Some('G' | 'g') => (&s[..s.len() - 1], 1e9),
-        _ => (s, 1.0),
-    };
-    let v: f64 = num.parse().map_err(|_| format!("{s:?} is not a count like 50M"))?;
-    Ok((v * mult).round() as u64)
+    /// The kd-tree and the path tracer.
+    Tracer,
 }
 
 /// The section of Radiance's reference fill: grid 13 x 10 x 4 gives 154,728 beams.
@@ -346,6 +343,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let secs = fill(file, &reference_settings(cache)?, a.rays, 1)?;
             let (peak, _) = rss();
             println!("{start} {peak} {secs}");
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::Tracer => {
+            super::bench_tracer::run(&a.triangles, a.pixels)?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Storage => {}

@@ -1,8 +1,11 @@
 //! One module per subcommand: argument definitions and a `run` that calls the libraries.
 
 pub mod bench;
+pub mod bench_tracer;
 pub mod check;
 pub mod create;
 pub mod grid;
 pub mod info;
 pub mod optimize;
+pub mod render;
+pub mod scene;

@@ -185,7 +185,7 @@ mod tests {
         assert_eq!(c.pop_lru().unwrap().0, BeamKey::new(0, 1));
         c.update(BeamKey::new(0, 7), |e| {
             e.rays.reserve_exact(50);
-            e.rays.extend(std::iter::repeat(RayRecord::default()).take(50));
+            e.rays.extend(std::iter::repeat_n(RayRecord::default(), 50));
             e.unwritten = 50;
         });
         assert_eq!(c.dirty_keys(), vec![BeamKey::new(0, 7)]);

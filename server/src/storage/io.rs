@@ -82,25 +82,35 @@ pub fn file_len(file: &File, path: &Path) -> Result<u64> {
     Ok(file.metadata().map_err(io_err(path, "reading metadata"))?.len())
 }
 
+/// How long to keep trying a lock that is held: a process that just closed the
+/// file can still hold the lock for a moment through a child it forked, until
+/// that child's exec closes the inherited descriptor.
+const LOCK_PATIENCE: std::time::Duration = std::time::Duration::from_millis(250);
+
 /// Takes an advisory lock: exclusive for writers, shared for readers.
 pub fn lock(file: &File, path: &Path, exclusive: bool) -> Result<()> {
     let op = if exclusive { libc::LOCK_EX } else { libc::LOCK_SH } | libc::LOCK_NB;
-    // SAFETY: flock on a valid open descriptor has no memory effects.
-    let rc = unsafe { libc::flock(file.as_raw_fd(), op) };
-    if rc == 0 {
-        return Ok(());
-    }
-    let err = std::io::Error::last_os_error();
-    if err.raw_os_error() == Some(libc::EWOULDBLOCK) {
-        Err(StorageError::Locked {
-            path: path.to_path_buf(),
-        })
-    } else {
-        Err(StorageError::Io {
-            path: path.to_path_buf(),
-            op: "locking",
-            source: err,
-        })
+    let start = std::time::Instant::now();
+    loop {
+        // SAFETY: flock on a valid open descriptor has no memory effects.
+        let rc = unsafe { libc::flock(file.as_raw_fd(), op) };
+        if rc == 0 {
+            return Ok(());
+        }
+        let err = std::io::Error::last_os_error();
+        if err.raw_os_error() != Some(libc::EWOULDBLOCK) {
+            return Err(StorageError::Io {
+                path: path.to_path_buf(),
+                op: "locking",
+                source: err,
+            });
+        }
+        if start.elapsed() >= LOCK_PATIENCE {
+            return Err(StorageError::Locked {
+                path: path.to_path_buf(),
+            });
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
     }
 }
 

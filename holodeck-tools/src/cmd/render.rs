@@ -1,0 +1,145 @@
+//! `holodeck render`: the direct reference renderer (no holodeck involved).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use holodeck_protocol::View;
+use holodeck_sampler::render::{self, RenderOptions};
+use holodeck_sampler::scene::file::load_scene;
+use holodeck_sampler::scene::gen::{generate, GenParams};
+use holodeck_sampler::{Scene, TraceOptions, Tracer};
+
+use crate::human::count;
+
+/// A view from inside the built-in room toward its window.
+pub const ROOM_VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";
+
+/// Arguments of `holodeck render`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+SCENE is a scene file (see `holodeck scene gen`) or builtin:NAME for a generated scene
+(room, landscape, mandelbulb, bunny). Views use Radiance's options: -vtv perspective,
+-vta angular fisheye, -vth hemispherical, -vtl parallel; -vp position, -vd direction,
+-vu up, -vh/-vv fields of view in degrees.
+
+Examples:
+  holodeck render builtin:room -o room.png
+  holodeck render builtin:room --spp 256 -x 1024 -y 768 -o room.hdr
+  holodeck render scene.toml --view '-vta -vp 3 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 180 -vv 180' -o fisheye.png")]
+pub struct Args {
+    /// Scene file, or builtin:NAME.
+    scene: String,
+    /// View options (Radiance notation); the default looks at the built-in room's window.
+    #[arg(long, default_value = ROOM_VIEW, allow_hyphen_values = true)]
+    view: String,
+    /// Image width.
+    #[arg(short = 'x', long, default_value_t = 512)]
+    width: u32,
+    /// Image height.
+    #[arg(short = 'y', long, default_value_t = 384)]
+    height: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Largest number of bounces.
+    #[arg(long, default_value_t = 8)]
+    bounces: u32,
+    /// Seed of the random sequence (renders are deterministic for a seed).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Exposure for PNG output; automatic if omitted.
+    #[arg(long)]
+    exposure: Option<f32>,
+    /// Triangles for builtin:landscape.
+    #[arg(long)]
+    triangles: Option<u64>,
+    /// Output picture: .png (tone-mapped) or .hdr (Radiance RGBE, linear).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+/// Loads a scene file or generates a built-in one.
+pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene> {
+    if let Some(name) = spec.strip_prefix("builtin:") {
+        let params = GenParams {
+            triangles,
+            ..GenParams::default()
+        };
+        return generate(name, &params).with_context(|| format!("generating builtin:{name}"));
+    }
+    load_scene(Path::new(spec)).with_context(|| format!("loading scene {spec}"))
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let view = View::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
+    let ext = a
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ext != "png" && ext != "hdr" {
+        bail!("output {} must end in .png or .hdr", a.output.display());
+    }
+    let scene = load(&a.scene, a.triangles)?;
+    let triangles = scene.triangles.len() as u64;
+    let start = Instant::now();
+    let tracer = Tracer::new(
+        scene,
+        TraceOptions {
+            max_bounces: a.bounces,
+            ..TraceOptions::default()
+        },
+    );
+    let build = start.elapsed().as_secs_f64();
+    tracing::info!(
+        "kd-tree over {} triangles built in {build:.2} s: {:?}",
+        count(triangles),
+        tracer.tree().stats()
+    );
+    let bar = indicatif::ProgressBar::new(u64::from(a.height));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("rendering [{bar:30}] {pos}/{len} rows ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let options = RenderOptions {
+        width: a.width,
+        height: a.height,
+        spp: a.spp,
+        seed: a.seed,
+    };
+    let start = Instant::now();
+    let picture = render::render(&tracer, &view, &options, &|done, _| bar.set_position(done as u64));
+    bar.finish_and_clear();
+    let secs = start.elapsed().as_secs_f64();
+    match ext.as_str() {
+        "hdr" => render::write_hdr(&picture, &a.output)?,
+        _ => render::write_png(
+            &picture,
+            &a.output,
+            a.exposure.unwrap_or_else(|| picture.auto_exposure()),
+        )?,
+    }
+    let samples = u64::from(a.width) * u64::from(a.height) * u64::from(a.spp.max(1));
+    println!(
+        "{}: {} x {} at {} spp in {secs:.2} s ({:.2} M samples/s, {} threads); {} triangles, tree {build:.2} s",
+        a.output.display(),
+        a.width,
+        a.height,
+        a.spp,
+        samples as f64 / secs / 1e6,
+        rayon::current_num_threads(),
+        count(triangles)
+    );
+    if tracer.non_finite_count() > 0 {
+        println!(
+            "warning: {} non-finite estimates were replaced by black",
+            tracer.non_finite_count()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

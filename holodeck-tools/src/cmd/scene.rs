@@ -1,0 +1,232 @@
+//! `holodeck scene`: generate built-in scenes as scene files, and inspect scene files.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use holodeck_sampler::scene::gen::{self, GenParams};
+use holodeck_sampler::scene::{content_hash, load_scene, write_scene};
+use holodeck_sampler::{Material, Scene, Sky};
+
+use crate::human::{count, parse_count};
+
+/// Arguments of `holodeck scene`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+A scene file is TOML: [sky], [materials.NAME] tables, [[geometry]] files (OBJ, PLY,
+glTF/GLB) with translate/rotate/scale, [[builtin]] generated scenes and [[section]]
+tables. See README.md, section Scenes.
+
+Examples:
+  holodeck scene gen room -o scenes/room.toml
+  holodeck scene gen landscape --triangles 100M --seed 7 -o big/landscape.toml
+  holodeck scene gen mandelbulb --resolution 256 -o bulb.toml
+  holodeck scene gen bunny --bunny ../shared/scenes/bunny.obj -o bunny.toml
+  holodeck scene info scenes/room.toml")]
+pub struct Args {
+    #[command(subcommand)]
+    command: SceneCommand,
+}
+
+#[derive(clap::Subcommand)]
+enum SceneCommand {
+    /// Generate a built-in scene: writes OUT.toml and its mesh OUT.ply next to it.
+    Gen(GenArgs),
+    /// Load a scene file; print its triangles, materials, bounds, sections and content hash.
+    Info(InfoArgs),
+}
+
+/// Arguments of `holodeck scene gen`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Scenes (z up, meters):
+  room        a furnished 6 x 4 x 2.7 m room with a window, mirror, glass sphere, area light
+  landscape   the room looking out on fBm terrain and a forest; --triangles (default 1M)
+  mandelbulb  the power-8 Mandelbulb on a ground plane; --resolution (default 128)
+  bunny       the Stanford bunny on a table in a lit room; --bunny (default ../shared/scenes/bunny.obj)
+
+The same name and parameters always give the same scene (the same content hash).
+
+Examples:
+  holodeck scene gen room -o room.toml
+  holodeck scene gen landscape --triangles 10M --seed 2 -o landscape.toml")]
+pub struct GenArgs {
+    /// Which scene.
+    #[arg(value_parser = gen::NAMES)]
+    name: String,
+    /// Target triangle count (landscape); suffixes K, M, G as powers of 1000.
+    #[arg(long, value_parser = parse_count)]
+    triangles: Option<u64>,
+    /// Grid cells per axis (mandelbulb).
+    #[arg(long)]
+    resolution: Option<u32>,
+    /// Random seed (landscape).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// The bunny OBJ file (bunny).
+    #[arg(long, value_name = "OBJ")]
+    bunny: Option<PathBuf>,
+    /// The scene file to write; the mesh goes to the same name with .ply.
+    #[arg(short, long, value_name = "TOML")]
+    output: PathBuf,
+}
+
+/// Arguments of `holodeck scene info`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Examples:
+  holodeck scene info room.toml")]
+pub struct InfoArgs {
+    /// The scene file.
+    file: PathBuf,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    match a.command {
+        SceneCommand::Gen(g) => generate(g),
+        SceneCommand::Info(i) => info(i),
+    }
+}
+
+fn spinner(message: String) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_message(message);
+    bar.enable_steady_tick(Duration::from_millis(120));
+    bar
+}
+
+fn generate(a: GenArgs) -> Result<ExitCode> {
+    let params = GenParams {
+        triangles: a.triangles,
+        resolution: a.resolution,
+        seed: a.seed,
+        bunny_path: a.bunny,
+    };
+    let start = Instant::now();
+    let bar = spinner(format!("generating {}", a.name));
+    let scene = gen::generate(&a.name, &params)
+        .map_err(flat)
+        .with_context(|| format!("generating scene {:?}", a.name))?;
+    let generated = start.elapsed();
+    bar.set_message(format!("writing {}", a.output.display()));
+    if let Some(dir) = a.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let ply = write_scene(&scene, &a.output)
+        .map_err(flat)
+        .context("writing the scene")?;
+    bar.finish_and_clear();
+    tracing::info!(
+        "generated in {:.2} s, written in {:.2} s",
+        generated.as_secs_f64(),
+        (start.elapsed() - generated).as_secs_f64()
+    );
+    println!(
+        "wrote {} and {}: {} triangles, {} materials, {} section(s)",
+        a.output.display(),
+        ply.display(),
+        count(scene.triangles.len() as u64),
+        scene.materials.len(),
+        scene.sections.len()
+    );
+    println!("content hash {}", content_hash(&scene));
+    Ok(ExitCode::SUCCESS)
+}
+
+fn info(a: InfoArgs) -> Result<ExitCode> {
+    let bar = spinner(format!("loading {}", a.file.display()));
+    let scene = load_scene(&a.file).map_err(flat).context("loading the scene")?;
+    bar.finish_and_clear();
+    print!("{}", describe(&scene));
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A scene error as one message: its text already carries its cause, which
+/// the error chain would otherwise print twice.
+fn flat(e: holodeck_sampler::SceneError) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
+}
+
+/// The report `scene info` prints.
+fn describe(s: &Scene) -> String {
+    let mut out = String::new();
+    let mut line = |k: &str, v: String| out.push_str(&format!("{k:<13}{v}\n"));
+    line("triangles", count(s.triangles.len() as u64));
+    line("vertices", count(s.positions.len() as u64));
+    let mats: Vec<String> = s
+        .material_names
+        .iter()
+        .zip(&s.materials)
+        .map(|(n, m)| format!("{n} ({})", kind(m)))
+        .collect();
+    line("materials", format!("{}: {}", s.materials.len(), mats.join(", ")));
+    let (lo, hi) = s.bounds();
+    line(
+        "bounds",
+        format!(
+            "x {:.3} .. {:.3}, y {:.3} .. {:.3}, z {:.3} .. {:.3} m",
+            lo.x, hi.x, lo.y, hi.y, lo.z, hi.z
+        ),
+    );
+    let st = &s.stats;
+    line(
+        "skipped",
+        format!(
+            "{} degenerate, {} non-finite triangles; {} empty meshes",
+            count(st.degenerate),
+            count(st.non_finite),
+            st.empty_meshes
+        ),
+    );
+    line("sky", sky(&s.sky));
+    for (k, sec) in s.sections.iter().enumerate() {
+        let (o, ax, g) = (sec.origin(), sec.axes(), sec.grid());
+        line(
+            &format!("section {k}"),
+            format!(
+                "{} origin {:.3},{:.3},{:.3} size {:.3} x {:.3} x {:.3} m, grid {} x {} x {}, {} beams",
+                sec.kind().name(),
+                o.x,
+                o.y,
+                o.z,
+                ax[0].length(),
+                ax[1].length(),
+                ax[2].length(),
+                g[0],
+                g[1],
+                g[2],
+                count(u64::from(sec.beam_count()))
+            ),
+        );
+    }
+    if s.sections.is_empty() {
+        line("sections", "none".to_string());
+    }
+    line("content hash", content_hash(s));
+    out
+}
+
+fn kind(m: &Material) -> &'static str {
+    match m {
+        Material::Lambertian { .. } => "lambertian",
+        Material::Plastic { .. } => "plastic",
+        Material::Metal { .. } => "metal",
+        Material::Mirror { .. } => "mirror",
+        Material::Glass { .. } => "glass",
+        Material::Emitter { .. } => "emitter",
+    }
+}
+
+fn sky(s: &Sky) -> String {
+    match s {
+        Sky::None => "none".to_string(),
+        Sky::Constant { radiance } => format!("constant {radiance:?}"),
+        Sky::Sun {
+            direction,
+            sun_radiance,
+            ..
+        } => format!("sun toward {direction:?}, radiance {sun_radiance:?}"),
+    }
+}

@@ -1,0 +1,365 @@
+//! Views in Radiance's notation (`-vtv -vp x y z -vd x y z -vu x y z -vh 60 -vv 45`):
+//! how image coordinates map to rays, and world points back to the image.
+//!
+//! Image coordinates `(x, y)` run over [0, 1]², x to the right, y upward (row
+//! 0 of a picture is y = 1). Pure arithmetic; shared by the reference renderer
+//! and the displays.
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+/// Projection type (Radiance's -vt letter).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ViewType {
+    /// `-vtv`: perspective.
+    Perspective,
+    /// `-vta`: angular fisheye (equidistant).
+    Angular,
+    /// `-vth`: hemispherical fisheye (orthographic projection of the hemisphere).
+    Hemispherical,
+    /// `-vtl`: parallel; -vh and -vv are the image size in world units.
+    Parallel,
+}
+
+/// A view.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct View {
+    /// Projection.
+    pub kind: ViewType,
+    /// Eye position.
+    pub position: DVec3,
+    /// Viewing direction (normalized).
+    pub direction: DVec3,
+    /// Up vector as given.
+    pub up: DVec3,
+    /// Horizontal field (degrees; world units for parallel views).
+    pub horizontal: f64,
+    /// Vertical field.
+    pub vertical: f64,
+    /// Horizontal shift of the image, in image widths.
+    pub shift: f64,
+    /// Vertical lift, in image heights.
+    pub lift: f64,
+}
+
+/// What is wrong with a view specification.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ViewError {
+    /// An option this parser does not know.
+    #[error("unknown view option {0:?} (known: -vtv -vta -vth -vtl -vp -vd -vu -vh -vv -vs -vl)")]
+    UnknownOption(String),
+    /// An option without enough numbers after it.
+    #[error("view option {option} needs {needs} number(s)")]
+    MissingValue {
+        /// The option.
+        option: String,
+        /// How many numbers it takes.
+        needs: usize,
+    },
+    /// A value that is not a number.
+    #[error("view option {option}: {value:?} is not a number")]
+    NotANumber {
+        /// The option.
+        option: String,
+        /// The text found.
+        value: String,
+    },
+    /// A geometrically impossible view.
+    #[error("impossible view: {0}")]
+    Impossible(String),
+}
+
+impl Default for View {
+    fn default() -> Self {
+        View {
+            kind: ViewType::Perspective,
+            position: DVec3::ZERO,
+            direction: DVec3::X,
+            up: DVec3::Z,
+            horizontal: 45.0,
+            vertical: 45.0,
+            shift: 0.0,
+            lift: 0.0,
+        }
+    }
+}
+
+impl View {
+    /// Parses options over the default view (looking along +x, z up, 45 x 45 degrees).
+    pub fn parse(spec: &str) -> Result<View, ViewError> {
+        View::default().with(spec)
+    }
+
+    /// Applies options to this view and validates the result.
+    pub fn with(mut self, spec: &str) -> Result<View, ViewError> {
+        let words: Vec<&str> = spec.split_whitespace().collect();
+        let mut i = 0;
+        while i < words.len() {
+            let opt = words[i];
+            let nums = |n: usize| -> Result<Vec<f64>, ViewError> {
+                let vals = words.get(i + 1..i + 1 + n).ok_or(ViewError::MissingValue {
+                    option: opt.into(),
+                    needs: n,
+                })?;
+                vals.iter()
+                    .map(|v| {
+                        v.parse().map_err(|_| ViewError::NotANumber {
+                            option: opt.into(),
+                            value: v.to_string(),
+                        })
+                    })
+                    .collect()
+            };
+            let vec3 = |v: Vec<f64>| DVec3::new(v[0], v[1], v[2]);
+            let used = match opt {
+                "-vtv" | "-vta" | "-vth" | "-vtl" => {
+                    self.kind = match opt {
+                        "-vtv" => ViewType::Perspective,
+                        "-vta" => ViewType::Angular,
+                        "-vth" => ViewType::Hemispherical,
+                        _ => ViewType::Parallel,
+                    };
+                    0
+                }
+                "-vp" => {
+                    self.position = vec3(nums(3)?);
+                    3
+                }
+                "-vd" => {
+                    self.direction = vec3(nums(3)?);
+                    3
+                }
+                "-vu" => {
+                    self.up = vec3(nums(3)?);
+                    3
+                }
+                "-vh" => {
+                    self.horizontal = nums(1)?[0];
+                    1
+                }
+                "-vv" => {
+                    self.vertical = nums(1)?[0];
+                    1
+                }
+                "-vs" => {
+                    self.shift = nums(1)?[0];
+                    1
+                }
+                "-vl" => {
+                    self.lift = nums(1)?[0];
+                    1
+                }
+                other => return Err(ViewError::UnknownOption(other.to_string())),
+            };
+            i += 1 + used;
+        }
+        self.validate()
+    }
+
+    fn validate(mut self) -> Result<View, ViewError> {
+        let finite = [self.position, self.direction, self.up].iter().all(|v| v.is_finite())
+            && [self.horizontal, self.vertical, self.shift, self.lift]
+                .iter()
+                .all(|v| v.is_finite());
+        if !finite {
+            return Err(ViewError::Impossible("a value is not finite".into()));
+        }
+        if self.direction.length() == 0.0 {
+            return Err(ViewError::Impossible("view direction -vd is zero".into()));
+        }
+        self.direction = self.direction.normalize();
+        if self.up.cross(self.direction).length() < 1e-9 * self.up.length().max(1e-300) {
+            return Err(ViewError::Impossible(
+                "up vector -vu is parallel to the view direction".into(),
+            ));
+        }
+        let (lo, hi) = match self.kind {
+            ViewType::Perspective => (0.0, 180.0),
+            ViewType::Angular => (0.0, 360.0),
+            ViewType::Hemispherical => (0.0, 180.0),
+            ViewType::Parallel => (0.0, f64::INFINITY),
+        };
+        for (name, v) in [("-vh", self.horizontal), ("-vv", self.vertical)] {
+            let ok = v > lo && (v < hi || (v == hi && self.kind != ViewType::Perspective));
+            if !ok {
+                return Err(ViewError::Impossible(format!("{name} {v} is outside ({lo}, {hi})")));
+            }
+        }
+        Ok(self)
+    }
+
+    /// Prints the view as options that [`View::parse`] reads back exactly.
+    pub fn to_spec(&self) -> String {
+        let t = match self.kind {
+            ViewType::Perspective => "v",
+            ViewType::Angular => "a",
+            ViewType::Hemispherical => "h",
+            ViewType::Parallel => "l",
+        };
+        let v = |d: DVec3| format!("{} {} {}", d.x, d.y, d.z);
+        format!(
+            "-vt{t} -vp {} -vd {} -vu {} -vh {} -vv {} -vs {} -vl {}",
+            v(self.position),
+            v(self.direction),
+            v(self.up),
+            self.horizontal,
+            self.vertical,
+            self.shift,
+            self.lift
+        )
+    }
+
+    /// Unit right and up vectors of the image plane.
+    pub fn basis(&self) -> (DVec3, DVec3) {
+        let right = self.direction.cross(self.up).normalize();
+        let up = right.cross(self.direction).normalize();
+        (right, up)
+    }
+
+    /// The ray through image point (x, y): origin and unit direction, or `None`
+    /// outside a fisheye's circle.
+    pub fn ray(&self, x: f64, y: f64) -> Option<(DVec3, DVec3)> {
+        let (right, up) = self.basis();
+        let (dx, dy) = (x - 0.5 + self.shift, y - 0.5 + self.lift);
+        match self.kind {
+            ViewType::Perspective => {
+                let h = (self.horizontal.to_radians() / 2.0).tan() * 2.0;
+                let v = (self.vertical.to_radians() / 2.0).tan() * 2.0;
+                Some((
+                    self.position,
+                    (self.direction + right * (dx * h) + up * (dy * v)).normalize(),
+                ))
+            }
+            ViewType::Angular => {
+                let (ax, ay) = (dx * self.horizontal.to_radians(), dy * self.vertical.to_radians());
+                let r = (ax * ax + ay * ay).sqrt();
+                if r > std::f64::consts::PI {
+                    return None;
+                }
+                if r == 0.0 {
+                    return Some((self.position, self.direction));
+                }
+                let d = self.direction * r.cos() + (right * ax + up * ay) * (r.sin() / r);
+                Some((self.position, d.normalize()))
+            }
+            ViewType::Hemispherical => {
+                let (hx, hy) = (
+                    dx * 2.0 * (self.horizontal.to_radians() / 2.0).sin(),
+                    dy * 2.0 * (self.vertical.to_radians() / 2.0).sin(),
+                );
+                let r2 = hx * hx + hy * hy;
+                if r2 > 1.0 {
+                    return None;
+                }
+                Some((
+                    self.position,
+                    (self.direction * (1.0 - r2).sqrt() + right * hx + up * hy).normalize(),
+                ))
+            }
+            ViewType::Parallel => {
+                let o = self.position + right * (dx * self.horizontal) + up * (dy * self.vertical);
+                Some((o, self.direction))
+            }
+        }
+    }
+
+    /// Where a world point appears: image (x, y) and its distance along the
+    /// view (depth), or `None` if it is behind a perspective eye or outside a fisheye.
+    pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
+        let (right, up) = self.basis();
+        let d = p - self.position;
+        let (fx, fy, fz) = (d.dot(right), d.dot(up), d.dot(self.direction));
+        let (dx, dy, depth) = match self.kind {
+            ViewType::Perspective => {
+                if fz <= 0.0 {
+                    return None;
+                }
+                let h = (self.horizontal.to_radians() / 2.0).tan() * 2.0;
+                let v = (self.vertical.to_radians() / 2.0).tan() * 2.0;
+                (fx / fz / h, fy / fz / v, d.length())
+            }
+            ViewType::Angular => {
+                let len = d.length();
+                if len == 0.0 {
+                    return None;
+                }
+                let r = (fz / len).clamp(-1.0, 1.0).acos();
+                let s = (fx * fx + fy * fy).sqrt();
+                let (ux, uy) = if s > 0.0 { (fx / s, fy / s) } else { (0.0, 0.0) };
+                (
+                    ux * r / self.horizontal.to_radians(),
+                    uy * r / self.vertical.to_radians(),
+                    len,
+                )
+            }
+            ViewType::Hemispherical => {
+                let len = d.length();
+                if len == 0.0 || fz < 0.0 {
+                    return None;
+                }
+                let sh = 2.0 * (self.horizontal.to_radians() / 2.0).sin();
+                let sv = 2.0 * (self.vertical.to_radians() / 2.0).sin();
+                (fx / len / sh, fy / len / sv, len)
+            }
+            ViewType::Parallel => (fx / self.horizontal, fy / self.vertical, fz),
+        };
+        Some((dx + 0.5 - self.shift, dy + 0.5 - self.lift, depth))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn parses_radiance_options_and_round_trips() {
+        let v = View::parse("-vtv -vp 1 2 1.5 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 40").unwrap();
+        assert_eq!(v.position, DVec3::new(1.0, 2.0, 1.5));
+        assert_eq!(v.direction, DVec3::Y);
+        assert_eq!(View::parse(&v.to_spec()).unwrap(), v);
+        let (o, d) = v.ray(0.5, 0.5).unwrap();
+        assert_eq!(o, v.position);
+        assert!((d - DVec3::Y).length() < 1e-12);
+        // Right edge is 30 degrees to the right (+x when looking along +y with z up).
+        let (_, d) = v.ray(1.0, 0.5).unwrap();
+        assert!((d.x - 30f64.to_radians().sin()).abs() < 1e-12 && d.x > 0.0);
+    }
+
+    #[test]
+    fn refuses_bad_views_with_reasons() {
+        assert!(matches!(View::parse("-vq 1"), Err(ViewError::UnknownOption(_))));
+        assert!(matches!(
+            View::parse("-vp 1 2"),
+            Err(ViewError::MissingValue { needs: 3, .. })
+        ));
+        assert!(matches!(View::parse("-vh wide"), Err(ViewError::NotANumber { .. })));
+        assert!(View::parse("-vd 0 0 0").unwrap_err().to_string().contains("zero"));
+        assert!(View::parse("-vd 0 0 1 -vu 0 0 2")
+            .unwrap_err()
+            .to_string()
+            .contains("parallel"));
+        assert!(View::parse("-vtv -vh 180").is_err());
+        assert!(View::parse("-vta -vh 360 -vv 360").is_ok());
+    }
+
+    proptest! {
+        #[test]
+        fn project_inverts_ray(
+            kind in 0usize..4, x in 0.05f64..0.95, y in 0.05f64..0.95, dist in 0.5f64..50.0,
+            h in 20.0f64..150.0, v in 20.0f64..150.0, yaw in -3.0f64..3.0, pitch in -1.2f64..1.2,
+        ) {
+            let kind = [ViewType::Perspective, ViewType::Angular, ViewType::Hemispherical, ViewType::Parallel][kind];
+            let dir = DVec3::new(yaw.cos() * pitch.cos(), yaw.sin() * pitch.cos(), pitch.sin());
+            let view = View { kind, position: DVec3::new(1.0, -2.0, 0.5), direction: dir, horizontal: h, vertical: v, ..View::default() }
+                .validate().unwrap();
+            if let Some((o, d)) = view.ray(x, y) {
+                let (px, py, depth) = view.project(o + d * dist).unwrap();
+                prop_assert!((px - x).abs() < 1e-9 && (py - y).abs() < 1e-9, "{kind:?}: ({x},{y}) -> ({px},{py})");
+                if kind != ViewType::Parallel {
+                    prop_assert!((depth - dist).abs() < 1e-9);
+                }
+            }
+        }
+    }
+}

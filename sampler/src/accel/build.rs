@@ -1,0 +1,310 @@
+//! Building the kd-tree: binned SAH over triangle bounds clipped to the node,
+//! a bonus for cutting off empty space, recursion in parallel for big nodes,
+//! then flattening into the compact node array.
+
+use rayon::prelude::*;
+
+use super::{KdTree, Node};
+use crate::geom::Aabb;
+use crate::scene::Scene;
+
+/// Tuning of the build.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildOptions {
+    /// Cost of one traversal step relative to one triangle test.
+    pub traversal_cost: f32,
+    /// Bins per axis.
+    pub bins: usize,
+    /// SAH discount for a split that leaves one side empty.
+    pub empty_bonus: f32,
+    /// Leaves at most this small are never split.
+    pub leaf_size: usize,
+    /// Nodes larger than this are built in parallel.
+    pub parallel_above: usize,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            traversal_cost: 2.0,
+            bins: 32,
+            empty_bonus: 0.8,
+            leaf_size: 2,
+            parallel_above: 4096,
+        }
+    }
+}
+
+/// A triangle reference with its bounds clipped to the current node.
+#[derive(Clone, Copy)]
+struct Ref {
+    tri: u32,
+    bounds: Aabb,
+}
+
+enum BuildNode {
+    Leaf(Vec<u32>),
+    Inner {
+        axis: usize,
+        split: f32,
+        children: Box<(BuildNode, BuildNode)>,
+    },
+}
+
+struct Split {
+    axis: usize,
+    pos: f32,
+    cost: f32,
+}
+
+impl KdTree {
+    /// Builds the tree over every triangle of the scene.
+    pub fn build(scene: &Scene, options: &BuildOptions) -> KdTree {
+        let refs: Vec<Ref> = (0..scene.triangles.len())
+            .into_par_iter()
+            .map(|t| {
+                let mut b = Aabb::EMPTY;
+                for p in scene.vertices(t) {
+                    b.grow(p);
+                }
+                Ref {
+                    tri: t as u32,
+                    bounds: b,
+                }
+            })
+            .collect();
+        let bounds = refs.iter().fold(Aabb::EMPTY, |acc, r| acc.union(&r.bounds));
+        // Bounded so the traversal stack (64 entries) can never overflow.
+        let max_depth = (8 + (1.3 * (refs.len().max(1) as f32).log2()) as usize).min(60);
+        let root = if refs.is_empty() {
+            BuildNode::Leaf(Vec::new())
+        } else {
+            build_node(scene, refs, bounds, 0, max_depth, options)
+        };
+        let mut tree = KdTree {
+            nodes: vec![Node::leaf(0, 0)],
+            leaf_tris: Vec::new(),
+            bounds,
+        };
+        flatten(root, 0, &mut tree);
+        tree
+    }
+
+    /// The nodes (root at 0).
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+    /// The leaf triangle lists.
+    pub fn leaf_tris(&self) -> &[u32] {
+        &self.leaf_tris
+    }
+}
+
+fn flatten(node: BuildNode, at: usize, tree: &mut KdTree) {
+    match node {
+        BuildNode::Leaf(tris) => {
+            tree.nodes[at] = Node::leaf(tree.leaf_tris.len(), tris.len());
+            tree.leaf_tris.extend(tris);
+        }
+        BuildNode::Inner { axis, split, children } => {
+            let left = tree.nodes.len();
+            tree.nodes.push(Node::leaf(0, 0));
+            tree.nodes.push(Node::leaf(0, 0));
+            tree.nodes[at] = Node::inner(axis, split, left);
+            let (l, r) = *children;
+            flatten(l, left, tree);
+            flatten(r, left + 1, tree);
+        }
+    }
+}
+
+fn build_node(
+    scene: &Scene,
+    refs: Vec<Ref>,
+    bounds: Aabb,
+    depth: usize,
+    max_depth: usize,
+    o: &BuildOptions,
+) -> BuildNode {
+    let n = refs.len();
+    if n <= o.leaf_size || depth >= max_depth {
+        return leaf(refs);
+    }
+    let Some(split) = best_split(&refs, &bounds, o) else {
+        return leaf(refs);
+    };
+    if split.cost >= n as f32 {
+        return leaf(refs);
+    }
+    let (mut left_box, mut right_box) = (bounds, bounds);
+    left_box.hi[split.axis] = split.pos;
+    right_box.lo[split.axis] = split.pos;
+    let (mut left, mut right) = (Vec::with_capacity(n / 2 + 1), Vec::with_capacity(n / 2 + 1));
+    for r in refs {
+        let (lo, hi) = (r.bounds.lo[split.axis], r.bounds.hi[split.axis]);
+        let planar = lo == split.pos && hi == split.pos;
+        if planar {
+            // Triangles lying in the split plane go to both sides: rays along
+            // the plane must find them from either child.
+            left.push(Ref {
+                tri: r.tri,
+                bounds: r.bounds.clip(&left_box),
+            });
+            right.push(Ref {
+                tri: r.tri,
+                bounds: r.bounds.clip(&right_box),
+            });
+        } else if hi <= split.pos {
+            left.push(r);
+        } else if lo >= split.pos {
+            right.push(r);
+        } else {
+            // Straddling: clip the triangle itself to each child ("perfect
+            // splits"), so it only goes where it really is.
+            let v = scene.vertices(r.tri as usize);
+            let inside = r.bounds;
+            if let Some(b) = clip_triangle(v, &inside.clip(&left_box)) {
+                left.push(Ref { tri: r.tri, bounds: b });
+            }
+            if let Some(b) = clip_triangle(v, &inside.clip(&right_box)) {
+                right.push(Ref { tri: r.tri, bounds: b });
+            }
+        }
+    }
+    if left.len() == n && right.len() == n {
+        // Nothing was separated: splitting again would only duplicate.
+        return leaf(left);
+    }
+    let (l, r) = if n > o.parallel_above {
+        rayon::join(
+            || build_node(scene, left, left_box, depth + 1, max_depth, o),
+            || build_node(scene, right, right_box, depth + 1, max_depth, o),
+        )
+    } else {
+        (
+            build_node(scene, left, left_box, depth + 1, max_depth, o),
+            build_node(scene, right, right_box, depth + 1, max_depth, o),
+        )
+    };
+    BuildNode::Inner {
+        axis: split.axis,
+        split: split.pos,
+        children: Box::new((l, r)),
+    }
+}
+
+fn leaf(refs: Vec<Ref>) -> BuildNode {
+    BuildNode::Leaf(refs.into_iter().map(|r| r.tri).collect())
+}
+
+/// The cheapest binned SAH split, in units of one triangle test.
+fn best_split(refs: &[Ref], bounds: &Aabb, o: &BuildOptions) -> Option<Split> {
+    let area = bounds.area();
+    if area <= 0.0 {
+        return None;
+    }
+    let extent = bounds.hi - bounds.lo;
+    let mut best: Option<Split> = None;
+    for axis in 0..3 {
+        if extent[axis] <= 0.0 {
+            continue;
+        }
+        let bins = o.bins;
+        let scale = bins as f32 / extent[axis];
+        let bin_of = |x: f32| (((x - bounds.lo[axis]) * scale) as usize).min(bins - 1);
+        let (mut starts, mut ends) = (vec![0u32; bins], vec![0u32; bins]);
+        for r in refs {
+            starts[bin_of(r.bounds.lo[axis])] += 1;
+            ends[bin_of(r.bounds.hi[axis])] += 1;
+        }
+        // Candidate planes at bin boundaries 1..bins: left holds refs starting
+        // below, right holds refs ending above.
+        let mut left = 0u32;
+        let mut right = refs.len() as u32;
+        for b in 1..bins {
+            left += starts[b - 1];
+            right -= ends[b - 1];
+            let pos = bounds.lo[axis] + extent[axis] * b as f32 / bins as f32;
+            let (mut lb, mut rb) = (*bounds, *bounds);
+            lb.hi[axis] = pos;
+            rb.lo[axis] = pos;
+            let bonus = if left == 0 || right == 0 { o.empty_bonus } else { 1.0 };
+            let cost = o.traversal_cost + bonus * (lb.area() * left as f32 + rb.area() * right as f32) / area;
+            if best.as_ref().is_none_or(|s| cost < s.cost) {
+                best = Some(Split { axis, pos, cost });
+            }
+        }
+    }
+    // Cut off empty space exactly at the content boundary when a side is empty.
+    let content = refs.iter().fold(Aabb::EMPTY, |acc, r| acc.union(&r.bounds));
+    for axis in 0..3 {
+        for (pos, empty_frac) in [
+            (
+                content.lo[axis],
+                (content.lo[axis] - bounds.lo[axis]) / extent[axis].max(f32::MIN_POSITIVE),
+            ),
+            (
+                content.hi[axis],
+                (bounds.hi[axis] - content.hi[axis]) / extent[axis].max(f32::MIN_POSITIVE),
+            ),
+        ] {
+            if empty_frac > 0.1 {
+                let (mut lb, mut rb) = (*bounds, *bounds);
+                lb.hi[axis] = pos;
+                rb.lo[axis] = pos;
+                let n = refs.len() as f32;
+                let full = if pos == content.lo[axis] { rb.area() } else { lb.area() };
+                let cost = o.traversal_cost + o.empty_bonus * full * n / area;
+                if best.as_ref().is_none_or(|s| cost < s.cost) {
+                    best = Some(Split { axis, pos, cost });
+                }
+            }
+        }
+    }
+    best.filter(|s| s.pos.is_finite() && s.pos > bounds.lo[s.axis] && s.pos < bounds.hi[s.axis])
+}
+
+/// Bounds of the part of triangle `v` inside `b`, or `None` if it misses the box.
+fn clip_triangle(v: [glam::Vec3; 3], b: &Aabb) -> Option<Aabb> {
+    if b.is_empty() {
+        return None;
+    }
+    // Sutherland-Hodgman against the six planes; a triangle clipped by six
+    // planes has at most nine vertices.
+    let mut poly = [glam::Vec3::ZERO; 12];
+    let mut len = 3;
+    poly[..3].copy_from_slice(&v);
+    for axis in 0..3 {
+        for (bound, keep_above) in [(b.lo[axis], true), (b.hi[axis], false)] {
+            let inside = |p: glam::Vec3| if keep_above { p[axis] >= bound } else { p[axis] <= bound };
+            let mut out = [glam::Vec3::ZERO; 12];
+            let mut n = 0;
+            for i in 0..len {
+                let (p, q) = (poly[i], poly[(i + 1) % len]);
+                let (pin, qin) = (inside(p), inside(q));
+                if pin {
+                    out[n] = p;
+                    n += 1;
+                }
+                if pin != qin && n < out.len() {
+                    let t = (bound - p[axis]) / (q[axis] - p[axis]);
+                    let mut x = p + (q - p) * t;
+                    x[axis] = bound;
+                    out[n] = x;
+                    n += 1;
+                }
+            }
+            if n == 0 {
+                return None;
+            }
+            poly = out;
+            len = n;
+        }
+    }
+    let mut r = Aabb::EMPTY;
+    for p in &poly[..len] {
+        r.grow(*p);
+    }
+    // Rounding must never shrink the box below what the triangle covers.
+    Some(r.clip(b))
+}

@@ -1,0 +1,286 @@
+//! Walking the kd-tree front to back with a small stack: nearest hit, or any
+//! hit for shadow rays. Rays lying exactly in a split plane visit both sides.
+
+use super::KdTree;
+use crate::geom::{intersect_triangle, Ray, RayPrep};
+use crate::scene::Scene;
+
+/// The nearest hit of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter.
+    pub t: f32,
+    /// Triangle index.
+    pub tri: u32,
+    /// Barycentric weight of vertex 1.
+    pub u: f32,
+    /// Barycentric weight of vertex 2.
+    pub v: f32,
+}
+
+const STACK: usize = 64;
+
+/// Split planes this close (relatively) to either end of the ray's range in a
+/// node send the ray into both children: rounding in `t_split` must never skip
+/// the child holding a triangle whose vertex or edge lies on the plane.
+const SLACK_UP: f32 = 1.0 + 1e-5;
+const SLACK_DOWN: f32 = 1.0 - 1e-5;
+
+impl KdTree {
+    /// Visits leaves along the ray in front-to-back order. `leaf` gets the
+    /// leaf's triangles and the far end of the ray's range inside the leaf, and
+    /// returns `Some(t)` for a hit that makes everything beyond `t` irrelevant,
+    /// or stops the walk by returning `Err(())`.
+    #[inline]
+    fn walk(&self, ray: &Ray, mut leaf: impl FnMut(&[u32], f32) -> Result<Option<f32>, ()>) {
+        let inv = ray.dir.recip();
+        let Some((mut t_min, mut t_max)) = self.bounds.range(ray, inv) else {
+            return;
+        };
+        let mut closest = ray.t_max;
+        let mut stack = [(0u32, 0f32, 0f32); STACK];
+        let mut sp = 0;
+        let mut node = 0usize;
+        loop {
+            let n = self.nodes[node];
+            if !n.is_leaf() {
+                let axis = n.axis();
+                let (o, d) = (ray.origin[axis], ray.dir[axis]);
+                let t_split = (n.split() - o) * inv[axis];
+                let below_first = o < n.split() || (o == n.split() && d <= 0.0);
+                let (first, second) = if below_first {
+                    (n.left(), n.left() + 1)
+                } else {
+                    (n.left() + 1, n.left())
+                };
+                if t_split.is_nan() {
+                    // The ray runs inside the split plane: both children hold its triangles.
+                    stack[sp] = (second as u32, t_min, t_max);
+                    sp += 1;
+                    node = first;
+                } else if t_split > t_max * SLACK_UP || t_split <= 0.0 {
+                    node = first;
+                } else if t_split < t_min * SLACK_DOWN {
+                    node = second;
+                } else {
+                    stack[sp] = (second as u32, t_split, t_max);
+                    sp += 1;
+                    node = first;
+                    t_max = t_split;
+                }
+                continue;
+            }
+            let tris = &self.leaf_tris[n.first()..n.first() + n.count()];
+            match leaf(tris, t_max) {
+                Err(()) => return,
+                Ok(Some(t)) => closest = closest.min(t),
+                Ok(None) => {}
+            }
+            if closest <= t_max {
+                return;
+            }
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let (next, a, b) = stack[sp];
+                if a <= closest {
+                    node = next as usize;
+                    t_min = a;
+                    t_max = b;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// The nearest hit within `(0, ray.t_max]`.
+    pub fn intersect(&self, scene: &Scene, ray: &Ray) -> Option<Hit> {
+        let prep = RayPrep::new(ray.origin, ray.dir);
+        let mut best: Option<Hit> = None;
+        let mut closest = ray.t_max;
+        self.walk(ray, |tris, _| {
+            for &t in tris {
+                let [a, b, c] = scene.vertices(t as usize);
+                if let Some(h) = intersect_triangle(&prep, a, b, c, closest) {
+                    closest = h.t;
+                    best = Some(Hit {
+                        t: h.t,
+                        tri: t,
+                        u: h.u,
+                        v: h.v,
+                    });
+                }
+            }
+            Ok(best.map(|h| h.t))
+        });
+        best
+    }
+
+    /// True if anything lies within `(0, ray.t_max)`.
+    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
+        let prep = RayPrep::new(ray.origin, ray.dir);
+        let mut hit = false;
+        self.walk(ray, |tris, _| {
+            for &t in tris {
+                let [a, b, c] = scene.vertices(t as usize);
+                if intersect_triangle(&prep, a, b, c, ray.t_max).is_some_and(|h| h.t < ray.t_max) {
+                    hit = true;
+                    return Err(());
+                }
+            }
+            Ok(None)
+        });
+        hit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::BuildOptions;
+    use crate::scene::{Material, SceneBuilder};
+    use glam::{Mat4, Vec3};
+    use rand::{Rng, SeedableRng};
+
+    /// A soup of random triangles plus deliberately nasty ones: a grid of
+    /// triangles sharing edges and vertices, coplanar overlaps, slivers and
+    /// axis-aligned triangles lying exactly in likely split planes.
+    fn soup(seed: u64, n: usize) -> Scene {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut p = Vec::new();
+        let mut t = Vec::new();
+        for _ in 0..n {
+            let c = Vec3::new(
+                rng.gen_range(-5.0..5.0),
+                rng.gen_range(-5.0..5.0),
+                rng.gen_range(-5.0..5.0),
+            );
+            let s = rng.gen_range(0.05..1.5);
+            let base = p.len() as u32;
+            for _ in 0..3 {
+                p.push(c + Vec3::new(rng.gen_range(-s..s), rng.gen_range(-s..s), rng.gen_range(-s..s)));
+            }
+            t.push([base, base + 1, base + 2]);
+        }
+        // A shared-edge grid at z = 0 and one in the x = 1 plane.
+        for plane in 0..2 {
+            let base = p.len() as u32;
+            for i in 0..9 {
+                for j in 0..9 {
+                    let (u, v) = (i as f32 - 4.0, j as f32 - 4.0);
+                    p.push(if plane == 0 {
+                        Vec3::new(u, v, 0.0)
+                    } else {
+                        Vec3::new(1.0, u, v)
+                    });
+                }
+            }
+            for i in 0..8 {
+                for j in 0..8 {
+                    let a = base + i * 9 + j;
+                    t.push([a, a + 9, a + 1]);
+                    t.push([a + 1, a + 9, a + 10]);
+                }
+            }
+        }
+        // A sliver and an exact duplicate (coplanar overlap).
+        let base = p.len() as u32;
+        p.extend([
+            Vec3::new(-2.0, -2.0, 2.0),
+            Vec3::new(2.0, 2.0, 2.0),
+            Vec3::new(2.0, 2.0001, 2.0),
+        ]);
+        t.push([base, base + 1, base + 2]);
+        t.push([base, base + 1, base + 2]);
+        let mut b = SceneBuilder::new();
+        let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
+        b.add_mesh("soup", &p, &t, &[m], Mat4::IDENTITY).unwrap();
+        b.finish()
+    }
+
+    fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
+        let prep = RayPrep::new(ray.origin, ray.dir);
+        let mut best: Option<Hit> = None;
+        for i in 0..scene.triangles.len() {
+            let [a, b, c] = scene.vertices(i);
+            let limit = best.map_or(ray.t_max, |h| h.t);
+            if let Some(h) = intersect_triangle(&prep, a, b, c, limit) {
+                best = Some(Hit {
+                    t: h.t,
+                    tri: i as u32,
+                    u: h.u,
+                    v: h.v,
+                });
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn nearest_hits_match_brute_force_on_nasty_soups() {
+        for seed in 0..12 {
+            let scene = soup(seed, 400);
+            let tree = KdTree::build(&scene, &BuildOptions::default());
+            let stats = tree.stats();
+            assert!(stats.leaves > 50 && stats.depth > 5, "{stats:?}");
+            let mut rng = rand::rngs::StdRng::seed_from_u64(100 + seed);
+            let mut hits = 0;
+            for k in 0..4000 {
+                let origin = Vec3::new(
+                    rng.gen_range(-7.0..7.0),
+                    rng.gen_range(-7.0..7.0),
+                    rng.gen_range(-7.0..7.0),
+                );
+                let mut dir = Vec3::new(
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(-1.0..1.0),
+                );
+                match k % 4 {
+                    // Axis-parallel rays, some lying in the grid planes.
+                    1 => dir = [Vec3::X, Vec3::Y, Vec3::Z][k % 3] * if k % 8 == 1 { -1.0 } else { 1.0 },
+                    2 => {
+                        // Aimed at grid vertices and edge midpoints (shared edges).
+                        let target = Vec3::new(
+                            (k % 9) as f32 - 4.0,
+                            ((k / 9) % 9) as f32 - 4.0 + 0.5 * (k % 2) as f32,
+                            0.0,
+                        );
+                        dir = target - origin;
+                    }
+                    _ => {}
+                }
+                if dir.length() < 1e-3 {
+                    continue;
+                }
+                let ray = Ray::new(origin, dir);
+                let (a, b) = (tree.intersect(&scene, &ray), brute(&scene, &ray));
+                match (a, b) {
+                    (None, None) => {}
+                    (Some(a), Some(b)) => {
+                        hits += 1;
+                        // The same hit; at shared edges either triangle may report it.
+                        assert!(
+                            a.t == b.t || (a.t - b.t).abs() <= 1e-6 * b.t,
+                            "seed {seed} ray {k}: {a:?} vs {b:?}"
+                        );
+                    }
+                    _ => panic!("seed {seed} ray {k} {ray:?}: tree {a:?}, brute force {b:?}"),
+                }
+                assert_eq!(
+                    tree.occluded(
+                        &scene,
+                        &Ray {
+                            t_max: b.map_or(1e30, |h| h.t * 1.001),
+                            ..ray
+                        }
+                    ),
+                    b.is_some()
+                );
+            }
+            assert!(hits > 1000, "{hits}");
+        }
+    }
+}

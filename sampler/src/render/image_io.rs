@@ -1,0 +1,59 @@
+//! Writing pictures: Radiance RGBE `.hdr` (all of the range) and 8-bit sRGB
+//! `.png` (after an exposure and a clamp).
+
+use std::path::{Path, PathBuf};
+
+use image::codecs::hdr::HdrEncoder;
+use image::Rgb;
+
+use super::Picture;
+
+/// A picture that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ImageError {
+    /// The file.
+    pub path: PathBuf,
+    /// Why.
+    pub message: String,
+}
+
+fn err(path: &Path, e: impl std::fmt::Display) -> ImageError {
+    ImageError {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Writes a Radiance RGBE picture.
+pub fn write_hdr(p: &Picture, path: &Path) -> Result<(), ImageError> {
+    let file = std::fs::File::create(path).map_err(|e| err(path, e))?;
+    let pixels: Vec<Rgb<f32>> = p
+        .pixels
+        .iter()
+        .map(|c| Rgb(c.max(glam::Vec3::ZERO).to_array()))
+        .collect();
+    HdrEncoder::new(std::io::BufWriter::new(file))
+        .encode(&pixels, p.width, p.height)
+        .map_err(|e| err(path, e))
+}
+
+fn srgb(v: f32) -> u8 {
+    let v = v.clamp(0.0, 1.0);
+    let s = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// Writes an 8-bit sRGB picture after multiplying by `exposure`.
+pub fn write_png(p: &Picture, path: &Path, exposure: f32) -> Result<(), ImageError> {
+    let bytes: Vec<u8> = p
+        .pixels
+        .iter()
+        .flat_map(|c| (*c * exposure).to_array().map(srgb))
+        .collect();
+    image::save_buffer(path, &bytes, p.width as u32, p.height as u32, image::ColorType::Rgb8).map_err(|e| err(path, e))
+}

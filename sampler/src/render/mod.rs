@@ -1,0 +1,76 @@
+//! The direct reference renderer: traces a view pixel by pixel, in parallel,
+//! with a deterministic sequence of samples per pixel. Its pictures are the
+//! ground truth every holodeck reconstruction is measured against.
+
+mod image_io;
+mod picture;
+
+pub use image_io::{write_hdr, write_png, ImageError};
+pub use picture::Picture;
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use glam::Vec3;
+use holodeck_protocol::View;
+use rayon::prelude::*;
+
+use crate::shade::{Rng, Tracer};
+
+/// What to render.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel (stratified over the pixel).
+    pub spp: u32,
+    /// Seed of the random sequence.
+    pub seed: u64,
+}
+
+/// Renders `view`; `progress` is called with rows done and the total.
+pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn Fn(usize, usize) + Sync)) -> Picture {
+    let (w, h) = (o.width.max(1) as usize, o.height.max(1) as usize);
+    let spp = o.spp.max(1);
+    // Stratify over a sqrt(spp) x sqrt(spp) grid where spp is a square, else jitter freely.
+    let strata = (f64::from(spp).sqrt() as u32).max(1);
+    let stratified = strata * strata == spp;
+    let done = AtomicUsize::new(0);
+    let rows: Vec<Vec<Vec3>> = (0..h)
+        .into_par_iter()
+        .map(|row| {
+            let mut out = Vec::with_capacity(w);
+            for col in 0..w {
+                let pixel = (row * w + col) as u64;
+                let mut rng = Rng::new(o.seed, pixel);
+                let mut sum = Vec3::ZERO;
+                for s in 0..spp {
+                    let (jx, jy) = rng.f32x2();
+                    let (sx, sy) = if stratified {
+                        (
+                            ((s % strata) as f32 + jx) / strata as f32,
+                            ((s / strata) as f32 + jy) / strata as f32,
+                        )
+                    } else {
+                        (jx, jy)
+                    };
+                    let x = (col as f64 + f64::from(sx)) / w as f64;
+                    let y = 1.0 - (row as f64 + f64::from(sy)) / h as f64;
+                    if let Some((origin, dir)) = view.ray(x, y) {
+                        sum += tracer.trace(origin.as_vec3(), dir.as_vec3(), &mut rng).radiance;
+                    }
+                }
+                out.push(sum / spp as f32);
+            }
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(n, h);
+            out
+        })
+        .collect();
+    Picture {
+        width: w,
+        height: h,
+        pixels: rows.into_iter().flatten().collect(),
+    }
+}

@@ -1,0 +1,320 @@
+//! Assembling a [`Scene`] from meshes, with the validation every importer and
+//! generator shares: non-finite vertices and degenerate triangles are skipped
+//! and counted; out-of-range indices and bad materials are errors.
+
+use std::collections::HashMap;
+
+use glam::{Mat4, Vec3};
+use holodeck_protocol::Section;
+
+use super::material::{Material, Sky};
+use super::{Scene, Triangle};
+use crate::error::SceneError;
+
+/// What import skipped and kept, for reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImportStats {
+    /// Meshes added.
+    pub meshes: u64,
+    /// Triangles kept.
+    pub triangles: u64,
+    /// Triangles skipped for zero area.
+    pub degenerate: u64,
+    /// Triangles skipped for a NaN or infinite vertex.
+    pub non_finite: u64,
+    /// Meshes with no triangles.
+    pub empty_meshes: u64,
+}
+
+/// Builds a scene mesh by mesh.
+#[derive(Default)]
+pub struct SceneBuilder {
+    scene: Scene,
+    by_name: HashMap<String, u32>,
+}
+
+impl SceneBuilder {
+    /// An empty scene.
+    pub fn new() -> SceneBuilder {
+        SceneBuilder::default()
+    }
+
+    /// Adds a named material (validated) and returns its index; a name added
+    /// again returns the existing index if the parameters agree, else an error.
+    pub fn material(&mut self, name: &str, m: Material) -> Result<u32, SceneError> {
+        m.validate().map_err(|message| SceneError::BadMaterial {
+            name: name.to_string(),
+            message,
+        })?;
+        if let Some(&id) = self.by_name.get(name) {
+            if self.scene.materials[id as usize] != m {
+                let message = "defined twice with different parameters".to_string();
+                return Err(SceneError::BadMaterial {
+                    name: name.to_string(),
+                    message,
+                });
+            }
+            return Ok(id);
+        }
+        let id = self.scene.materials.len() as u32;
+        self.scene.materials.push(m);
+        self.scene.material_names.push(name.to_string());
+        self.by_name.insert(name.to_string(), id);
+        Ok(id)
+    }
+
+    /// The index of a material added earlier.
+    pub fn material_id(&self, name: &str) -> Option<u32> {
+        self.by_name.get(name).copied()
+    }
+
+    /// Adds a mesh: `positions` transformed by `transform`, `triangles` indexing
+    /// them, `materials` one per triangle (or a single entry for all). `source`
+    /// names the mesh in errors and logs.
+    pub fn add_mesh(
+        &mut self,
+        source: &str,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        materials: &[u32],
+        transform: Mat4,
+    ) -> Result<(), SceneError> {
+        if triangles.is_empty() {
+            self.scene.stats.empty_meshes += 1;
+            tracing::warn!("{source}: mesh has no triangles; skipped");
+            return Ok(());
+        }
+        if materials.len() != 1 && materials.len() != triangles.len() {
+            return Err(SceneError::Invalid {
+                what: source.to_string(),
+                message: format!("{} material indices for {} triangles", materials.len(), triangles.len()),
+            });
+        }
+        for &m in materials {
+            if m as usize >= self.scene.materials.len() {
+                return Err(SceneError::Invalid {
+                    what: source.to_string(),
+                    message: format!(
+                        "material index {m} but only {} materials exist",
+                        self.scene.materials.len()
+                    ),
+                });
+            }
+        }
+        let base = self.scene.positions.len();
+        let count = u32::try_from(base + positions.len()).map_err(|_| SceneError::Invalid {
+            what: source.to_string(),
+            message: "more than 4 billion vertices".to_string(),
+        })?;
+        let _ = count;
+        if transform == Mat4::IDENTITY {
+            // Bit-exact: a written-out scene reads back with the same content hash.
+            self.scene.positions.extend_from_slice(positions);
+        } else {
+            self.scene
+                .positions
+                .extend(positions.iter().map(|p| transform.transform_point3(*p)));
+        }
+        let world = &self.scene.positions[base..];
+        let (mut degenerate, mut non_finite) = (0u64, 0u64);
+        for (k, t) in triangles.iter().enumerate() {
+            if let Some(&bad) = t.iter().find(|&&i| i as usize >= positions.len()) {
+                self.scene.positions.truncate(base);
+                return Err(SceneError::Invalid {
+                    what: source.to_string(),
+                    message: format!(
+                        "triangle {k} uses vertex {bad}, but the mesh has {} vertices",
+                        positions.len()
+                    ),
+                });
+            }
+            let [a, b, c] = t.map(|i| world[i as usize]);
+            if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+                non_finite += 1;
+                continue;
+            }
+            let area2 = (b - a).cross(c - a).length();
+            if !(area2.is_finite() && area2 > 0.0) {
+                degenerate += 1;
+                continue;
+            }
+            let material = if materials.len() == 1 {
+                materials[0]
+            } else {
+                materials[k]
+            };
+            self.scene.triangles.push(Triangle {
+                v: t.map(|i| i + base as u32),
+                material,
+            });
+        }
+        if degenerate + non_finite > 0 {
+            tracing::warn!("{source}: skipped {degenerate} degenerate and {non_finite} non-finite triangles");
+        }
+        let stats = &mut self.scene.stats;
+        stats.meshes += 1;
+        stats.degenerate += degenerate;
+        stats.non_finite += non_finite;
+        stats.triangles += triangles.len() as u64 - degenerate - non_finite;
+        Ok(())
+    }
+
+    /// The parameters of material `id`, if it exists.
+    pub fn material_params(&self, id: u32) -> Option<&Material> {
+        self.scene.materials.get(id as usize)
+    }
+
+    /// Triangles kept so far.
+    pub fn triangle_count(&self) -> usize {
+        self.scene.triangles.len()
+    }
+
+    /// Names of all materials so far, in index order, comma-separated (for errors).
+    pub fn material_list(&self) -> String {
+        self.scene.material_names.join(", ")
+    }
+
+    /// Adds a mesh already in world space, taking ownership so that very large
+    /// generated meshes are not copied when the scene is still empty. Triangle
+    /// indices are local to `positions`; materials must already exist. Validation
+    /// (the same as [`SceneBuilder::add_mesh`]) runs in parallel.
+    pub fn add_world_mesh(
+        &mut self,
+        source: &str,
+        positions: Vec<Vec3>,
+        mut triangles: Vec<Triangle>,
+    ) -> Result<(), SceneError> {
+        use rayon::prelude::*;
+        if triangles.is_empty() {
+            self.scene.stats.empty_meshes += 1;
+            tracing::warn!("{source}: mesh has no triangles; skipped");
+            return Ok(());
+        }
+        let base = self.scene.positions.len();
+        if u32::try_from(base + positions.len()).is_err() {
+            let message = "more than 4 billion vertices".to_string();
+            return Err(SceneError::Invalid {
+                what: source.to_string(),
+                message,
+            });
+        }
+        let materials = self.scene.materials.len();
+        let n = positions.len();
+        let bad = triangles
+            .par_iter()
+            .position_first(|t| t.v.iter().any(|&i| i as usize >= n));
+        if let Some(k) = bad {
+            let message = format!(
+                "triangle {k} uses vertex {:?}, but the mesh has {n} vertices",
+                triangles[k].v
+            );
+            return Err(SceneError::Invalid {
+                what: source.to_string(),
+                message,
+            });
+        }
+        if let Some(t) = triangles.par_iter().find_any(|t| t.material as usize >= materials) {
+            let message = format!("material index {} but only {materials} materials exist", t.material);
+            return Err(SceneError::Invalid {
+                what: source.to_string(),
+                message,
+            });
+        }
+        // 0 = keep, 1 = degenerate, 2 = non-finite.
+        let verdict: Vec<u8> = triangles
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.v.map(|i| positions[i as usize]);
+                if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+                    return 2;
+                }
+                let area2 = (b - a).cross(c - a).length();
+                u8::from(!(area2.is_finite() && area2 > 0.0))
+            })
+            .collect();
+        let non_finite = verdict.par_iter().filter(|&&v| v == 2).count() as u64;
+        let degenerate = verdict.par_iter().filter(|&&v| v == 1).count() as u64;
+        if degenerate + non_finite > 0 {
+            let mut k = 0;
+            triangles.retain(|_| {
+                k += 1;
+                verdict[k - 1] == 0
+            });
+            tracing::warn!("{source}: skipped {degenerate} degenerate and {non_finite} non-finite triangles");
+        }
+        drop(verdict);
+        let offset = base as u32;
+        if offset > 0 {
+            triangles.par_iter_mut().for_each(|t| t.v = t.v.map(|i| i + offset));
+        }
+        let kept = triangles.len() as u64;
+        if self.scene.positions.is_empty() {
+            self.scene.positions = positions;
+        } else {
+            self.scene.positions.extend_from_slice(&positions);
+        }
+        if self.scene.triangles.is_empty() {
+            self.scene.triangles = triangles;
+        } else {
+            self.scene.triangles.extend_from_slice(&triangles);
+        }
+        let stats = &mut self.scene.stats;
+        stats.meshes += 1;
+        stats.degenerate += degenerate;
+        stats.non_finite += non_finite;
+        stats.triangles += kept;
+        Ok(())
+    }
+
+    /// Sets the sky.
+    pub fn sky(&mut self, sky: Sky) {
+        self.scene.sky = sky;
+    }
+
+    /// Adds a holodeck section.
+    pub fn section(&mut self, s: Section) {
+        self.scene.sections.push(s);
+    }
+
+    /// The finished scene.
+    pub fn finish(self) -> Scene {
+        self.scene
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn skips_bad_triangles_and_refuses_bad_indices() {
+        let mut b = SceneBuilder::new();
+        let m = b.material("white", Material::lambertian([0.8; 3])).unwrap();
+        assert_eq!(b.material("white", Material::lambertian([0.8; 3])).unwrap(), m);
+        assert!(b.material("white", Material::lambertian([0.5; 3])).is_err());
+        assert!(b.material("hot", Material::lambertian([2.0; 3])).is_err());
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(f32::NAN, 0.0, 0.0),
+            Vec3::X * 2.0,
+        ];
+        let tris = [[0, 1, 2], [0, 1, 4], [0, 1, 3], [2, 1, 0]];
+        b.add_mesh("test", &p, &tris, &[m], Mat4::from_translation(Vec3::Z))
+            .unwrap();
+        let err = b
+            .add_mesh("broken", &p, &[[0, 1, 9]], &[m], Mat4::IDENTITY)
+            .unwrap_err();
+        assert!(err.to_string().contains("triangle 0 uses vertex 9"), "{err}");
+        b.add_mesh("empty", &p, &[], &[m], Mat4::IDENTITY).unwrap();
+        let s = b.finish();
+        assert_eq!(s.triangles.len(), 2);
+        assert_eq!(
+            (s.stats.degenerate, s.stats.non_finite, s.stats.empty_meshes),
+            (1, 1, 1)
+        );
+        assert_eq!(s.positions.len(), 5, "the broken mesh's vertices are not kept");
+        assert_eq!(s.vertices(0)[0], Vec3::Z);
+    }
+}

@@ -1,0 +1,248 @@
+//! The TOML scene file: named materials, a sky, geometry files with
+//! transforms, built-in generated scenes, and holodeck sections. Paths in it
+//! are relative to the file. Every table refuses unknown keys, and every error
+//! names the file and what in it is wrong.
+//!
+//! Materials are added in the order they are written, before anything else, so
+//! they override same-named materials of OBJ/MTL and glTF files and of
+//! built-in scenes. The sky is the file's `[sky]`, else the first builtin's;
+//! the sections are the file's `[[section]]` tables, else the builtins'.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use glam::{EulerRot, Mat4, Quat, Vec3};
+use serde::de::{MapAccess, Visitor};
+use serde::{Deserialize, Deserializer, Serialize};
+
+use super::builder::SceneBuilder;
+use super::gen::{self, GenParams};
+use super::import::{import_file_with, ImportOptions};
+use super::material::{Material, Sky};
+use super::section::SectionTable;
+use super::Scene;
+use crate::error::SceneError;
+
+/// A whole scene file.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// What escaping rays see (default: the first builtin's, else none).
+    #[serde(default)]
+    pub sky: Option<Sky>,
+    /// Named materials, in file order.
+    #[serde(default)]
+    pub materials: NamedMaterials,
+    /// Geometry files.
+    #[serde(default)]
+    pub geometry: Vec<GeometryEntry>,
+    /// Built-in generated scenes merged in.
+    #[serde(default)]
+    pub builtin: Vec<BuiltinEntry>,
+    /// Holodeck sections.
+    #[serde(default)]
+    pub section: Vec<SectionTable>,
+}
+
+/// `[materials.NAME]` tables in the order written (so material ids are stable).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NamedMaterials(pub Vec<(String, Material)>);
+
+impl<'de> Deserialize<'de> for NamedMaterials {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Ordered;
+        impl<'de> Visitor<'de> for Ordered {
+            type Value = NamedMaterials;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a table of named materials")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<NamedMaterials, A::Error> {
+                let mut out = Vec::new();
+                while let Some((name, m)) = map.next_entry::<String, Material>()? {
+                    out.push((name, m));
+                }
+                Ok(NamedMaterials(out))
+            }
+        }
+        d.deserialize_map(Ordered)
+    }
+}
+
+/// A `[[geometry]]` table: one file placed in the scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeometryEntry {
+    /// The file (.obj, .ply, .gltf, .glb), relative to the scene file.
+    pub file: PathBuf,
+    /// Material for faces the file gives none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<String>,
+    /// Materials that a PLY file's per-face `material_index` values index.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<String>,
+    /// Translation, meters (applied last).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<[f32; 3]>,
+    /// Rotation in degrees about x, then y, then z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<[f32; 3]>,
+    /// Scale (applied first): one factor or one per axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<Scale>,
+}
+
+/// A uniform or per-axis scale.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Scale {
+    /// The same factor on every axis.
+    Uniform(f32),
+    /// One factor per axis.
+    Axes([f32; 3]),
+}
+
+impl GeometryEntry {
+    /// Scale, then rotate about x, y, z, then translate; an error names the bad key.
+    pub fn transform(&self) -> Result<Mat4, String> {
+        let scale = match self.scale {
+            None => Vec3::ONE,
+            Some(Scale::Uniform(s)) => Vec3::splat(s),
+            Some(Scale::Axes(a)) => Vec3::from(a),
+        };
+        if !scale.is_finite() || scale.x * scale.y * scale.z == 0.0 {
+            return Err(format!("scale {scale} must be finite and non-zero"));
+        }
+        let rotate = Vec3::from(self.rotate.unwrap_or([0.0; 3]));
+        let translate = Vec3::from(self.translate.unwrap_or([0.0; 3]));
+        if !rotate.is_finite() {
+            return Err(format!("rotate {rotate} must be finite"));
+        }
+        if !translate.is_finite() {
+            return Err(format!("translate {translate} must be finite"));
+        }
+        let r = rotate * (std::f32::consts::PI / 180.0);
+        // Extrinsic x, then y, then z is the intrinsic z-y-x rotation.
+        let q = Quat::from_euler(EulerRot::ZYX, r.z, r.y, r.x);
+        Ok(Mat4::from_scale_rotation_translation(scale, q, translate))
+    }
+}
+
+/// A `[[builtin]]` table: a generated scene merged in.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BuiltinEntry {
+    /// room, landscape, mandelbulb or bunny.
+    pub name: String,
+    /// Target triangle count (landscape).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub triangles: Option<u64>,
+    /// Grid resolution (mandelbulb).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resolution: Option<u32>,
+    /// Random seed (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// The bunny OBJ, relative to the scene file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bunny: Option<PathBuf>,
+}
+
+/// Parses scene file text; `path` is only for error messages.
+pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneFile, SceneError> {
+    toml::from_str(text).map_err(|e| SceneError::Parse {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Reads the scene file at `path` and builds its scene: geometry files are
+/// found relative to it.
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let file = parse_scene_file(&text, path)?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    let at = |what: String, e: SceneError| SceneError::Invalid {
+        what: format!("{}: {what}", path.display()),
+        message: e.to_string(),
+    };
+
+    let mut b = SceneBuilder::new();
+    let mut overrides = HashMap::new();
+    for (name, m) in &file.materials.0 {
+        let id = b
+            .material(name, m.clone())
+            .map_err(|e| at(format!("[materials.{name}]"), e))?;
+        overrides.insert(name.clone(), id);
+    }
+    let mut settings = Vec::new();
+    for entry in &file.builtin {
+        if !gen::NAMES.contains(&entry.name.as_str()) {
+            return Err(SceneError::Parse {
+                path: path.to_path_buf(),
+                message: format!(
+                    "[[builtin]] name {:?} is not one of {}",
+                    entry.name,
+                    gen::NAMES.join(", ")
+                ),
+            });
+        }
+        let params = GenParams {
+            triangles: entry.triangles,
+            resolution: entry.resolution,
+            seed: entry.seed.unwrap_or(0),
+            bunny_path: entry.bunny.as_ref().map(|p| base.join(p)),
+        };
+        let setting =
+            gen::add(&entry.name, &params, &mut b).map_err(|e| at(format!("[[builtin]] {:?}", entry.name), e))?;
+        settings.push(setting);
+    }
+    for (k, g) in file.geometry.iter().enumerate() {
+        let what = format!("{}: [[geometry]] {} ({})", path.display(), k + 1, g.file.display());
+        let id = |name: &String| {
+            b.material_id(name).ok_or_else(|| SceneError::UnknownMaterial {
+                what: what.clone(),
+                name: name.clone(),
+                known: b.material_list(),
+            })
+        };
+        let default_material = g.material.as_ref().map(id).transpose()?;
+        let face_materials = g.materials.iter().map(id).collect::<Result<Vec<u32>, _>>()?;
+        let transform = g.transform().map_err(|message| SceneError::Invalid {
+            what: what.clone(),
+            message,
+        })?;
+        let options = ImportOptions {
+            default_material,
+            overrides: Some(&overrides),
+            face_materials: &face_materials,
+        };
+        import_file_with(&mut b, &base.join(&g.file), transform, &options)?;
+    }
+    let sky = match (&file.sky, settings.first()) {
+        (Some(sky), _) => sky.clone(),
+        (None, Some(s)) => s.sky.clone(),
+        (None, None) => Sky::None,
+    };
+    b.sky(sky);
+    if file.section.is_empty() {
+        for s in settings.into_iter().flat_map(|s| s.sections) {
+            b.section(s);
+        }
+    } else {
+        for (k, t) in file.section.iter().enumerate() {
+            let s = t.to_section().map_err(|message| SceneError::Parse {
+                path: path.to_path_buf(),
+                message: format!("[[section]] {}: {message}", k + 1),
+            })?;
+            b.section(s);
+        }
+    }
+    Ok(b.finish())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,182 @@
+//! The landscape: the furnished room, its window looking east onto rolling
+//! terrain (an fBm heightfield, flat under the room and rising into hills away
+//! from it) covered by a forest of low-poly trees (a six-sided trunk under two
+//! cone tiers). About 40% of the triangle budget goes to the terrain and the
+//! rest to trees; the terrain grows with the forest so tree density stays
+//! near one per 25 m². Everything is written in parallel into vectors sized
+//! exactly in advance, from stateless hashes of (seed, index): the same seed
+//! gives the same scene on any number of threads, and 100M+ triangles fit in
+//! about 2.5 GB.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::noise::{fbm, hash, unit};
+use super::shapes::{cone_triangles, cone_vertices, prism_triangles, prism_vertices, write_cone, write_prism};
+use super::{add_room, material, GenParams, Setting};
+use crate::error::SceneError;
+use crate::scene::builder::SceneBuilder;
+use crate::scene::material::Material;
+use crate::scene::Triangle;
+
+/// Triangles asked for when no count is given.
+pub const DEFAULT_TRIANGLES: u64 = 1_000_000;
+/// Sides of a trunk and of a crown tier.
+const TRUNK_SIDES: usize = 6;
+const CROWN_SIDES: usize = 8;
+/// Vertices and triangles of one tree.
+const TREE_VERTICES: usize = prism_vertices(TRUNK_SIDES) + 2 * cone_vertices(CROWN_SIDES);
+const TREE_TRIANGLES: usize = prism_triangles(TRUNK_SIDES) + 2 * cone_triangles(CROWN_SIDES);
+/// Triangles kept back for the room.
+const ROOM_BUDGET: u64 = 1_700;
+/// Room center (x, y); no trees within `CLEARING` meters of it.
+const ROOM_CENTER: [f32; 2] = [3.0, 2.0];
+const CLEARING: f32 = 14.0;
+
+/// How the budget is spent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Plan {
+    /// Terrain quads per side.
+    pub cells: u32,
+    /// Trees.
+    pub trees: u64,
+    /// Terrain side length, meters.
+    pub size_m: u32,
+}
+
+/// The plan for about `triangles` triangles in all.
+pub fn plan(triangles: u64) -> Plan {
+    let budget = triangles
+        .saturating_sub(ROOM_BUDGET)
+        .max(2 * 2 * 2 + TREE_TRIANGLES as u64);
+    let cells = (((budget as f64 * 0.4) / 2.0).sqrt().floor() as u64).clamp(2, 60_000) as u32;
+    let trees = (budget - 2 * u64::from(cells) * u64::from(cells)) / TREE_TRIANGLES as u64;
+    let size_m = (5.0 * (trees as f64).sqrt()).max(100.0).ceil() as u32;
+    Plan { cells, trees, size_m }
+}
+
+/// Terrain height at (x, y): -5 cm within 8 m of the room (under its floor),
+/// rising to fBm hills of about ±12 m from 60 m out.
+pub fn height(seed: u64, x: f32, y: f32) -> f32 {
+    let d = ((x - ROOM_CENTER[0]).powi(2) + (y - ROOM_CENTER[1]).powi(2)).sqrt();
+    let t = ((d - 8.0) / 52.0).clamp(0.0, 1.0);
+    let ramp = t * t * (3.0 - 2.0 * t);
+    let hills = 12.0 * fbm(seed, x / 150.0, y / 150.0, 6) + 2.0;
+    -0.05 + ramp * hills
+}
+
+/// Adds the room, the terrain and the forest; returns the room's daylight sky
+/// and section.
+pub fn add_landscape(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, SceneError> {
+    if params.resolution.is_some() {
+        tracing::warn!("landscape: --resolution does not apply; ignored");
+    }
+    let plan = plan(params.triangles.unwrap_or(DEFAULT_TRIANGLES));
+    let grass = material(b, "grass", Material::lambertian([0.16, 0.28, 0.08]))?;
+    let bark = material(b, "bark", Material::lambertian([0.3, 0.2, 0.12]))?;
+    let foliage = material(b, "foliage", Material::lambertian([0.07, 0.2, 0.06]))?;
+    tracing::info!(
+        "landscape: {} x {} terrain cells over {} m, {} trees",
+        plan.cells,
+        plan.cells,
+        plan.size_m,
+        plan.trees
+    );
+
+    let n = plan.cells as usize;
+    let terrain_vertices = (n + 1) * (n + 1);
+    let tree_count = usize::try_from(plan.trees).map_err(|_| too_big())?;
+    let vertex_count = terrain_vertices + tree_count * TREE_VERTICES;
+    let triangle_count = 2 * n * n + tree_count * TREE_TRIANGLES;
+    if u32::try_from(vertex_count).is_err() || u32::try_from(triangle_count).is_err() {
+        return Err(too_big());
+    }
+    let mut positions = vec![Vec3::ZERO; vertex_count];
+    let mut triangles = vec![
+        Triangle {
+            v: [0; 3],
+            material: grass
+        };
+        triangle_count
+    ];
+    let (terrain_pos, tree_pos) = positions.split_at_mut(terrain_vertices);
+    let (terrain_tris, tree_tris) = triangles.split_at_mut(2 * n * n);
+    let seed = params.seed;
+    let half = plan.size_m as f32 / 2.0;
+    let origin = [ROOM_CENTER[0] - half, ROOM_CENTER[1] - half];
+    let step = plan.size_m as f32 / n as f32;
+
+    terrain_pos.par_chunks_mut(n + 1).enumerate().for_each(|(j, row)| {
+        let y = origin[1] + j as f32 * step;
+        for (i, p) in row.iter_mut().enumerate() {
+            let x = origin[0] + i as f32 * step;
+            *p = Vec3::new(x, y, height(seed, x, y));
+        }
+    });
+    terrain_tris.par_chunks_mut(2 * n).enumerate().for_each(|(j, row)| {
+        let w = (n + 1) as u32;
+        for i in 0..n {
+            let v00 = j as u32 * w + i as u32;
+            let (v10, v01, v11) = (v00 + 1, v00 + w, v00 + w + 1);
+            row[2 * i] = Triangle {
+                v: [v00, v10, v11],
+                material: grass,
+            };
+            row[2 * i + 1] = Triangle {
+                v: [v00, v11, v01],
+                material: grass,
+            };
+        }
+    });
+
+    let tree_seed = hash(seed, 0x7EE5);
+    tree_pos
+        .par_chunks_mut(TREE_VERTICES)
+        .zip(tree_tris.par_chunks_mut(TREE_TRIANGLES))
+        .enumerate()
+        .for_each(|(k, (pos, tris))| {
+            let first = (terrain_vertices + k * TREE_VERTICES) as u32;
+            let r = |salt: u64| unit(tree_seed, (k as u64) << 4 | salt);
+            let (mut x, mut y) = (origin[0] + r(0) * 2.0 * half, origin[1] + r(1) * 2.0 * half);
+            let (dx, dy) = (x - ROOM_CENTER[0], y - ROOM_CENTER[1]);
+            let d = (dx * dx + dy * dy).sqrt();
+            if d < CLEARING {
+                // Push trees out of the clearing around the room, keeping their direction.
+                let (ux, uy) = if d > 1e-3 { (dx / d, dy / d) } else { (1.0, 0.0) };
+                let out = CLEARING + r(2) * 10.0;
+                (x, y) = (ROOM_CENTER[0] + ux * out, ROOM_CENTER[1] + uy * out);
+            }
+            let ground = height(seed, x, y);
+            let scale = 0.7 + 0.8 * r(3);
+            let trunk_h = 2.5 * scale;
+            let base = Vec3::new(x, y, ground - 0.3);
+            let (tp, cp) = pos.split_at_mut(prism_vertices(TRUNK_SIDES));
+            let (tt, ct) = tris.split_at_mut(prism_triangles(TRUNK_SIDES));
+            write_prism(tp, tt, first, base, 0.18 * scale, trunk_h, bark);
+            let (c1p, c2p) = cp.split_at_mut(cone_vertices(CROWN_SIDES));
+            let (c1t, c2t) = ct.split_at_mut(cone_triangles(CROWN_SIDES));
+            let crown_r = (1.4 + 0.8 * r(4)) * scale;
+            let lower = base + Vec3::Z * (trunk_h * 0.6 + 0.3);
+            let first2 = first + prism_vertices(TRUNK_SIDES) as u32;
+            write_cone(c1p, c1t, first2, lower, crown_r, 3.5 * scale, foliage);
+            let upper = lower + Vec3::Z * (1.8 * scale);
+            write_cone(
+                c2p,
+                c2t,
+                first2 + cone_vertices(CROWN_SIDES) as u32,
+                upper,
+                crown_r * 0.7,
+                3.0 * scale,
+                foliage,
+            );
+        });
+    b.add_world_mesh("landscape terrain and trees", positions, triangles)?;
+    add_room(b, &GenParams::default())
+}
+
+fn too_big() -> SceneError {
+    SceneError::Invalid {
+        what: "landscape".to_string(),
+        message: "too many triangles for one scene (about 4 billion triangles or vertices at most)".to_string(),
+    }
+}

@@ -1,0 +1,163 @@
+//! glTF 2.0 (`.gltf` with embedded or external buffers, and `.glb`) import
+//! through the `gltf` crate: every node of the default scene (else the first)
+//! with its world transform, primitives in triangle mode only (points, lines,
+//! strips and fans are skipped and counted). Materials come from the
+//! metallic-roughness factors: emissive > 0 gives an emitter, metallic >= 0.5
+//! metal, roughness < 0.9 plastic, else lambertian. Textures, vertex colors,
+//! normals and extensions are ignored; images are never loaded.
+
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+
+use super::{file_material, parse_error, unit_color, ImportOptions};
+use crate::error::SceneError;
+use crate::scene::builder::SceneBuilder;
+use crate::scene::material::Material;
+
+/// Deepest node hierarchy followed (a guard against cyclic files).
+const MAX_DEPTH: usize = 256;
+
+/// Adds every triangle primitive of the glTF or GLB file at `path`.
+pub(super) fn import(
+    b: &mut SceneBuilder,
+    path: &Path,
+    transform: Mat4,
+    options: &ImportOptions,
+) -> Result<(), SceneError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| parse_error(path, format!("glTF: {e}")))?;
+    drop(bytes);
+    let gltf::Gltf { document, blob } = gltf;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = gltf::import_buffers(&document, Some(base), blob)
+        .map_err(|e| parse_error(path, format!("glTF buffers: {e}")))?;
+    let Some(scene) = document.default_scene().or_else(|| document.scenes().next()) else {
+        tracing::warn!("{}: glTF has no scene; nothing imported", path.display());
+        return Ok(());
+    };
+    let mut ctx = Context {
+        b,
+        path,
+        options,
+        buffers: &buffers,
+        skipped: 0,
+    };
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> = scene.nodes().map(|n| (n, transform, 0)).collect();
+    while let Some((node, parent, depth)) = stack.pop() {
+        if depth > MAX_DEPTH {
+            return Err(parse_error(
+                path,
+                format!("glTF node hierarchy deeper than {MAX_DEPTH} (a cycle?)"),
+            ));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(mesh) = node.mesh() {
+            ctx.mesh(&mesh, world)?;
+        }
+        stack.extend(node.children().map(|c| (c, world, depth + 1)));
+    }
+    if ctx.skipped > 0 {
+        tracing::warn!(
+            "{}: skipped {} primitives that are not triangle lists",
+            path.display(),
+            ctx.skipped
+        );
+    }
+    Ok(())
+}
+
+/// What importing one file needs at every mesh.
+struct Context<'a, 'b> {
+    b: &'a mut SceneBuilder,
+    path: &'a Path,
+    options: &'a ImportOptions<'b>,
+    buffers: &'a [gltf::buffer::Data],
+    skipped: u64,
+}
+
+impl Context<'_, '_> {
+    /// Adds the triangle primitives of `mesh` placed by `world`.
+    fn mesh(&mut self, mesh: &gltf::Mesh, world: Mat4) -> Result<(), SceneError> {
+        for prim in mesh.primitives() {
+            let what = format!(
+                "mesh {} primitive {}",
+                mesh.name().unwrap_or(&mesh.index().to_string()),
+                prim.index()
+            );
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                self.skipped += 1;
+                continue;
+            }
+            let buffers = self.buffers;
+            let reader = prim.reader(|buf| buffers.get(buf.index()).map(|d| &d.0[..]));
+            let positions: Vec<Vec3> = reader
+                .read_positions()
+                .ok_or_else(|| parse_error(self.path, format!("{what}: no readable POSITION accessor")))?
+                .map(Vec3::from)
+                .collect();
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(ix) => ix.into_u32().collect(),
+                None if prim.indices().is_some() => {
+                    return Err(parse_error(
+                        self.path,
+                        format!("{what}: index accessor out of its buffer"),
+                    ))
+                }
+                None => (0..positions.len() as u32).collect(),
+            };
+            if indices.len() % 3 != 0 {
+                return Err(parse_error(
+                    self.path,
+                    format!("{what}: {} indices is not a triangle list", indices.len()),
+                ));
+            }
+            let triangles: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+            let material = self.material(&prim.material())?;
+            let source = format!("{}: {what}", self.path.display());
+            self.b.add_mesh(&source, &positions, &triangles, &[material], world)?;
+        }
+        Ok(())
+    }
+
+    /// The scene material for a glTF material (the caller's default for none).
+    fn material(&mut self, m: &gltf::Material) -> Result<u32, SceneError> {
+        let Some(index) = m.index() else {
+            if let Some(id) = self.options.default_material {
+                return Ok(id);
+            }
+            return file_material(self.b, self.options, "gltf:default", convert(m));
+        };
+        let name = m.name().map_or_else(|| format!("gltf:{index}"), str::to_string);
+        file_material(self.b, self.options, &name, convert(m))
+    }
+}
+
+/// Our material for a glTF metallic-roughness material.
+fn convert(m: &gltf::Material) -> Material {
+    let emissive = m
+        .emissive_factor()
+        .map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 });
+    if emissive.iter().any(|&v| v > 0.0) {
+        return Material::Emitter { radiance: emissive };
+    }
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _] = pbr.base_color_factor();
+    let color = unit_color([r, g, b]);
+    let finite01 = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 1.0 };
+    let (metallic, roughness) = (finite01(pbr.metallic_factor()), finite01(pbr.roughness_factor()));
+    if metallic >= 0.5 {
+        Material::Metal { color, roughness }
+    } else if roughness < 0.9 {
+        Material::Plastic {
+            albedo: color,
+            roughness,
+            ior: 1.5,
+        }
+    } else {
+        Material::lambertian(color)
+    }
+}

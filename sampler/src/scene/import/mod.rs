@@ -1,0 +1,107 @@
+//! Geometry importers: OBJ (with MTL materials), PLY (ASCII and binary) and
+//! glTF/GLB, each adding its triangles and materials to a [`SceneBuilder`].
+//! They only read files; they never decide where a scene's files live (the
+//! scene file does that) and never panic on what a file contains.
+
+mod gltf;
+mod obj;
+mod ply;
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::Mat4;
+
+use super::builder::SceneBuilder;
+use super::material::Material;
+use crate::error::SceneError;
+
+/// How one file is imported besides its transform.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ImportOptions<'a> {
+    /// Material for faces the file gives none (OBJ faces without `usemtl`, PLY
+    /// without `material_index`, glTF primitives without a material).
+    pub default_material: Option<u32>,
+    /// Scene materials by name that replace a file's material of the same name
+    /// (OBJ/MTL and glTF material names).
+    pub overrides: Option<&'a HashMap<String, u32>>,
+    /// Material ids that a PLY file's per-face `material_index` indexes.
+    pub face_materials: &'a [u32],
+}
+
+/// Imports `path` (`.obj`, `.ply`, `.gltf` or `.glb`, by extension) into `b`,
+/// transformed by `transform`. `default_material` is used for faces without a
+/// material; `overrides` maps file material names to scene materials that
+/// replace them.
+pub fn import_file(
+    b: &mut SceneBuilder,
+    path: &Path,
+    transform: Mat4,
+    default_material: Option<u32>,
+    overrides: &HashMap<String, u32>,
+) -> Result<(), SceneError> {
+    let options = ImportOptions {
+        default_material,
+        overrides: Some(overrides),
+        face_materials: &[],
+    };
+    import_file_with(b, path, transform, &options)
+}
+
+/// [`import_file`] with every option, including the material list that PLY
+/// per-face `material_index` values index.
+pub fn import_file_with(
+    b: &mut SceneBuilder,
+    path: &Path,
+    transform: Mat4,
+    options: &ImportOptions,
+) -> Result<(), SceneError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let before = b.triangle_count();
+    match ext.as_deref() {
+        Some("obj") => obj::import(b, path, transform, options)?,
+        Some("ply") => ply::import(b, path, transform, options)?,
+        Some("gltf") | Some("glb") => gltf::import(b, path, transform, options)?,
+        _ => {
+            return Err(SceneError::UnsupportedFormat {
+                path: path.to_path_buf(),
+            })
+        }
+    }
+    tracing::info!("{}: {} triangles", path.display(), b.triangle_count() - before);
+    Ok(())
+}
+
+/// The material for a file's material named `name`: the scene's override if
+/// there is one, else `m` added under `name` (or `name#2`, `name#3`, ... when
+/// another file already used the name for different parameters).
+fn file_material(b: &mut SceneBuilder, options: &ImportOptions, name: &str, m: Material) -> Result<u32, SceneError> {
+    if let Some(&id) = options.overrides.and_then(|o| o.get(name)) {
+        return Ok(id);
+    }
+    let mut candidate = name.to_string();
+    for k in 2u32.. {
+        match b.material_id(&candidate) {
+            Some(id) if b.material_params(id) == Some(&m) => return Ok(id),
+            Some(_) => candidate = format!("{name}#{k}"),
+            None => break,
+        }
+    }
+    b.material(&candidate, m)
+}
+
+/// Clamps a color into [0, 1], mapping NaN to 0.
+fn unit_color(c: [f32; 3]) -> [f32; 3] {
+    c.map(|v| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
+}
+
+/// Parse error for `path`.
+fn parse_error(path: &Path, message: impl Into<String>) -> SceneError {
+    SceneError::Parse {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+#[cfg(test)]
+mod tests;

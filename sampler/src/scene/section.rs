@@ -1,0 +1,104 @@
+//! A `[[section]]` table of a scene file: a holodeck section as written by
+//! people (kind, origin, axes, and a grid or a target beam count), and its
+//! conversion to a validated [`Section`].
+
+use holodeck_protocol::{grid_for_beam_count, Section, SectionKind};
+use serde::{Deserialize, Serialize};
+
+/// Beam count aimed at when a section gives neither `grid` nor `beams`.
+pub const DEFAULT_BEAMS: u64 = 150_000;
+
+/// A section as written in a scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionTable {
+    /// `interior` (looked out of; the default) or `exterior` (looked into).
+    #[serde(default = "interior")]
+    pub kind: SectionKind,
+    /// World corner, meters.
+    pub origin: [f64; 3],
+    /// The three edge vectors from the origin, meters.
+    pub axes: [[f64; 3]; 3],
+    /// Cells along each axis (1..=255); excludes `beams`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grid: Option<[u16; 3]>,
+    /// Target beam count for an automatic grid (default 150,000); excludes `grid`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beams: Option<u64>,
+}
+
+fn interior() -> SectionKind {
+    SectionKind::Interior
+}
+
+impl SectionTable {
+    /// The table of an existing section, with its explicit grid.
+    pub fn from_section(s: &Section) -> SectionTable {
+        let spec = s.spec();
+        SectionTable {
+            kind: spec.kind,
+            origin: spec.origin,
+            axes: spec.axes,
+            grid: Some(spec.grid),
+            beams: None,
+        }
+    }
+
+    /// The validated section; the error says what is wrong.
+    pub fn to_section(&self) -> Result<Section, String> {
+        let grid = match (self.grid, self.beams) {
+            (Some(_), Some(_)) => return Err("give grid or beams, not both".to_string()),
+            (Some(g), None) => g,
+            (None, beams) => {
+                grid_for_beam_count(self.axes, beams.unwrap_or(DEFAULT_BEAMS)).map_err(|e| e.to_string())?
+            }
+        };
+        Section::new(self.origin, self.axes, grid, self.kind).map_err(|e| e.to_string())
+    }
+}
+
+/// An axis-aligned section with its low corner at `origin` and edge lengths
+/// `size` (world meters), with about [`DEFAULT_BEAMS`] beams.
+pub fn box_section(kind: SectionKind, origin: [f64; 3], size: [f64; 3]) -> Result<Section, String> {
+    let [dx, dy, dz] = size;
+    SectionTable {
+        kind,
+        origin,
+        axes: [[dx, 0.0, 0.0], [0.0, dy, 0.0], [0.0, 0.0, dz]],
+        grid: None,
+        beams: None,
+    }
+    .to_section()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_grid_aims_at_150k_beams_and_grid_round_trips() {
+        let t: SectionTable = toml::from_str("origin = [0, 0, 0]\naxes = [[6, 0, 0], [0, 4, 0], [0, 0, 2.5]]").unwrap();
+        let s = t.to_section().unwrap();
+        assert_eq!(s.kind(), SectionKind::Interior);
+        let n = f64::from(s.beam_count());
+        assert!((100_000.0..225_000.0).contains(&n), "{n}");
+        let back = SectionTable::from_section(&s).to_section().unwrap();
+        assert_eq!(back, s);
+        let both = SectionTable {
+            beams: Some(1000),
+            ..SectionTable::from_section(&s)
+        };
+        assert!(both.to_section().unwrap_err().contains("not both"));
+        let flat = SectionTable {
+            axes: [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            ..t
+        };
+        assert!(flat.to_section().is_err());
+        assert!(toml::from_str::<SectionTable>(
+            "origin = [0, 0, 0]\naxes = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nsize = 3"
+        )
+        .unwrap_err()
+        .to_string()
+        .contains("size"));
+    }
+}

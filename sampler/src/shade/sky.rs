@@ -1,0 +1,112 @@
+//! What escaping rays see: a constant sky, or a sun disk over a sky that blends
+//! from horizon to zenith with a ground color below (+z up). The sun is small
+//! and bright, so it is also sampled directly.
+
+use glam::Vec3;
+
+use super::sampling::{uniform_cone, uniform_cone_pdf, Frame};
+use crate::scene::Sky;
+
+/// A sky ready for shading.
+#[derive(Clone, Debug)]
+pub struct SkyModel {
+    background: Background,
+    sun: Option<Sun>,
+}
+
+#[derive(Clone, Debug)]
+enum Background {
+    Constant(Vec3),
+    Gradient { zenith: Vec3, horizon: Vec3, ground: Vec3 },
+}
+
+#[derive(Clone, Debug)]
+struct Sun {
+    frame: Frame,
+    cos_max: f32,
+    radiance: Vec3,
+}
+
+impl SkyModel {
+    /// Prepares a scene's sky. Non-finite or negative values become black.
+    pub fn new(sky: &Sky) -> SkyModel {
+        let c = |v: &[f32; 3]| Vec3::from_array(*v).max(Vec3::ZERO).min(Vec3::splat(f32::MAX));
+        match sky {
+            Sky::None => SkyModel {
+                background: Background::Constant(Vec3::ZERO),
+                sun: None,
+            },
+            Sky::Constant { radiance } => SkyModel {
+                background: Background::Constant(c(radiance)),
+                sun: None,
+            },
+            Sky::Sun {
+                direction,
+                sun_radiance,
+                diameter_deg,
+                zenith,
+                horizon,
+                ground,
+            } => {
+                let dir = Vec3::from_array(*direction);
+                let sun = (dir.length() > 0.0 && *diameter_deg > 0.0 && diameter_deg.is_finite()).then(|| Sun {
+                    frame: Frame::new(dir.normalize()),
+                    cos_max: (diameter_deg.to_radians() * 0.5).cos(),
+                    radiance: c(sun_radiance),
+                });
+                SkyModel {
+                    background: Background::Gradient {
+                        zenith: c(zenith),
+                        horizon: c(horizon),
+                        ground: c(ground),
+                    },
+                    sun,
+                }
+            }
+        }
+    }
+
+    /// Radiance from direction `d` (unit), sun excluded.
+    pub fn background(&self, d: Vec3) -> Vec3 {
+        match &self.background {
+            Background::Constant(c) => *c,
+            Background::Gradient {
+                zenith,
+                horizon,
+                ground,
+            } => {
+                if d.z < 0.0 {
+                    *ground
+                } else {
+                    let t = d.z.sqrt();
+                    *horizon * (1.0 - t) + *zenith * t
+                }
+            }
+        }
+    }
+
+    /// True when there is a sun to sample.
+    pub fn has_sun(&self) -> bool {
+        self.sun.is_some()
+    }
+
+    /// Sun radiance if `d` (unit) points into the sun's disk, else zero.
+    pub fn sun(&self, d: Vec3) -> Vec3 {
+        match &self.sun {
+            Some(s) if d.dot(s.frame.n) >= s.cos_max => s.radiance,
+            _ => Vec3::ZERO,
+        }
+    }
+
+    /// Pdf (solid angle) of [`SkyModel::sample_sun`].
+    pub fn sun_pdf(&self) -> f32 {
+        self.sun.as_ref().map_or(0.0, |s| uniform_cone_pdf(s.cos_max))
+    }
+
+    /// A direction toward the sun's disk, with the sun's radiance and the pdf.
+    pub fn sample_sun(&self, u: (f32, f32)) -> Option<(Vec3, Vec3, f32)> {
+        let s = self.sun.as_ref()?;
+        let d = s.frame.to_world(uniform_cone(u, s.cos_max));
+        Some((d, s.radiance, uniform_cone_pdf(s.cos_max)))
+    }
+}

@@ -1,0 +1,295 @@
+//! The path tracer: unbiased Monte Carlo estimates of the radiance arriving
+//! along a ray, with next-event estimation of area lights and the sun,
+//! multiple importance sampling (power heuristic), Russian roulette, a bounce
+//! limit, and the distance to the first hit (or, with VDISTANCE, the virtual
+//! distance through flat mirrors and thin glass). Never returns NaN or infinity.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+
+use super::bsdf::{self, is_delta, transmits};
+use super::lights::Lights;
+use super::rng::Rng;
+use super::sampling::{power_heuristic, Frame};
+use super::sky::SkyModel;
+use crate::accel::{BuildOptions, KdTree};
+use crate::geom::{offset_origin, Ray};
+use crate::scene::{Material, Scene};
+
+/// Settings of the estimator.
+#[derive(Clone, Copy, Debug)]
+pub struct TraceOptions {
+    /// Largest number of bounces after the first hit.
+    pub max_bounces: u32,
+    /// Bounce after which Russian roulette may end paths.
+    pub roulette_after: u32,
+    /// Report virtual distances through flat mirrors and thin glass.
+    pub vdistance: bool,
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        TraceOptions {
+            max_bounces: 8,
+            roulette_after: 3,
+            vdistance: false,
+        }
+    }
+}
+
+/// One radiance estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Radiance arriving along the ray (linear RGB).
+    pub radiance: Vec3,
+    /// Distance to the first hit (or the virtual distance); infinity if the ray escaped.
+    pub distance: f32,
+}
+
+/// A scene ready to trace: geometry, kd-tree, lights and sky.
+pub struct Tracer {
+    scene: Scene,
+    tree: KdTree,
+    lights: Lights,
+    sky: SkyModel,
+    /// Whether any material is a thin pane (shadow rays then look through panes).
+    has_panes: bool,
+    /// Estimator settings.
+    pub options: TraceOptions,
+    non_finite: AtomicU64,
+}
+
+/// Transmittance of a thin pane for a ray crossing it at incidence cosine `cos`,
+/// or `None` if the material is not a thin pane.
+fn pane_transmittance(m: &Material, cos: f32) -> Option<Vec3> {
+    match m {
+        Material::Glass { ior, color, thin: true } => {
+            Some(Vec3::from_array(*color) * (1.0 - bsdf::thin_reflectance(cos, *ior)))
+        }
+        _ => None,
+    }
+}
+
+fn flat_specular(m: &Material) -> bool {
+    matches!(m, Material::Mirror { .. } | Material::Glass { thin: true, .. })
+        || matches!(m, Material::Metal { roughness, .. } if *roughness < 0.02)
+}
+
+impl Tracer {
+    /// Builds the kd-tree and light list of a scene.
+    pub fn new(scene: Scene, options: TraceOptions) -> Tracer {
+        let tree = KdTree::build(&scene, &BuildOptions::default());
+        let lights = Lights::new(&scene);
+        let sky = SkyModel::new(&scene.sky);
+        let has_panes = scene
+            .materials
+            .iter()
+            .any(|m| matches!(m, Material::Glass { thin: true, .. }));
+        Tracer {
+            scene,
+            tree,
+            lights,
+            sky,
+            has_panes,
+            options,
+            non_finite: AtomicU64::new(0),
+        }
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    /// The kd-tree.
+    pub fn tree(&self) -> &KdTree {
+        &self.tree
+    }
+    /// Estimates that came out NaN or infinite and were replaced by black.
+    pub fn non_finite_count(&self) -> u64 {
+        self.non_finite.load(Ordering::Relaxed)
+    }
+
+    /// One radiance estimate along the ray from `origin` in unit direction `dir`.
+    pub fn trace(&self, origin: Vec3, dir: Vec3, rng: &mut Rng) -> Sample {
+        let (radiance, distance) = self.estimate(origin, dir, rng);
+        if radiance.is_finite() && radiance.min_element() >= 0.0 {
+            Sample { radiance, distance }
+        } else {
+            self.non_finite.fetch_add(1, Ordering::Relaxed);
+            Sample {
+                radiance: Vec3::ZERO,
+                distance,
+            }
+        }
+    }
+
+    fn estimate(&self, origin: Vec3, dir: Vec3, rng: &mut Rng) -> (Vec3, f32) {
+        let scene = &self.scene;
+        let mut ray = Ray::new(origin, dir);
+        let (mut l, mut beta) = (Vec3::ZERO, Vec3::ONE);
+        let (mut distance, mut path, mut measuring) = (f32::INFINITY, 0.0f32, true);
+        let (mut prev_delta, mut prev_pdf) = (true, 0.0f32);
+        // Distance from the last scattering vertex: panes crossed on the way
+        // do not scatter, so light-sampling pdfs are measured from that vertex.
+        let mut travelled = 0.0f32;
+        for depth in 0..=self.options.max_bounces {
+            let Some(hit) = self.tree.intersect(scene, &ray) else {
+                l += beta * self.sky.background(ray.dir);
+                let sun = self.sky.sun(ray.dir);
+                if sun.max_element() > 0.0 {
+                    let w = if prev_delta {
+                        1.0
+                    } else {
+                        power_heuristic(prev_pdf, self.sky.sun_pdf())
+                    };
+                    l += beta * sun * w;
+                }
+                if measuring {
+                    distance = f32::INFINITY;
+                }
+                break;
+            };
+            let tri = scene.triangles[hit.tri as usize];
+            let m = &scene.materials[tri.material as usize];
+            let [a, b, c] = scene.vertices(hit.tri as usize);
+            let ng = (b - a).cross(c - a).normalize();
+            let p = ray.at(hit.t);
+            if measuring {
+                path += hit.t;
+                distance = path;
+                measuring = self.options.vdistance && flat_specular(m);
+            }
+            travelled += hit.t;
+            let wo_world = -ray.dir;
+            let cos_o = wo_world.dot(ng);
+            let le = Vec3::from_array(m.emission());
+            if cos_o > 0.0 && le.max_element() > 0.0 {
+                let w = if prev_delta {
+                    1.0
+                } else {
+                    let pdf_light = self.lights.pdf_area(hit.tri) * travelled * travelled / cos_o;
+                    power_heuristic(prev_pdf, pdf_light)
+                };
+                l += beta * le * w;
+            }
+            if depth == self.options.max_bounces || matches!(m, Material::Emitter { .. }) {
+                break;
+            }
+            let n = if transmits(m) || cos_o > 0.0 { ng } else { -ng };
+            let frame = Frame::new(n);
+            let wo = frame.to_local(wo_world);
+            if !is_delta(m) {
+                l += beta * self.direct(m, p, &frame, wo, rng);
+            }
+            let Some(s) = bsdf::sample(m, wo, [rng.f32(), rng.f32(), rng.f32()]) else {
+                break;
+            };
+            beta *= s.weight;
+            let passed_pane = matches!(m, Material::Glass { thin: true, .. }) && s.wi == -wo;
+            if !passed_pane {
+                // Crossing a pane keeps the direction, so the vertex before it
+                // still decides how the light at the end was sampled.
+                prev_delta = s.delta;
+                prev_pdf = s.pdf;
+                travelled = 0.0;
+            }
+            let wi = if passed_pane {
+                ray.dir
+            } else {
+                frame.to_world(s.wi).normalize()
+            };
+            let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
+            ray = Ray::new(offset_origin(p, side), wi);
+            if depth >= self.options.roulette_after {
+                let q = beta.max_element().min(0.95);
+                if q.is_nan() || q <= 0.0 || rng.f32() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+        }
+        (l, distance)
+    }
+
+    /// How much light gets through along a shadow ray: 1 if nothing is in the
+    /// way, the product of pane transmittances if only thin panes are, else 0.
+    fn visibility(&self, mut ray: Ray) -> Vec3 {
+        if !self.tree.occluded(&self.scene, &ray) {
+            return Vec3::ONE;
+        }
+        if !self.has_panes {
+            return Vec3::ZERO;
+        }
+        let mut through = Vec3::ONE;
+        for _ in 0..8 {
+            let Some(hit) = self.tree.intersect(&self.scene, &ray) else {
+                return through;
+            };
+            let tri = self.scene.triangles[hit.tri as usize];
+            let [a, b, c] = self.scene.vertices(hit.tri as usize);
+            let ng = (b - a).cross(c - a).normalize();
+            let cos = ray.dir.normalize().dot(ng).abs();
+            let Some(t) = pane_transmittance(&self.scene.materials[tri.material as usize], cos) else {
+                return Vec3::ZERO;
+            };
+            through *= t;
+            let side = if ray.dir.dot(ng) > 0.0 { ng } else { -ng };
+            let p = ray.at(hit.t);
+            let origin = offset_origin(p, side);
+            // Keep the far end where it was: re-express the remaining range from the new origin.
+            let end = ray.at(ray.t_max.min(f32::MAX));
+            ray = if ray.t_max.is_finite() {
+                Ray {
+                    origin,
+                    dir: end - origin,
+                    t_max: 1.0 - 1e-4,
+                }
+            } else {
+                Ray::new(origin, ray.dir)
+            };
+        }
+        Vec3::ZERO
+    }
+
+    /// Light arriving directly from one sampled point on the area lights and
+    /// one on the sun, MIS-weighted against BSDF sampling.
+    fn direct(&self, m: &Material, p: Vec3, frame: &Frame, wo: Vec3, rng: &mut Rng) -> Vec3 {
+        let scene = &self.scene;
+        let origin = offset_origin(p, frame.n);
+        let mut l = Vec3::ZERO;
+        let (u, uv) = (rng.f32(), rng.f32x2());
+        if let Some(ls) = self.lights.sample(scene, u, uv) {
+            let to = ls.point - origin;
+            let dist2 = to.length_squared();
+            let wi_world = to / dist2.sqrt();
+            let cos_l = -wi_world.dot(ls.normal);
+            let wi = frame.to_local(wi_world);
+            if cos_l > 0.0 && wi.z > 0.0 && dist2 > 0.0 {
+                let e = bsdf::eval(m, wo, wi);
+                if e.f_cos.max_element() > 0.0 {
+                    let shadow = Ray {
+                        origin,
+                        dir: to,
+                        t_max: 1.0 - 1e-4,
+                    };
+                    if !self.tree.occluded(scene, &shadow) {
+                        let pdf_light = ls.pdf_area * dist2 / cos_l;
+                        l += e.f_cos * ls.radiance * (power_heuristic(pdf_light, e.pdf) / pdf_light);
+                    }
+                }
+            }
+        }
+        if let Some((wi_world, sun, pdf_sun)) = self.sky.sample_sun(rng.f32x2()) {
+            let wi = frame.to_local(wi_world);
+            if wi.z > 0.0 {
+                let e = bsdf::eval(m, wo, wi);
+                if e.f_cos.max_element() > 0.0 {
+                    let vis = self.visibility(Ray::new(origin, wi_world));
+                    l += vis * e.f_cos * sun * (power_heuristic(pdf_sun, e.pdf) / pdf_sun);
+                }
+            }
+        }
+        l
+    }
+}

@@ -1,0 +1,51 @@
+//! The reference renderer on the built-in room: its error against a
+//! high-sample render falls as the sample count grows, at the Monte Carlo rate.
+
+use holodeck_protocol::View;
+use holodeck_sampler::render::{render, RenderOptions};
+use holodeck_sampler::scene::gen::{generate, GenParams};
+use holodeck_sampler::{TraceOptions, Tracer};
+
+#[test]
+fn room_error_halves_when_samples_double() {
+    // Without the sun: sunlight focused by the glass sphere makes caustics that
+    // plain path tracing finds only by chance, and their fireflies would set a
+    // noise floor even in the reference. The ceiling light and the sky remain.
+    let mut scene = generate("room", &GenParams::default()).unwrap();
+    scene.sky = holodeck_sampler::Sky::Constant {
+        radiance: [0.8, 0.85, 0.9],
+    };
+    let tracer = Tracer::new(
+        scene,
+        TraceOptions {
+            max_bounces: 4,
+            ..TraceOptions::default()
+        },
+    );
+    let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
+    let opts = |spp, seed| RenderOptions {
+        width: 40,
+        height: 30,
+        spp,
+        seed,
+    };
+    let none = |_: usize, _: usize| {};
+    let reference = render(&tracer, &view, &opts(1024, 99), &none);
+    assert!(reference.mean_luminance() > 0.01, "the room is lit");
+    // Average over independent seeds: squared error has heavy tails.
+    let mse = |spp: u32| -> f64 {
+        (0..3)
+            .map(|s| render(&tracer, &view, &opts(spp, s), &none).mse(&reference).unwrap())
+            .sum::<f64>()
+            / 3.0
+    };
+    let (e4, e8, e16) = (mse(4), mse(8), mse(16));
+    for (lo, hi) in [(e4, e8), (e8, e16)] {
+        let ratio = lo / hi;
+        assert!(
+            (1.4..3.0).contains(&ratio),
+            "MSE {e4:.3e} {e8:.3e} {e16:.3e}: ratio {ratio:.2}"
+        );
+    }
+    assert_eq!(tracer.non_finite_count(), 0);
+}
