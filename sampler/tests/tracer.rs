@@ -59,22 +59,26 @@ fn furnace_converges_to_the_analytic_radiance() {
             )
             .unwrap();
         inward_sphere(&mut b, 1.0, m);
-        let tracer = Tracer::new(
-            b.finish(),
-            TraceOptions {
+        let scene = b.finish();
+        // With light sampling (NEE + MIS) and without it (BSDF sampling alone):
+        // both estimators are unbiased.
+        for light_sampling in [true, false] {
+            let options = TraceOptions {
                 max_bounces: 400,
+                light_sampling,
                 ..TraceOptions::default()
-            },
-        );
-        let expected = emission / (1.0 - albedo);
-        let got = mean_radiance(&tracer, 60_000, 1);
-        for c in got.to_array() {
-            assert!(
-                (c / expected - 1.0).abs() < 0.01,
-                "albedo {albedo}: {got} vs {expected}"
-            );
+            };
+            let tracer = Tracer::new(scene.clone(), options);
+            let expected = emission / (1.0 - albedo);
+            let got = mean_radiance(&tracer, 60_000, 1);
+            for c in got.to_array() {
+                assert!(
+                    (c / expected - 1.0).abs() < 0.01,
+                    "albedo {albedo}, NEE {light_sampling}: {got} vs {expected}"
+                );
+            }
+            assert_eq!(tracer.non_finite_count(), 0);
         }
-        assert_eq!(tracer.non_finite_count(), 0);
     }
 }
 

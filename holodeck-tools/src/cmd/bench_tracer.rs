@@ -6,9 +6,9 @@ use std::time::Instant;
 
 use anyhow::Result;
 use holodeck_protocol::View;
-use holodeck_sampler::accel::BuildOptions;
+use holodeck_sampler::accel::{BuildOptions, PACKET};
 use holodeck_sampler::geom::{offset_origin, Ray};
-use holodeck_sampler::render::{render, RenderOptions};
+use holodeck_sampler::render::{render, Picture, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
 use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
@@ -57,12 +57,58 @@ fn throughput(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> (f64, Vec<Option<Ra
     (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
 }
 
+/// Rays per second on this thread, tracing in packets of eight consecutive rays.
+fn packet_throughput(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> f64 {
+    let start = Instant::now();
+    let mut hits = 0usize;
+    for chunk in rays.chunks(PACKET) {
+        hits += tree.intersect_packet(scene, chunk).iter().flatten().count();
+    }
+    std::hint::black_box(hits);
+    rays.len() as f64 / start.elapsed().as_secs_f64()
+}
+
+/// Seconds of rendering per estimator in the equal-time comparison.
+const EQUAL_TIME: f64 = 3.0;
+
+/// Renders passes of one sample per pixel until [`EQUAL_TIME`] has passed;
+/// returns the average, the passes made and the seconds taken.
+fn equal_time(tracer: &Tracer, view: &View, w: u32, h: u32) -> (Picture, u32, f64) {
+    let start = Instant::now();
+    let mut sum: Option<Picture> = None;
+    let mut passes = 0u32;
+    while passes == 0 || start.elapsed().as_secs_f64() < EQUAL_TIME {
+        let options = RenderOptions {
+            width: w,
+            height: h,
+            spp: 1,
+            seed: 1000 + u64::from(passes),
+        };
+        let p = render(tracer, view, &options, &|_, _| {});
+        match &mut sum {
+            None => sum = Some(p),
+            Some(acc) => acc.pixels.iter_mut().zip(&p.pixels).for_each(|(a, b)| *a += *b),
+        }
+        passes += 1;
+    }
+    let secs = start.elapsed().as_secs_f64();
+    let mut picture = sum.unwrap_or(Picture {
+        width: 0,
+        height: 0,
+        pixels: Vec::new(),
+    });
+    picture.pixels.iter_mut().for_each(|p| *p /= passes as f32);
+    (picture, passes, secs)
+}
+
 /// Runs the tracer measurements and prints a table.
 pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
-    println!("| scene | triangles | build (2 cores) | bytes/triangle | primary Mrays/s | diffuse bounce Mrays/s |");
-    println!("|---|---|---|---|---|---|");
+    println!(
+        "| scene | triangles | build (2 cores) | kd-tree bytes/tri | mesh bytes/tri | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
     for case in cases(triangles)? {
         let scene = &case.scene;
         let start = Instant::now();
@@ -71,14 +117,18 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
         let st = tree.stats();
         let bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + st.bytes;
         let n = pixels as usize;
+        // Rays in 4 x 2 pixel tiles, so that each run of 8 is a coherent packet.
         let primary: Vec<Ray> = (0..n * n)
             .filter_map(|i| {
-                let (x, y) = ((i % n) as f64 + 0.5, (i / n) as f64 + 0.5);
+                let (tile, k) = (i / 8, i % 8);
+                let (tx, ty) = (tile % (n / 4), tile / (n / 4));
+                let (x, y) = ((tx * 4 + k % 4) as f64 + 0.5, (ty * 2 + k / 4) as f64 + 0.5);
                 case.view
                     .ray(x / n as f64, 1.0 - y / n as f64)
                     .map(|(o, d)| Ray::new(o.as_vec3(), d.as_vec3()))
             })
             .collect();
+        let primary_packets = packet_throughput(&tree, scene, &primary);
         let (primary_rate, hits) = throughput(&tree, scene, &primary);
         let mut rng = Rng::new(1, 0);
         let bounce: Vec<Ray> = hits
@@ -95,41 +145,63 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
             })
             .collect();
         let (bounce_rate, _) = throughput(&tree, scene, &bounce);
+        let bounce_packets = packet_throughput(&tree, scene, &bounce);
+        let tris = scene.triangles.len().max(1) as f64;
         println!(
-            "| {} | {} | {:.2} s | {:.1} | {:.2} | {:.2} |",
+            "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} |",
             case.label,
             count(scene.triangles.len() as u64),
             build,
-            bytes as f64 / scene.triangles.len().max(1) as f64,
+            st.bytes as f64 / tris,
+            (bytes - st.bytes) as f64 / tris,
             primary_rate / 1e6,
-            bounce_rate / 1e6
+            primary_packets / 1e6,
+            bounce_rate / 1e6,
+            bounce_packets / 1e6
         );
     }
-    // Path tracing with one diffuse bounce in the furnished room, on one core.
+    // Path tracing with one diffuse bounce in the furnished room, on one core:
+    // samples per second, and the error against a converged reference after
+    // equal wall time, with and without light sampling.
     let room = generate("room", &GenParams::default())?;
-    let tracer = Tracer::new(
-        room,
-        TraceOptions {
-            max_bounces: 1,
-            ..TraceOptions::default()
-        },
-    );
     let view = View::parse(super::render::ROOM_VIEW)?;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let opts = RenderOptions {
-        width: 128,
-        height: 96,
-        spp: 16,
-        seed: 1,
+    let (w, h) = (96u32, 72u32);
+    let one_bounce = |light_sampling| TraceOptions {
+        max_bounces: 1,
+        light_sampling,
+        ..TraceOptions::default()
     };
+    let reference_tracer = Tracer::new(room.clone(), one_bounce(true));
     let start = Instant::now();
-    pool.install(|| render(&tracer, &view, &opts, &|_, _| {}));
-    let secs = start.elapsed().as_secs_f64();
+    let reference = render(
+        &reference_tracer,
+        &view,
+        &RenderOptions {
+            width: w,
+            height: h,
+            spp: 4096,
+            seed: 7,
+        },
+        &|_, _| {},
+    );
+    let reference_secs = start.elapsed().as_secs_f64();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     println!();
     println!(
-        "path tracing, furnished room, one bounce, one core: {:.2} M samples/s ({} samples in {secs:.2} s)",
-        (128 * 96 * 16) as f64 / secs / 1e6,
-        count(128 * 96 * 16)
+        "Furnished room, one bounce, {w} x {h}, one core, {EQUAL_TIME} s each; reference: 4,096 spp with light sampling ({reference_secs:.1} s on all cores)"
     );
+    println!();
+    println!("| estimator | samples/s | spp reached | relative RMS error vs reference |");
+    println!("|---|---|---|---|");
+    for (label, light_sampling) in [("NEE + MIS (sun, area light)", true), ("BSDF sampling only", false)] {
+        let tracer = Tracer::new(room.clone(), one_bounce(light_sampling));
+        let (picture, spp, secs) = pool.install(|| equal_time(&tracer, &view, w, h));
+        let rmse = picture.mse(&reference).unwrap_or(f64::NAN).sqrt() / reference.mean_luminance().max(1e-9);
+        println!(
+            "| {label} | {:.2} M | {spp} | {:.3} |",
+            f64::from(w * h) * f64::from(spp) / secs / 1e6,
+            rmse
+        );
+    }
     Ok(())
 }

@@ -26,7 +26,7 @@ pub struct BuildOptions {
 impl Default for BuildOptions {
     fn default() -> Self {
         BuildOptions {
-            traversal_cost: 2.0,
+            traversal_cost: 3.0,
             bins: 32,
             empty_bonus: 0.8,
             leaf_size: 2,
@@ -139,38 +139,22 @@ fn build_node(
     let (mut left_box, mut right_box) = (bounds, bounds);
     left_box.hi[split.axis] = split.pos;
     right_box.lo[split.axis] = split.pos;
-    let (mut left, mut right) = (Vec::with_capacity(n / 2 + 1), Vec::with_capacity(n / 2 + 1));
-    for r in refs {
-        let (lo, hi) = (r.bounds.lo[split.axis], r.bounds.hi[split.axis]);
-        let planar = lo == split.pos && hi == split.pos;
-        if planar {
-            // Triangles lying in the split plane go to both sides: rays along
-            // the plane must find them from either child.
-            left.push(Ref {
-                tri: r.tri,
-                bounds: r.bounds.clip(&left_box),
-            });
-            right.push(Ref {
-                tri: r.tri,
-                bounds: r.bounds.clip(&right_box),
-            });
-        } else if hi <= split.pos {
-            left.push(r);
-        } else if lo >= split.pos {
-            right.push(r);
-        } else {
-            // Straddling: clip the triangle itself to each child ("perfect
-            // splits"), so it only goes where it really is.
-            let v = scene.vertices(r.tri as usize);
-            let inside = r.bounds;
-            if let Some(b) = clip_triangle(v, &inside.clip(&left_box)) {
-                left.push(Ref { tri: r.tri, bounds: b });
-            }
-            if let Some(b) = clip_triangle(v, &inside.clip(&right_box)) {
-                right.push(Ref { tri: r.tri, bounds: b });
-            }
+    let (left, right) = if n > o.parallel_above * 16 {
+        let parts: Vec<(Vec<Ref>, Vec<Ref>)> = refs
+            .par_chunks(1 << 14)
+            .map(|c| partition(scene, c, &split, &left_box, &right_box))
+            .collect();
+        let (nl, nr) = parts.iter().fold((0, 0), |(a, b), (l, r)| (a + l.len(), b + r.len()));
+        let (mut left, mut right) = (Vec::with_capacity(nl), Vec::with_capacity(nr));
+        for (l, r) in parts {
+            left.extend(l);
+            right.extend(r);
         }
-    }
+        (left, right)
+    } else {
+        partition(scene, &refs, &split, &left_box, &right_box)
+    };
+    drop(refs);
     if left.len() == n && right.len() == n {
         // Nothing was separated: splitting again would only duplicate.
         return leaf(left);
@@ -193,8 +177,98 @@ fn build_node(
     }
 }
 
+/// Sends each reference to the side(s) of the split it touches.
+fn partition(scene: &Scene, refs: &[Ref], split: &Split, left_box: &Aabb, right_box: &Aabb) -> (Vec<Ref>, Vec<Ref>) {
+    let (mut left, mut right) = (
+        Vec::with_capacity(refs.len() / 2 + 1),
+        Vec::with_capacity(refs.len() / 2 + 1),
+    );
+    for &r in refs {
+        let (lo, hi) = (r.bounds.lo[split.axis], r.bounds.hi[split.axis]);
+        if lo == split.pos && hi == split.pos {
+            // Triangles lying in the split plane go to both sides: rays along
+            // the plane must find them from either child.
+            left.push(Ref {
+                tri: r.tri,
+                bounds: r.bounds.clip(left_box),
+            });
+            right.push(Ref {
+                tri: r.tri,
+                bounds: r.bounds.clip(right_box),
+            });
+        } else if hi <= split.pos {
+            left.push(r);
+        } else if lo >= split.pos {
+            right.push(r);
+        } else {
+            // Straddling: clip the triangle itself to each child ("perfect
+            // splits"), so it only goes where it really is.
+            let v = scene.vertices(r.tri as usize);
+            if let Some(b) = clip_triangle(v, &r.bounds.clip(left_box)) {
+                left.push(Ref { tri: r.tri, bounds: b });
+            }
+            if let Some(b) = clip_triangle(v, &r.bounds.clip(right_box)) {
+                right.push(Ref { tri: r.tri, bounds: b });
+            }
+        }
+    }
+    (left, right)
+}
+
 fn leaf(refs: Vec<Ref>) -> BuildNode {
     BuildNode::Leaf(refs.into_iter().map(|r| r.tri).collect())
+}
+
+/// Most bins per axis.
+const MAX_BINS: usize = 64;
+
+/// Counts of references starting and ending in each bin, per axis, and the
+/// bounds of their content.
+#[derive(Clone)]
+struct Bins {
+    starts: [[u32; MAX_BINS]; 3],
+    ends: [[u32; MAX_BINS]; 3],
+    content: Aabb,
+}
+
+impl Bins {
+    fn empty() -> Bins {
+        Bins {
+            starts: [[0; MAX_BINS]; 3],
+            ends: [[0; MAX_BINS]; 3],
+            content: Aabb::EMPTY,
+        }
+    }
+
+    /// One pass over the references for all three axes.
+    fn add(mut self, refs: &[Ref], lo: glam::Vec3, scale: glam::Vec3, bins: usize) -> Bins {
+        let last = (bins - 1) as f32;
+        for r in refs {
+            self.content = self.content.union(&r.bounds);
+            let s = ((r.bounds.lo - lo) * scale)
+                .min(glam::Vec3::splat(last))
+                .max(glam::Vec3::ZERO);
+            let e = ((r.bounds.hi - lo) * scale)
+                .min(glam::Vec3::splat(last))
+                .max(glam::Vec3::ZERO);
+            for axis in 0..3 {
+                self.starts[axis][s[axis] as usize] += 1;
+                self.ends[axis][e[axis] as usize] += 1;
+            }
+        }
+        self
+    }
+
+    fn merge(mut self, o: Bins) -> Bins {
+        for axis in 0..3 {
+            for b in 0..MAX_BINS {
+                self.starts[axis][b] += o.starts[axis][b];
+                self.ends[axis][b] += o.ends[axis][b];
+            }
+        }
+        self.content = self.content.union(&o.content);
+        self
+    }
 }
 
 /// The cheapest binned SAH split, in units of one triangle test.
@@ -203,62 +277,56 @@ fn best_split(refs: &[Ref], bounds: &Aabb, o: &BuildOptions) -> Option<Split> {
     if area <= 0.0 {
         return None;
     }
+    let bins = o.bins.clamp(2, MAX_BINS);
     let extent = bounds.hi - bounds.lo;
+    let scale = glam::Vec3::new(
+        if extent.x > 0.0 { bins as f32 / extent.x } else { 0.0 },
+        if extent.y > 0.0 { bins as f32 / extent.y } else { 0.0 },
+        if extent.z > 0.0 { bins as f32 / extent.z } else { 0.0 },
+    );
+    let counts = if refs.len() > o.parallel_above * 16 {
+        refs.par_chunks(1 << 14)
+            .fold(Bins::empty, |acc, chunk| acc.add(chunk, bounds.lo, scale, bins))
+            .reduce(Bins::empty, Bins::merge)
+    } else {
+        Bins::empty().add(refs, bounds.lo, scale, bins)
+    };
+    let n = refs.len() as f32;
     let mut best: Option<Split> = None;
+    let mut consider = |axis: usize, pos: f32, left: f32, right: f32| {
+        let (mut lb, mut rb) = (*bounds, *bounds);
+        lb.hi[axis] = pos;
+        rb.lo[axis] = pos;
+        let bonus = if left == 0.0 || right == 0.0 {
+            o.empty_bonus
+        } else {
+            1.0
+        };
+        let cost = o.traversal_cost + bonus * (lb.area() * left + rb.area() * right) / area;
+        if best.as_ref().is_none_or(|s| cost < s.cost) {
+            best = Some(Split { axis, pos, cost });
+        }
+    };
     for axis in 0..3 {
         if extent[axis] <= 0.0 {
             continue;
         }
-        let bins = o.bins;
-        let scale = bins as f32 / extent[axis];
-        let bin_of = |x: f32| (((x - bounds.lo[axis]) * scale) as usize).min(bins - 1);
-        let (mut starts, mut ends) = (vec![0u32; bins], vec![0u32; bins]);
-        for r in refs {
-            starts[bin_of(r.bounds.lo[axis])] += 1;
-            ends[bin_of(r.bounds.hi[axis])] += 1;
-        }
-        // Candidate planes at bin boundaries 1..bins: left holds refs starting
-        // below, right holds refs ending above.
-        let mut left = 0u32;
-        let mut right = refs.len() as u32;
+        // Candidate planes at bin boundaries: left holds refs starting below,
+        // right holds refs ending above.
+        let (mut left, mut right) = (0u32, refs.len() as u32);
         for b in 1..bins {
-            left += starts[b - 1];
-            right -= ends[b - 1];
+            left += counts.starts[axis][b - 1];
+            right -= counts.ends[axis][b - 1];
             let pos = bounds.lo[axis] + extent[axis] * b as f32 / bins as f32;
-            let (mut lb, mut rb) = (*bounds, *bounds);
-            lb.hi[axis] = pos;
-            rb.lo[axis] = pos;
-            let bonus = if left == 0 || right == 0 { o.empty_bonus } else { 1.0 };
-            let cost = o.traversal_cost + bonus * (lb.area() * left as f32 + rb.area() * right as f32) / area;
-            if best.as_ref().is_none_or(|s| cost < s.cost) {
-                best = Some(Split { axis, pos, cost });
-            }
+            consider(axis, pos, left as f32, right as f32);
         }
-    }
-    // Cut off empty space exactly at the content boundary when a side is empty.
-    let content = refs.iter().fold(Aabb::EMPTY, |acc, r| acc.union(&r.bounds));
-    for axis in 0..3 {
-        for (pos, empty_frac) in [
-            (
-                content.lo[axis],
-                (content.lo[axis] - bounds.lo[axis]) / extent[axis].max(f32::MIN_POSITIVE),
-            ),
-            (
-                content.hi[axis],
-                (bounds.hi[axis] - content.hi[axis]) / extent[axis].max(f32::MIN_POSITIVE),
-            ),
-        ] {
-            if empty_frac > 0.1 {
-                let (mut lb, mut rb) = (*bounds, *bounds);
-                lb.hi[axis] = pos;
-                rb.lo[axis] = pos;
-                let n = refs.len() as f32;
-                let full = if pos == content.lo[axis] { rb.area() } else { lb.area() };
-                let cost = o.traversal_cost + o.empty_bonus * full * n / area;
-                if best.as_ref().is_none_or(|s| cost < s.cost) {
-                    best = Some(Split { axis, pos, cost });
-                }
-            }
+        // Cut off empty space exactly at the content boundary.
+        let content = &counts.content;
+        if (content.lo[axis] - bounds.lo[axis]) > 0.1 * extent[axis] {
+            consider(axis, content.lo[axis], 0.0, n);
+        }
+        if (bounds.hi[axis] - content.hi[axis]) > 0.1 * extent[axis] {
+            consider(axis, content.hi[axis], n, 0.0);
         }
     }
     best.filter(|s| s.pos.is_finite() && s.pos > bounds.lo[s.axis] && s.pos < bounds.hi[s.axis])

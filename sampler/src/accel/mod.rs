@@ -4,10 +4,14 @@
 
 mod build;
 mod node;
+mod packet;
+#[cfg(test)]
+pub(crate) mod testing;
 mod traverse;
 
 pub use build::BuildOptions;
 pub use node::Node;
+pub use packet::PACKET;
 pub use traverse::Hit;
 
 use crate::geom::Aabb;

@@ -26,6 +26,9 @@ pub struct TraceOptions {
     pub roulette_after: u32,
     /// Report virtual distances through flat mirrors and thin glass.
     pub vdistance: bool,
+    /// Sample lights and the sun directly (next-event estimation with MIS).
+    /// Off, paths find light only by BSDF sampling: a baseline for comparisons.
+    pub light_sampling: bool,
 }
 
 impl Default for TraceOptions {
@@ -34,6 +37,7 @@ impl Default for TraceOptions {
             max_bounces: 8,
             roulette_after: 3,
             vdistance: false,
+            light_sampling: true,
         }
     }
 }
@@ -133,12 +137,15 @@ impl Tracer {
         // Distance from the last scattering vertex: panes crossed on the way
         // do not scatter, so light-sampling pdfs are measured from that vertex.
         let mut travelled = 0.0f32;
-        for depth in 0..=self.options.max_bounces {
+        // Bounces count scattering events; crossing a pane is not one, but a
+        // separate limit on segments stops any path that only crosses panes.
+        let mut depth = 0u32;
+        for _segment in 0..self.options.max_bounces.saturating_add(64) {
             let Some(hit) = self.tree.intersect(scene, &ray) else {
                 l += beta * self.sky.background(ray.dir);
                 let sun = self.sky.sun(ray.dir);
                 if sun.max_element() > 0.0 {
-                    let w = if prev_delta {
+                    let w = if prev_delta || !self.options.light_sampling {
                         1.0
                     } else {
                         power_heuristic(prev_pdf, self.sky.sun_pdf())
@@ -165,7 +172,7 @@ impl Tracer {
             let cos_o = wo_world.dot(ng);
             let le = Vec3::from_array(m.emission());
             if cos_o > 0.0 && le.max_element() > 0.0 {
-                let w = if prev_delta {
+                let w = if prev_delta || !self.options.light_sampling {
                     1.0
                 } else {
                     let pdf_light = self.lights.pdf_area(hit.tri) * travelled * travelled / cos_o;
@@ -173,21 +180,27 @@ impl Tracer {
                 };
                 l += beta * le * w;
             }
-            if depth == self.options.max_bounces || matches!(m, Material::Emitter { .. }) {
+            let pane = matches!(m, Material::Glass { thin: true, .. });
+            if (depth == self.options.max_bounces && !pane) || matches!(m, Material::Emitter { .. }) {
                 break;
             }
             let n = if transmits(m) || cos_o > 0.0 { ng } else { -ng };
             let frame = Frame::new(n);
             let wo = frame.to_local(wo_world);
-            if !is_delta(m) {
+            if !is_delta(m) && self.options.light_sampling {
                 l += beta * self.direct(m, p, &frame, wo, rng);
             }
             let Some(s) = bsdf::sample(m, wo, [rng.f32(), rng.f32(), rng.f32()]) else {
                 break;
             };
             beta *= s.weight;
-            let passed_pane = matches!(m, Material::Glass { thin: true, .. }) && s.wi == -wo;
+            let passed_pane = pane && s.wi == -wo;
+            if !passed_pane && depth == self.options.max_bounces {
+                // A pane's reflection at the last bounce would be one bounce too many.
+                break;
+            }
             if !passed_pane {
+                depth += 1;
                 // Crossing a pane keeps the direction, so the vertex before it
                 // still decides how the light at the end was sampled.
                 prev_delta = s.delta;
@@ -201,7 +214,7 @@ impl Tracer {
             };
             let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
             ray = Ray::new(offset_origin(p, side), wi);
-            if depth >= self.options.roulette_after {
+            if !passed_pane && depth > self.options.roulette_after {
                 let q = beta.max_element().min(0.95);
                 if q.is_nan() || q <= 0.0 || rng.f32() >= q {
                     break;
