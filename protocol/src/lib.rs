@@ -22,4 +22,4 @@ pub use section::{
     beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind, Wall,
     MAX_BEAMS_PER_SECTION, MAX_GRID,
 };
-pub use view::{View, ViewError, ViewType};
+pub use view::{View, ViewError, ViewRays, ViewType};

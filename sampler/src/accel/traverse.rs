@@ -37,6 +37,8 @@ impl KdTree {
         let Some((mut t_min, mut t_max)) = self.bounds.range(ray, inv) else {
             return;
         };
+        // Plain arrays: indexing them by a runtime axis is a single load.
+        let (org, inv_a) = (ray.origin.to_array(), inv.to_array());
         let mut closest = ray.t_max;
         let mut stack = [(0u32, 0f32, 0f32); STACK];
         let mut sp = 0;
@@ -45,9 +47,9 @@ impl KdTree {
             let n = self.nodes[node];
             if !n.is_leaf() {
                 let axis = n.axis();
-                let (o, d) = (ray.origin[axis], ray.dir[axis]);
-                let t_split = (n.split() - o) * inv[axis];
-                let below_first = o < n.split() || (o == n.split() && d <= 0.0);
+                let o = org[axis];
+                let t_split = (n.split() - o) * inv_a[axis];
+                let below_first = o < n.split() || (o == n.split() && inv_a[axis] <= 0.0);
                 let (first, second) = if below_first {
                     (n.left(), n.left() + 1)
                 } else {
@@ -116,6 +118,25 @@ impl KdTree {
             Ok(best.map(|h| h.t))
         });
         best
+    }
+
+    /// True if a triangle for which `blocks(triangle)` is true lies within
+    /// `(0, ray.t_max)`. Triangles that do not block are passed to the filter
+    /// and skipped (a triangle in several leaves may be passed more than once).
+    pub fn occluded_by(&self, scene: &Scene, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
+        let prep = RayPrep::new(ray.origin, ray.dir);
+        let mut hit = false;
+        self.walk(ray, |tris, _| {
+            for &t in tris {
+                let [a, b, c] = scene.vertices(t as usize);
+                if intersect_triangle(&prep, a, b, c, ray.t_max).is_some_and(|h| h.t < ray.t_max) && blocks(t) {
+                    hit = true;
+                    return Err(());
+                }
+            }
+            Ok(None)
+        });
+        hit
     }
 
     /// True if anything lies within `(0, ray.t_max)`.

@@ -5,16 +5,21 @@
 
 use glam::Vec3;
 
-/// Per-ray constants of the test.
+/// Per-ray constants of the test: the shear that maps the ray onto +z, as three
+/// rows, so that each sheared coordinate is one dot product. Each row has one or
+/// two non-zero entries, and adding exact zeros changes nothing, so the results
+/// are bit-for-bit those of the permute-then-shear formulation of the paper.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPrep {
     origin: Vec3,
-    k: [usize; 3],
-    shear: Vec3,
+    row_x: Vec3,
+    row_y: Vec3,
+    row_z: Vec3,
 }
 
 impl RayPrep {
     /// Prepares a ray with origin `origin` and direction `dir` (non-zero).
+    #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> RayPrep {
         let a = dir.abs();
         let kz = if a.x > a.y {
@@ -32,11 +37,18 @@ impl RayPrep {
         if dir[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let shear = Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]);
+        let (sx, sy, sz) = (dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]);
+        let (mut row_x, mut row_y, mut row_z) = ([0f32; 3], [0f32; 3], [0f32; 3]);
+        row_x[kx] = 1.0;
+        row_x[kz] = -sx;
+        row_y[ky] = 1.0;
+        row_y[kz] = -sy;
+        row_z[kz] = sz;
         RayPrep {
             origin,
-            k: [kx, ky, kz],
-            shear,
+            row_x: Vec3::from(row_x),
+            row_y: Vec3::from(row_y),
+            row_z: Vec3::from(row_z),
         }
     }
 }
@@ -53,13 +65,12 @@ pub struct TriangleHit {
 }
 
 /// Intersects the prepared ray with triangle (a, b, c) in `(0, t_max]`, both faces.
-#[inline]
+#[inline(always)]
 pub fn intersect_triangle(r: &RayPrep, a: Vec3, b: Vec3, c: Vec3, t_max: f32) -> Option<TriangleHit> {
-    let [kx, ky, kz] = r.k;
     let (pa, pb, pc) = (a - r.origin, b - r.origin, c - r.origin);
-    let (ax, ay) = (pa[kx] - r.shear.x * pa[kz], pa[ky] - r.shear.y * pa[kz]);
-    let (bx, by) = (pb[kx] - r.shear.x * pb[kz], pb[ky] - r.shear.y * pb[kz]);
-    let (cx, cy) = (pc[kx] - r.shear.x * pc[kz], pc[ky] - r.shear.y * pc[kz]);
+    let (ax, ay) = (pa.dot(r.row_x), pa.dot(r.row_y));
+    let (bx, by) = (pb.dot(r.row_x), pb.dot(r.row_y));
+    let (cx, cy) = (pc.dot(r.row_x), pc.dot(r.row_y));
     let mut u = cx * by - cy * bx;
     let mut v = ax * cy - ay * cx;
     let mut w = bx * ay - by * ax;
@@ -77,7 +88,7 @@ pub fn intersect_triangle(r: &RayPrep, a: Vec3, b: Vec3, c: Vec3, t_max: f32) ->
     if det == 0.0 {
         return None;
     }
-    let (az, bz, cz) = (r.shear.z * pa[kz], r.shear.z * pb[kz], r.shear.z * pc[kz]);
+    let (az, bz, cz) = (pa.dot(r.row_z), pb.dot(r.row_z), pc.dot(r.row_z));
     let t_scaled = u * az + v * bz + w * cz;
     // Compare before dividing, with det's sign folded in.
     let sign = det.signum();

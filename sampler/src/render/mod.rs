@@ -37,6 +37,7 @@ pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn F
     let strata = (f64::from(spp).sqrt() as u32).max(1);
     let stratified = strata * strata == spp;
     let done = AtomicUsize::new(0);
+    let rays = view.rays();
     let rows: Vec<Vec<Vec3>> = (0..h)
         .into_par_iter()
         .map(|row| {
@@ -57,7 +58,7 @@ pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn F
                     };
                     let x = (col as f64 + f64::from(sx)) / w as f64;
                     let y = 1.0 - (row as f64 + f64::from(sy)) / h as f64;
-                    if let Some((origin, dir)) = view.ray(x, y) {
+                    if let Some((origin, dir)) = rays.ray(x, y) {
                         sum += tracer.trace(origin.as_vec3(), dir.as_vec3(), &mut rng).radiance;
                     }
                 }

@@ -227,42 +227,39 @@ impl Tracer {
 
     /// How much light gets through along a shadow ray: 1 if nothing is in the
     /// way, the product of pane transmittances if only thin panes are, else 0.
-    fn visibility(&self, mut ray: Ray) -> Vec3 {
-        if !self.tree.occluded(&self.scene, &ray) {
-            return Vec3::ONE;
-        }
+    /// One traversal: panes are noted and skipped, the first opaque hit ends it.
+    fn visibility(&self, ray: Ray) -> Vec3 {
         if !self.has_panes {
+            return if self.tree.occluded(&self.scene, &ray) {
+                Vec3::ZERO
+            } else {
+                Vec3::ONE
+            };
+        }
+        let mut panes: Vec<u32> = Vec::new();
+        let blocked = self.tree.occluded_by(&self.scene, &ray, |tri| {
+            let m = &self.scene.materials[self.scene.triangles[tri as usize].material as usize];
+            if matches!(m, Material::Glass { thin: true, .. }) {
+                if !panes.contains(&tri) {
+                    panes.push(tri);
+                }
+                false
+            } else {
+                true
+            }
+        });
+        if blocked {
             return Vec3::ZERO;
         }
+        let dir = ray.dir.normalize();
         let mut through = Vec3::ONE;
-        for _ in 0..8 {
-            let Some(hit) = self.tree.intersect(&self.scene, &ray) else {
-                return through;
-            };
-            let tri = self.scene.triangles[hit.tri as usize];
-            let [a, b, c] = self.scene.vertices(hit.tri as usize);
+        for tri in panes {
+            let [a, b, c] = self.scene.vertices(tri as usize);
             let ng = (b - a).cross(c - a).normalize();
-            let cos = ray.dir.normalize().dot(ng).abs();
-            let Some(t) = pane_transmittance(&self.scene.materials[tri.material as usize], cos) else {
-                return Vec3::ZERO;
-            };
-            through *= t;
-            let side = if ray.dir.dot(ng) > 0.0 { ng } else { -ng };
-            let p = ray.at(hit.t);
-            let origin = offset_origin(p, side);
-            // Keep the far end where it was: re-express the remaining range from the new origin.
-            let end = ray.at(ray.t_max.min(f32::MAX));
-            ray = if ray.t_max.is_finite() {
-                Ray {
-                    origin,
-                    dir: end - origin,
-                    t_max: 1.0 - 1e-4,
-                }
-            } else {
-                Ray::new(origin, ray.dir)
-            };
+            let m = &self.scene.materials[self.scene.triangles[tri as usize].material as usize];
+            through *= pane_transmittance(m, dir.dot(ng).abs()).unwrap_or(Vec3::ZERO);
         }
-        Vec3::ZERO
+        through
     }
 
     /// Light arriving directly from one sampled point on the area lights and
