@@ -164,15 +164,27 @@ impl View {
         if !finite {
             return Err(ViewError::Impossible("a value is not finite".into()));
         }
-        if self.direction.length() == 0.0 {
+        // Scale by the largest component first: tiny and huge vectors normalize
+        // without underflow or overflow.
+        let unit = |v: DVec3| {
+            let m = v.abs().max_element();
+            if m > 0.0 {
+                (v / m).normalize()
+            } else {
+                DVec3::ZERO
+            }
+        };
+        self.direction = unit(self.direction);
+        if self.direction == DVec3::ZERO {
             return Err(ViewError::Impossible("view direction -vd is zero".into()));
         }
-        self.direction = self.direction.normalize();
-        if self.up.cross(self.direction).length() < 1e-9 * self.up.length().max(1e-300) {
+        let up = unit(self.up);
+        if up == DVec3::ZERO || up.cross(self.direction).length() < 1e-9 {
             return Err(ViewError::Impossible(
-                "up vector -vu is parallel to the view direction".into(),
+                "up vector -vu is zero or parallel to the view direction".into(),
             ));
         }
+        self.up = up;
         let (lo, hi) = match self.kind {
             ViewType::Perspective => (0.0, 180.0),
             ViewType::Angular => (0.0, 360.0),
@@ -388,6 +400,15 @@ mod tests {
             .contains("parallel"));
         assert!(View::parse("-vtv -vh 180").is_err());
         assert!(View::parse("-vta -vh 360 -vv 360").is_ok());
+    }
+
+    #[test]
+    fn extreme_magnitudes_normalize_cleanly() {
+        let v = View::parse("-vd 1e-170 0 0 -vu 0 0 1e200").unwrap();
+        assert_eq!((v.direction, v.up), (DVec3::X, DVec3::Z));
+        let v = View::parse("-vd 1.6e-162 0 0").unwrap();
+        assert!((v.direction.length() - 1.0).abs() < 1e-15);
+        assert!(View::parse("-vd 1e160 0 0 -vu 0 0 1").is_ok());
     }
 
     proptest! {

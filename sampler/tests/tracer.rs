@@ -152,7 +152,7 @@ fn virtual_distance_continues_through_a_flat_mirror() {
 
 #[test]
 fn an_invisible_pane_changes_nothing() {
-    // A floor lit by the sun and sky, seen through (and lit through) a pane of
+    // A floor lit by an area light, the sun and sky, seen through (and lit through) a pane of
     // ior 1 and no tint: light sampling through panes and the path's
     // pass-through must agree, so both scenes give the same radiance.
     let sky = holodeck_sampler::Sky::Sun {
@@ -183,6 +183,16 @@ fn an_invisible_pane_changes_nothing() {
             Vec3::new(-50.0, 50.0, 0.0),
         ];
         b.add_mesh("floor", &big, &[[0, 1, 2], [0, 2, 3]], &[floor], Mat4::IDENTITY)
+            .unwrap();
+        // An area light above the pane, facing down: lit through it.
+        let lamp = b.material("lamp", Material::Emitter { radiance: [30.0; 3] }).unwrap();
+        let quad = [
+            Vec3::new(-1.0, -1.0, 6.0),
+            Vec3::new(-1.0, 1.0, 6.0),
+            Vec3::new(1.0, 1.0, 6.0),
+            Vec3::new(1.0, -1.0, 6.0),
+        ];
+        b.add_mesh("lamp", &quad, &[[0, 1, 2], [0, 2, 3]], &[lamp], Mat4::IDENTITY)
             .unwrap();
         if pane {
             let high = big.map(|p| p + Vec3::Z * 3.0);

@@ -186,16 +186,10 @@ fn partition(scene: &Scene, refs: &[Ref], split: &Split, left_box: &Aabb, right_
     for &r in refs {
         let (lo, hi) = (r.bounds.lo[split.axis], r.bounds.hi[split.axis]);
         if lo == split.pos && hi == split.pos {
-            // Triangles lying in the split plane go to both sides: rays along
-            // the plane must find them from either child.
-            left.push(Ref {
-                tri: r.tri,
-                bounds: r.bounds.clip(left_box),
-            });
-            right.push(Ref {
-                tri: r.tri,
-                bounds: r.bounds.clip(right_box),
-            });
+            // A triangle lying in the split plane goes where the SAH counted it
+            // (above). Rays in the plane visit both children, and rays crossing
+            // it near the plane visit both within the traversal's slack.
+            right.push(r);
         } else if hi <= split.pos {
             left.push(r);
         } else if lo >= split.pos {
@@ -322,10 +316,13 @@ fn best_split(refs: &[Ref], bounds: &Aabb, o: &BuildOptions) -> Option<Split> {
         }
         // Cut off empty space exactly at the content boundary.
         let content = &counts.content;
-        if (content.lo[axis] - bounds.lo[axis]) > 0.1 * extent[axis] {
+        // Content flat in this axis (all triangles in one plane): a cut there
+        // would send everything to both sides.
+        let flat = content.lo[axis] >= content.hi[axis];
+        if !flat && (content.lo[axis] - bounds.lo[axis]) > 0.1 * extent[axis] {
             consider(axis, content.lo[axis], 0.0, n);
         }
-        if (bounds.hi[axis] - content.hi[axis]) > 0.1 * extent[axis] {
+        if !flat && (bounds.hi[axis] - content.hi[axis]) > 0.1 * extent[axis] {
             consider(axis, content.hi[axis], n, 0.0);
         }
     }

@@ -37,6 +37,8 @@ pub struct TreeStats {
     pub references: usize,
     /// Deepest leaf.
     pub depth: usize,
+    /// Most triangles in one leaf.
+    pub max_leaf: usize,
     /// Bytes of nodes and leaf lists.
     pub bytes: usize,
 }
@@ -61,6 +63,7 @@ impl KdTree {
             if n.is_leaf() {
                 s.leaves += 1;
                 s.empty_leaves += usize::from(n.count() == 0);
+                s.max_leaf = s.max_leaf.max(n.count());
                 s.depth = s.depth.max(d);
             } else {
                 stack.push((n.left(), d + 1));

@@ -196,6 +196,20 @@ impl KdTree {
     }
 }
 
+/// The exact scalar test of one ray, keeping a nearer hit.
+#[inline]
+fn scalar_test(prep: Option<&RayPrep>, [a, b, c]: [Vec3; 3], tri: u32, closest: &mut f32, out: &mut Option<Hit>) {
+    if let Some(h) = prep.and_then(|p| intersect_triangle(p, a, b, c, *closest)) {
+        *closest = h.t;
+        *out = Some(Hit {
+            t: h.t,
+            tri,
+            u: h.u,
+            v: h.v,
+        });
+    }
+}
+
 /// The watertight test's per-ray constants in structure-of-arrays form, when
 /// every ray of the packet shares one axis permutation.
 struct SharedPrep {
@@ -275,17 +289,7 @@ impl SharedPrep {
                 if active & (1 << i) == 0 {
                     continue;
                 }
-                if let Some(prep) = &preps[i] {
-                    if let Some(h) = intersect_triangle(prep, a, b, c, closest[i]) {
-                        closest[i] = h.t;
-                        out[i] = Some(Hit {
-                            t: h.t,
-                            tri,
-                            u: h.u,
-                            v: h.v,
-                        });
-                    }
-                }
+                scalar_test(preps[i].as_ref(), [a, b, c], tri, &mut closest[i], &mut out[i]);
             }
             return;
         };
@@ -318,17 +322,7 @@ impl SharedPrep {
             }
             if u[i] == 0.0 || v[i] == 0.0 || w[i] == 0.0 {
                 // On an edge: let the exact test decide.
-                if let Some(prep) = &preps[i] {
-                    if let Some(h) = intersect_triangle(prep, a, b, c, closest[i]) {
-                        closest[i] = h.t;
-                        out[i] = Some(Hit {
-                            t: h.t,
-                            tri,
-                            u: h.u,
-                            v: h.v,
-                        });
-                    }
-                }
+                scalar_test(preps[i].as_ref(), [a, b, c], tri, &mut closest[i], &mut out[i]);
                 continue;
             }
             let mixed = (u[i] < 0.0 || v[i] < 0.0 || w[i] < 0.0) && (u[i] > 0.0 || v[i] > 0.0 || w[i] > 0.0);
@@ -336,7 +330,7 @@ impl SharedPrep {
                 continue;
             }
             let sign = det[i].signum();
-            if tz[i] * sign <= 0.0 || tz[i] * sign > closest[i] * det[i] * sign {
+            if !(tz[i] * sign > 0.0 && tz[i] * sign <= closest[i] * det[i] * sign) {
                 continue;
             }
             let inv = 1.0 / det[i];

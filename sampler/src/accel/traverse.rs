@@ -165,6 +165,39 @@ mod tests {
     use glam::Vec3;
     use rand::{Rng, SeedableRng};
 
+    #[test]
+    fn a_fine_floor_between_objects_is_split_into_small_leaves() {
+        // 20,000 triangles in the plane z = 0, with boxes above and below: no
+        // cut through that plane may leave them all in one leaf.
+        use crate::scene::{Material, SceneBuilder};
+        let mut b = SceneBuilder::new();
+        let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
+        let n = 100u32;
+        let mut p = Vec::new();
+        for i in 0..=n {
+            for j in 0..=n {
+                p.push(Vec3::new(i as f32 * 0.1, j as f32 * 0.1, 0.0));
+            }
+        }
+        let mut t = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                let a = i * (n + 1) + j;
+                t.push([a, a + n + 1, a + 1]);
+                t.push([a + 1, a + n + 1, a + n + 2]);
+            }
+        }
+        b.add_mesh("floor", &p, &t, &[m], glam::Mat4::IDENTITY).unwrap();
+        for z in [-3.0f32, 3.0] {
+            let q = [Vec3::new(2.0, 2.0, z), Vec3::new(8.0, 2.0, z), Vec3::new(8.0, 8.0, z)];
+            b.add_mesh("box", &q, &[[0, 1, 2]], &[m], glam::Mat4::IDENTITY).unwrap();
+        }
+        let scene = b.finish();
+        let tree = KdTree::build(&scene, &BuildOptions::default());
+        let stats = tree.stats();
+        assert!(stats.max_leaf <= 64, "{stats:?}");
+    }
+
     fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
         let prep = RayPrep::new(ray.origin, ray.dir);
         let mut best: Option<Hit> = None;

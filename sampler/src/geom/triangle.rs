@@ -92,7 +92,8 @@ pub fn intersect_triangle(r: &RayPrep, a: Vec3, b: Vec3, c: Vec3, t_max: f32) ->
     let t_scaled = u * az + v * bz + w * cz;
     // Compare before dividing, with det's sign folded in.
     let sign = det.signum();
-    if t_scaled * sign <= 0.0 || t_scaled * sign > t_max * det * sign {
+    // Written so that NaN (from overflowing coordinates) is never a hit.
+    if !(t_scaled * sign > 0.0 && t_scaled * sign <= t_max * det * sign) {
         return None;
     }
     let inv = 1.0 / det;

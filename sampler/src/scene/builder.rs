@@ -11,6 +11,10 @@ use super::material::{Material, Sky};
 use super::{Scene, Triangle};
 use crate::error::SceneError;
 
+/// Most triangles one in-core scene may hold: keeps kd-tree node and
+/// reference indices (30 and 32 bits) far from overflow.
+pub const MAX_TRIANGLES: usize = 1 << 28;
+
 /// What import skipped and kept, for reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ImportStats {
@@ -84,6 +88,7 @@ impl SceneBuilder {
             tracing::warn!("{source}: mesh has no triangles; skipped");
             return Ok(());
         }
+        self.check_room(source, triangles.len())?;
         if materials.len() != 1 && materials.len() != triangles.len() {
             return Err(SceneError::Invalid {
                 what: source.to_string(),
@@ -190,6 +195,7 @@ impl SceneBuilder {
             tracing::warn!("{source}: mesh has no triangles; skipped");
             return Ok(());
         }
+        self.check_room(source, triangles.len())?;
         let base = self.scene.positions.len();
         if u32::try_from(base + positions.len()).is_err() {
             let message = "more than 4 billion vertices".to_string();
@@ -263,6 +269,19 @@ impl SceneBuilder {
         stats.degenerate += degenerate;
         stats.non_finite += non_finite;
         stats.triangles += kept;
+        Ok(())
+    }
+
+    /// Refuses meshes that would take the scene past [`MAX_TRIANGLES`].
+    fn check_room(&self, source: &str, more: usize) -> Result<(), SceneError> {
+        if self.scene.triangles.len().saturating_add(more) > MAX_TRIANGLES {
+            return Err(SceneError::Invalid {
+                what: source.to_string(),
+                message: format!(
+                    "the scene would exceed {MAX_TRIANGLES} triangles, the most an in-core scene may hold"
+                ),
+            });
+        }
         Ok(())
     }
 

@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use super::sampling::{uniform_cone, uniform_cone_pdf, Frame};
+use super::sampling::{uniform_cone, Frame};
 use crate::scene::Sky;
 
 /// A sky ready for shading.
@@ -24,6 +24,7 @@ enum Background {
 struct Sun {
     frame: Frame,
     cos_max: f32,
+    one_minus_cos: f32,
     radiance: Vec3,
 }
 
@@ -49,9 +50,14 @@ impl SkyModel {
                 ground,
             } => {
                 let dir = Vec3::from_array(*direction);
-                let sun = (dir.length() > 0.0 && *diameter_deg > 0.0 && diameter_deg.is_finite()).then(|| Sun {
+                let sun = (dir.length() > 0.0 && *diameter_deg > 0.0 && *diameter_deg <= 180.0).then(|| Sun {
                     frame: Frame::new(dir.normalize()),
-                    cos_max: (diameter_deg.to_radians() * 0.5).cos(),
+                    cos_max: (f64::from(*diameter_deg).to_radians() * 0.5).cos() as f32,
+                    one_minus_cos: {
+                        // 1 - cos(x) = 2 sin^2(x/2): exact even for a tiny sun.
+                        let h = (f64::from(*diameter_deg).to_radians() * 0.25).sin();
+                        (2.0 * h * h) as f32
+                    },
                     radiance: c(sun_radiance),
                 });
                 SkyModel {
@@ -100,13 +106,15 @@ impl SkyModel {
 
     /// Pdf (solid angle) of [`SkyModel::sample_sun`].
     pub fn sun_pdf(&self) -> f32 {
-        self.sun.as_ref().map_or(0.0, |s| uniform_cone_pdf(s.cos_max))
+        self.sun
+            .as_ref()
+            .map_or(0.0, |s| 1.0 / (2.0 * std::f32::consts::PI * s.one_minus_cos))
     }
 
     /// A direction toward the sun's disk, with the sun's radiance and the pdf.
     pub fn sample_sun(&self, u: (f32, f32)) -> Option<(Vec3, Vec3, f32)> {
         let s = self.sun.as_ref()?;
         let d = s.frame.to_world(uniform_cone(u, s.cos_max));
-        Some((d, s.radiance, uniform_cone_pdf(s.cos_max)))
+        Some((d, s.radiance, 1.0 / (2.0 * std::f32::consts::PI * s.one_minus_cos)))
     }
 }

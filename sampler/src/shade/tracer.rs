@@ -116,7 +116,16 @@ impl Tracer {
 
     /// One radiance estimate along the ray from `origin` in unit direction `dir`.
     pub fn trace(&self, origin: Vec3, dir: Vec3, rng: &mut Rng) -> Sample {
-        let (radiance, distance) = self.estimate(origin, dir, rng);
+        if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0) {
+            self.non_finite.fetch_add(1, Ordering::Relaxed);
+            return Sample {
+                radiance: Vec3::ZERO,
+                distance: f32::INFINITY,
+            };
+        }
+        let (radiance, distance) = self.estimate(origin, dir.normalize(), rng);
+        // A NaN distance (it cannot arise from finite input, but is never passed on) reads as "escaped".
+        let distance = if distance.is_nan() { f32::INFINITY } else { distance };
         if radiance.is_finite() && radiance.min_element() >= 0.0 {
             Sample { radiance, distance }
         } else {
@@ -278,14 +287,16 @@ impl Tracer {
             if cos_l > 0.0 && wi.z > 0.0 && dist2 > 0.0 {
                 let e = bsdf::eval(m, wo, wi);
                 if e.f_cos.max_element() > 0.0 {
-                    let shadow = Ray {
+                    // Panes let light through here too, attenuated: BSDF paths
+                    // cross them, so light sampling must see through them alike.
+                    let vis = self.visibility(Ray {
                         origin,
                         dir: to,
                         t_max: 1.0 - 1e-4,
-                    };
-                    if !self.tree.occluded(scene, &shadow) {
+                    });
+                    if vis.max_element() > 0.0 {
                         let pdf_light = ls.pdf_area * dist2 / cos_l;
-                        l += e.f_cos * ls.radiance * (power_heuristic(pdf_light, e.pdf) / pdf_light);
+                        l += vis * e.f_cos * ls.radiance * (power_heuristic(pdf_light, e.pdf) / pdf_light);
                     }
                 }
             }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Vec3};
 use holodeck_protocol::SectionKind;
 
-use super::room::{add_ceiling_light, add_shell, add_table, ShellMaterials};
+use super::room::{add_ceiling_light, add_furnishing_materials, add_shell, add_table, Furnishing};
 use super::shapes::MeshBuf;
 use super::{material, section_error, GenParams, Setting};
 use crate::error::SceneError;
@@ -50,35 +50,7 @@ pub fn add_bunny(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sc
     let foot = Vec3::new(SIZE.x / 2.0, SIZE.y / 2.0, TABLE_TOP);
     let transform = stand_up(lo, hi, BUNNY_HEIGHT, foot);
 
-    let shell = ShellMaterials {
-        floor: material(
-            b,
-            "floor",
-            Material::Plastic {
-                albedo: [0.45, 0.32, 0.2],
-                roughness: 0.35,
-                ior: 1.5,
-            },
-        )?,
-        wall: material(b, "wall", Material::lambertian([0.75, 0.73, 0.7]))?,
-        ceiling: material(b, "ceiling", Material::lambertian([0.8, 0.8, 0.8]))?,
-    };
-    let table = material(
-        b,
-        "table",
-        Material::Plastic {
-            albedo: [0.4, 0.22, 0.1],
-            roughness: 0.15,
-            ior: 1.5,
-        },
-    )?;
-    let light = material(
-        b,
-        "light",
-        Material::Emitter {
-            radiance: [8.0, 8.0, 8.0],
-        },
-    )?;
+    let Furnishing { shell, table, light } = add_furnishing_materials(b)?;
     let skin = material(
         b,
         "bunny",

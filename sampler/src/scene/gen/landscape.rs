@@ -88,7 +88,8 @@ pub fn add_landscape(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting
     let tree_count = usize::try_from(plan.trees).map_err(|_| too_big())?;
     let vertex_count = terrain_vertices + tree_count * TREE_VERTICES;
     let triangle_count = 2 * n * n + tree_count * TREE_TRIANGLES;
-    if u32::try_from(vertex_count).is_err() || u32::try_from(triangle_count).is_err() {
+    // Checked before allocating: the scene could not hold more anyway.
+    if u32::try_from(vertex_count).is_err() || triangle_count > crate::scene::builder::MAX_TRIANGLES {
         return Err(too_big());
     }
     let mut positions = vec![Vec3::ZERO; vertex_count];
@@ -177,6 +178,9 @@ pub fn add_landscape(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting
 fn too_big() -> SceneError {
     SceneError::Invalid {
         what: "landscape".to_string(),
-        message: "too many triangles for one scene (about 4 billion triangles or vertices at most)".to_string(),
+        message: format!(
+            "too many triangles for one in-core scene ({} at most)",
+            crate::scene::builder::MAX_TRIANGLES
+        ),
     }
 }

@@ -49,6 +49,50 @@ pub struct ShellMaterials {
     pub ceiling: u32,
 }
 
+/// Material ids every furnished interior shares.
+pub struct Furnishing {
+    /// Floor, walls and ceiling.
+    pub shell: ShellMaterials,
+    /// The glossy table top.
+    pub table: u32,
+    /// The ceiling light.
+    pub light: u32,
+}
+
+/// Adds the shell, table and ceiling-light materials of the built-in interiors.
+pub fn add_furnishing_materials(b: &mut SceneBuilder) -> Result<Furnishing, SceneError> {
+    let shell = ShellMaterials {
+        floor: material(
+            b,
+            "floor",
+            Material::Plastic {
+                albedo: [0.45, 0.32, 0.2],
+                roughness: 0.35,
+                ior: 1.5,
+            },
+        )?,
+        wall: material(b, "wall", Material::lambertian([0.75, 0.73, 0.7]))?,
+        ceiling: material(b, "ceiling", Material::lambertian([0.8, 0.8, 0.8]))?,
+    };
+    let table = material(
+        b,
+        "table",
+        Material::Plastic {
+            albedo: [0.4, 0.22, 0.1],
+            roughness: 0.15,
+            ior: 1.5,
+        },
+    )?;
+    let light = material(
+        b,
+        "light",
+        Material::Emitter {
+            radiance: [8.0, 8.0, 8.0],
+        },
+    )?;
+    Ok(Furnishing { shell, table, light })
+}
+
 /// The clear-day sky of the built-in scenes: sun 25° high, a little south of
 /// east (+x), so that it shines through the room's window.
 pub fn daylight() -> Sky {
@@ -159,19 +203,7 @@ pub fn add_room(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sce
     if params.triangles.is_some() || params.resolution.is_some() {
         tracing::warn!("room: --triangles and --resolution do not apply; ignored");
     }
-    let shell = ShellMaterials {
-        floor: material(
-            b,
-            "floor",
-            Material::Plastic {
-                albedo: [0.45, 0.32, 0.2],
-                roughness: 0.35,
-                ior: 1.5,
-            },
-        )?,
-        wall: material(b, "wall", Material::lambertian([0.75, 0.73, 0.7]))?,
-        ceiling: material(b, "ceiling", Material::lambertian([0.8, 0.8, 0.8]))?,
-    };
+    let Furnishing { shell, table, light } = add_furnishing_materials(b)?;
     let pane = material(
         b,
         "window",
@@ -179,15 +211,6 @@ pub fn add_room(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sce
             ior: 1.5,
             color: [0.96, 0.98, 0.97],
             thin: true,
-        },
-    )?;
-    let table = material(
-        b,
-        "table",
-        Material::Plastic {
-            albedo: [0.4, 0.22, 0.1],
-            roughness: 0.15,
-            ior: 1.5,
         },
     )?;
     let mirror = material(
@@ -204,13 +227,6 @@ pub fn add_room(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sce
             ior: 1.5,
             color: [1.0, 1.0, 1.0],
             thin: false,
-        },
-    )?;
-    let light = material(
-        b,
-        "light",
-        Material::Emitter {
-            radiance: [8.0, 8.0, 8.0],
         },
     )?;
     let boxes = material(b, "box", Material::lambertian([0.6, 0.5, 0.35]))?;

@@ -33,6 +33,24 @@ pub(super) fn import(
     drop(bytes);
     let gltf::Gltf { document, blob } = gltf;
     let base = path.parent().unwrap_or(Path::new("."));
+    for buffer in document.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = buffer.source() {
+            if uri.starts_with("data:") {
+                continue;
+            }
+            // Only plain relative paths next to the file: no schemes, no
+            // absolute paths, no escapes into parent directories.
+            let plain = !uri.contains(':') && !uri.starts_with('/') && !uri.split(['/', '\\']).any(|c| c == "..");
+            let decoded_ok = !uri.contains('%');
+            if !plain || !decoded_ok {
+                return Err(parse_error(
+                    path,
+                    format!("glTF buffer URI {uri:?} is not a relative file path"),
+                ));
+            }
+            super::check_regular_file(&base.join(uri))?;
+        }
+    }
     let buffers = gltf::import_buffers(&document, Some(base), blob)
         .map_err(|e| parse_error(path, format!("glTF buffers: {e}")))?;
     let Some(scene) = document.default_scene().or_else(|| document.scenes().next()) else {
@@ -47,7 +65,19 @@ pub(super) fn import(
         skipped: 0,
     };
     let mut stack: Vec<(gltf::Node, Mat4, usize)> = scene.nodes().map(|n| (n, transform, 0)).collect();
+    // glTF requires a tree; a node reached twice (shared or cyclic) is refused
+    // rather than copied exponentially.
+    let mut seen = std::collections::HashSet::new();
     while let Some((node, parent, depth)) = stack.pop() {
+        if !seen.insert(node.index()) {
+            return Err(parse_error(
+                path,
+                format!(
+                    "glTF node {} is reached twice: the node graph is not a tree",
+                    node.index()
+                ),
+            ));
+        }
         if depth > MAX_DEPTH {
             return Err(parse_error(
                 path,

@@ -58,17 +58,63 @@ pub fn import_file_with(
 ) -> Result<(), SceneError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let before = b.triangle_count();
-    match ext.as_deref() {
-        Some("obj") => obj::import(b, path, transform, options)?,
-        Some("ply") => ply::import(b, path, transform, options)?,
-        Some("gltf") | Some("glb") => gltf::import(b, path, transform, options)?,
-        _ => {
-            return Err(SceneError::UnsupportedFormat {
+    check_regular_file(path)?;
+    // The parsers are third-party code reading untrusted bytes; a panic inside
+    // one becomes an error naming the file instead of ending the process.
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match ext.as_deref() {
+        Some("obj") => obj::import(b, path, transform, options),
+        Some("ply") => ply::import(b, path, transform, options),
+        Some("gltf") | Some("glb") => gltf::import(b, path, transform, options),
+        _ => Err(SceneError::UnsupportedFormat {
+            path: path.to_path_buf(),
+        }),
+    }));
+    match result {
+        Ok(r) => r?,
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            let message = format!("the file is malformed: its parser failed ({what})");
+            return Err(SceneError::Parse {
                 path: path.to_path_buf(),
-            })
+                message,
+            });
         }
     }
     tracing::info!("{}: {} triangles", path.display(), b.triangle_count() - before);
+    Ok(())
+}
+
+/// Largest file an importer reads (glTF buffers, MTL libraries).
+pub(crate) const MAX_FILE_BYTES: u64 = 64 << 30;
+
+/// Refuses what is not a regular file of sane size (devices, pipes, directories),
+/// which a scene file could otherwise name to make a reader run forever.
+pub(crate) fn check_regular_file(path: &Path) -> Result<(), SceneError> {
+    let meta = std::fs::metadata(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if !meta.is_file() {
+        let message = "not a regular file".to_string();
+        return Err(SceneError::Parse {
+            path: path.to_path_buf(),
+            message,
+        });
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        let message = format!(
+            "{} bytes is more than the {MAX_FILE_BYTES} an importer reads",
+            meta.len()
+        );
+        return Err(SceneError::Parse {
+            path: path.to_path_buf(),
+            message,
+        });
+    }
     Ok(())
 }
 

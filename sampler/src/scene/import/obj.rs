@@ -34,7 +34,10 @@ pub(super) fn import(
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let (models, materials) = tobj::load_obj_buf(&mut BufReader::new(file), &load, |mtl| {
         let full = dir.join(mtl);
-        let result = tobj::load_mtl(&full);
+        let result = match super::check_regular_file(&full) {
+            Ok(()) => tobj::load_mtl(&full),
+            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        };
         if let Err(e) = &result {
             tracing::warn!(
                 "{}: material library {}: {e}; faces using it get the default material",

@@ -148,6 +148,10 @@ pub(super) fn import(
     let mut triangles: Vec<Triangle> = Vec::new();
     let (mut skipped_faces, mut line) = (0u64, String::new());
     for (name, def) in &header.elements {
+        if def.properties.is_empty() && def.count > 0 {
+            // It would take no bytes to read, so a huge count would loop for ever.
+            return Err(parse_error(path, format!("PLY element {name} has no properties")));
+        }
         let fail = |k: usize, e: std::io::Error| {
             parse_error(
                 path,
