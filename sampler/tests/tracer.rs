@@ -223,3 +223,38 @@ fn an_invisible_pane_changes_nothing() {
         "without pane {a}, with pane {b}"
     );
 }
+
+#[test]
+fn samples_per_ray_average_independent_estimates() {
+    let mut b = SceneBuilder::new();
+    let m = b
+        .material(
+            "furnace",
+            Material::Lambertian {
+                albedo: [0.6; 3],
+                emission: [1.0; 3],
+            },
+        )
+        .unwrap();
+    inward_sphere(&mut b, 1.0, m);
+    let scene = b.finish();
+    let spread = |samples: u32| {
+        let tracer = Tracer::new(
+            scene.clone(),
+            TraceOptions {
+                samples,
+                ..TraceOptions::default()
+            },
+        );
+        let values: Vec<f32> = (0..2000u64)
+            .map(|i| tracer.trace(Vec3::ZERO, Vec3::X, &mut Rng::new(4, i)).radiance.x)
+            .collect();
+        let mean = values.iter().sum::<f32>() / values.len() as f32;
+        let var = values.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() / values.len() as f32;
+        (mean, var)
+    };
+    let ((m1, v1), (m16, v16)) = (spread(1), spread(16));
+    // Same expectation (2.5 = 1 / (1 - 0.6)); variance falls about 16 times.
+    assert!((m1 - 2.5).abs() < 0.1 && (m16 - 2.5).abs() < 0.05, "{m1} {m16}");
+    assert!(v1 / v16 > 8.0 && v1 / v16 < 32.0, "variance {v1} -> {v16}");
+}

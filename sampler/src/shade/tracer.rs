@@ -26,6 +26,9 @@ pub struct TraceOptions {
     pub roulette_after: u32,
     /// Report virtual distances through flat mirrors and thin glass.
     pub vdistance: bool,
+    /// Independent estimates averaged per ray (a holodeck ray's radiance is
+    /// their mean; its distance is the first estimate's).
+    pub samples: u32,
     /// Sample lights and the sun directly (next-event estimation with MIS).
     /// Off, paths find light only by BSDF sampling: a baseline for comparisons.
     pub light_sampling: bool,
@@ -38,6 +41,7 @@ impl Default for TraceOptions {
             roulette_after: 3,
             vdistance: false,
             light_sampling: true,
+            samples: 1,
         }
     }
 }
@@ -123,7 +127,13 @@ impl Tracer {
                 distance: f32::INFINITY,
             };
         }
-        let (radiance, distance) = self.estimate(origin, dir.normalize(), rng);
+        let dir = dir.normalize();
+        let (mut radiance, distance) = self.estimate(origin, dir, rng);
+        let n = self.options.samples.max(1);
+        for _ in 1..n {
+            radiance += self.estimate(origin, dir, rng).0;
+        }
+        radiance /= n as f32;
         // A NaN distance (it cannot arise from finite input, but is never passed on) reads as "escaped".
         let distance = if distance.is_nan() { f32::INFINITY } else { distance };
         if radiance.is_finite() && radiance.min_element() >= 0.0 {
