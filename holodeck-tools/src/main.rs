@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod cmd;
+mod fill;
 mod human;
 mod progress;
 
@@ -33,7 +34,9 @@ Examples:
   holodeck grid room.hdk -o grid.obj
   holodeck bench storage --rays 50M
   holodeck scene gen landscape --triangles 10M -o landscape.toml
-  holodeck scene info landscape.toml";
+  holodeck scene info landscape.toml
+  holodeck render builtin:room --spp 64 -o room.png
+  holodeck fill builtin:room room.hdk --rays 2M";
 
 #[derive(Subcommand)]
 enum Command {
@@ -53,6 +56,8 @@ enum Command {
     Scene(cmd::scene::Args),
     /// Render a view of a scene directly with the path tracer (the accuracy reference).
     Render(cmd::render::Args),
+    /// Trace rays of a scene into a holodeck file (a batch fill in this process).
+    Fill(cmd::fill::Args),
 }
 
 fn init_logging(verbose: u8, quiet: bool) {
@@ -83,6 +88,7 @@ fn main() -> ExitCode {
         Command::Bench(a) => cmd::bench::run(a),
         Command::Scene(a) => cmd::scene::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::Fill(a) => cmd::fill::run(a),
     };
     match result {
         Ok(code) => code,

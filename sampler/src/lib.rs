@@ -3,6 +3,7 @@
 //! into radiance and distance is its whole job; it knows nothing of sockets.
 
 pub mod accel;
+pub mod beam;
 pub mod error;
 pub mod geom;
 pub mod render;

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod bench_tracer;
 pub mod check;
 pub mod create;
+pub mod fill;
 pub mod grid;
 pub mod info;
 pub mod optimize;

@@ -416,7 +416,8 @@ impl Store {
                 (_, Some(rays)) if rays.len() == old.count as usize => RayRecord::slice_as_bytes(rays).to_vec(),
                 _ => self.read_run(key)?,
             };
-            let room = grow(count);
+            // A beam's first run is exact; only a beam that had to move has shown it grows.
+            let room = if old.count == 0 { count } else { grow(count) };
             let offset = self.extents.allocate(u64::from(room) * RECORD);
             self.push_write(offset, &existing)?;
             self.push_write(offset + existing.len() as u64, tail_bytes)?;

@@ -1,0 +1,130 @@
+//! `holodeck fill`: trace rays of a scene into a holodeck file, in this process.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use holodeck_sampler::scene::hash::content_hash;
+use holodeck_sampler::{TraceOptions, Tracer};
+use holodeck_server::settings::{parse_duration, Settings};
+use holodeck_server::{HoloFile, OpenOptions};
+
+use crate::fill::{fill, FillOptions};
+use crate::human::{bytes, count, parse_count};
+
+/// Arguments of `holodeck fill`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Fills the holodeck in batch mode: every beam gets rays in proportion to its volume, and
+every beam gets its first rays before any gets more, so the file is usable whenever the
+fill stops. A new FILE takes its sections from the scene; an existing one must belong to
+the same scene (its content hash is checked) and is filled further.
+
+Examples:
+  holodeck fill builtin:room room.hdk --rays 2M
+  holodeck fill scenes/room.toml room.hdk --time 10m --samples 4
+  holodeck info room.hdk")]
+pub struct Args {
+    /// Scene file, or builtin:NAME.
+    scene: String,
+    /// The holodeck file (created if missing).
+    file: PathBuf,
+    /// Stop after this many rays (K, M, G suffixes).
+    #[arg(long, value_parser = parse_count)]
+    rays: Option<u64>,
+    /// Stop after this long (e.g. 90s, 10m, 2h).
+    #[arg(long)]
+    time: Option<String>,
+    /// Rays per beam per visit.
+    #[arg(long, default_value_t = 4)]
+    packet: u32,
+    /// Path samples averaged per ray.
+    #[arg(long, default_value_t = 1)]
+    samples: u32,
+    /// Largest number of bounces.
+    #[arg(long, default_value_t = 8)]
+    bounces: u32,
+    /// Seed of this run (use another to add independent rays).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Triangles for builtin:landscape.
+    #[arg(long)]
+    triangles: Option<u64>,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    if a.rays.is_none() && a.time.is_none() {
+        bail!("give --rays or --time (or both) so the fill knows when to stop");
+    }
+    let time = a
+        .time
+        .as_deref()
+        .map(|t| parse_duration(t, 1.0))
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let scene = super::render::load(&a.scene, a.triangles)?;
+    let hash = content_hash(&scene);
+    if !a.file.exists() {
+        if scene.sections.is_empty() {
+            bail!(
+                "scene {} defines no holodeck section; add [[section]] tables to it",
+                a.scene
+            );
+        }
+        let settings = Settings {
+            sections: scene.sections.clone(),
+            scene: Some(hash.clone()),
+            ..Settings::default()
+        };
+        HoloFile::create(&a.file, &settings)?;
+    }
+    let mut file = HoloFile::open(&a.file, &OpenOptions::default())?;
+    match &file.settings().scene {
+        Some(h) if *h != hash => bail!(
+            "{} holds rays of another scene ({h}); this scene is {hash}. Use a new file.",
+            a.file.display()
+        ),
+        _ => {}
+    }
+    let options = TraceOptions {
+        max_bounces: a.bounces,
+        samples: a.samples,
+        vdistance: file.settings().vdistance,
+        ..TraceOptions::default()
+    };
+    let tracer = Tracer::new(scene, options);
+    let bar = indicatif::ProgressBar::new(a.rays.unwrap_or(0));
+    let fill_options = FillOptions {
+        rays: a.rays,
+        time,
+        packet: a.packet,
+        batch: 4096,
+        seed: a.seed,
+    };
+    let report = fill(&tracer, &mut file, &fill_options, &|n| bar.set_position(n))
+        .with_context(|| format!("filling {}", a.file.display()))?;
+    bar.finish_and_clear();
+    let summary = file.summary();
+    println!(
+        "{}: {} rays in {:.1} s ({:.0} rays/s, {:.1}% of the time storing); {} of {} beams hold rays ({:.1}%); file {} ({:.2} bytes/ray)",
+        a.file.display(),
+        count(report.rays),
+        report.secs,
+        report.rays as f64 / report.secs.max(1e-9),
+        100.0 * report.store_secs / report.secs.max(1e-9),
+        count(report.beams_filled),
+        count(report.beams),
+        100.0 * report.beams_filled as f64 / report.beams.max(1) as f64,
+        bytes(summary.file_bytes),
+        summary.bytes_per_ray()
+    );
+    if tracer.non_finite_count() > 0 {
+        println!(
+            "warning: {} non-finite estimates were replaced by black",
+            tracer.non_finite_count()
+        );
+    }
+    file.close()?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,103 @@
+//! Ray generation within beams: which rays of a beam to trace, and how a traced
+//! ray becomes a 10-byte record.
+//!
+//! Uniform sampling picks four random sub-cell bytes (the paper's batch mode).
+//! Viewpoint-proximity sampling (Appendix A) picks rays that pass near an eye
+//! point, so an interactive display converges faster.
+
+mod proximity;
+
+pub use proximity::{proximity_rays, ProximityStats};
+
+use glam::DVec3;
+use holodeck_protocol::{BeamIndex, BeamRay, DepthCode, RayRecord, Rgbe, Section, SectionError, SectionKind};
+
+use crate::shade::{Rng, Tracer};
+
+/// One ray of a beam to trace: its sub-cell bytes and its world geometry.
+#[derive(Clone, Copy, Debug)]
+pub struct BeamSample {
+    /// Sub-cell position in the entry cell.
+    pub entry: [u8; 2],
+    /// Sub-cell position in the exit cell.
+    pub exit: [u8; 2],
+    /// The ray from the entry wall through the exit cell.
+    pub ray: BeamRay,
+}
+
+/// `n` rays spread uniformly over a beam's cells.
+pub fn uniform_rays(
+    section: &Section,
+    beam: BeamIndex,
+    n: usize,
+    rng: &mut Rng,
+) -> Result<Vec<BeamSample>, SectionError> {
+    (0..n)
+        .map(|_| {
+            let b = rng.next_u32().to_le_bytes();
+            let (entry, exit) = ([b[0], b[1]], [b[2], b[3]]);
+            Ok(BeamSample {
+                entry,
+                exit,
+                ray: section.beam_ray(beam, entry, exit)?,
+            })
+        })
+        .collect()
+}
+
+/// Where tracing starts along a beam ray, in world units from the entry wall.
+/// Interior sections are looked out of: geometry lies outside, so rays start at
+/// the exit wall unless the section may contain obstructions. Exterior
+/// sections are looked into, so rays start at the entry wall.
+pub fn trace_start(kind: SectionKind, obstructions: bool, ray: &BeamRay) -> f64 {
+    match kind {
+        SectionKind::Interior if !obstructions => ray.length,
+        _ => 0.0,
+    }
+}
+
+/// Traces one beam sample and encodes it: radiance and the distance from the
+/// entry wall to the first hit (or infinity).
+pub fn trace_sample(
+    tracer: &Tracer,
+    section: &Section,
+    obstructions: bool,
+    s: &BeamSample,
+    rng: &mut Rng,
+) -> RayRecord {
+    let start = trace_start(section.kind(), obstructions, &s.ray);
+    let origin: DVec3 = s.ray.origin + s.ray.direction * start;
+    let sample = tracer.trace(origin.as_vec3(), s.ray.direction.as_vec3(), rng);
+    let depth = if sample.distance.is_finite() {
+        DepthCode::encode(start + f64::from(sample.distance), section.diagonal())
+    } else {
+        DepthCode::INFINITE
+    };
+    RayRecord::new(s.entry, s.exit, Rgbe::from_rgb(sample.radiance.to_array()), depth)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniform_rays_belong_to_their_beam() {
+        let s = Section::new(
+            [0.0; 3],
+            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
+            [4, 3, 2],
+            SectionKind::Interior,
+        )
+        .unwrap();
+        let mut rng = Rng::new(1, 2);
+        for beam in (0..s.beam_count()).step_by(37) {
+            for r in uniform_rays(&s, beam, 20, &mut rng).unwrap() {
+                let found = s.locate(r.ray.origin, r.ray.direction).unwrap();
+                assert_eq!((found.beam, found.entry_sub, found.exit_sub), (beam, r.entry, r.exit));
+                assert_eq!(trace_start(SectionKind::Interior, false, &r.ray), r.ray.length);
+                assert_eq!(trace_start(SectionKind::Exterior, false, &r.ray), 0.0);
+            }
+        }
+        assert!(uniform_rays(&s, s.beam_count(), 1, &mut rng).is_err());
+    }
+}
