@@ -13,6 +13,7 @@ pub mod record;
 pub mod rgbe;
 pub mod section;
 pub mod view;
+pub mod wire;
 
 pub use beam::{BeamIndex, BeamKey, BeamRay, CellPair, LocatedRay, WallCell};
 pub use depth::DepthCode;

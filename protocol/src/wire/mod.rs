@@ -1,0 +1,13 @@
+//! The wire protocol between the server and its peers (samplers, displays,
+//! admin tools): typed messages in length-prefixed frames. Control messages are
+//! postcard-encoded; ray payloads travel as raw 10-byte records. Pure encoding:
+//! no sockets here. Every decoder takes untrusted bytes and never panics.
+
+mod frame;
+mod message;
+
+pub use frame::{decode_frame, encode_frame, Frame, FrameError, FRAME_HEADER, MAX_FRAME};
+pub use message::{Control, Hello, Message, Progress, Role, SamplingMode, TracePacket};
+
+/// Version of the protocol; peers with another version are refused.
+pub const PROTOCOL_VERSION: u32 = 1;
