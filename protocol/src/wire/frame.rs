@@ -130,10 +130,17 @@ pub fn decode_frame(buf: &[u8]) -> Result<Option<(Frame, usize)>, FrameError> {
     }
     let payload = &buf[FRAME_HEADER..FRAME_HEADER + len];
     let frame = match buf[4] {
-        KIND_MESSAGE => Frame::Message(postcard::from_bytes(payload).map_err(|e| FrameError::Malformed {
-            kind: "message",
-            detail: e.to_string(),
-        })?),
+        KIND_MESSAGE => {
+            let m: Message = postcard::from_bytes(payload).map_err(|e| FrameError::Malformed {
+                kind: "message",
+                detail: e.to_string(),
+            })?;
+            m.validate().map_err(|detail| FrameError::Malformed {
+                kind: "message",
+                detail,
+            })?;
+            Frame::Message(m)
+        }
         KIND_BEAM => {
             if payload.len() < 8 {
                 return Err(FrameError::Malformed {
@@ -271,6 +278,20 @@ mod tests {
             decode_frame(&odd),
             Err(FrameError::Malformed { kind: "beam", .. })
         ));
+        // A well-formed message with an impossible value.
+        let nan = Frame::Message(Message::Trace(TracePacket {
+            id: 1,
+            key: BeamKey::new(0, 0),
+            rays: 1,
+            mode: SamplingMode::NearEye {
+                eye: [f64::NAN, 0.0, 0.0],
+                radius: 1.0,
+            },
+        }));
+        let mut out = Vec::new();
+        encode_frame(&nan, &mut out).unwrap();
+        let e = decode_frame(&out).unwrap_err();
+        assert!(e.to_string().contains("eye coordinate is NaN"), "{e}");
         let mut garbage = vec![3, 0, 0, 0, KIND_MESSAGE];
         garbage.extend_from_slice(&[200, 201, 202]);
         assert!(matches!(

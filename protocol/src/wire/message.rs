@@ -122,3 +122,40 @@ pub enum Message {
         message: String,
     },
 }
+
+impl Message {
+    /// Checks what decoding alone cannot: finite numbers and valid sections.
+    /// Returns what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        let finite = |what: &str, v: f64| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{what} is {v}"))
+            }
+        };
+        match self {
+            Message::Welcome { sections } => {
+                for (i, s) in sections.iter().enumerate() {
+                    crate::section::Section::try_from(s.clone()).map_err(|e| format!("section {i}: {e}"))?;
+                }
+                Ok(())
+            }
+            Message::Trace(TracePacket {
+                mode: SamplingMode::NearEye { eye, radius },
+                ..
+            }) => {
+                for v in eye {
+                    finite("eye coordinate", *v)?;
+                }
+                finite("radius", *radius)?;
+                if *radius < 0.0 {
+                    return Err(format!("radius {radius} is negative"));
+                }
+                Ok(())
+            }
+            Message::Progress(p) => finite("rays per second", p.rays_per_second),
+            _ => Ok(()),
+        }
+    }
+}
