@@ -36,7 +36,9 @@ Examples:
   holodeck scene gen landscape --triangles 10M -o landscape.toml
   holodeck scene info landscape.toml
   holodeck render builtin:room --spp 64 -o room.png
-  holodeck fill builtin:room room.hdk --rays 2M";
+  holodeck fill builtin:room room.hdk --rays 2M
+  holodeck serve room.hdk --listen 0.0.0.0:7777
+  holodeck sample builtin:room --connect host:7777 --token-file room.hdk.token";
 
 #[derive(Subcommand)]
 enum Command {
@@ -58,6 +60,10 @@ enum Command {
     Render(cmd::render::Args),
     /// Trace rays of a scene into a holodeck file (a batch fill in this process).
     Fill(cmd::fill::Args),
+    /// Serve a holodeck file to samplers and displays over TCP.
+    Serve(cmd::serve::Args),
+    /// Trace packets for a holodeck server (a sampler worker; any host).
+    Sample(cmd::sample::Args),
 }
 
 fn init_logging(verbose: u8, quiet: bool) {
@@ -89,6 +95,8 @@ fn main() -> ExitCode {
         Command::Scene(a) => cmd::scene::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Fill(a) => cmd::fill::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
+        Command::Sample(a) => cmd::sample::run(a),
     };
     match result {
         Ok(code) => code,

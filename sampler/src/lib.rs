@@ -9,6 +9,7 @@ pub mod geom;
 pub mod render;
 pub mod scene;
 pub mod shade;
+pub mod worker;
 
 pub use accel::KdTree;
 pub use error::SceneError;

@@ -1,6 +1,7 @@
 //! The holodeck server: the storage engine that owns a holodeck file and the
 //! settings it records. Network service and scheduler build on these.
 
+pub mod net;
 pub mod schedule;
 pub mod settings;
 pub mod storage;

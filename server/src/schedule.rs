@@ -86,6 +86,22 @@ impl BatchSchedule {
         out
     }
 
+    /// Returns rays that were handed out but never came back (a sampler that
+    /// died mid-packet), so the beam is scheduled for them again.
+    pub fn give_back(&mut self, key: BeamKey, rays: u32) {
+        let Some(weight) = self.weight(key) else { return };
+        let entries = std::mem::take(&mut self.heap).into_vec();
+        self.heap = entries
+            .into_iter()
+            .map(|Reverse(mut e)| {
+                if e.key == key {
+                    e.ratio = (e.ratio - f64::from(rays) / weight).max(0.0);
+                }
+                Reverse(e)
+            })
+            .collect();
+    }
+
     /// The weight (share of the desired samples) of a beam.
     pub fn weight(&self, key: BeamKey) -> Option<f64> {
         self.weights.get(key.section as usize)?.get(key.beam as usize).copied()

@@ -9,4 +9,6 @@ pub mod grid;
 pub mod info;
 pub mod optimize;
 pub mod render;
+pub mod sample;
 pub mod scene;
+pub mod serve;

@@ -205,6 +205,7 @@ mod tests {
             })),
             Frame::Message(Message::Welcome {
                 sections: vec![section.spec()],
+                obstructions: true,
             }),
             Frame::Message(Message::Refused {
                 reason: "wrong token".into(),

@@ -99,6 +99,8 @@ pub enum Message {
     Welcome {
         /// The sections, in index order.
         sections: Vec<SectionSpec>,
+        /// Sections may contain geometry: trace from the entry wall.
+        obstructions: bool,
     },
     /// The server refuses the peer, and says why.
     Refused {
@@ -135,7 +137,7 @@ impl Message {
             }
         };
         match self {
-            Message::Welcome { sections } => {
+            Message::Welcome { sections, .. } => {
                 for (i, s) in sections.iter().enumerate() {
                     crate::section::Section::try_from(s.clone()).map_err(|e| format!("section {i}: {e}"))?;
                 }

@@ -1,0 +1,100 @@
+//! `holodeck sample`: a sampler worker for a holodeck server on any host.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use holodeck_sampler::scene::hash::content_hash;
+use holodeck_sampler::worker::{run_worker, WorkerError};
+use holodeck_sampler::{TraceOptions, Tracer};
+
+use crate::human::count;
+
+/// Arguments of `holodeck sample`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Loads the scene, proves to the server that it is the same scene (content hash), and traces
+the packets the server hands out until the server stops. Workers are stateless: start and
+stop them at any time, on any host that can reach the server.
+
+Examples:
+  holodeck sample builtin:room --connect 127.0.0.1:7777 --token-file room.hdk.token
+  holodeck sample scenes/room.toml --connect server:7777 --token 3f9c... -j 16")]
+pub struct Args {
+    /// Scene file, or builtin:NAME (must be the scene the holodeck was made for).
+    scene: String,
+    /// The server's address.
+    #[arg(long)]
+    connect: String,
+    /// Access token.
+    #[arg(long, conflicts_with = "token_file")]
+    token: Option<String>,
+    /// File holding the access token (as `holodeck serve` writes it).
+    #[arg(long)]
+    token_file: Option<PathBuf>,
+    /// Worker connections (one tracing thread each); default: one per core.
+    #[arg(short = 'j', long)]
+    jobs: Option<usize>,
+    /// Largest number of bounces.
+    #[arg(long, default_value_t = 8)]
+    bounces: u32,
+    /// Path samples averaged per ray.
+    #[arg(long, default_value_t = 1)]
+    samples: u32,
+    /// Seed (give each worker host its own to trace independent rays).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Triangles for builtin:landscape.
+    #[arg(long)]
+    triangles: Option<u64>,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let token = match (&a.token, &a.token_file) {
+        (Some(t), _) => t.clone(),
+        (None, Some(p)) => std::fs::read_to_string(p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .trim()
+            .to_string(),
+        (None, None) => bail!("give --token or --token-file (the server writes FILE.token)"),
+    };
+    let scene = super::render::load(&a.scene, a.triangles)?;
+    let hash = content_hash(&scene);
+    let options = TraceOptions {
+        max_bounces: a.bounces,
+        samples: a.samples,
+        ..TraceOptions::default()
+    };
+    let tracer = Tracer::new(scene, options);
+    let jobs = a
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let results: Vec<Result<u64, WorkerError>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..jobs)
+            .map(|j| {
+                let (tracer, hash, token, addr) = (&tracer, &hash, &token, &a.connect);
+                s.spawn(move || {
+                    run_worker(
+                        addr,
+                        tracer,
+                        hash,
+                        token,
+                        a.seed.wrapping_mul(1000).wrapping_add(j as u64),
+                    )
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap_or(Ok(0))).collect()
+    });
+    let mut rays = 0;
+    for r in results {
+        match r {
+            Ok(n) => rays += n,
+            Err(e) => bail!(e),
+        }
+    }
+    println!("traced {} rays for {}", count(rays), a.connect);
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,92 @@
+//! `holodeck serve`: the holodeck server on a TCP port.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use holodeck_server::net::{serve, ServerConfig};
+use holodeck_server::{HoloFile, OpenOptions};
+use rand::Rng;
+
+/// Arguments of `holodeck serve`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Serves FILE to samplers (which fill it) and displays (which read it) over TCP. Every peer
+must present the access token: given with --token, or generated into FILE.token, readable
+by the owner only. Stops, flushing everything, on SIGINT/SIGTERM or an admin's quit.
+
+Examples:
+  holodeck fill builtin:room room.hdk --rays 1K           # a file that knows its scene
+  holodeck serve room.hdk --listen 0.0.0.0:7777
+  holodeck sample builtin:room --connect server:7777 --token-file room.hdk.token")]
+pub struct Args {
+    /// The holodeck file (it must record its scene: create it with `holodeck fill`).
+    file: PathBuf,
+    /// Address to listen on (port 0 picks a free one; the address is printed).
+    #[arg(long, default_value = "127.0.0.1:7777")]
+    listen: String,
+    /// Access token; generated into FILE.token if omitted.
+    #[arg(long)]
+    token: Option<String>,
+    /// Rays per trace packet.
+    #[arg(long, default_value_t = 4)]
+    packet: u32,
+    /// Packets a sampler works on at once.
+    #[arg(long, default_value_t = 64)]
+    batch: usize,
+}
+
+fn token_path(file: &Path) -> PathBuf {
+    let mut name = file.file_name().unwrap_or_default().to_os_string();
+    name.push(".token");
+    file.with_file_name(name)
+}
+
+fn write_token(path: &Path, token: &str) -> Result<()> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut f = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .mode(0o600)
+        .open(path)
+        .with_context(|| format!("writing the token to {}", path.display()))?;
+    writeln!(f, "{token}")?;
+    Ok(())
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let token = match a.token {
+        Some(t) => t,
+        None => {
+            let t: String = (0..32)
+                .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
+                .collect();
+            let path = token_path(&a.file);
+            write_token(&path, &t)?;
+            eprintln!("access token written to {}", path.display());
+            t
+        }
+    };
+    let file = HoloFile::open(&a.file, &OpenOptions::default())?;
+    let config = ServerConfig {
+        token,
+        packet: a.packet.max(1),
+        batch: a.batch.max(1),
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(&a.listen)
+            .await
+            .with_context(|| format!("listening on {}", a.listen))?;
+        println!("listening on {}", listener.local_addr()?);
+        std::io::stdout().flush()?;
+        serve(listener, file, config)
+            .await
+            .with_context(|| format!("serving {}", a.file.display()))
+    })?;
+    println!("{}: flushed and closed", a.file.display());
+    Ok(ExitCode::SUCCESS)
+}

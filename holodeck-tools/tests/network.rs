@@ -1,0 +1,158 @@
+//! The networked holodeck with real processes on loopback: a server, sampler
+//! workers (one killed with SIGKILL mid-run), refused peers, a display, quit.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use holodeck_protocol::wire::{decode_frame, encode_frame, Control, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::BeamKey;
+use holodeck_server::{HoloFile, OpenOptions};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_holodeck"))
+}
+
+fn sampler(addr: &str, token: &str, scene: &[&str]) -> Child {
+    bin()
+        .arg("sample")
+        .args(scene)
+        .args(["--connect", addr, "--token", token, "-j", "1", "--bounces", "2"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// A raw client: handshake as `role`, then exchange frames.
+struct Client {
+    stream: TcpStream,
+    buf: Vec<u8>,
+}
+
+impl Client {
+    fn connect(addr: &str, role: Role, token: &str) -> (Client, Frame) {
+        let stream = TcpStream::connect(addr).unwrap();
+        stream.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        let mut c = Client {
+            stream,
+            buf: Vec::new(),
+        };
+        let hello = Hello {
+            version: PROTOCOL_VERSION,
+            role,
+            scene: String::new(),
+            token: token.into(),
+            read_only: false,
+        };
+        c.send(&Frame::Message(Message::Hello(hello)));
+        let answer = c.recv();
+        (c, answer)
+    }
+    fn send(&mut self, f: &Frame) {
+        let mut out = Vec::new();
+        encode_frame(f, &mut out).unwrap();
+        self.stream.write_all(&out).unwrap();
+    }
+    fn recv(&mut self) -> Frame {
+        loop {
+            if let Some((f, used)) = decode_frame(&self.buf).unwrap() {
+                self.buf.drain(..used);
+                return f;
+            }
+            let mut chunk = [0u8; 65536];
+            let n = self.stream.read(&mut chunk).unwrap();
+            assert!(n > 0, "server closed the connection");
+            self.buf.extend_from_slice(&chunk[..n]);
+        }
+    }
+}
+
+#[test]
+fn server_samplers_display_and_quit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    assert!(bin()
+        .args(["fill", "builtin:room", f, "--rays", "1K", "--bounces", "0"])
+        .output()
+        .unwrap()
+        .status
+        .success());
+    let token = "test-token";
+    let mut server = bin()
+        .args(["serve", f, "--listen", "127.0.0.1:0", "--token", token])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(server.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    let addr = line
+        .trim()
+        .strip_prefix("listening on ")
+        .expect("the server prints its address")
+        .to_string();
+
+    // Refused peers: wrong token, wrong scene, garbage. The server keeps serving.
+    let bad_token = sampler(&addr, "nope", &["builtin:room"]).wait_with_output().unwrap();
+    assert!(!bad_token.status.success());
+    assert!(String::from_utf8_lossy(&bad_token.stderr).contains("wrong access token"));
+    let bad_scene = sampler(&addr, token, &["builtin:landscape", "--triangles", "2000"])
+        .wait_with_output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&bad_scene.stderr).contains("does not match the holodeck's scene"));
+    let mut garbage = TcpStream::connect(&addr).unwrap();
+    garbage.write_all(&[0xff; 64]).unwrap();
+    drop(garbage);
+
+    // Two samplers fill; one is killed mid-run and the other carries on.
+    let mut a = sampler(&addr, token, &["builtin:room"]);
+    let b = sampler(&addr, token, &["builtin:room"]);
+    std::thread::sleep(Duration::from_millis(1500));
+    a.kill().unwrap(); // SIGKILL
+    a.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+
+    // A display asks for beams and gets them.
+    let (mut display, welcome) = Client::connect(&addr, Role::Display, token);
+    let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
+        panic!("{welcome:?}")
+    };
+    let keys: Vec<(BeamKey, u32)> = (0..50).map(|b| (BeamKey::new(0, b * 97), 10)).collect();
+    display.send(&Frame::Message(Message::BeamRequest { beams: keys.clone() }));
+    let mut rays = 0;
+    for _ in 0..keys.len() {
+        match display.recv() {
+            Frame::Beam { key, records } => {
+                assert!(keys.iter().any(|(k, _)| *k == key));
+                rays += records.len();
+            }
+            other => panic!("expected beam data, got {other:?}"),
+        }
+    }
+    assert!(rays > 50, "the requested beams hold rays ({rays})");
+    assert!(sections[0].grid[0] > 0);
+
+    // An admin quits: the server flushes and exits; the surviving sampler ends cleanly.
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = server.try_wait().unwrap() {
+            break s;
+        }
+        assert!(start.elapsed() < Duration::from_secs(20), "the server did not stop");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success());
+    let b = b.wait_with_output().unwrap();
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+
+    let hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
+    let stored = hdk.summary().rays();
+    assert!(stored > 5_000, "the samplers' rays were stored ({stored})");
+    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+}

@@ -1,0 +1,77 @@
+//! Whole frames over one socket: buffered reads until a frame is complete,
+//! writes of one encoded frame at a time.
+
+use holodeck_protocol::wire::{decode_frame, encode_frame, Frame, FrameError};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+/// What can go wrong on a connection.
+#[derive(Debug, thiserror::Error)]
+pub enum ConnectionError {
+    /// The socket failed.
+    #[error("connection: {0}")]
+    Io(#[from] std::io::Error),
+    /// The peer sent bytes that are not a valid frame.
+    #[error("peer sent a bad frame: {0}")]
+    Frame(#[from] FrameError),
+    /// The peer closed the connection in the middle of a frame.
+    #[error("peer closed the connection mid-frame")]
+    Truncated,
+}
+
+/// A framed connection.
+pub struct Connection {
+    stream: TcpStream,
+    buf: Vec<u8>,
+    start: usize,
+    out: Vec<u8>,
+}
+
+impl Connection {
+    /// Wraps a connected socket.
+    pub fn new(stream: TcpStream) -> Connection {
+        let _ = stream.set_nodelay(true);
+        Connection {
+            stream,
+            buf: Vec::with_capacity(64 << 10),
+            start: 0,
+            out: Vec::new(),
+        }
+    }
+
+    /// The next frame, or `None` when the peer closed cleanly between frames.
+    pub async fn read(&mut self) -> Result<Option<Frame>, ConnectionError> {
+        loop {
+            if let Some((frame, used)) = decode_frame(&self.buf[self.start..])? {
+                self.start += used;
+                if self.start == self.buf.len() {
+                    self.buf.clear();
+                    self.start = 0;
+                }
+                return Ok(Some(frame));
+            }
+            if self.start > 0 {
+                self.buf.drain(..self.start);
+                self.start = 0;
+            }
+            let mut chunk = [0u8; 64 << 10];
+            let n = self.stream.read(&mut chunk).await?;
+            if n == 0 {
+                return if self.buf.is_empty() {
+                    Ok(None)
+                } else {
+                    Err(ConnectionError::Truncated)
+                };
+            }
+            self.buf.extend_from_slice(&chunk[..n]);
+        }
+    }
+
+    /// Sends one frame.
+    pub async fn write(&mut self, frame: &Frame) -> Result<(), ConnectionError> {
+        self.out.clear();
+        encode_frame(frame, &mut self.out)?;
+        self.stream.write_all(&self.out).await?;
+        Ok(())
+    }
+}
