@@ -18,7 +18,18 @@ fn sampler(addr: &str, token: &str, scene: &[&str]) -> Child {
     bin()
         .arg("sample")
         .args(scene)
-        .args(["--connect", addr, "--token", token, "-j", "1", "--bounces", "2"])
+        .args([
+            "--connect",
+            addr,
+            "--token",
+            token,
+            "-j",
+            "1",
+            "--bounces",
+            "2",
+            "--retry-for",
+            "0s",
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -154,5 +165,91 @@ fn server_samplers_display_and_quit() {
     let hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
     let stored = hdk.summary().rays();
     assert!(stored > 5_000, "the samplers' rays were stored ({stored})");
+    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+}
+
+fn start_server(f: &str, addr: &str, token: &str) -> Child {
+    let mut server = bin()
+        .args(["serve", f, "--listen", addr, "--token", token])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.as_mut().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.starts_with("listening on"), "{line:?}");
+    server
+}
+
+#[test]
+fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    assert!(bin()
+        .args(["fill", "builtin:room", f, "--rays", "1K", "--bounces", "0"])
+        .output()
+        .unwrap()
+        .status
+        .success());
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let token = "t";
+    let mut first = start_server(f, &addr, token);
+    let mut worker = bin()
+        .args([
+            "sample",
+            "builtin:room",
+            "--connect",
+            &addr,
+            "--token",
+            token,
+            "-j",
+            "1",
+            "--bounces",
+            "1",
+        ])
+        .args(["--retry-for", "30s"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Long enough for a periodic flush (every 2 s) to commit some rays.
+    std::thread::sleep(Duration::from_millis(3500));
+    first.kill().unwrap(); // SIGKILL: no flush, no goodbye
+    first.wait().unwrap();
+
+    let after_crash = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays();
+    assert!(
+        after_crash > 1_000,
+        "rays flushed before the crash survive ({after_crash})"
+    );
+    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+
+    // Same file, same address: the worker reconnects by itself.
+    let mut second = start_server(f, &addr, token);
+    std::thread::sleep(Duration::from_millis(3000));
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    assert!(second.wait().unwrap().success());
+    worker.kill().unwrap();
+    worker.wait().unwrap();
+    let finally = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays();
+    assert!(
+        finally > after_crash,
+        "the worker came back to the restarted server ({after_crash} -> {finally})"
+    );
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
 }

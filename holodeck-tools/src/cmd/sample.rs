@@ -2,11 +2,13 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::worker::{run_worker, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
+use holodeck_server::settings::parse_duration;
 
 use crate::human::count;
 
@@ -14,7 +16,8 @@ use crate::human::count;
 #[derive(clap::Args)]
 #[command(after_help = "\
 Loads the scene, proves to the server that it is the same scene (content hash), and traces
-the packets the server hands out until the server stops. Workers are stateless: start and
+the packets the server hands out until the server stops. If the server goes away (a restart,
+say), each worker retries with growing delays for --retry-for before ending. Workers are stateless: start and
 stop them at any time, on any host that can reach the server.
 
 Examples:
@@ -47,6 +50,51 @@ pub struct Args {
     /// Triangles for builtin:landscape.
     #[arg(long)]
     triangles: Option<u64>,
+    /// After losing the server, keep trying to reconnect this long (e.g. 30s, 5m; 0s: give up at once).
+    #[arg(long, default_value = "60s")]
+    retry_for: String,
+}
+
+/// Runs one worker connection, reconnecting with exponential backoff while
+/// the server is away (restarting, say) for up to `retry_for`; a refusal ends it.
+fn work(
+    addr: &str,
+    tracer: &Tracer,
+    hash: &str,
+    token: &str,
+    seed: u64,
+    retry_for: Duration,
+) -> Result<u64, WorkerError> {
+    let (mut total, mut round) = (0u64, 0u64);
+    let mut delay = Duration::from_millis(250);
+    let mut lost_since: Option<Instant> = None;
+    loop {
+        match run_worker(
+            addr,
+            tracer,
+            hash,
+            token,
+            seed.wrapping_add(round.wrapping_mul(0x9E37_79B9)),
+        ) {
+            Ok(n) => {
+                total += n;
+                if n > 0 {
+                    delay = Duration::from_millis(250);
+                    lost_since = None;
+                }
+            }
+            Err(WorkerError::Io { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        round += 1;
+        let since = *lost_since.get_or_insert_with(Instant::now);
+        if since.elapsed() >= retry_for {
+            return Ok(total);
+        }
+        tracing::info!("{addr}: server unavailable; retrying in {delay:?}");
+        std::thread::sleep(delay.min(retry_for.saturating_sub(since.elapsed())));
+        delay = (delay * 2).min(Duration::from_secs(10));
+    }
 }
 
 /// Runs the command.
@@ -67,6 +115,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ..TraceOptions::default()
     };
     let tracer = Tracer::new(scene, options);
+    let retry_for = parse_duration(&a.retry_for, 1.0)
+        .map_err(anyhow::Error::msg)
+        .context("--retry-for")?;
     let jobs = a
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
@@ -76,12 +127,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .map(|j| {
                 let (tracer, hash, token, addr) = (&tracer, &hash, &token, &a.connect);
                 s.spawn(move || {
-                    run_worker(
+                    work(
                         addr,
                         tracer,
                         hash,
                         token,
                         a.seed.wrapping_mul(1000).wrapping_add(j as u64),
+                        retry_for,
                     )
                 })
             })
