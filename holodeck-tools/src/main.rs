@@ -37,6 +37,7 @@ Examples:
   holodeck scene info landscape.toml
   holodeck render builtin:room --spp 64 -o room.png
   holodeck fill builtin:room room.hdk --rays 2M
+  holodeck run builtin:room room.hdk -n 2 --time 30s
   holodeck serve room.hdk --listen 0.0.0.0:7777
   holodeck sample builtin:room --connect host:7777 --token-file room.hdk.token";
 
@@ -60,6 +61,8 @@ enum Command {
     Render(cmd::render::Args),
     /// Trace rays of a scene into a holodeck file (a batch fill in this process).
     Fill(cmd::fill::Args),
+    /// Fill with a server and local sampler processes in one command (like rholo).
+    Run(cmd::run::Args),
     /// Serve a holodeck file to samplers and displays over TCP.
     Serve(cmd::serve::Args),
     /// Trace packets for a holodeck server (a sampler worker; any host).
@@ -95,6 +98,7 @@ fn main() -> ExitCode {
         Command::Scene(a) => cmd::scene::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Fill(a) => cmd::fill::run(a),
+        Command::Run(a) => cmd::run::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Sample(a) => cmd::sample::run(a),
     };

@@ -253,3 +253,44 @@ fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
     );
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
 }
+
+#[test]
+fn run_fills_with_local_samplers_and_stops_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = bin()
+        .args([
+            "run",
+            "builtin:room",
+            file.to_str().unwrap(),
+            "-n",
+            "2",
+            "--time",
+            "2s",
+            "--bounces",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("rays added"));
+    let rays = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays();
+    assert!(rays > 10_000, "{rays}");
+    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    let o = bin()
+        .args([
+            "run",
+            "builtin:room",
+            file.to_str().unwrap(),
+            "--time",
+            "1s",
+            "-o",
+            "quadtree",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("not available yet"));
+}

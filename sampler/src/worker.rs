@@ -61,6 +61,8 @@ impl Link {
                 self.buf.drain(..used);
                 return Ok(Some(frame));
             }
+            // About to wait for the server: send what is finished first.
+            self.flush()?;
             let mut chunk = [0u8; 16 << 10];
             let n = self.stream.read(&mut chunk).map_err(|e| WorkerError::Io {
                 addr: self.addr.clone(),
@@ -73,12 +75,23 @@ impl Link {
         }
     }
 
+    /// Queues a frame; it goes out with the next flush (before any blocking read).
     fn write(&mut self, frame: &Frame) -> Result<(), WorkerError> {
-        self.out.clear();
         encode_frame(frame, &mut self.out)?;
+        if self.out.len() >= 1 << 20 {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<(), WorkerError> {
+        if self.out.is_empty() {
+            return Ok(());
+        }
         let out = std::mem::take(&mut self.out);
         let r = self.stream.write_all(&out).map_err(self.io());
         self.out = out;
+        self.out.clear();
         r
     }
 }

@@ -1,11 +1,11 @@
 //! `holodeck fill`: trace rays of a scene into a holodeck file, in this process.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use holodeck_sampler::scene::hash::content_hash;
-use holodeck_sampler::{TraceOptions, Tracer};
+use holodeck_sampler::{Scene, TraceOptions, Tracer};
 use holodeck_server::settings::{parse_duration, Settings};
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -52,6 +52,34 @@ pub struct Args {
     triangles: Option<u64>,
 }
 
+/// Loads a scene and opens its holodeck file for writing, creating the file
+/// from the scene's sections if it does not exist; refuses a file made for
+/// another scene.
+pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>) -> Result<(Scene, HoloFile)> {
+    let scene = super::render::load(scene_spec, triangles)?;
+    let hash = content_hash(&scene);
+    if !path.exists() {
+        if scene.sections.is_empty() {
+            bail!("scene {scene_spec} defines no holodeck section; add [[section]] tables to it");
+        }
+        let settings = Settings {
+            sections: scene.sections.clone(),
+            scene: Some(hash.clone()),
+            ..Settings::default()
+        };
+        HoloFile::create(path, &settings)?;
+    }
+    let file = HoloFile::open(path, &OpenOptions::default())?;
+    match &file.settings().scene {
+        Some(h) if *h != hash => bail!(
+            "{} holds rays of another scene ({h}); this scene is {hash}. Use a new file.",
+            path.display()
+        ),
+        _ => {}
+    }
+    Ok((scene, file))
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     if a.rays.is_none() && a.time.is_none() {
@@ -63,30 +91,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|t| parse_duration(t, 1.0))
         .transpose()
         .map_err(anyhow::Error::msg)?;
-    let scene = super::render::load(&a.scene, a.triangles)?;
-    let hash = content_hash(&scene);
-    if !a.file.exists() {
-        if scene.sections.is_empty() {
-            bail!(
-                "scene {} defines no holodeck section; add [[section]] tables to it",
-                a.scene
-            );
-        }
-        let settings = Settings {
-            sections: scene.sections.clone(),
-            scene: Some(hash.clone()),
-            ..Settings::default()
-        };
-        HoloFile::create(&a.file, &settings)?;
-    }
-    let mut file = HoloFile::open(&a.file, &OpenOptions::default())?;
-    match &file.settings().scene {
-        Some(h) if *h != hash => bail!(
-            "{} holds rays of another scene ({h}); this scene is {hash}. Use a new file.",
-            a.file.display()
-        ),
-        _ => {}
-    }
+    let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles)?;
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,

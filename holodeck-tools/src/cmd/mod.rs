@@ -9,6 +9,7 @@ pub mod grid;
 pub mod info;
 pub mod optimize;
 pub mod render;
+pub mod run;
 pub mod sample;
 pub mod scene;
 pub mod serve;

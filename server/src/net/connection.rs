@@ -67,6 +67,16 @@ impl Connection {
         }
     }
 
+    /// Sends several frames in one write.
+    pub async fn write_all(&mut self, frames: &[Frame]) -> Result<(), ConnectionError> {
+        self.out.clear();
+        for f in frames {
+            encode_frame(f, &mut self.out)?;
+        }
+        self.stream.write_all(&self.out).await?;
+        Ok(())
+    }
+
     /// Sends one frame.
     pub async fn write(&mut self, frame: &Frame) -> Result<(), ConnectionError> {
         self.out.clear();

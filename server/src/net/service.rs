@@ -205,19 +205,21 @@ async fn sampler(mut conn: Connection, shared: &Shared) -> Result<(), Connection
             .await
             .next(shared.config.batch, shared.config.packet);
         let mut pending: HashMap<u64, (BeamKey, u32)> = HashMap::with_capacity(batch.len());
+        let mut frames = Vec::with_capacity(batch.len());
         for (key, rays) in batch {
             let id = shared.next_id.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             pending.insert(id, (key, rays));
-            let packet = TracePacket {
+            frames.push(Frame::Message(Message::Trace(TracePacket {
                 id,
                 key,
                 rays,
                 mode: SamplingMode::Uniform,
-            };
-            if let Err(e) = conn.write(&Frame::Message(Message::Trace(packet))).await {
-                give_back(shared, &pending).await;
-                return Err(e);
-            }
+            })));
+        }
+        // One write for the whole batch: per-packet writes cost more than the packets.
+        if let Err(e) = conn.write_all(&frames).await {
+            give_back(shared, &pending).await;
+            return Err(e);
         }
         while !pending.is_empty() {
             let frame = tokio::select! {

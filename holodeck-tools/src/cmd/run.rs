@@ -1,0 +1,189 @@
+//! `holodeck run`: the server and local sampler processes in one command
+//! (like Radiance's rholo). Without a display it is a batch fill.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use holodeck_protocol::wire::{decode_frame, encode_frame, Control, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_server::settings::parse_duration;
+use holodeck_server::{HoloFile, OpenOptions};
+
+use crate::human::count;
+
+/// Arguments of `holodeck run`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Starts `holodeck serve` on a free local port and WORKERS `holodeck sample` processes
+(one tracing thread each), lets them fill FILE for --time, then asks the server to quit
+(it flushes) and waits for everything to end. Ctrl-C stops early, also cleanly.
+For workers on other hosts, start `holodeck serve` and `holodeck sample` yourself.
+
+Examples:
+  holodeck run builtin:room room.hdk -n 2 --time 30s
+  holodeck run scenes/room.toml room.hdk -n 16 --time 2h")]
+pub struct Args {
+    /// Scene file, or builtin:NAME.
+    scene: String,
+    /// The holodeck file (created from the scene if missing).
+    file: PathBuf,
+    /// Local sampler processes.
+    #[arg(short = 'n', long, default_value_t = 1)]
+    workers: usize,
+    /// How long to fill (e.g. 30s, 10m, 2h).
+    #[arg(long)]
+    time: String,
+    /// Display driver; only `none` (a batch fill) exists so far.
+    #[arg(short = 'o', long, default_value = "none")]
+    output: String,
+    /// Largest number of bounces.
+    #[arg(long, default_value_t = 8)]
+    bounces: u32,
+}
+
+fn me() -> Result<Command> {
+    Ok(Command::new(
+        std::env::current_exe().context("finding the holodeck executable")?,
+    ))
+}
+
+/// Asks the server at `addr` to flush and quit.
+fn quit(addr: &str, token: &str) -> Result<()> {
+    let mut stream = TcpStream::connect(addr)?;
+    let hello = Hello {
+        version: PROTOCOL_VERSION,
+        role: Role::Admin,
+        scene: String::new(),
+        token: token.into(),
+        read_only: false,
+    };
+    let mut out = Vec::new();
+    encode_frame(&Frame::Message(Message::Hello(hello)), &mut out)?;
+    encode_frame(&Frame::Message(Message::Control(Control::Quit)), &mut out)?;
+    stream.write_all(&out)?;
+    // Read the welcome so the quit is not sent into a closed socket.
+    let mut buf = Vec::new();
+    let mut chunk = [0u8; 4096];
+    while decode_frame(&buf)?.is_none() {
+        let n = stream.read(&mut chunk)?;
+        if n == 0 {
+            break;
+        }
+        buf.extend_from_slice(&chunk[..n]);
+    }
+    Ok(())
+}
+
+fn wait_all(children: &mut [Child], limit: Duration) {
+    let start = Instant::now();
+    for c in children.iter_mut() {
+        while c.try_wait().ok().flatten().is_none() && start.elapsed() < limit {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        if c.try_wait().ok().flatten().is_none() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    if a.output != "none" {
+        bail!(
+            "display driver {:?} is not available yet; use -o none for a batch fill",
+            a.output
+        );
+    }
+    let time = parse_duration(&a.time, 1.0)
+        .map_err(anyhow::Error::msg)
+        .context("--time")?;
+    let before = {
+        let (_, file) = super::fill::prepare(&a.scene, &a.file, None)?;
+        file.summary().rays()
+    };
+    let file = a
+        .file
+        .to_str()
+        .context("the file name must be valid UTF-8")?
+        .to_string();
+    let mut server = me()?
+        .args(["serve", &file, "--listen", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .context("starting the server")?;
+    let mut line = String::new();
+    BufReader::new(server.stdout.as_mut().context("server output")?).read_line(&mut line)?;
+    let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
+        let _ = server.kill();
+        bail!("the server did not start: {line:?}");
+    };
+    let token_file = format!("{file}.token");
+    let token = std::fs::read_to_string(&token_file)
+        .with_context(|| format!("reading {token_file}"))?
+        .trim()
+        .to_string();
+    let bounces = a.bounces.to_string();
+    let mut workers: Vec<Child> = (0..a.workers.max(1))
+        .map(|i| {
+            me()?
+                .args([
+                    "sample",
+                    &a.scene,
+                    "--connect",
+                    &addr,
+                    "--token-file",
+                    &token_file,
+                    "-j",
+                    "1",
+                ])
+                .args([
+                    "--bounces",
+                    &bounces,
+                    "--retry-for",
+                    "0s",
+                    "--seed",
+                    &(i as u64 + 1).to_string(),
+                ])
+                .stdout(Stdio::null())
+                .stderr(Stdio::inherit())
+                .spawn()
+                .context("starting a sampler")
+        })
+        .collect::<Result<_>>()?;
+    println!(
+        "filling {} with {} local samplers for {:?} (server {addr})",
+        a.file.display(),
+        workers.len(),
+        time
+    );
+    let start = Instant::now();
+    let bar = indicatif::ProgressBar::new(time.as_secs().max(1));
+    while start.elapsed() < time && server.try_wait()?.is_none() {
+        std::thread::sleep(Duration::from_millis(200));
+        bar.set_position(start.elapsed().as_secs());
+    }
+    bar.finish_and_clear();
+    let secs = start.elapsed().as_secs_f64();
+    if server.try_wait()?.is_none() {
+        quit(&addr, &token).context("asking the server to quit")?;
+    }
+    wait_all(std::slice::from_mut(&mut server), Duration::from_secs(60));
+    wait_all(&mut workers, Duration::from_secs(10));
+    let after = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
+    let added = after.rays().saturating_sub(before);
+    println!(
+        "{}: {} rays added in {secs:.1} s ({:.0} rays/s); {} rays, {} of {} beams hold rays",
+        a.file.display(),
+        count(added),
+        added as f64 / secs.max(1e-9),
+        count(after.rays()),
+        count(after.sections.iter().map(|s| u64::from(s.1)).sum()),
+        count(after.sections.iter().map(|s| u64::from(s.0)).sum())
+    );
+    Ok(ExitCode::SUCCESS)
+}
