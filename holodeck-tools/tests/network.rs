@@ -92,20 +92,7 @@ fn server_samplers_display_and_quit() {
         .status
         .success());
     let token = "test-token";
-    let mut server = bin()
-        .args(["serve", f, "--listen", "127.0.0.1:0", "--token", token])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut out = BufReader::new(server.stdout.take().unwrap());
-    let mut line = String::new();
-    out.read_line(&mut line).unwrap();
-    let addr = line
-        .trim()
-        .strip_prefix("listening on ")
-        .expect("the server prints its address")
-        .to_string();
+    let (mut server, addr) = start_server(f, "127.0.0.1:0", token);
 
     // Refused peers: wrong token, wrong scene, garbage. The server keeps serving.
     let bad_token = sampler(&addr, "nope", &["builtin:room"]).wait_with_output().unwrap();
@@ -118,6 +105,37 @@ fn server_samplers_display_and_quit() {
     let mut garbage = TcpStream::connect(&addr).unwrap();
     garbage.write_all(&[0xff; 64]).unwrap();
     drop(garbage);
+
+    // A future protocol version and an oversized frame are refused too.
+    {
+        let mut c = Client {
+            stream: TcpStream::connect(&addr).unwrap(),
+            buf: Vec::new(),
+        };
+        c.stream.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        let hello = Hello {
+            version: PROTOCOL_VERSION + 1,
+            role: Role::Display,
+            scene: String::new(),
+            token: token.into(),
+            read_only: true,
+        };
+        c.send(&Frame::Message(Message::Hello(hello)));
+        match c.recv() {
+            Frame::Message(Message::Refused { reason }) => assert!(reason.contains("protocol version"), "{reason}"),
+            other => panic!("{other:?}"),
+        }
+        let mut c = Client {
+            stream: TcpStream::connect(&addr).unwrap(),
+            buf: Vec::new(),
+        };
+        c.stream.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        c.stream.write_all(&[0xff, 0xff, 0xff, 0x7f, 0]).unwrap();
+        match c.recv() {
+            Frame::Message(Message::Refused { reason }) => assert!(reason.contains("larger than"), "{reason}"),
+            other => panic!("{other:?}"),
+        }
+    }
 
     // Two samplers fill; one is killed mid-run and the other carries on.
     let mut a = sampler(&addr, token, &["builtin:room"]);
@@ -145,6 +163,19 @@ fn server_samplers_display_and_quit() {
         }
     }
     assert!(rays > 50, "the requested beams hold rays ({rays})");
+    // A second display, asking for other beams at the same time, gets its own.
+    let (mut other, _) = Client::connect(&addr, Role::Display, token);
+    let theirs: Vec<(BeamKey, u32)> = (0..30).map(|b| (BeamKey::new(0, 13 + b * 101), 10)).collect();
+    other.send(&Frame::Message(Message::BeamRequest { beams: theirs.clone() }));
+    display.send(&Frame::Message(Message::BeamRequest { beams: keys.clone() }));
+    for (client, wanted) in [(&mut other, &theirs), (&mut display, &keys)] {
+        for _ in 0..wanted.len() {
+            match client.recv() {
+                Frame::Beam { key, .. } => assert!(wanted.iter().any(|(k, _)| *k == key), "{key:?} was not asked for"),
+                f => panic!("expected beam data, got {f:?}"),
+            }
+        }
+    }
     assert!(sections[0].grid[0] > 0);
 
     // An admin quits: the server flushes and exits; the surviving sampler ends cleanly.
@@ -168,7 +199,8 @@ fn server_samplers_display_and_quit() {
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
 }
 
-fn start_server(f: &str, addr: &str, token: &str) -> Child {
+/// Starts `holodeck serve` and returns it with the address it listens on.
+fn start_server(f: &str, addr: &str, token: &str) -> (Child, String) {
     let mut server = bin()
         .args(["serve", f, "--listen", addr, "--token", token])
         .stdout(Stdio::piped())
@@ -179,8 +211,12 @@ fn start_server(f: &str, addr: &str, token: &str) -> Child {
     BufReader::new(server.stdout.as_mut().unwrap())
         .read_line(&mut line)
         .unwrap();
-    assert!(line.starts_with("listening on"), "{line:?}");
-    server
+    let addr = line
+        .trim()
+        .strip_prefix("listening on ")
+        .expect("the server prints its address")
+        .to_string();
+    (server, addr)
 }
 
 #[test]
@@ -201,7 +237,7 @@ fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
         .port();
     let addr = format!("127.0.0.1:{port}");
     let token = "t";
-    let mut first = start_server(f, &addr, token);
+    let (mut first, _) = start_server(f, &addr, token);
     let mut worker = bin()
         .args([
             "sample",
@@ -236,7 +272,7 @@ fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
 
     // Same file, same address: the worker reconnects by itself.
-    let mut second = start_server(f, &addr, token);
+    let (mut second, _) = start_server(f, &addr, token);
     std::thread::sleep(Duration::from_millis(3000));
     let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
     admin.send(&Frame::Message(Message::Control(Control::Quit)));

@@ -10,7 +10,7 @@
 use glam::Vec3;
 
 use super::{Hit, KdTree};
-use crate::geom::{intersect_triangle, Ray, RayPrep};
+use crate::geom::{axis_permutation, intersect_triangle, Ray, RayPrep};
 use crate::scene::Scene;
 
 /// Rays per packet.
@@ -238,22 +238,7 @@ impl SharedPrep {
             if active & (1 << i) == 0 {
                 continue;
             }
-            let a = r.dir.abs();
-            let kz = if a.x > a.y {
-                if a.x > a.z {
-                    0
-                } else {
-                    2
-                }
-            } else if a.y > a.z {
-                1
-            } else {
-                2
-            };
-            let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
-            if r.dir[kz] < 0.0 {
-                std::mem::swap(&mut kx, &mut ky);
-            }
+            let [kx, ky, kz] = axis_permutation(r.dir);
             match k {
                 None => k = Some([kx, ky, kz]),
                 Some(prev) if prev != [kx, ky, kz] => return p,

@@ -5,7 +5,7 @@ mod offset;
 mod triangle;
 
 pub use offset::offset_origin;
-pub use triangle::{intersect_triangle, RayPrep, TriangleHit};
+pub use triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
 
 use glam::Vec3;
 

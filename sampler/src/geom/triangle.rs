@@ -21,22 +21,7 @@ impl RayPrep {
     /// Prepares a ray with origin `origin` and direction `dir` (non-zero).
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> RayPrep {
-        let a = dir.abs();
-        let kz = if a.x > a.y {
-            if a.x > a.z {
-                0
-            } else {
-                2
-            }
-        } else if a.y > a.z {
-            1
-        } else {
-            2
-        };
-        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
-        if dir[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
+        let [kx, ky, kz] = axis_permutation(dir);
         let (sx, sy, sz) = (dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]);
         let (mut row_x, mut row_y, mut row_z) = ([0f32; 3], [0f32; 3], [0f32; 3]);
         row_x[kx] = 1.0;
@@ -51,6 +36,30 @@ impl RayPrep {
             row_z: Vec3::from(row_z),
         }
     }
+}
+
+/// The axes (x', y', z') of the sheared space: z' is the direction's largest
+/// component, and x', y' are swapped when it is negative so that triangles keep
+/// their winding.
+#[inline]
+pub fn axis_permutation(dir: Vec3) -> [usize; 3] {
+    let a = dir.abs();
+    let kz = if a.x > a.y {
+        if a.x > a.z {
+            0
+        } else {
+            2
+        }
+    } else if a.y > a.z {
+        1
+    } else {
+        2
+    };
+    let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    if dir[kz] < 0.0 {
+        std::mem::swap(&mut kx, &mut ky);
+    }
+    [kx, ky, kz]
 }
 
 /// Where a ray hits a triangle: distance and barycentrics of vertices 1 and 2.
