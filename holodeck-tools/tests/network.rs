@@ -83,14 +83,8 @@ impl Client {
 #[test]
 fn server_samplers_display_and_quit() {
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("room.hdk");
+    let file = small_room(dir.path());
     let f = file.to_str().unwrap();
-    assert!(bin()
-        .args(["fill", "builtin:room", f, "--rays", "1K", "--bounces", "0"])
-        .output()
-        .unwrap()
-        .status
-        .success());
     let token = "test-token";
     let (mut server, addr) = start_server(f, "127.0.0.1:0", token);
 
@@ -199,6 +193,25 @@ fn server_samplers_display_and_quit() {
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
 }
 
+/// A holodeck file of the built-in room that records its scene.
+fn small_room(dir: &std::path::Path) -> std::path::PathBuf {
+    let file = dir.join("room.hdk");
+    let o = bin()
+        .args([
+            "fill",
+            "builtin:room",
+            file.to_str().unwrap(),
+            "--rays",
+            "1K",
+            "--bounces",
+            "0",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    file
+}
+
 /// Starts `holodeck serve` and returns it with the address it listens on.
 fn start_server(f: &str, addr: &str, token: &str) -> (Child, String) {
     let mut server = bin()
@@ -222,14 +235,8 @@ fn start_server(f: &str, addr: &str, token: &str) -> (Child, String) {
 #[test]
 fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("room.hdk");
+    let file = small_room(dir.path());
     let f = file.to_str().unwrap();
-    assert!(bin()
-        .args(["fill", "builtin:room", f, "--rays", "1K", "--bounces", "0"])
-        .output()
-        .unwrap()
-        .status
-        .success());
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()

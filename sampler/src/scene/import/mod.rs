@@ -88,6 +88,14 @@ pub fn import_file_with(
     Ok(())
 }
 
+/// Opens a file to import, naming it in the error.
+pub(crate) fn open(path: &Path) -> Result<std::fs::File, SceneError> {
+    std::fs::File::open(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 /// Largest file an importer reads (glTF buffers, MTL libraries).
 pub(crate) const MAX_FILE_BYTES: u64 = 64 << 30;
 

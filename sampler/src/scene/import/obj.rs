@@ -3,7 +3,6 @@
 //! `illum` 3 with black `Kd` metal; `Ks` > 0 plastic with roughness
 //! sqrt(2 / (Ns + 2)); anything else lambertian with `Kd`. Textures are ignored.
 
-use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 
@@ -21,10 +20,7 @@ pub(super) fn import(
     transform: Mat4,
     options: &ImportOptions,
 ) -> Result<(), SceneError> {
-    let file = File::open(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let file = super::open(path)?;
     let load = tobj::LoadOptions {
         triangulate: true,
         single_index: true,

@@ -5,7 +5,6 @@
 //! one at a time straight into the scene's arrays, so memory stays at the size
 //! of the result however large the file.
 
-use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
@@ -132,10 +131,7 @@ pub(super) fn import(
     transform: Mat4,
     options: &ImportOptions,
 ) -> Result<(), SceneError> {
-    let file = File::open(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let file = super::open(path)?;
     let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let header = Parser::<Skip>::new()
