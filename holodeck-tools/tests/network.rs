@@ -337,3 +337,42 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
         .unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("not available yet"));
 }
+
+#[test]
+fn serve_reports_progress_and_stops_when_its_time_is_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let f = file.to_str().unwrap();
+    let token = "t";
+    let mut server = bin()
+        .args([
+            "serve",
+            f,
+            "--listen",
+            "127.0.0.1:0",
+            "--token",
+            token,
+            "--time",
+            "3s",
+            "--report",
+            "0.5s",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(server.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    let addr = line.trim().strip_prefix("listening on ").unwrap().to_string();
+    let worker = sampler(&addr, token, &["builtin:room"]);
+    let start = Instant::now();
+    let mut rest = String::new();
+    out.read_to_string(&mut rest).unwrap(); // ends when the server exits
+    assert!(server.wait().unwrap().success());
+    assert!(start.elapsed() < Duration::from_secs(15), "TIME stops the server");
+    let progress: Vec<&str> = rest.lines().filter(|l| l.starts_with("progress:")).collect();
+    assert!(progress.len() >= 3, "{rest}");
+    assert!(progress.last().unwrap().contains("rays/s"), "{rest}");
+    assert!(worker.wait_with_output().unwrap().status.success());
+}

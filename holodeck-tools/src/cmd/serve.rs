@@ -3,9 +3,11 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 use anyhow::{Context, Result};
 use holodeck_server::net::{serve, ServerConfig};
+use holodeck_server::settings::parse_duration;
 use holodeck_server::{HoloFile, OpenOptions};
 use rand::Rng;
 
@@ -35,6 +37,12 @@ pub struct Args {
     /// Packets a sampler works on at once.
     #[arg(long, default_value_t = 64)]
     batch: usize,
+    /// Stop after this long (e.g. 2h); default: the file's TIME setting (0: no limit).
+    #[arg(long)]
+    time: Option<String>,
+    /// Print progress this often (e.g. 1m); default: the file's REPORT setting (0: never).
+    #[arg(long)]
+    report: Option<String>,
 }
 
 fn token_path(file: &Path) -> PathBuf {
@@ -71,10 +79,23 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     };
     let file = HoloFile::open(&a.file, &OpenOptions::default())?;
+    let setting = |flag: &Option<String>, from_file: Duration, name: &str| -> Result<Option<Duration>> {
+        let d = match flag {
+            Some(t) => parse_duration(t, 1.0)
+                .map_err(anyhow::Error::msg)
+                .with_context(|| format!("--{name}"))?,
+            None => from_file,
+        };
+        Ok((!d.is_zero()).then_some(d))
+    };
+    let time = setting(&a.time, file.settings().time, "time")?;
+    let report = setting(&a.report, file.settings().report, "report")?;
     let config = ServerConfig {
         token,
         packet: a.packet.max(1),
         batch: a.batch.max(1),
+        time,
+        report,
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {

@@ -31,6 +31,10 @@ pub struct ServerConfig {
     pub packet: u32,
     /// Packets a sampler works on at once.
     pub batch: usize,
+    /// Stop (flushing) after this long (the TIME setting).
+    pub time: Option<Duration>,
+    /// Print a progress line this often (the REPORT setting).
+    pub report: Option<Duration>,
 }
 
 /// Why the server stopped with an error.
@@ -89,6 +93,18 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
             }
         })
     };
+    let reporter = shared
+        .config
+        .report
+        .map(|every| tokio::spawn(report(store.clone(), every)));
+    let time_limit = shared.config.time;
+    let deadline = async move {
+        match time_limit {
+            Some(t) => tokio::time::sleep(t).await,
+            None => std::future::pending::<()>().await,
+        }
+    };
+    tokio::pin!(deadline);
     let mut tasks = tokio::task::JoinSet::new();
     loop {
         tokio::select! {
@@ -103,6 +119,10 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
             }
             Some(_) = tasks.join_next(), if !tasks.is_empty() => {}
             _ = stopped.changed() => break,
+            _ = &mut deadline => {
+                tracing::info!("TIME is up");
+                break;
+            }
             _ = tokio::signal::ctrl_c() => break,
             _ = terminate() => break,
         }
@@ -113,6 +133,9 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
     tasks.shutdown().await;
     tracing::info!("shutting down: flushing the file");
     flusher.abort();
+    if let Some(r) = reporter {
+        r.abort();
+    }
     let flushed = store.flush().await;
     drop(store);
     drop(shared);
@@ -123,6 +146,34 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
         .await
         .unwrap_or(Ok(()))?;
     Ok(())
+}
+
+/// Prints a progress line every `every`: rays stored, the rate since the last
+/// line, beams holding rays, and the file size.
+async fn report(store: Store, every: Duration) {
+    let mut tick = tokio::time::interval(every);
+    tick.tick().await;
+    let mut last: Option<(u64, std::time::Instant)> = None;
+    loop {
+        tick.tick().await;
+        let Some(s) = store.summary().await else { return };
+        let (rays, now) = (s.rays(), std::time::Instant::now());
+        let rate = last.map_or(0.0, |(r, t)| {
+            (rays.saturating_sub(r)) as f64 / now.duration_since(t).as_secs_f64()
+        });
+        let (filled, beams): (u64, u64) = s
+            .sections
+            .iter()
+            .fold((0, 0), |(f, b), x| (f + u64::from(x.1), b + u64::from(x.0)));
+        println!(
+            "progress: {rays} rays, {rate:.0} rays/s, {filled} of {beams} beams hold rays ({:.1}%), file {} bytes",
+            100.0 * filled as f64 / beams.max(1) as f64,
+            s.file_bytes
+        );
+        use std::io::Write as _;
+        let _ = std::io::stdout().flush();
+        last = Some((rays, now));
+    }
 }
 
 #[cfg(unix)]

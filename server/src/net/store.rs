@@ -7,7 +7,7 @@ use std::thread::JoinHandle;
 use holodeck_protocol::{BeamKey, RayRecord};
 use tokio::sync::{mpsc, oneshot};
 
-use crate::storage::{HoloFile, Result, StorageError};
+use crate::storage::{FileSummary, HoloFile, Result, StorageError};
 
 /// Beams read from the file: each key with its rays.
 pub type Beams = Vec<(BeamKey, Vec<RayRecord>)>;
@@ -17,6 +17,7 @@ enum Request {
     Read(Vec<BeamKey>, oneshot::Sender<Result<Beams>>),
     Len(BeamKey, oneshot::Sender<u64>),
     Flush(oneshot::Sender<Result<()>>),
+    Summary(oneshot::Sender<FileSummary>),
 }
 
 /// A handle to the storage thread; cheap to clone.
@@ -54,6 +55,9 @@ impl Store {
                     Request::Flush(reply) => {
                         let _ = reply.send(file.flush());
                     }
+                    Request::Summary(reply) => {
+                        let _ = reply.send(file.summary());
+                    }
                 }
             }
             file.close()
@@ -88,6 +92,13 @@ impl Store {
             return 0;
         }
         rx.await.unwrap_or(0)
+    }
+
+    /// Counts for a progress report.
+    pub async fn summary(&self) -> Option<FileSummary> {
+        let (tx, rx) = oneshot::channel();
+        self.tx.send(Request::Summary(tx)).ok()?;
+        rx.await.ok()
     }
 
     /// Makes everything stored so far durable.
