@@ -1,25 +1,12 @@
 //! The `holodeck` binary end to end: real processes, real files, exit codes.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe};
 use holodeck_server::{HoloFile, OpenOptions};
 
-fn holodeck(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_holodeck"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{holodeck, text};
 
 const ROOM: &str = "interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5";
 

@@ -1,21 +1,7 @@
 //! `holodeck scene gen` and `holodeck scene info` as real processes.
 
-use std::process::{Command, Output};
-
-fn holodeck(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_holodeck"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+mod common;
+use common::{holodeck, text};
 
 #[test]
 fn gen_room_then_info_prints_the_loaded_scene_and_its_hash() {

@@ -210,19 +210,23 @@ mod tests {
     use super::*;
     use holodeck_protocol::SectionKind;
 
+    fn room() -> Section {
+        Section::new(
+            [0.0; 3],
+            [[6.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 2.5]],
+            [6, 4, 3],
+            SectionKind::Interior,
+        )
+        .unwrap()
+    }
+
     fn distance_to_line(p: DVec3, o: DVec3, d: DVec3) -> f64 {
         (p - o).cross(d).length() / d.length()
     }
 
     #[test]
     fn rays_stay_in_their_beam_and_mostly_pass_near_the_eye() {
-        let s = Section::new(
-            [0.0; 3],
-            [[6.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 2.5]],
-            [6, 4, 3],
-            SectionKind::Interior,
-        )
-        .unwrap();
+        let s = room();
         let eye = DVec3::new(2.2, 1.7, 1.1);
         let radius = 0.25;
         let mut rng = Rng::new(3, 0);
@@ -268,13 +272,7 @@ mod tests {
 
     #[test]
     fn an_eye_far_from_a_beam_falls_back_to_uniform() {
-        let s = Section::new(
-            [0.0; 3],
-            [[6.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 2.5]],
-            [6, 4, 3],
-            SectionKind::Interior,
-        )
-        .unwrap();
+        let s = room();
         let mut rng = Rng::new(5, 0);
         // A beam between two cells of the floor and ceiling at one corner, an eye at the other.
         let beam = s.locate(DVec3::new(0.3, 0.3, -1.0), DVec3::Z).unwrap().beam;

@@ -42,7 +42,6 @@ impl Store {
                         if let Err(e) = file.append(key, &rays) {
                             tracing::error!("storing rays of {key:?}: {e}");
                         }
-                        let _ = file.flush_if_due();
                     }
                     Request::Read(keys, reply) => {
                         let mut out = Vec::with_capacity(keys.len());
