@@ -1,3 +1,36 @@
-//! The display: beam selection, image drivers (quadtree, Voronoi cones,
-//! spherical Delaunay mesh) and tone mapping. Nothing is implemented yet; this
-//! crate only reserves its place in the workspace.
+//! The display: what the user sees and what gets computed next.
+//!
+//! A display turns a view into beam requests ([`request`]), turns the samples
+//! that come back into an image with a [`Driver`] (the CPU quadtree here; GPU
+//! drivers elsewhere), and maps radiance to display values ([`tonemap`]).
+//! Drivers know no sockets and no files: the headless client and
+//! `holodeck pict` feed them.
+
+pub mod client;
+pub mod compare;
+pub mod driver;
+pub mod image_io;
+pub mod output;
+pub mod quadtree;
+pub mod request;
+pub mod sample;
+pub mod splat;
+pub mod tonemap;
+
+pub use driver::{Driver, DriverError, DriverStats, Viewport, MAX_VIEWPORT_PIXELS};
+pub use sample::{Sample, SampleDecoder};
+
+/// The drivers this crate has, by name.
+pub const DRIVERS: &[&str] = &["quadtree", "splat"];
+
+/// Makes the driver called `name` (see [`DRIVERS`]).
+pub fn new_driver(name: &str, viewport: Viewport) -> Result<Box<dyn Driver>, String> {
+    match name {
+        "quadtree" => Ok(Box::new(quadtree::QuadtreeDriver::new(viewport))),
+        "splat" => Ok(Box::new(splat::SplatDriver::new(viewport))),
+        "voronoi" | "mesh" => Err(format!(
+            "the {name} driver needs a GPU front end, which is not built yet"
+        )),
+        _ => Err(format!("unknown driver {name:?} (known: {})", DRIVERS.join(", "))),
+    }
+}

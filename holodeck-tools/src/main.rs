@@ -63,8 +63,12 @@ enum Command {
     Fill(cmd::fill::Args),
     /// Fill with a server and local sampler processes in one command (like rholo).
     Run(cmd::run::Args),
-    /// Serve a holodeck file to samplers and displays over TCP.
+    /// Serve a holodeck file to samplers and displays over TCP or a Unix socket.
     Serve(cmd::serve::Args),
+    /// Draw pictures straight from a holodeck file (like rhpict).
+    Pict(cmd::pict::Args),
+    /// A display client: views from a server, drawn headless into files.
+    View(cmd::view::Args),
     /// Trace packets for a holodeck server (a sampler worker; any host).
     Sample(cmd::sample::Args),
 }
@@ -100,6 +104,8 @@ fn main() -> ExitCode {
         Command::Fill(a) => cmd::fill::run(a),
         Command::Run(a) => cmd::run::run(a),
         Command::Serve(a) => cmd::serve::run(a),
+        Command::Pict(a) => cmd::pict::run(a),
+        Command::View(a) => cmd::view::run(a),
         Command::Sample(a) => cmd::sample::run(a),
     };
     match result {

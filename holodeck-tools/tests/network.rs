@@ -6,8 +6,9 @@ use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::wire::{decode_frame, encode_frame, Control, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{Control, EyePoint, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
 use holodeck_protocol::BeamKey;
+use holodeck_sampler::worker::{connect, ServerStream};
 use holodeck_server::{HoloFile, OpenOptions};
 
 fn bin() -> Command {
@@ -38,20 +39,17 @@ fn sampler(addr: &str, token: &str, scene: &[&str]) -> Child {
 
 /// A raw client: handshake as `role`, then exchange frames.
 struct Client {
-    stream: TcpStream,
-    buf: Vec<u8>,
+    link: FrameLink<Box<dyn ServerStream>>,
 }
 
 impl Client {
     fn connect(addr: &str, role: Role, token: &str) -> (Client, Frame) {
-        let stream = TcpStream::connect(addr).unwrap();
-        stream.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-        let mut c = Client {
-            stream,
-            buf: Vec::new(),
-        };
+        Client::hello(addr, role, token, PROTOCOL_VERSION)
+    }
+    fn hello(addr: &str, role: Role, token: &str, version: u32) -> (Client, Frame) {
+        let mut c = Client::raw(addr);
         let hello = Hello {
-            version: PROTOCOL_VERSION,
+            version,
             role,
             scene: String::new(),
             token: token.into(),
@@ -61,21 +59,38 @@ impl Client {
         let answer = c.recv();
         (c, answer)
     }
+    fn raw(addr: &str) -> Client {
+        let stream = connect(addr).unwrap();
+        Client {
+            link: FrameLink::new(stream),
+        }
+    }
     fn send(&mut self, f: &Frame) {
-        let mut out = Vec::new();
-        encode_frame(f, &mut out).unwrap();
-        self.stream.write_all(&out).unwrap();
+        self.link.write(f).unwrap();
+        self.link.flush().unwrap();
     }
     fn recv(&mut self) -> Frame {
+        self.link.read().unwrap().expect("server closed the connection")
+    }
+    /// Asks for beams (replacing earlier requests) and collects what arrives
+    /// up to the server's Delivered mark: (beam, rays) per Beam frame.
+    fn request(&mut self, beams: &[(BeamKey, u32)], eye: Option<EyePoint>) -> Vec<(BeamKey, usize)> {
+        self.send(&Frame::Message(Message::BeamRequest {
+            beams: beams.to_vec(),
+            eye,
+            replace: true,
+        }));
+        let mut got = Vec::new();
         loop {
-            if let Some((f, used)) = decode_frame(&self.buf).unwrap() {
-                self.buf.drain(..used);
-                return f;
+            match self.recv() {
+                Frame::Beam { key, records } => got.push((key, records.len())),
+                Frame::Message(Message::Delivered { beams, rays }) => {
+                    let sum: usize = got.iter().map(|g| g.1).sum();
+                    assert!(sum as u64 >= rays && got.len() >= beams as usize);
+                    return got;
+                }
+                other => panic!("expected beam data, got {other:?}"),
             }
-            let mut chunk = [0u8; 65536];
-            let n = self.stream.read(&mut chunk).unwrap();
-            assert!(n > 0, "server closed the connection");
-            self.buf.extend_from_slice(&chunk[..n]);
         }
     }
 }
@@ -102,29 +117,16 @@ fn server_samplers_display_and_quit() {
 
     // A future protocol version and an oversized frame are refused too.
     {
-        let mut c = Client {
-            stream: TcpStream::connect(&addr).unwrap(),
-            buf: Vec::new(),
-        };
-        c.stream.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-        let hello = Hello {
-            version: PROTOCOL_VERSION + 1,
-            role: Role::Display,
-            scene: String::new(),
-            token: token.into(),
-            read_only: true,
-        };
-        c.send(&Frame::Message(Message::Hello(hello)));
-        match c.recv() {
+        let (_, answer) = Client::hello(&addr, Role::Display, token, PROTOCOL_VERSION + 1);
+        match answer {
             Frame::Message(Message::Refused { reason }) => assert!(reason.contains("protocol version"), "{reason}"),
             other => panic!("{other:?}"),
         }
+        let mut raw = TcpStream::connect(&addr).unwrap();
+        raw.write_all(&[0xff, 0xff, 0xff, 0x7f, 0]).unwrap();
         let mut c = Client {
-            stream: TcpStream::connect(&addr).unwrap(),
-            buf: Vec::new(),
+            link: FrameLink::new(Box::new(raw)),
         };
-        c.stream.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-        c.stream.write_all(&[0xff, 0xff, 0xff, 0x7f, 0]).unwrap();
         match c.recv() {
             Frame::Message(Message::Refused { reason }) => assert!(reason.contains("larger than"), "{reason}"),
             other => panic!("{other:?}"),
@@ -145,31 +147,21 @@ fn server_samplers_display_and_quit() {
         panic!("{welcome:?}")
     };
     let keys: Vec<(BeamKey, u32)> = (0..50).map(|b| (BeamKey::new(0, b * 97), 10)).collect();
-    display.send(&Frame::Message(Message::BeamRequest { beams: keys.clone() }));
-    let mut rays = 0;
-    for _ in 0..keys.len() {
-        match display.recv() {
-            Frame::Beam { key, records } => {
-                assert!(keys.iter().any(|(k, _)| *k == key));
-                rays += records.len();
-            }
-            other => panic!("expected beam data, got {other:?}"),
-        }
-    }
+    let got = display.request(&keys, None);
+    assert!(got.iter().all(|(k, _)| keys.iter().any(|w| w.0 == *k)));
+    let rays: usize = got.iter().map(|g| g.1).sum();
     assert!(rays > 50, "the requested beams hold rays ({rays})");
     // A second display, asking for other beams at the same time, gets its own.
     let (mut other, _) = Client::connect(&addr, Role::Display, token);
     let theirs: Vec<(BeamKey, u32)> = (0..30).map(|b| (BeamKey::new(0, 13 + b * 101), 10)).collect();
-    other.send(&Frame::Message(Message::BeamRequest { beams: theirs.clone() }));
-    display.send(&Frame::Message(Message::BeamRequest { beams: keys.clone() }));
-    for (client, wanted) in [(&mut other, &theirs), (&mut display, &keys)] {
-        for _ in 0..wanted.len() {
-            match client.recv() {
-                Frame::Beam { key, .. } => assert!(wanted.iter().any(|(k, _)| *k == key), "{key:?} was not asked for"),
-                f => panic!("expected beam data, got {f:?}"),
-            }
-        }
-    }
+    let got_theirs = other.request(&theirs, None);
+    assert!(!got_theirs.is_empty());
+    assert!(
+        got_theirs.iter().all(|(k, _)| theirs.iter().any(|w| w.0 == *k)),
+        "{got_theirs:?}"
+    );
+    let again = display.request(&keys, None);
+    assert!(again.iter().all(|(k, _)| keys.iter().any(|w| w.0 == *k)), "{again:?}");
     assert!(sections[0].grid[0] > 0);
 
     // An admin quits: the server flushes and exits; the surviving sampler ends cleanly.
@@ -375,4 +367,135 @@ fn serve_reports_progress_and_stops_when_its_time_is_up() {
     assert!(progress.len() >= 3, "{rest}");
     assert!(progress.last().unwrap().contains("rays/s"), "{rest}");
     assert!(worker.wait_with_output().unwrap().status.success());
+}
+
+/// Rays received after a request's immediate transfer until every beam holds
+/// `want` counting the `base` rays it held before.
+fn collect_until(
+    client: &mut Client,
+    want: &[(BeamKey, u32)],
+    have: &mut std::collections::HashMap<BeamKey, Vec<holodeck_protocol::RayRecord>>,
+    base: &std::collections::HashMap<BeamKey, usize>,
+) {
+    let held = |have: &std::collections::HashMap<BeamKey, Vec<_>>, k: &BeamKey| {
+        have.get(k).map_or(0, Vec::len) + base.get(k).copied().unwrap_or(0)
+    };
+    let start = Instant::now();
+    while want.iter().any(|(k, n)| held(have, k) < *n as usize) {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "requested rays did not all arrive"
+        );
+        match client.recv() {
+            Frame::Beam { key, records } => have.entry(key).or_default().extend(records),
+            other => panic!("expected beam data, got {other:?}"),
+        }
+    }
+    for (k, n) in want {
+        assert_eq!(held(have, k), *n as usize, "{k:?}: exactly the rays asked for");
+    }
+}
+
+#[test]
+fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
+    use holodeck_protocol::{Section, View, ViewBeams};
+    use std::collections::HashMap;
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let sock = dir.path().join("room.sock");
+    let token = "t";
+    let mut server = bin()
+        .args([
+            "serve",
+            file.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+            "--token",
+            token,
+            "--no-fill",
+        ])
+        .args(["--unix", sock.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(server.stdout.take().unwrap());
+    let (mut l1, mut l2) = (String::new(), String::new());
+    out.read_line(&mut l1).unwrap();
+    out.read_line(&mut l2).unwrap();
+    let unix = format!("unix:{}", sock.display());
+    assert_eq!(l2.trim(), format!("listening on {unix}"));
+    let worker = sampler(&unix, token, &["builtin:room"]);
+
+    let (mut display, welcome) = Client::connect(&unix, Role::Display, token);
+    let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
+        panic!("{welcome:?}")
+    };
+    let sections: Vec<Section> = sections.into_iter().map(|s| Section::try_from(s).unwrap()).collect();
+    let s = &sections[0];
+    let eye = s.origin() + (s.axes()[0] + s.axes()[1] + s.axes()[2]) * 0.5;
+    let view = View::parse(&format!(
+        "-vtv -vp {} {} {} -vd 1 0.2 0 -vu 0 0 1 -vh 40 -vv 30",
+        eye.x, eye.y, eye.z
+    ))
+    .unwrap();
+    let seen = ViewBeams::select(&sections, &view, 6, 4, 1);
+    let (near, far): (Vec<_>, Vec<_>) = seen
+        .counts
+        .iter()
+        .map(|c| c.0)
+        .take(24)
+        .enumerate()
+        .partition(|(i, _)| i % 2 == 0);
+    let radius = 0.004 * s.diagonal();
+    let eye_point = EyePoint {
+        position: eye.to_array(),
+        radius,
+    };
+
+    // Near-eye requests first; every beam must reach 60 rays, traced for us and streamed.
+    let want_near: Vec<(BeamKey, u32)> = near.iter().map(|(_, k)| (*k, 60)).collect();
+    let mut have: HashMap<BeamKey, Vec<holodeck_protocol::RayRecord>> = HashMap::new();
+    let base: HashMap<BeamKey, usize> = display.request(&want_near, Some(eye_point)).into_iter().collect();
+    collect_until(&mut display, &want_near, &mut have, &base);
+    // Then the same number of uniform rays for the other beams, on a new request.
+    let want_far: Vec<(BeamKey, u32)> = far.iter().map(|(_, k)| (*k, 60)).collect();
+    let mut have_far: HashMap<BeamKey, Vec<holodeck_protocol::RayRecord>> = HashMap::new();
+    let base: HashMap<BeamKey, usize> = display.request(&want_far, None).into_iter().collect();
+    collect_until(&mut display, &want_far, &mut have_far, &base);
+
+    // How close do the rays pass to the eye?
+    let near_fraction = |rays: &HashMap<BeamKey, Vec<holodeck_protocol::RayRecord>>| {
+        let (mut close, mut all) = (0usize, 0usize);
+        for (k, recs) in rays {
+            for r in recs {
+                let d = s.decode_record(k.beam, r).unwrap();
+                let miss = (eye - d.ray.origin).cross(d.ray.direction).length();
+                close += usize::from(miss <= radius * 1.01);
+                all += 1;
+            }
+        }
+        close as f64 / all.max(1) as f64
+    };
+    let (fn_, ff) = (near_fraction(&have), near_fraction(&have_far));
+    eprintln!("near-eye fraction: proximity {fn_:.3}, uniform {ff:.3}");
+    assert!(
+        fn_ > 0.6,
+        "proximity sampling: {fn_:.2} of the rays pass within the radius"
+    );
+    assert!(
+        fn_ > 3.0 * ff,
+        "uniform sampling passes near the eye far less often ({fn_:.2} vs {ff:.2})"
+    );
+
+    // Nothing but requests was traced: the file holds exactly what was asked for.
+    let (mut admin, _) = Client::connect(&unix, Role::Admin, token);
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    assert!(server.wait().unwrap().success());
+    assert!(!sock.exists(), "the socket file is removed");
+    worker.wait_with_output().unwrap();
+    let hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
+    for (k, _) in want_near.iter().chain(&want_far) {
+        assert_eq!(hdk.beam_len(*k).unwrap(), 60, "{k:?}");
+    }
 }

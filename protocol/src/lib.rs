@@ -9,18 +9,22 @@
 
 pub mod beam;
 pub mod depth;
+pub mod picture;
 pub mod record;
 pub mod rgbe;
 pub mod section;
+pub mod select;
 pub mod view;
 pub mod wire;
 
 pub use beam::{BeamIndex, BeamKey, BeamRay, CellPair, LocatedRay, WallCell};
 pub use depth::DepthCode;
-pub use record::{DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
+pub use picture::Picture;
+pub use record::{BeamDecoder, DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
 pub use rgbe::Rgbe;
 pub use section::{
     beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind, Wall,
     MAX_BEAMS_PER_SECTION, MAX_GRID,
 };
+pub use select::ViewBeams;
 pub use view::{View, ViewError, ViewRays, ViewType};

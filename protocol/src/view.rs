@@ -90,6 +90,28 @@ impl View {
         View::default().with(spec)
     }
 
+    /// Parses a file of views, one per line (a walkthrough path or a set of
+    /// views). Each line starts from the view before it, so later lines may
+    /// give only what changes; leading words that are not options (`rvu`,
+    /// `rview`, `VIEW=`, as in Radiance view files) are skipped, as are blank
+    /// lines and `#` comments. Errors carry the 1-based line number.
+    pub fn parse_list(text: &str) -> Result<Vec<View>, (usize, ViewError)> {
+        let mut views = Vec::new();
+        let mut current = View::default();
+        for (i, line) in text.lines().enumerate() {
+            let line = line.split('#').next().unwrap_or("").trim();
+            let options = match line.find(" -").map(|at| at + 1) {
+                _ if line.starts_with('-') => line,
+                Some(at) => &line[at..],
+                None if line.is_empty() => continue,
+                None => return Err((i + 1, ViewError::UnknownOption(line.to_string()))),
+            };
+            current = current.with(options).map_err(|e| (i + 1, e))?;
+            views.push(current.clone());
+        }
+        Ok(views)
+    }
+
     /// Applies options to this view and validates the result.
     pub fn with(mut self, spec: &str) -> Result<View, ViewError> {
         let words: Vec<&str> = spec.split_whitespace().collect();
@@ -429,5 +451,18 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn view_files_list_one_view_per_line_each_from_the_last() {
+        let text = "# a path\nrvu -vtv -vp 1 2 3 -vd 0 1 0 -vh 60 -vv 40\n\nVIEW= -vp 1 3 3\n-vd 1 0 0\n";
+        let views = View::parse_list(text).unwrap();
+        assert_eq!(views.len(), 3);
+        assert_eq!(views[1].position, DVec3::new(1.0, 3.0, 3.0));
+        assert_eq!(views[1].horizontal, 60.0, "later lines keep what they do not change");
+        assert_eq!(views[2].direction, DVec3::X);
+        let err = View::parse_list("-vp 0 0 0\n-vp 1 x 2\n").unwrap_err();
+        assert_eq!(err.0, 2);
+        assert!(View::parse_list("hello\n").is_err());
     }
 }

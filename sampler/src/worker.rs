@@ -4,12 +4,10 @@
 //! is what takes the time.
 
 use std::io::{Read, Write};
-use std::net::TcpStream;
+use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use holodeck_protocol::wire::{
-    decode_frame, encode_frame, Frame, FrameError, Hello, Message, Role, SamplingMode, PROTOCOL_VERSION,
-};
+use holodeck_protocol::wire::{Frame, FrameLink, Hello, LinkError, Message, Role, SamplingMode, PROTOCOL_VERSION};
 use holodeck_protocol::{RayRecord, Section, SectionError};
 
 use crate::beam::{proximity_rays, trace_sample, uniform_rays};
@@ -19,19 +17,16 @@ use crate::shade::{Rng, Tracer};
 #[derive(Debug, thiserror::Error)]
 pub enum WorkerError {
     /// The connection failed.
-    #[error("connection to {addr}")]
+    #[error("connection to {addr}: {source}")]
     Io {
         /// The server.
         addr: String,
         /// Why.
-        source: std::io::Error,
+        source: LinkError,
     },
     /// The server refused this worker.
     #[error("the server refused this sampler: {0}")]
     Refused(String),
-    /// The server sent something that is not a valid frame.
-    #[error("bad frame from the server: {0}")]
-    Frame(#[from] FrameError),
     /// The server broke the protocol.
     #[error("protocol error: {0}")]
     Protocol(String),
@@ -40,76 +35,34 @@ pub enum WorkerError {
     Section(#[from] SectionError),
 }
 
-struct Link {
-    stream: TcpStream,
-    addr: String,
-    buf: Vec<u8>,
-    out: Vec<u8>,
+/// A byte stream to the server.
+pub trait ServerStream: Read + Write + Send {}
+
+impl<T: Read + Write + Send> ServerStream for T {}
+
+/// Connects to `addr`: `host:port` for TCP, `unix:PATH` for a Unix socket.
+pub fn connect(addr: &str) -> std::io::Result<Box<dyn ServerStream>> {
+    if let Some(path) = addr.strip_prefix("unix:") {
+        return Ok(Box::new(std::os::unix::net::UnixStream::connect(path)?));
+    }
+    let s = std::net::TcpStream::connect(addr)?;
+    let _ = s.set_nodelay(true);
+    Ok(Box::new(s))
 }
 
-impl Link {
-    fn io(&self) -> impl FnOnce(std::io::Error) -> WorkerError + '_ {
-        move |source| WorkerError::Io {
-            addr: self.addr.clone(),
-            source,
-        }
-    }
-
-    fn read(&mut self) -> Result<Option<Frame>, WorkerError> {
-        loop {
-            if let Some((frame, used)) = decode_frame(&self.buf)? {
-                self.buf.drain(..used);
-                return Ok(Some(frame));
-            }
-            // About to wait for the server: send what is finished first.
-            self.flush()?;
-            let mut chunk = [0u8; 16 << 10];
-            let n = self.stream.read(&mut chunk).map_err(|e| WorkerError::Io {
-                addr: self.addr.clone(),
-                source: e,
-            })?;
-            if n == 0 {
-                return Ok(None);
-            }
-            self.buf.extend_from_slice(&chunk[..n]);
-        }
-    }
-
-    /// Queues a frame; it goes out with the next flush (before any blocking read).
-    fn write(&mut self, frame: &Frame) -> Result<(), WorkerError> {
-        encode_frame(frame, &mut self.out)?;
-        if self.out.len() >= 1 << 20 {
-            self.flush()?;
-        }
-        Ok(())
-    }
-
-    fn flush(&mut self) -> Result<(), WorkerError> {
-        if self.out.is_empty() {
-            return Ok(());
-        }
-        let out = std::mem::take(&mut self.out);
-        let r = self.stream.write_all(&out).map_err(self.io());
-        self.out = out;
-        self.out.clear();
-        r
-    }
-}
+/// Finished rays wait at most this long before they are sent, so displays
+/// see progress even while the queue from the server never runs dry.
+const SEND_EVERY: Duration = Duration::from_millis(20);
 
 /// Traces packets from the server at `addr` until it closes the connection;
 /// returns the rays traced. `scene` is the content hash of `tracer`'s scene.
 pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<u64, WorkerError> {
-    let stream = TcpStream::connect(addr).map_err(|source| WorkerError::Io {
+    let io = |source: LinkError| WorkerError::Io {
         addr: addr.to_string(),
         source,
-    })?;
-    let _ = stream.set_nodelay(true);
-    let mut link = Link {
-        stream,
-        addr: addr.to_string(),
-        buf: Vec::new(),
-        out: Vec::new(),
     };
+    let stream = connect(addr).map_err(|e| io(LinkError::Io(e)))?;
+    let mut link = FrameLink::new(stream);
     let hello = Hello {
         version: PROTOCOL_VERSION,
         role: Role::Sampler,
@@ -117,8 +70,8 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
         token: token.into(),
         read_only: true,
     };
-    link.write(&Frame::Message(Message::Hello(hello)))?;
-    let (sections, obstructions) = match link.read()? {
+    link.write(&Frame::Message(Message::Hello(hello))).map_err(io)?;
+    let (sections, obstructions) = match link.read().map_err(io)? {
         Some(Frame::Message(Message::Welcome { sections, obstructions })) => {
             let sections: Vec<Section> = sections.into_iter().map(Section::try_from).collect::<Result<_, _>>()?;
             (sections, obstructions)
@@ -133,13 +86,14 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
     };
     let mut traced = 0u64;
     let mut n = 0u64;
+    let mut last_send = Instant::now();
     loop {
         let frame = match link.read() {
             Ok(Some(f)) => f,
             Ok(None) => break,
             // The server stopping (or restarting) ends this worker's run.
-            Err(WorkerError::Io { source, .. }) if gone(&source) => break,
-            Err(e) => return Err(e),
+            Err(e) if e.is_gone() => break,
+            Err(e) => return Err(io(e)),
         };
         let packet = match frame {
             Frame::Message(Message::Trace(p)) => p,
@@ -166,25 +120,26 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
             .map(|s| trace_sample(tracer, section, obstructions, s, &mut rng))
             .collect();
         let rays = records.len() as u64;
-        match link.write(&Frame::Finished {
-            id: packet.id,
-            key: packet.key,
-            records,
-        }) {
+        let sent = link
+            .write(&Frame::Finished {
+                id: packet.id,
+                key: packet.key,
+                records,
+            })
+            .and_then(|()| {
+                if last_send.elapsed() >= SEND_EVERY {
+                    last_send = Instant::now();
+                    link.flush()
+                } else {
+                    Ok(())
+                }
+            });
+        match sent {
             Ok(()) => traced += rays,
-            Err(WorkerError::Io { source, .. }) if gone(&source) => break,
-            Err(e) => return Err(e),
+            Err(e) if e.is_gone() => break,
+            Err(e) => return Err(io(e)),
         }
     }
     tracing::info!("{addr}: the server closed the connection after {traced} rays");
     Ok(traced)
-}
-
-/// True for errors that mean the server went away.
-fn gone(e: &std::io::Error) -> bool {
-    use std::io::ErrorKind::*;
-    matches!(
-        e.kind(),
-        ConnectionReset | ConnectionAborted | BrokenPipe | UnexpectedEof
-    )
 }

@@ -117,8 +117,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
     match ext.as_str() {
-        "hdr" => render::write_hdr(&picture, &a.output)?,
-        _ => render::write_png(
+        "hdr" => holodeck_display::image_io::write_hdr(&picture, &a.output)?,
+        _ => holodeck_display::image_io::write_png(
             &picture,
             &a.output,
             a.exposure.unwrap_or_else(|| picture.auto_exposure()),

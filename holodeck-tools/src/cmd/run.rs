@@ -1,14 +1,14 @@
 //! `holodeck run`: the server and local sampler processes in one command
 //! (like Radiance's rholo). Without a display it is a batch fill.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
+use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use holodeck_protocol::wire::{decode_frame, encode_frame, Control, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_sampler::worker::connect;
 use holodeck_server::settings::parse_duration;
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -51,8 +51,8 @@ fn me() -> Result<Command> {
 }
 
 /// Asks the server at `addr` to flush and quit.
-fn quit(addr: &str, token: &str) -> Result<()> {
-    let mut stream = TcpStream::connect(addr)?;
+pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
+    let mut link = FrameLink::new(connect(addr)?);
     let hello = Hello {
         version: PROTOCOL_VERSION,
         role: Role::Admin,
@@ -60,20 +60,16 @@ fn quit(addr: &str, token: &str) -> Result<()> {
         token: token.into(),
         read_only: false,
     };
-    let mut out = Vec::new();
-    encode_frame(&Frame::Message(Message::Hello(hello)), &mut out)?;
-    encode_frame(&Frame::Message(Message::Control(Control::Quit)), &mut out)?;
-    stream.write_all(&out)?;
-    // Read the welcome so the quit is not sent into a closed socket.
-    let mut buf = Vec::new();
-    let mut chunk = [0u8; 4096];
-    while decode_frame(&buf)?.is_none() {
-        let n = stream.read(&mut chunk)?;
-        if n == 0 {
-            break;
-        }
-        buf.extend_from_slice(&chunk[..n]);
+    link.write(&Frame::Message(Message::Hello(hello)))?;
+    match link.read()? {
+        Some(Frame::Message(Message::Welcome { .. })) => {}
+        Some(Frame::Message(Message::Refused { reason })) => bail!("the server refused: {reason}"),
+        other => bail!("unexpected answer from the server: {other:?}"),
     }
+    link.write(&Frame::Message(Message::Control(Control::Quit)))?;
+    link.flush()?;
+    // The server closes the connection once it has the command.
+    let _ = link.read();
     Ok(())
 }
 

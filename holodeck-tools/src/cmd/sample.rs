@@ -97,16 +97,21 @@ fn work(
     }
 }
 
-/// Runs the command.
-pub fn run(a: Args) -> Result<ExitCode> {
-    let token = match (&a.token, &a.token_file) {
+/// The access token from --token or --token-file.
+pub(crate) fn token(token: &Option<String>, file: &Option<PathBuf>) -> Result<String> {
+    Ok(match (token, file) {
         (Some(t), _) => t.clone(),
         (None, Some(p)) => std::fs::read_to_string(p)
             .with_context(|| format!("reading {}", p.display()))?
             .trim()
             .to_string(),
         (None, None) => bail!("give --token or --token-file (the server writes FILE.token)"),
-    };
+    })
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let token = token(&a.token, &a.token_file)?;
     let scene = super::render::load(&a.scene, a.triangles)?;
     let hash = content_hash(&scene);
     let options = TraceOptions {

@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use holodeck_server::net::{serve, ServerConfig};
+use holodeck_protocol::{View, ViewBeams};
+use holodeck_server::net::{serve, Fill, Listener, ServerConfig};
 use holodeck_server::settings::parse_duration;
 use holodeck_server::{HoloFile, OpenOptions};
 use rand::Rng;
@@ -14,29 +15,45 @@ use rand::Rng;
 /// Arguments of `holodeck serve`.
 #[derive(clap::Args)]
 #[command(after_help = "\
-Serves FILE to samplers (which fill it) and displays (which read it) over TCP. Every peer
-must present the access token: given with --token, or generated into FILE.token, readable
-by the owner only. Stops, flushing everything, on SIGINT/SIGTERM or an admin's quit.
+Serves FILE to samplers (which fill it) and displays (which read it) over TCP, and over a
+Unix socket with --unix. Every peer must present the access token: given with --token, or
+generated into FILE.token, readable by the owner only. Display requests are traced first;
+otherwise samplers fill every beam by volume (or only what --views see; none with --no-fill).
+Stops, flushing everything, on SIGINT/SIGTERM, an admin's quit, TIME, or a full DISKSPACE.
 
 Examples:
   holodeck fill builtin:room room.hdk --rays 1K           # a file that knows its scene
   holodeck serve room.hdk --listen 0.0.0.0:7777
-  holodeck sample builtin:room --connect server:7777 --token-file room.hdk.token")]
+  holodeck sample builtin:room --connect server:7777 --token-file room.hdk.token
+  holodeck serve room.hdk --unix /tmp/room.sock --views walk.vf --time 1h
+  holodeck serve room.hdk --no-fill                       # display-only replay")]
 pub struct Args {
     /// The holodeck file (it must record its scene: create it with `holodeck fill`).
     file: PathBuf,
     /// Address to listen on (port 0 picks a free one; the address is printed).
     #[arg(long, default_value = "127.0.0.1:7777")]
     listen: String,
+    /// Also listen on this Unix socket (peers connect to unix:PATH).
+    #[arg(long)]
+    unix: Option<PathBuf>,
     /// Access token; generated into FILE.token if omitted.
     #[arg(long)]
     token: Option<String>,
-    /// Rays per trace packet.
+    /// Rays per batch-fill packet.
     #[arg(long, default_value_t = 4)]
     packet: u32,
-    /// Packets a sampler works on at once.
-    #[arg(long, default_value_t = 64)]
-    batch: usize,
+    /// Most rays per packet traced for a display.
+    #[arg(long, default_value_t = 32)]
+    request_packet: u32,
+    /// Each sampler's queue drains within this many milliseconds.
+    #[arg(long, default_value_t = 250)]
+    latency_ms: u64,
+    /// Fill only the beams these views see (a file of Radiance views, one per line).
+    #[arg(long, conflicts_with = "no_fill")]
+    views: Option<PathBuf>,
+    /// No batch fill: samplers trace only what displays request.
+    #[arg(long)]
+    no_fill: bool,
     /// Stop after this long (e.g. 2h); default: the file's TIME setting (0: no limit).
     #[arg(long)]
     time: Option<String>,
@@ -90,21 +107,50 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let time = setting(&a.time, file.settings().time, "time")?;
     let report = setting(&a.report, file.settings().report, "report")?;
+    let fill = match (&a.views, a.no_fill) {
+        (_, true) => Fill::Off,
+        (Some(path), false) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            let views =
+                View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
+            if views.is_empty() {
+                anyhow::bail!("{} holds no views", path.display());
+            }
+            let mut seen = Vec::new();
+            for (i, v) in views.iter().enumerate() {
+                seen.extend(ViewBeams::select(file.sections(), v, 256, 192, i as u64).counts);
+            }
+            eprintln!(
+                "filling only what {} view(s) see: {} beam requests",
+                views.len(),
+                seen.len()
+            );
+            Fill::Views(seen)
+        }
+        (None, false) => Fill::All,
+    };
     let config = ServerConfig {
-        token,
         packet: a.packet.max(1),
-        batch: a.batch.max(1),
+        request_packet: a.request_packet.max(1),
+        latency: Duration::from_millis(a.latency_ms.max(1)),
+        fill,
         time,
         report,
+        ..ServerConfig::new(token)
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {
-        let listener = tokio::net::TcpListener::bind(&a.listen)
+        let mut listeners = vec![Listener::tcp(&a.listen)
             .await
-            .with_context(|| format!("listening on {}", a.listen))?;
-        println!("listening on {}", listener.local_addr()?);
+            .with_context(|| format!("listening on {}", a.listen))?];
+        if let Some(path) = &a.unix {
+            listeners.push(Listener::unix(path).with_context(|| format!("listening on {}", path.display()))?);
+        }
+        for l in &listeners {
+            println!("listening on {}", l.address());
+        }
         std::io::stdout().flush()?;
-        serve(listener, file, config)
+        serve(listeners, file, config)
             .await
             .with_context(|| format!("serving {}", a.file.display()))
     })?;

@@ -181,7 +181,7 @@ mod tests {
     use crate::depth::DepthCode;
     use crate::rgbe::Rgbe;
     use crate::section::{Section, SectionKind};
-    use crate::wire::message::{Control, Hello, Progress, Role, SamplingMode, TracePacket};
+    use crate::wire::message::{Control, EyePoint, Hello, Progress, Role, SamplingMode, TracePacket};
     use proptest::prelude::*;
 
     fn samples() -> Vec<Frame> {
@@ -212,7 +212,13 @@ mod tests {
             }),
             Frame::Message(Message::BeamRequest {
                 beams: vec![(BeamKey::new(0, 7), 40), (BeamKey::new(1, 2), 3)],
+                eye: Some(EyePoint {
+                    position: [1.0, 2.0, 3.0],
+                    radius: 0.25,
+                }),
+                replace: true,
             }),
+            Frame::Message(Message::Delivered { beams: 3, rays: 1234 }),
             Frame::Message(Message::Trace(TracePacket {
                 id: 99,
                 key: BeamKey::new(0, 12),

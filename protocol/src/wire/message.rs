@@ -45,6 +45,15 @@ pub enum SamplingMode {
     },
 }
 
+/// A display's eye, for proximity sampling.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EyePoint {
+    /// Eye position, world units.
+    pub position: [f64; 3],
+    /// How near new rays should pass, world units (0: uniform sampling).
+    pub radius: f64,
+}
+
 /// Work for a sampler: trace `rays` rays of one beam.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TracePacket {
@@ -107,10 +116,24 @@ pub enum Message {
         /// Why.
         reason: String,
     },
-    /// A display's beams with the sample counts it wants.
+    /// A display's beams with the sample counts it wants. The server sends the
+    /// rays it has at once, then new rays of these beams as they are traced.
     BeamRequest {
-        /// (beam, desired rays).
+        /// (beam, desired rays in total).
         beams: Vec<(BeamKey, u32)>,
+        /// Where the display's eye is: new rays are traced near it (Appendix A).
+        eye: Option<EyePoint>,
+        /// True: these beams replace the display's earlier requests (a new
+        /// view); false: they are added to them.
+        replace: bool,
+    },
+    /// The server has sent every stored ray of a display's last request (the
+    /// end of the paper's "immediate transfer").
+    Delivered {
+        /// Beams sent.
+        beams: u32,
+        /// Rays sent.
+        rays: u64,
     },
     /// Work for a sampler.
     Trace(TracePacket),
@@ -157,6 +180,16 @@ impl Message {
                 Ok(())
             }
             Message::Progress(p) => finite("rays per second", p.rays_per_second),
+            Message::BeamRequest { eye: Some(e), .. } => {
+                for v in e.position {
+                    finite("eye coordinate", v)?;
+                }
+                finite("eye radius", e.radius)?;
+                if e.radius < 0.0 {
+                    return Err(format!("eye radius {} is negative", e.radius));
+                }
+                Ok(())
+            }
             _ => Ok(()),
         }
     }

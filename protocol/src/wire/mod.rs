@@ -4,10 +4,12 @@
 //! no sockets here. Every decoder takes untrusted bytes and never panics.
 
 mod frame;
+mod link;
 mod message;
 
 pub use frame::{decode_frame, encode_frame, Frame, FrameError, FRAME_HEADER, MAX_FRAME};
-pub use message::{Control, Hello, Message, Progress, Role, SamplingMode, TracePacket};
+pub use link::{FrameLink, LinkError};
+pub use message::{Control, EyePoint, Hello, Message, Progress, Role, SamplingMode, TracePacket};
 
 /// Version of the protocol; peers with another version are refused.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;

@@ -2,11 +2,7 @@
 //! with a deterministic sequence of samples per pixel. Its pictures are the
 //! ground truth every holodeck reconstruction is measured against.
 
-mod image_io;
-mod picture;
-
-pub use image_io::{write_hdr, write_png, ImageError};
-pub use picture::Picture;
+pub use holodeck_protocol::Picture;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 

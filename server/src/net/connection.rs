@@ -1,9 +1,13 @@
 //! Whole frames over one socket: buffered reads until a frame is complete,
-//! writes of one encoded frame at a time.
+//! writes of one encoded frame (or a batch of them) at a time.
 
 use holodeck_protocol::wire::{decode_frame, encode_frame, Frame, FrameError};
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::TcpStream;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+
+/// A byte stream a peer is connected by: TCP or a Unix socket.
+pub trait Stream: AsyncRead + AsyncWrite + Unpin + Send {}
+
+impl<T: AsyncRead + AsyncWrite + Unpin + Send> Stream for T {}
 
 /// What can go wrong on a connection.
 #[derive(Debug, thiserror::Error)]
@@ -21,7 +25,7 @@ pub enum ConnectionError {
 
 /// A framed connection.
 pub struct Connection {
-    stream: TcpStream,
+    stream: Box<dyn Stream>,
     buf: Vec<u8>,
     start: usize,
     out: Vec<u8>,
@@ -29,8 +33,7 @@ pub struct Connection {
 
 impl Connection {
     /// Wraps a connected socket.
-    pub fn new(stream: TcpStream) -> Connection {
-        let _ = stream.set_nodelay(true);
+    pub fn new(stream: Box<dyn Stream>) -> Connection {
         Connection {
             stream,
             buf: Vec::with_capacity(64 << 10),

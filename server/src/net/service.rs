@@ -1,40 +1,81 @@
 //! Accepting peers and serving them by role. Each connection is one task:
 //! a handshake (protocol version, access token, scene hash), then
-//! - samplers are handed packets from the shared batch schedule and send back
-//!   traced rays, which go to the storage thread;
-//! - displays send beam requests and get the beams' rays streamed back;
-//! - admins (and writable displays) may quit the server.
+//! - samplers get work from the shared [`Scheduler`] and send back traced
+//!   rays, which go to the storage thread and on to displays that want them
+//!   ([`super::sampler`]);
+//! - displays send beam requests and get the beams' rays streamed back, stored
+//!   rays at once and new ones as they are traced ([`super::display`]);
+//! - admins (and writable displays) send control commands.
 //!
-//! Packets a sampler never finished (it died, or sent garbage) are given back
-//! to the schedule: nothing is stored twice and nothing is lost.
+//! No task waits on another peer: a stalled display or sampler only slows
+//! itself. Work a sampler never finished is given back to the schedule:
+//! nothing is stored twice and nothing is lost.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use holodeck_protocol::wire::{Control, Frame, Hello, Message, Role, SamplingMode, TracePacket, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{Control, Frame, Hello, Message, Role, PROTOCOL_VERSION};
 use holodeck_protocol::{BeamKey, Section};
-use tokio::net::{TcpListener, TcpStream};
-use tokio::sync::{watch, Mutex};
+use tokio::sync::{mpsc, watch, Notify};
 
-use super::connection::{Connection, ConnectionError};
+use super::connection::{Connection, ConnectionError, Stream};
+use super::display::DisplayLink;
+use super::listener::Listener;
 use super::store::Store;
-use crate::schedule::BatchSchedule;
+use crate::schedule::{BatchSchedule, Scheduler};
 use crate::storage::{HoloFile, StorageError};
+
+/// What a batch fill covers when no display wants anything.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Fill {
+    /// Every beam, by volume.
+    All,
+    /// Only beams some views see, weighted by the view rays in each.
+    Views(Vec<(BeamKey, u32)>),
+    /// Nothing: samplers trace only what displays request.
+    Off,
+}
 
 /// How the server runs.
 #[derive(Clone, Debug)]
 pub struct ServerConfig {
     /// The token every peer must present.
     pub token: String,
-    /// Rays per trace packet.
+    /// Rays per batch-fill packet (one beam each).
     pub packet: u32,
-    /// Packets a sampler works on at once.
-    pub batch: usize,
+    /// Most rays in a packet for a display's request.
+    pub request_packet: u32,
+    /// Rays queued to a sampler before its speed is known.
+    pub initial_queue: u32,
+    /// Each sampler's queue is sized to drain within this long.
+    pub latency: Duration,
+    /// The batch fill.
+    pub fill: Fill,
     /// Stop (flushing) after this long (the TIME setting).
     pub time: Option<Duration>,
     /// Print a progress line this often (the REPORT setting).
     pub report: Option<Duration>,
+    /// Stop once the file refuses rays (DISKSPACE reached) and no display is connected.
+    pub stop_when_full: bool,
+}
+
+impl ServerConfig {
+    /// Defaults for a server with this token.
+    pub fn new(token: String) -> ServerConfig {
+        ServerConfig {
+            token,
+            packet: 4,
+            request_packet: 32,
+            initial_queue: 256,
+            latency: Duration::from_millis(250),
+            fill: Fill::All,
+            time: None,
+            report: None,
+            stop_when_full: true,
+        }
+    }
 }
 
 /// Why the server stopped with an error.
@@ -43,32 +84,107 @@ pub enum ServeError {
     /// The file failed.
     #[error(transparent)]
     Storage(#[from] StorageError),
-    /// The listening socket failed.
-    #[error("accepting connections: {0}")]
-    Accept(std::io::Error),
     /// The schedule could not be built.
     #[error("building the schedule: {0}")]
     Schedule(#[from] holodeck_protocol::SectionError),
+    /// No listening socket was given.
+    #[error("no socket to listen on")]
+    NoListener,
 }
 
-struct Shared {
-    config: ServerConfig,
-    obstructions: bool,
-    scene: Option<String>,
-    sections: Vec<Section>,
-    schedule: Mutex<BatchSchedule>,
-    store: Store,
-    next_id: std::sync::atomic::AtomicU64,
-    shutdown: watch::Sender<bool>,
+/// State every connection task shares.
+pub(super) struct Shared {
+    pub config: ServerConfig,
+    pub obstructions: bool,
+    pub scene: Option<String>,
+    pub sections: Vec<Section>,
+    pub scheduler: std::sync::Mutex<Scheduler>,
+    pub store: Store,
+    pub next_id: AtomicU64,
+    /// Wakes samplers waiting for work (new requests, resume, restart).
+    pub work: Notify,
+    /// Connected displays, by id, for forwarding new rays.
+    pub displays: std::sync::Mutex<HashMap<u64, Arc<DisplayLink>>>,
+    /// Bumped to disconnect every sampler.
+    pub kill_samplers: watch::Sender<u64>,
+    /// False after KillSamplers until Restart: samplers are refused.
+    pub samplers_allowed: AtomicBool,
+    pub shutdown: watch::Sender<bool>,
 }
 
-/// Serves `file` on `listener` until an admin says quit or the process gets
-/// SIGINT/SIGTERM; then flushes and closes the file.
-pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) -> Result<(), ServeError> {
+impl Shared {
+    pub fn lock_scheduler(&self) -> std::sync::MutexGuard<'_, Scheduler> {
+        // A panic while holding the lock leaves consistent-enough counts: keep serving.
+        self.scheduler.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn lock_displays(&self) -> std::sync::MutexGuard<'_, HashMap<u64, Arc<DisplayLink>>> {
+        self.displays.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn id(&self) -> u64 {
+        self.next_id.fetch_add(1, Ordering::Relaxed)
+    }
+
+    /// The batch list for the configured fill, from the rays stored now.
+    pub fn batch(&self, lens: &[Vec<u64>]) -> Result<Option<BatchSchedule>, holodeck_protocol::SectionError> {
+        let stored = |k: BeamKey| {
+            lens.get(k.section as usize)
+                .and_then(|s| s.get(k.beam as usize))
+                .copied()
+                .unwrap_or(0)
+        };
+        Ok(match &self.config.fill {
+            Fill::All => Some(BatchSchedule::new(&self.sections, stored)?),
+            Fill::Views(seen) => Some(BatchSchedule::for_views(&self.sections, seen, stored)),
+            Fill::Off => None,
+        })
+    }
+
+    /// Carries out a control command from a writable display or an admin.
+    pub async fn control(&self, c: Control) -> Result<(), String> {
+        match c {
+            Control::Pause => self.lock_scheduler().set_paused(true),
+            Control::Resume => {
+                self.lock_scheduler().set_paused(false);
+                self.work.notify_waiters();
+            }
+            Control::KillSamplers => {
+                self.samplers_allowed.store(false, Ordering::SeqCst);
+                self.kill_samplers.send_modify(|n| *n += 1);
+            }
+            Control::Restart => {
+                let lens = self.store.lens().await.map_err(|e| e.to_string())?;
+                let batch = self.batch(&lens).map_err(|e| e.to_string())?;
+                self.lock_scheduler().restart(batch);
+                self.samplers_allowed.store(true, Ordering::SeqCst);
+                self.work.notify_waiters();
+            }
+            Control::Clobber => {
+                self.store.clobber().await.map_err(|e| e.to_string())?;
+                let lens = self.store.lens().await.map_err(|e| e.to_string())?;
+                let batch = self.batch(&lens).map_err(|e| e.to_string())?;
+                self.lock_scheduler().restart(batch);
+                self.work.notify_waiters();
+            }
+            Control::Quit => {
+                let _ = self.shutdown.send(true);
+            }
+        }
+        tracing::info!("control: {c:?}");
+        Ok(())
+    }
+}
+
+/// Serves `file` on `listeners` until an admin says quit, TIME is up, or the
+/// process gets SIGINT/SIGTERM; then flushes and closes the file.
+pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfig) -> Result<(), ServeError> {
+    if listeners.is_empty() {
+        return Err(ServeError::NoListener);
+    }
     let sections = file.sections().to_vec();
     let scene = file.settings().scene.clone();
     let obstructions = file.settings().obstructions;
-    let schedule = BatchSchedule::new(&sections, |k| file.beam_len(k).unwrap_or(0))?;
     let (store, thread) = Store::spawn(file);
     let (shutdown, mut stopped) = watch::channel(false);
     let shared = Arc::new(Shared {
@@ -76,11 +192,18 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
         obstructions,
         scene,
         sections,
-        schedule: Mutex::new(schedule),
+        scheduler: std::sync::Mutex::new(Scheduler::new(None)),
         store: store.clone(),
-        next_id: std::sync::atomic::AtomicU64::new(1),
+        next_id: AtomicU64::new(1),
+        work: Notify::new(),
+        displays: std::sync::Mutex::new(HashMap::new()),
+        kill_samplers: watch::channel(0).0,
+        samplers_allowed: AtomicBool::new(true),
         shutdown,
     });
+    let lens = store.lens().await?;
+    let batch = shared.batch(&lens)?;
+    shared.lock_scheduler().restart(batch);
     let flusher = {
         let store = store.clone();
         tokio::spawn(async move {
@@ -105,11 +228,34 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
         }
     };
     tokio::pin!(deadline);
+    // One accept loop per socket, all feeding one queue.
+    let (peers_tx, mut peers) = mpsc::channel::<(Box<dyn Stream>, String)>(64);
+    let mut acceptors = Vec::new();
+    for l in listeners {
+        let tx = peers_tx.clone();
+        acceptors.push(tokio::spawn(async move {
+            loop {
+                match l.accept().await {
+                    Ok(p) => {
+                        if tx.send(p).await.is_err() {
+                            return;
+                        }
+                    }
+                    // Out of descriptors and the like: back off instead of spinning.
+                    Err(e) => {
+                        tracing::warn!("accepting on {}: {e}", l.address());
+                        tokio::time::sleep(Duration::from_millis(100)).await;
+                    }
+                }
+            }
+        }));
+    }
+    drop(peers_tx);
+    let mut full_check = tokio::time::interval(Duration::from_millis(200));
     let mut tasks = tokio::task::JoinSet::new();
     loop {
         tokio::select! {
-            accepted = listener.accept() => {
-                let (stream, peer) = accepted.map_err(ServeError::Accept)?;
+            Some((stream, peer)) = peers.recv() => {
                 let shared = Arc::clone(&shared);
                 tasks.spawn(async move {
                     if let Err(e) = handle(stream, &shared).await {
@@ -123,6 +269,12 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
                 tracing::info!("TIME is up");
                 break;
             }
+            _ = full_check.tick() => {
+                if shared.config.stop_when_full && store.refusing() && shared.lock_displays().is_empty() {
+                    tracing::warn!("the file refuses more rays (DISKSPACE reached): stopping");
+                    break;
+                }
+            }
             _ = tokio::signal::ctrl_c() => break,
             _ = terminate() => break,
         }
@@ -130,6 +282,9 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
     // Tell every connection to stop, then end those that do not: packets they
     // had out are simply never stored.
     let _ = shared.shutdown.send(true);
+    for a in &acceptors {
+        a.abort();
+    }
     tasks.shutdown().await;
     tracing::info!("shutting down: flushing the file");
     flusher.abort();
@@ -139,9 +294,9 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
     let flushed = store.flush().await;
     drop(store);
     drop(shared);
+    drop(acceptors);
     flushed?;
-    // The storage thread exits once every handle is gone (connection tasks
-    // still running hold one; the runtime drops them when the caller returns).
+    // The storage thread exits once every handle is gone.
     tokio::task::spawn_blocking(move || thread.join())
         .await
         .unwrap_or(Ok(()))?;
@@ -149,7 +304,7 @@ pub async fn serve(listener: TcpListener, file: HoloFile, config: ServerConfig) 
 }
 
 /// Prints a progress line every `every`: rays stored, the rate since the last
-/// line, beams holding rays, and the file size.
+/// line, beams holding rays, the file size and its fragmentation.
 async fn report(store: Store, every: Duration) {
     let mut tick = tokio::time::interval(every);
     tick.tick().await;
@@ -166,9 +321,11 @@ async fn report(store: Store, every: Duration) {
             .iter()
             .fold((0, 0), |(f, b), x| (f + u64::from(x.1), b + u64::from(x.0)));
         println!(
-            "progress: {rays} rays, {rate:.0} rays/s, {filled} of {beams} beams hold rays ({:.1}%), file {} bytes",
+            "progress: {rays} rays, {rate:.0} rays/s, {filled} of {beams} beams hold rays ({:.1}%), file {} bytes, {} free in {} fragments",
             100.0 * filled as f64 / beams.max(1) as f64,
-            s.file_bytes
+            s.file_bytes,
+            s.free_bytes,
+            s.fragments
         );
         use std::io::Write as _;
         let _ = std::io::stdout().flush();
@@ -207,11 +364,14 @@ fn check(hello: &Hello, shared: &Shared) -> Option<String> {
         (Some(s), Role::Sampler) if *s != hello.scene => {
             Some(format!("scene {} does not match the holodeck's scene {s}", hello.scene))
         }
+        (_, Role::Sampler) if !shared.samplers_allowed.load(Ordering::SeqCst) => {
+            Some("samplers were stopped by an admin; a restart command lets them in again".into())
+        }
         _ => None,
     }
 }
 
-async fn handle(stream: TcpStream, shared: &Shared) -> Result<(), ConnectionError> {
+async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), ConnectionError> {
     let mut conn = Connection::new(stream);
     let first = tokio::time::timeout(Duration::from_secs(10), conn.read()).await;
     let hello = match first {
@@ -239,124 +399,7 @@ async fn handle(stream: TcpStream, shared: &Shared) -> Result<(), ConnectionErro
     conn.write(&Frame::Message(Message::Welcome { sections, obstructions }))
         .await?;
     match hello.role {
-        Role::Sampler => sampler(conn, shared).await,
-        Role::Display | Role::Admin => display(conn, shared, hello.read_only).await,
+        Role::Sampler => super::sampler::serve_sampler(conn, shared).await,
+        Role::Display | Role::Admin => super::display::serve_display(conn, shared, hello.read_only).await,
     }
-}
-
-async fn sampler(mut conn: Connection, shared: &Shared) -> Result<(), ConnectionError> {
-    let mut stop = shared.shutdown.subscribe();
-    loop {
-        if *stop.borrow() {
-            return Ok(());
-        }
-        let batch = shared
-            .schedule
-            .lock()
-            .await
-            .next(shared.config.batch, shared.config.packet);
-        let mut pending: HashMap<u64, (BeamKey, u32)> = HashMap::with_capacity(batch.len());
-        let mut frames = Vec::with_capacity(batch.len());
-        for (key, rays) in batch {
-            let id = shared.next_id.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            pending.insert(id, (key, rays));
-            frames.push(Frame::Message(Message::Trace(TracePacket {
-                id,
-                key,
-                rays,
-                mode: SamplingMode::Uniform,
-            })));
-        }
-        // One write for the whole batch: per-packet writes cost more than the packets.
-        if let Err(e) = conn.write_all(&frames).await {
-            give_back(shared, &pending).await;
-            return Err(e);
-        }
-        while !pending.is_empty() {
-            let frame = tokio::select! {
-                f = conn.read() => f,
-                _ = stop.changed() => Ok(None),
-            };
-            match frame {
-                Ok(Some(Frame::Finished { id, key, records })) => match pending.get(&id) {
-                    Some(&(k, n)) if k == key && records.len() == n as usize => {
-                        pending.remove(&id);
-                        shared.store.append(key, records);
-                    }
-                    _ => {
-                        let message = format!("packet {id} does not match any packet sent to you");
-                        conn.write(&Frame::Message(Message::Error { message })).await?;
-                    }
-                },
-                Ok(Some(_)) => {
-                    let message = "samplers send finished packets only".to_string();
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
-                }
-                Ok(None) => {
-                    give_back(shared, &pending).await;
-                    return Ok(());
-                }
-                Err(e) => {
-                    give_back(shared, &pending).await;
-                    return Err(e);
-                }
-            }
-        }
-    }
-}
-
-async fn give_back(shared: &Shared, pending: &HashMap<u64, (BeamKey, u32)>) {
-    let mut schedule = shared.schedule.lock().await;
-    for &(key, rays) in pending.values() {
-        schedule.give_back(key, rays);
-    }
-}
-
-async fn display(mut conn: Connection, shared: &Shared, read_only: bool) -> Result<(), ConnectionError> {
-    while let Some(frame) = conn.read().await? {
-        match frame {
-            Frame::Message(Message::BeamRequest { beams }) => {
-                let bad = beams.iter().find(|(k, _)| {
-                    shared
-                        .sections
-                        .get(k.section as usize)
-                        .is_none_or(|s| k.beam >= s.beam_count())
-                });
-                if let Some((k, _)) = bad {
-                    let message = format!("no beam {} in section {}", k.beam, k.section);
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
-                    continue;
-                }
-                let keys = beams.iter().map(|(k, _)| *k).collect();
-                match shared.store.read(keys).await {
-                    Ok(found) => {
-                        for (key, records) in found {
-                            conn.write(&Frame::Beam { key, records }).await?;
-                        }
-                    }
-                    Err(e) => {
-                        conn.write(&Frame::Message(Message::Error { message: e.to_string() }))
-                            .await?;
-                    }
-                }
-            }
-            Frame::Message(Message::Control(Control::Quit)) if !read_only => {
-                let _ = shared.shutdown.send(true);
-                return Ok(());
-            }
-            Frame::Message(Message::Control(c)) => {
-                let message = if read_only {
-                    format!("{c:?} is not allowed for a read-only display")
-                } else {
-                    format!("{c:?} is not supported yet")
-                };
-                conn.write(&Frame::Message(Message::Error { message })).await?;
-            }
-            _ => {
-                let message = "displays send beam requests and control commands".to_string();
-                conn.write(&Frame::Message(Message::Error { message })).await?;
-            }
-        }
-    }
-    Ok(())
 }

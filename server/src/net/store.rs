@@ -2,6 +2,8 @@
 //! channel and await the answers, so disk reads, writes and fsyncs never stall
 //! the network executor.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use holodeck_protocol::{BeamKey, RayRecord};
@@ -14,7 +16,9 @@ pub type Beams = Vec<(BeamKey, Vec<RayRecord>)>;
 
 enum Request {
     Append(BeamKey, Vec<RayRecord>),
-    Read(Vec<BeamKey>, oneshot::Sender<Result<Beams>>),
+    Read(Vec<(BeamKey, u64)>, oneshot::Sender<Result<Beams>>),
+    Lens(oneshot::Sender<Vec<Vec<u64>>>),
+    Clobber(oneshot::Sender<Result<()>>),
     Len(BeamKey, oneshot::Sender<u64>),
     Flush(oneshot::Sender<Result<()>>),
     Summary(oneshot::Sender<FileSummary>),
@@ -24,6 +28,7 @@ enum Request {
 #[derive(Clone)]
 pub struct Store {
     tx: mpsc::UnboundedSender<Request>,
+    refusing: Arc<AtomicBool>,
 }
 
 /// The storage thread itself; joining it closes the file after a final flush.
@@ -35,18 +40,50 @@ impl Store {
     /// Moves `file` onto a new thread.
     pub fn spawn(mut file: HoloFile) -> (Store, StoreThread) {
         let (tx, mut rx) = mpsc::unbounded_channel::<Request>();
+        let refusing = Arc::new(AtomicBool::new(false));
+        let refused = Arc::clone(&refusing);
         let handle = std::thread::spawn(move || -> Result<()> {
             while let Some(req) = rx.blocking_recv() {
                 match req {
                     Request::Append(key, rays) => {
                         if let Err(e) = file.append(key, &rays) {
-                            tracing::error!("storing rays of {key:?}: {e}");
+                            // Log the first refusal only: every later packet meets the same wall.
+                            if !refused.swap(true, Ordering::SeqCst) {
+                                tracing::error!("storing rays of {key:?}: {e}");
+                            }
                         }
                     }
-                    Request::Read(keys, reply) => {
-                        let mut out = Vec::with_capacity(keys.len());
-                        let r = file.read_beams(&keys, |k, rays| out.push((k, rays.to_vec())));
+                    Request::Read(wanted, reply) => {
+                        let mut out = Vec::with_capacity(wanted.len());
+                        let from: std::collections::HashMap<BeamKey, u64> = wanted.iter().copied().collect();
+                        let keys: Vec<BeamKey> = wanted.iter().map(|w| w.0).collect();
+                        let r = file.read_beams(&keys, |k, rays| {
+                            let skip = from.get(&k).copied().unwrap_or(0).min(rays.len() as u64) as usize;
+                            if skip < rays.len() {
+                                out.push((k, rays[skip..].to_vec()));
+                            }
+                        });
                         let _ = reply.send(r.map(|_| out));
+                    }
+                    Request::Clobber(reply) => {
+                        let r = file.clobber();
+                        if r.is_ok() {
+                            refused.store(false, Ordering::SeqCst);
+                        }
+                        let _ = reply.send(r);
+                    }
+                    Request::Lens(reply) => {
+                        let lens = file
+                            .sections()
+                            .iter()
+                            .enumerate()
+                            .map(|(si, s)| {
+                                (0..s.beam_count())
+                                    .map(|b| file.beam_len(BeamKey::new(si as u32, b)).unwrap_or(0))
+                                    .collect()
+                            })
+                            .collect();
+                        let _ = reply.send(lens);
                     }
                     Request::Len(key, reply) => {
                         let _ = reply.send(file.beam_len(key).unwrap_or(0));
@@ -61,7 +98,7 @@ impl Store {
             }
             file.close()
         });
-        (Store { tx }, StoreThread { handle })
+        (Store { tx, refusing }, StoreThread { handle })
     }
 
     fn gone() -> StorageError {
@@ -72,16 +109,38 @@ impl Store {
         }
     }
 
+    /// True once the file has refused rays (DISKSPACE reached, or a write
+    /// failed): tracing more is wasted.
+    pub fn refusing(&self) -> bool {
+        self.refusing.load(Ordering::SeqCst)
+    }
+
     /// Queues rays for a beam.
     pub fn append(&self, key: BeamKey, rays: Vec<RayRecord>) {
         let _ = self.tx.send(Request::Append(key, rays));
     }
 
-    /// Reads beams (in file order, through the cache).
-    pub async fn read(&self, keys: Vec<BeamKey>) -> Result<Beams> {
+    /// Reads beams (in file order, through the cache), each from the given
+    /// ray on (rays already sent are not read again); beams with nothing past
+    /// that point are left out.
+    pub async fn read(&self, wanted: Vec<(BeamKey, u64)>) -> Result<Beams> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Read(keys, tx)).map_err(|_| Store::gone())?;
+        self.tx.send(Request::Read(wanted, tx)).map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())?
+    }
+
+    /// Deletes every ray in the file (durably).
+    pub async fn clobber(&self) -> Result<()> {
+        let (tx, rx) = oneshot::channel();
+        self.tx.send(Request::Clobber(tx)).map_err(|_| Store::gone())?;
+        rx.await.map_err(|_| Store::gone())?
+    }
+
+    /// Rays held by every beam, by section.
+    pub async fn lens(&self) -> Result<Vec<Vec<u64>>> {
+        let (tx, rx) = oneshot::channel();
+        self.tx.send(Request::Lens(tx)).map_err(|_| Store::gone())?;
+        rx.await.map_err(|_| Store::gone())
     }
 
     /// Rays a beam holds.

@@ -100,6 +100,18 @@ pub enum StorageError {
         /// The file.
         path: PathBuf,
     },
+    /// Storing more would let the file grow past its DISKSPACE limit. Nothing
+    /// was written: refused rays were not stored, and rays already accepted
+    /// stay in the cache. The file stays usable; smaller appends may still fit.
+    #[error("{path}: DISKSPACE limit of {limit} bytes reached: the file could grow to {needed} bytes")]
+    DiskSpace {
+        /// The file.
+        path: PathBuf,
+        /// The limit in bytes.
+        limit: u64,
+        /// How long the file could become (an upper bound) if this were done.
+        needed: u64,
+    },
     /// Writing to a file opened for reading.
     #[error("{path} is open read-only")]
     ReadOnly {

@@ -116,20 +116,33 @@ impl Extents {
 
     /// Finds room for `len` bytes: the smallest free hole that fits, else the end.
     pub fn allocate(&mut self, len: u64) -> u64 {
+        // With no limit there is always room at the end.
+        self.allocate_below(len, u64::MAX).unwrap_or(self.end)
+    }
+
+    /// Like [`Extents::allocate`], but only room that ends at or before
+    /// `limit`; `None` (and nothing changed) when there is none. While the end
+    /// is within the limit every hole is too, so this costs what `allocate` does.
+    pub fn allocate_below(&mut self, len: u64, limit: u64) -> Option<u64> {
         if len == 0 {
-            return self.end;
+            return Some(self.end);
         }
-        if let Some(&(hole, off)) = self.by_size.range((len, 0)..).next() {
+        let fits = |off: u64| off.checked_add(len).is_some_and(|end| end <= limit);
+        let hole = self.by_size.range((len, 0)..).find(|&&(_, off)| fits(off)).copied();
+        if let Some((hole, off)) = hole {
             self.remove(off, hole);
             if hole > len {
                 self.free.insert(off + len, hole - len);
                 self.by_size.insert((hole - len, off + len));
             }
-            return off;
+            return Some(off);
+        }
+        if !fits(self.end) {
+            return None;
         }
         let off = self.end;
         self.end += len;
-        off
+        Some(off)
     }
 
     /// Claims exactly `[at, at + len)` if it is free (or at the end): used to
@@ -220,6 +233,21 @@ mod tests {
         assert_eq!(x.end(), 30, "free space at the end shortens the file");
         assert!(x.try_claim(30, 25));
         assert_eq!(x.end(), 55);
+    }
+
+    #[test]
+    fn allocations_below_a_limit_never_pass_it_and_failures_change_nothing() {
+        let mut x = Extents::from_used(0, vec![ext(0, 10), ext(20, 10), ext(60, 10)]).unwrap();
+        // Holes: 10..20 and 30..60; end 70.
+        assert_eq!(x.allocate_below(20, 100), Some(30), "a hole that fits is used");
+        assert_eq!(x.allocate_below(20, 85), None, "the end would pass the limit");
+        assert_eq!(x.end(), 70);
+        assert_eq!(x.free_bytes(), 10 + 10);
+        assert_eq!(x.allocate_below(15, 85), Some(70));
+        assert_eq!(x.end(), 85);
+        assert_eq!(x.allocate_below(10, 15), None, "the hole 10..20 ends past 15");
+        assert_eq!(x.allocate_below(10, 20), Some(10));
+        assert_eq!(x.allocate_below(0, 0), Some(85), "empty allocations need no room");
     }
 
     proptest! {

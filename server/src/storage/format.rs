@@ -398,6 +398,23 @@ pub fn max_directory_len(beams: u32) -> u64 {
     16 + 19 * u64::from(beams)
 }
 
+/// Bytes LEB128 takes for `v`.
+pub fn varint_len(v: u64) -> u64 {
+    u64::from((64 - v.leading_zeros()).max(1)).div_ceil(7)
+}
+
+/// Longest directory block [`encode_directory`] can produce for `beams` beams
+/// of which `filled` hold rays, when every run ends at or before byte `max_end`.
+/// Each beam's count is at most `max_end / 10` and each offset delta lies in
+/// `-max_end..=max_end`, so its zigzag code is at most `2 * max_end`.
+pub fn directory_len_bound(beams: u32, filled: u64, max_end: u64) -> u64 {
+    let count = varint_len((max_end / RECORD).min(u64::from(u32::MAX)));
+    let delta = varint_len(max_end.saturating_mul(2));
+    // An empty beam is one byte (count 0); a filled one adds the rest of its
+    // count, its offset delta and its CRC.
+    16 + u64::from(beams) + filled.min(u64::from(beams)) * (count - 1 + delta + 4)
+}
+
 /// Largest generation accepted: far beyond any real count of commits, and far
 /// from overflow.
 pub const MAX_GENERATION: u64 = 1 << 62;
@@ -646,7 +663,34 @@ mod tests {
         assert!(err.to_string().contains("beam 999"), "{err}");
     }
 
+    #[test]
+    fn varint_lengths_match_the_encoder() {
+        for v in [0u64, 1, 127, 128, 16_383, 16_384, 1 << 35, u64::MAX] {
+            let mut out = Vec::new();
+            put_varint(&mut out, v);
+            assert_eq!(varint_len(v), out.len() as u64, "{v}");
+        }
+    }
+
     proptest! {
+        #[test]
+        fn directory_bound_holds(
+            max_end in 200u64..1 << 40,
+            beams in prop::collection::vec((any::<u64>(), any::<u64>(), any::<bool>()), 0..200),
+        ) {
+            // Runs anywhere below max_end, in any order, with any count that fits.
+            let entries: Vec<BeamEntry> = beams.into_iter().map(|(a, b, full)| {
+                let count = if full { (a % (max_end / RECORD)).min(u64::from(u32::MAX)) as u32 } else { 0 };
+                let len = u64::from(count) * RECORD;
+                let offset = if count == 0 { 0 } else { b % (max_end - len + 1) };
+                BeamEntry { offset, count, crc: a as u32 }
+            }).collect();
+            let filled = entries.iter().filter(|e| e.count > 0).count() as u64;
+            let len = encode_directory(0, &entries).len() as u64;
+            prop_assert!(len <= directory_len_bound(entries.len() as u32, filled, max_end));
+            prop_assert!(directory_len_bound(entries.len() as u32, filled, max_end) <= max_directory_len(entries.len() as u32));
+        }
+
         #[test]
         fn directories_round_trip(entries in prop::collection::vec((0u64..1 << 40, 0u32..100_000, any::<u32>()), 0..200)) {
             let entries: Vec<BeamEntry> = entries.into_iter().map(|(o, c, crc)| {

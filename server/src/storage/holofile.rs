@@ -13,6 +13,7 @@ use super::bulk::SequentialWriter;
 use super::cache::BeamCache;
 use super::error::{Result, StorageError};
 use super::format::BeamEntry;
+use super::space::{Charge, SpaceBound};
 use super::store::{IoStats, OpenInfo, Store};
 use crate::settings::Settings;
 
@@ -108,6 +109,8 @@ pub struct HoloFile {
     flush_interval: Option<Duration>,
     last_flush: Instant,
     read_buf: Vec<u8>,
+    /// The DISKSPACE bound, when the file has a size limit.
+    space: Option<SpaceBound>,
 }
 
 impl HoloFile {
@@ -121,18 +124,111 @@ impl HoloFile {
         SequentialWriter::create(path, settings)?.finish()
     }
 
-    /// Opens an existing file.
+    /// Opens an existing file. A file opened for writing is limited to its
+    /// DISKSPACE setting, if it has one (see [`HoloFile::set_size_limit`]).
     pub fn open(path: &Path, options: &OpenOptions) -> Result<HoloFile> {
         let (store, settings) = Store::open(path, options.writable)?;
         let budget = options.cache_bytes.unwrap_or(settings.cache_bytes);
-        Ok(HoloFile {
+        let limit = (options.writable && settings.diskspace_bytes > 0).then_some(settings.diskspace_bytes);
+        let mut file = HoloFile {
             store,
             cache: BeamCache::new(usize::try_from(budget).unwrap_or(usize::MAX)),
             settings,
             flush_interval: options.flush_interval,
             last_flush: Instant::now(),
             read_buf: Vec::new(),
-        })
+            space: None,
+        };
+        file.set_size_limit(limit);
+        Ok(file)
+    }
+
+    /// Limits the file to `limit` bytes (`None`: no limit), replacing the
+    /// DISKSPACE setting it was opened with. The limit is hard: no write, at an
+    /// eviction, a flush or a commit, makes the file longer than this.
+    /// [`HoloFile::append`] refuses rays that might not fit, with
+    /// [`StorageError::DiskSpace`]. A file already longer than the limit takes
+    /// no more rays. Lowering the limit below what rays already appended need
+    /// makes the flushes that would write them fail with `DiskSpace` (the rays
+    /// stay cached) until it is raised again. Costs a pass over the directories.
+    pub fn set_size_limit(&mut self, limit: Option<u64>) {
+        self.store.set_limit(limit);
+        self.space = limit.map(|limit| {
+            let beams: Vec<u32> = self.store.dirs.iter().map(|d| d.len() as u32).collect();
+            let mut filled: Vec<u64> = self
+                .store
+                .dirs
+                .iter()
+                .map(|d| d.iter().filter(|e| e.count > 0).count() as u64)
+                .collect();
+            let mut touched: Vec<bool> = (0..beams.len()).map(|s| self.store.section_changed(s)).collect();
+            let mut writes = 0u64;
+            for key in self.cache.dirty_keys() {
+                let s = key.section as usize;
+                let total = self.beam_len(key).unwrap_or(0);
+                if self.entry(key).count == 0 {
+                    filled[s] += 1;
+                }
+                touched[s] = true;
+                writes = writes.saturating_add(self.store.write_growth_bound(key, total));
+            }
+            SpaceBound::new(limit, self.store.data_end(), writes, beams, filled, touched)
+        });
+    }
+
+    /// The size limit in bytes, if any (see [`HoloFile::set_size_limit`]).
+    pub fn size_limit(&self) -> Option<u64> {
+        self.space.as_ref().map(|s| s.limit())
+    }
+
+    /// Bytes by which the file may still grow, beyond the most that the rays
+    /// appended but not yet flushed can take, before the size limit refuses
+    /// appends; `None` without a limit. An upper bound on what is used, so the
+    /// file may end up holding more than this suggests. A flush makes it exact.
+    pub fn headroom(&self) -> Option<u64> {
+        self.space.as_ref().map(|s| s.limit().saturating_sub(s.bound()))
+    }
+
+    /// What appending `n` rays to `key` (a valid key) adds to the space bound.
+    fn charge_for(&self, key: BeamKey, n: u64) -> Charge {
+        let len = self.beam_len(key).unwrap_or(0);
+        let unwritten = self.cache.peek(&key).map_or(0, |e| e.unwritten);
+        // The beam's next write carries all its unwritten rays: charge the
+        // difference from what the appends since its last write were charged.
+        let before = if unwritten > 0 {
+            self.store.write_growth_bound(key, len)
+        } else {
+            0
+        };
+        let after = self.store.write_growth_bound(key, len + n);
+        Charge::new(key.section as usize, len == 0, after.saturating_sub(before))
+    }
+
+    /// Makes sure the file has room for `n` more rays in `key`, flushing first
+    /// if the bound says it might not; charges them to the bound.
+    fn reserve_space(&mut self, key: BeamKey, n: u64) -> Result<()> {
+        let Some(space) = &self.space else {
+            return Ok(());
+        };
+        let mut charge = self.charge_for(key, n);
+        if space.with(charge) > space.limit() && space.has_pending() {
+            // The bound only falls at a flush, where it becomes exact.
+            self.flush()?;
+            charge = self.charge_for(key, n);
+        }
+        let Some(space) = &mut self.space else {
+            return Ok(());
+        };
+        let needed = space.with(charge);
+        if needed > space.limit() {
+            return Err(StorageError::DiskSpace {
+                path: self.store.path.clone(),
+                limit: space.limit(),
+                needed,
+            });
+        }
+        space.charge(charge);
+        Ok(())
     }
 
     /// The file's settings (sections included).
@@ -199,6 +295,11 @@ impl HoloFile {
     }
 
     /// Appends rays to a beam. They are durable after the next flush.
+    ///
+    /// With a size limit, rays that might not fit are refused with
+    /// [`StorageError::DiskSpace`] before anything is stored (after a flush,
+    /// if that could make room). Each append is judged alone: a smaller one
+    /// may still fit.
     pub fn append(&mut self, key: BeamKey, rays: &[RayRecord]) -> Result<()> {
         if !self.store.writable {
             return Err(StorageError::ReadOnly {
@@ -207,6 +308,9 @@ impl HoloFile {
         }
         if self.beam_len(key)? + rays.len() as u64 > u64::from(u32::MAX) {
             return Err(StorageError::BeamFull { key });
+        }
+        if !rays.is_empty() {
+            self.reserve_space(key, rays.len() as u64)?;
         }
         let empty_on_disk = self.entry(key).count == 0;
         self.cache.update(key, |e| {
@@ -287,7 +391,23 @@ impl HoloFile {
         }
         self.store.commit()?;
         self.last_flush = Instant::now();
+        if let Some(space) = &mut self.space {
+            space.flushed(self.store.data_end());
+        }
         Ok(())
+    }
+
+    /// Deletes every ray in the file, durably (rays appended and not yet
+    /// flushed are dropped too). A crash midway leaves the file as it was.
+    pub fn clobber(&mut self) -> Result<()> {
+        if !self.store.writable {
+            return Err(StorageError::ReadOnly {
+                path: self.store.path.clone(),
+            });
+        }
+        self.cache = BeamCache::new(self.cache.budget());
+        self.store.clear_all()?;
+        self.flush()
     }
 
     /// Flushes and closes, reporting any error (dropping flushes too, but can only log).

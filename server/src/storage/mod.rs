@@ -13,6 +13,7 @@ pub mod format;
 pub mod holofile;
 mod io;
 pub mod maintain;
+mod space;
 pub mod store;
 
 pub use bulk::SequentialWriter;

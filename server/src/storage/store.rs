@@ -78,6 +78,8 @@ pub struct Store {
     /// Set when a write or sync failed: what is on disk is then uncertain
     /// (a failed fsync may drop dirty pages), so nothing more is written.
     poisoned: bool,
+    /// No allocation may end past this byte (DISKSPACE; `u64::MAX`: no limit).
+    limit: u64,
 }
 
 const RECORD: u64 = holodeck_protocol::RAY_RECORD_BYTES as u64;
@@ -291,6 +293,7 @@ impl Store {
                             skipped: problems,
                         },
                         poisoned: false,
+                        limit: u64::MAX,
                     };
                     return Ok((store, settings));
                 }
@@ -307,6 +310,8 @@ impl Store {
     }
 
     fn push_write(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {
+        // Every caller checked its room first (see `allocate` and `write_tail`).
+        debug_assert!(offset + bytes.len() as u64 <= self.limit.max(self.file_len));
         self.file_len = self.file_len.max(offset + bytes.len() as u64);
         let r = self.writes.push(&self.file, &self.path, offset, bytes);
         self.poison_on_error(r)
@@ -338,6 +343,59 @@ impl Store {
     fn sync(&mut self) -> Result<()> {
         let r = io::sync(&self.file, &self.path);
         self.poison_on_error(r)
+    }
+
+    /// Sets the size limit: from now on no allocation ends past `limit` bytes
+    /// and no write makes the file longer than that.
+    pub(crate) fn set_limit(&mut self, limit: Option<u64>) {
+        self.limit = limit.unwrap_or(u64::MAX);
+    }
+
+    /// The error for growing the file to `needed` bytes, past the limit.
+    fn no_space(&self, needed: u64) -> StorageError {
+        StorageError::DiskSpace {
+            path: self.path.clone(),
+            limit: self.limit,
+            needed,
+        }
+    }
+
+    /// Finds room for `len` bytes below the limit. On failure nothing changed.
+    fn allocate(&mut self, len: u64) -> Result<u64> {
+        match self.extents.allocate_below(len, self.limit) {
+            Some(offset) => Ok(offset),
+            None => Err(self.no_space(self.extents.end().saturating_add(len))),
+        }
+    }
+
+    /// The longer of the file and the space allocated in it: no write made
+    /// before the next allocation reaches past this.
+    pub(crate) fn data_end(&self) -> u64 {
+        self.file_len.max(self.extents.end())
+    }
+
+    /// True when section `s` has runs written since the last commit.
+    pub(crate) fn section_changed(&self, s: usize) -> bool {
+        self.dir_dirty[s]
+    }
+
+    /// Most bytes by which writing a beam's unwritten rays, so that it then
+    /// holds `total` rays, can move the end of the allocated space (see
+    /// [`Store::write_tail`]): nothing if they fit the run's reserve; the exact
+    /// run for a beam with nothing on disk; else a moved run with room to grow,
+    /// which is also more than growing in place can take. Valid until the
+    /// beam is next written.
+    pub(crate) fn write_growth_bound(&self, key: BeamKey, total: u64) -> u64 {
+        let (s, b) = (key.section as usize, key.beam as usize);
+        let count = self.dirs[s][b].count;
+        let total32 = u32::try_from(total).unwrap_or(u32::MAX);
+        if count == 0 {
+            total.saturating_mul(RECORD)
+        } else if total <= u64::from(self.capacity[s][b]) {
+            0
+        } else {
+            u64::from(grow(total32)) * RECORD
+        }
     }
 
     /// Reads `len` bytes at `offset` into the start of `buf`, seeing every write
@@ -391,7 +449,12 @@ impl Store {
         let count = old.count + tail.len() as u32;
         let run_end = old.extent().end();
         let reserve_end = old.offset + cap * RECORD;
+        let tail_end = run_end + tail_bytes.len() as u64;
         let new = if old.count > 0 && u64::from(count) <= cap {
+            // The reserve was allocated below the limit, unless it was lowered since.
+            if tail_end > self.limit && tail_end > self.file_len {
+                return Err(self.no_space(tail_end));
+            }
             self.push_write(run_end, tail_bytes)?;
             BeamEntry {
                 offset: old.offset,
@@ -399,6 +462,7 @@ impl Store {
                 crc: crc32c::crc32c_append(old.crc, tail_bytes),
             }
         } else if old.count > 0
+            && tail_end <= self.limit
             && self
                 .extents
                 .try_claim(reserve_end, u64::from(count) * RECORD - cap * RECORD)
@@ -418,7 +482,8 @@ impl Store {
             };
             // A beam's first run is exact; only a beam that had to move has shown it grows.
             let room = if old.count == 0 { count } else { grow(count) };
-            let offset = self.extents.allocate(u64::from(room) * RECORD);
+            // The only step that can fail before anything changed: the limit.
+            let offset = self.allocate(u64::from(room) * RECORD)?;
             self.push_write(offset, &existing)?;
             self.push_write(offset + existing.len() as u64, tail_bytes)?;
             if old.count > 0 {
@@ -453,6 +518,38 @@ impl Store {
         Ok(())
     }
 
+    /// Empties every beam (the Clobber command): their runs are freed as a
+    /// commit frees them, so the last commit stays readable until the next
+    /// one is durable.
+    pub(crate) fn clear_all(&mut self) -> Result<()> {
+        self.check_usable()?;
+        for s in 0..self.dirs.len() {
+            for b in 0..self.dirs[s].len() {
+                let old = self.dirs[s][b];
+                if old.count == 0 {
+                    continue;
+                }
+                let cap = u64::from(self.capacity[s][b]) * RECORD;
+                if self.fresh.remove(&old.offset) {
+                    self.extents.release_now(Extent {
+                        offset: old.offset,
+                        len: cap,
+                    });
+                } else {
+                    self.extents.release(old.extent());
+                    self.extents.release_now(Extent {
+                        offset: old.extent().end(),
+                        len: cap - old.extent().len,
+                    });
+                }
+                self.dirs[s][b] = BeamEntry::default();
+                self.capacity[s][b] = 0;
+            }
+            self.dir_dirty[s] = true;
+        }
+        Ok(())
+    }
+
     /// Bytes held in growth reserves (free once the file is reopened or optimized).
     pub fn reserved_bytes(&self) -> u64 {
         self.dirs
@@ -479,41 +576,33 @@ impl Store {
             return self.flush_writes();
         }
         let generation = self.generation + 1;
-        for s in 0..self.dirs.len() {
-            if !self.dir_dirty[s] {
-                continue;
+        let mut blocks = self.blocks.clone();
+        let mut claimed = Vec::new();
+        let written = self.write_metadata(generation, &mut blocks, &mut claimed);
+        let (root, root_crc) = match written {
+            Ok(r) => r,
+            Err(e) => {
+                // No commit refers to the new blocks: give their space back, in
+                // reverse order so that the end shrinks back too. The current
+                // commit and its directories are untouched.
+                for x in claimed.into_iter().rev() {
+                    self.extents.release_now(x);
+                }
+                return Err(e);
             }
-            let bytes = format::encode_directory(s as u32, &self.dirs[s]);
-            let block = Extent {
-                offset: self.extents.allocate(bytes.len() as u64),
-                len: bytes.len() as u64,
-            };
-            self.push_write(block.offset, &bytes)?;
-            self.extents.release(self.blocks[s]);
-            self.blocks[s] = block;
-        }
-        let refs: Vec<DirRef> = self
-            .dirs
-            .iter()
-            .zip(&self.blocks)
-            .map(|(d, b)| DirRef {
-                block: *b,
-                beams: d.len() as u32,
-                rays: d.iter().map(|e| u64::from(e.count)).sum(),
-            })
-            .collect();
-        let root_bytes = format::encode_root(generation, &refs);
-        let root = Extent {
-            offset: self.extents.allocate(root_bytes.len() as u64),
-            len: root_bytes.len() as u64,
         };
-        self.push_write(root.offset, &root_bytes)?;
+        for s in 0..self.dirs.len() {
+            if self.dir_dirty[s] {
+                self.extents.release(self.blocks[s]);
+            }
+        }
+        self.blocks = blocks;
         self.flush_writes()?;
         self.sync()?;
         let slot = Slot {
             generation,
             root,
-            root_crc: crc32c::crc32c(&root_bytes),
+            root_crc,
         };
         // From here on a failure leaves it unknown which commit is durable: poison.
         let r = io::write_at(
@@ -549,6 +638,48 @@ impl Store {
         Ok(())
     }
 
+    /// Writes the changed sections' directory blocks and a root listing
+    /// `blocks` (updated) to free space; returns the root and its CRC. Every
+    /// extent allocated is pushed to `claimed` first, for undoing on failure.
+    fn write_metadata(
+        &mut self,
+        generation: u64,
+        blocks: &mut [Extent],
+        claimed: &mut Vec<Extent>,
+    ) -> Result<(Extent, u32)> {
+        for (s, dir_block) in blocks.iter_mut().enumerate() {
+            if !self.dir_dirty[s] {
+                continue;
+            }
+            let bytes = format::encode_directory(s as u32, &self.dirs[s]);
+            let block = Extent {
+                offset: self.allocate(bytes.len() as u64)?,
+                len: bytes.len() as u64,
+            };
+            claimed.push(block);
+            self.push_write(block.offset, &bytes)?;
+            *dir_block = block;
+        }
+        let refs: Vec<DirRef> = self
+            .dirs
+            .iter()
+            .zip(blocks.iter())
+            .map(|(d, b)| DirRef {
+                block: *b,
+                beams: d.len() as u32,
+                rays: d.iter().map(|e| u64::from(e.count)).sum(),
+            })
+            .collect();
+        let root_bytes = format::encode_root(generation, &refs);
+        let root = Extent {
+            offset: self.allocate(root_bytes.len() as u64)?,
+            len: root_bytes.len() as u64,
+        };
+        claimed.push(root);
+        self.push_write(root.offset, &root_bytes)?;
+        Ok((root, crc32c::crc32c(&root_bytes)))
+    }
+
     /// Current length of the file in bytes.
     pub fn file_len(&self) -> u64 {
         self.file_len
@@ -557,5 +688,117 @@ impl Store {
     /// Bytes taken by the directory blocks and root of the current commit.
     pub fn metadata_bytes(&self) -> u64 {
         self.blocks.iter().map(|b| b.len).sum::<u64>() + self.root.len
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::storage::HoloFile;
+    use crate::testing::{pattern_rays, two_sections};
+
+    /// A new file whose section 0 beams `0..beams` hold `n` rays each, committed.
+    fn committed_file(dir: &Path, beams: u32, n: u64) -> (PathBuf, Store) {
+        let path = dir.join("t.hdk");
+        HoloFile::create(&path, &two_sections([4, 3, 2], [2, 2, 2], 1 << 20)).unwrap();
+        let (mut store, _) = Store::open(&path, true).unwrap();
+        for b in 0..beams {
+            let key = BeamKey::new(0, b);
+            store.write_tail(key, None, &pattern_rays(key, 0, n)).unwrap();
+        }
+        store.commit().unwrap();
+        (path, store)
+    }
+
+    /// Asserts the file at `path` (copied, as a crash would leave it) opens at
+    /// `generation` with section 0 beams `0..beams` holding `n` rays each.
+    fn assert_committed(path: &Path, generation: u64, beams: u32, n: u64) {
+        let copy = path.with_extension("copy");
+        std::fs::copy(path, &copy).unwrap();
+        let mut f = HoloFile::open(&copy, &crate::storage::OpenOptions::read_only()).unwrap();
+        assert_eq!(f.open_info().generation, generation);
+        for b in 0..f.sections()[0].beam_count() {
+            let key = BeamKey::new(0, b);
+            let want = if b < beams { n } else { 0 };
+            assert_eq!(f.read_beam(key).unwrap(), pattern_rays(key, 0, want), "beam {b}");
+        }
+    }
+
+    /// Uses up every free hole, so that any further allocation must extend the end.
+    fn fill_holes(store: &mut Store) {
+        let end = store.extents.end();
+        while store.extents.allocate_below(1, end).is_some() {}
+    }
+
+    #[test]
+    fn a_commit_that_cannot_place_its_directory_or_root_keeps_the_previous_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let beams = 500;
+        let (path, mut store) = committed_file(dir.path(), beams, 3);
+        let generation = store.generation;
+        for b in 0..beams {
+            let key = BeamKey::new(0, b);
+            store.write_tail(key, None, &pattern_rays(key, 3, 2)).unwrap();
+        }
+        fill_holes(&mut store);
+        let end = store.extents.end();
+        let free = store.extents.free_bytes();
+        let dir_len = format::encode_directory(0, &store.dirs[0]).len() as u64;
+        let root_len = format::root_len(store.dirs.len());
+        // First no room for the directory, then room for it but not the root.
+        for limit in [end + dir_len - 1, end + dir_len + root_len - 1] {
+            store.set_limit(Some(limit));
+            let e = store.commit().unwrap_err();
+            assert!(
+                matches!(e, StorageError::DiskSpace { limit: l, needed, .. } if l == limit && needed > limit),
+                "{e}"
+            );
+            assert!(!store.poisoned, "a refused commit must not poison the file");
+            assert_eq!(store.extents.end(), end, "the refused allocations are given back");
+            assert_eq!(store.extents.free_bytes(), free);
+            assert!(store.flush_writes().is_ok());
+            assert!(std::fs::metadata(&path).unwrap().len() <= limit);
+            assert_committed(&path, generation, beams, 3);
+        }
+        // With exactly enough room the commit goes through.
+        store.set_limit(Some(end + dir_len + root_len));
+        store.commit().unwrap();
+        assert_eq!(store.generation, generation + 1);
+        assert!(std::fs::metadata(&path).unwrap().len() <= end + dir_len + root_len);
+        drop(store);
+        assert_committed(&path, generation + 1, beams, 5);
+    }
+
+    #[test]
+    fn runs_are_never_placed_past_the_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, mut store) = committed_file(dir.path(), 10, 4);
+        fill_holes(&mut store);
+        let end = store.extents.end();
+        store.set_limit(Some(end + 100));
+        // A new beam of 10 rays (100 bytes) fits exactly; the next does not.
+        let a = BeamKey::new(0, 20);
+        store.write_tail(a, None, &pattern_rays(a, 0, 10)).unwrap();
+        assert_eq!(store.extents.end(), end + 100);
+        let b = BeamKey::new(0, 21);
+        let e = store.write_tail(b, None, &pattern_rays(b, 0, 1)).unwrap_err();
+        assert!(
+            matches!(e, StorageError::DiskSpace { needed, .. } if needed == end + 110),
+            "{e}"
+        );
+        // Growing a run that would have to move is refused too, and changes nothing.
+        let c = BeamKey::new(0, 3);
+        let before = store.dirs[0][3];
+        assert!(store.write_tail(c, None, &pattern_rays(c, 4, 1)).is_err());
+        assert_eq!(store.dirs[0][3], before);
+        assert_eq!(store.extents.end(), end + 100);
+        assert!(!store.poisoned);
+        store.flush_writes().unwrap();
+        assert!(std::fs::metadata(&path).unwrap().len() <= end + 100);
+        // The run at the end grows in place as far as the limit allows.
+        store.set_limit(Some(end + 120));
+        store.write_tail(a, None, &pattern_rays(a, 10, 2)).unwrap();
+        assert_eq!(store.extents.end(), end + 120);
+        assert!(store.write_tail(a, None, &pattern_rays(a, 12, 1)).is_err());
     }
 }

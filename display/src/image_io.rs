@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use image::codecs::hdr::HdrEncoder;
 use image::Rgb;
 
-use super::Picture;
+use holodeck_protocol::Picture;
 
 /// A picture that could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -56,4 +56,20 @@ pub fn write_png(p: &Picture, path: &Path, exposure: f32) -> Result<(), ImageErr
         .flat_map(|c| (*c * exposure).to_array().map(srgb))
         .collect();
     image::save_buffer(path, &bytes, p.width as u32, p.height as u32, image::ColorType::Rgb8).map_err(|e| err(path, e))
+}
+
+/// Writes 8-bit RGB bytes (rows from the top, as `ToneMap::apply` makes
+/// them) as a PNG whatever the file's extension. A buffer that is not
+/// exactly `3 * width * height` bytes is an error, not a panic in the encoder.
+pub fn write_rgb8(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<(), ImageError> {
+    let (w, h) = match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) => (w, h),
+        _ => return Err(err(path, format!("{width}x{height} is too large for a PNG"))),
+    };
+    if width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(rgb.len()) {
+        let message = format!("{} bytes for a {width}x{height} RGB picture", rgb.len());
+        return Err(err(path, message));
+    }
+    image::save_buffer_with_format(path, rgb, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
+        .map_err(|e| err(path, e))
 }

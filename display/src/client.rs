@@ -1,0 +1,239 @@
+//! A display's connection to a holodeck server: handshake, beam requests, and
+//! the samples that come back, decoded. A reader thread turns the socket into
+//! a channel so the display can wait for samples with a deadline while it
+//! keeps drawing.
+
+use std::io::{Read, Write};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
+
+use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, LinkError, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::{Section, SectionError};
+
+use crate::request::BeamRequest;
+use crate::sample::{Sample, SampleDecoder};
+
+/// Why a display session failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    /// Connecting or talking to the server failed.
+    #[error("server {addr}: {source}")]
+    Link {
+        /// The server.
+        addr: String,
+        /// Why.
+        source: LinkError,
+    },
+    /// The server refused this display.
+    #[error("the server refused this display: {0}")]
+    Refused(String),
+    /// The server sent something out of turn.
+    #[error("protocol error: {0}")]
+    Protocol(String),
+    /// A section the server described is invalid.
+    #[error("section from the server: {0}")]
+    Section(#[from] SectionError),
+    /// The server closed the connection.
+    #[error("the server closed the connection")]
+    Closed,
+}
+
+/// Both directions of a socket, splittable into a reader and a writer.
+trait Duplex: Read + Write + Send {
+    fn split(&self) -> std::io::Result<Box<dyn Duplex>>;
+}
+
+impl Duplex for std::net::TcpStream {
+    fn split(&self) -> std::io::Result<Box<dyn Duplex>> {
+        Ok(Box::new(self.try_clone()?))
+    }
+}
+
+impl Duplex for std::os::unix::net::UnixStream {
+    fn split(&self) -> std::io::Result<Box<dyn Duplex>> {
+        Ok(Box::new(self.try_clone()?))
+    }
+}
+
+fn connect(addr: &str) -> std::io::Result<Box<dyn Duplex>> {
+    if let Some(path) = addr.strip_prefix("unix:") {
+        return Ok(Box::new(std::os::unix::net::UnixStream::connect(path)?));
+    }
+    let s = std::net::TcpStream::connect(addr)?;
+    let _ = s.set_nodelay(true);
+    Ok(Box::new(s))
+}
+
+/// What one immediate transfer brought.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Transfer {
+    /// Beams received.
+    pub beams: u64,
+    /// Samples received.
+    pub samples: u64,
+    /// Records that did not decode (unknown beams).
+    pub undecodable: u64,
+    /// From the request to the last byte.
+    pub elapsed: Duration,
+}
+
+/// A connected display.
+pub struct DisplaySession {
+    addr: String,
+    writer: FrameLink<Box<dyn Duplex>>,
+    frames: Receiver<Result<Frame, LinkError>>,
+    decoder: SampleDecoder,
+    scratch: Vec<Sample>,
+}
+
+impl DisplaySession {
+    /// Connects to `addr` (`host:port` or `unix:PATH`) as a display.
+    pub fn connect(addr: &str, token: &str, read_only: bool) -> Result<DisplaySession, ClientError> {
+        let link_err = |source: LinkError| ClientError::Link {
+            addr: addr.to_string(),
+            source,
+        };
+        let stream = connect(addr).map_err(|e| link_err(LinkError::Io(e)))?;
+        let reader = stream.split().map_err(|e| link_err(LinkError::Io(e)))?;
+        let mut writer = FrameLink::new(stream);
+        let hello = Hello {
+            version: PROTOCOL_VERSION,
+            role: Role::Display,
+            scene: String::new(),
+            token: token.into(),
+            read_only,
+        };
+        writer.write(&Frame::Message(Message::Hello(hello))).map_err(link_err)?;
+        writer.flush().map_err(link_err)?;
+        let (tx, frames) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut link = FrameLink::new(reader);
+            loop {
+                match link.read() {
+                    Ok(Some(f)) => {
+                        if tx.send(Ok(f)).is_err() {
+                            return;
+                        }
+                    }
+                    Ok(None) => return,
+                    Err(e) => {
+                        let _ = tx.send(Err(e));
+                        return;
+                    }
+                }
+            }
+        });
+        let mut session = DisplaySession {
+            addr: addr.to_string(),
+            writer,
+            frames,
+            decoder: SampleDecoder::new(Vec::new()),
+            scratch: Vec::new(),
+        };
+        match session.next(None)? {
+            Some(Frame::Message(Message::Welcome { sections, .. })) => {
+                let sections: Vec<Section> = sections.into_iter().map(Section::try_from).collect::<Result<_, _>>()?;
+                session.decoder = SampleDecoder::new(sections);
+                Ok(session)
+            }
+            Some(Frame::Message(Message::Refused { reason })) => Err(ClientError::Refused(reason)),
+            other => Err(ClientError::Protocol(format!("expected Welcome, got {other:?}"))),
+        }
+    }
+
+    /// The holodeck's sections.
+    pub fn sections(&self) -> &[Section] {
+        self.decoder.sections()
+    }
+
+    /// The next frame, waiting at most until `deadline` (`None`: forever).
+    /// `Ok(None)` when the deadline passed.
+    fn next(&mut self, deadline: Option<Instant>) -> Result<Option<Frame>, ClientError> {
+        let got = match deadline {
+            None => self.frames.recv().map_err(|_| RecvTimeoutError::Disconnected),
+            Some(d) => self.frames.recv_timeout(d.saturating_duration_since(Instant::now())),
+        };
+        match got {
+            Ok(Ok(f)) => Ok(Some(f)),
+            Ok(Err(source)) => Err(ClientError::Link {
+                addr: self.addr.clone(),
+                source,
+            }),
+            Err(RecvTimeoutError::Timeout) => Ok(None),
+            Err(RecvTimeoutError::Disconnected) => Err(ClientError::Closed),
+        }
+    }
+
+    fn send(&mut self, f: &Frame) -> Result<(), ClientError> {
+        let addr = &self.addr;
+        self.writer
+            .write(f)
+            .and_then(|()| self.writer.flush())
+            .map_err(|source| ClientError::Link {
+                addr: addr.clone(),
+                source,
+            })
+    }
+
+    /// Asks for a view's beams (replacing the last request) and receives
+    /// every stored sample at once (the immediate transfer), handing them to
+    /// `sink` beam by beam.
+    pub fn request(&mut self, req: &BeamRequest, sink: &mut dyn FnMut(&[Sample])) -> Result<Transfer, ClientError> {
+        let start = Instant::now();
+        self.send(&Frame::Message(Message::BeamRequest {
+            beams: req.beams.clone(),
+            eye: req.eye,
+            replace: true,
+        }))?;
+        let mut t = Transfer::default();
+        loop {
+            match self.next(None)? {
+                Some(Frame::Beam { key, records }) => {
+                    t.beams += 1;
+                    t.samples += records.len() as u64;
+                    t.undecodable += self.take(key, &records, sink) as u64;
+                }
+                Some(Frame::Message(Message::Delivered { .. })) => break,
+                Some(Frame::Message(Message::Error { message })) => return Err(ClientError::Protocol(message)),
+                other => return Err(ClientError::Protocol(format!("expected beam data, got {other:?}"))),
+            }
+        }
+        t.elapsed = start.elapsed();
+        Ok(t)
+    }
+
+    /// Receives newly traced samples of the requested beams until `deadline`;
+    /// returns how many came.
+    pub fn refine(&mut self, deadline: Instant, sink: &mut dyn FnMut(&[Sample])) -> Result<u64, ClientError> {
+        let mut n = 0u64;
+        while let Some(f) = self.next(Some(deadline))? {
+            match f {
+                Frame::Beam { key, records } => {
+                    n += records.len() as u64;
+                    self.take(key, &records, sink);
+                }
+                Frame::Message(Message::Error { message }) => return Err(ClientError::Protocol(message)),
+                Frame::Message(Message::Progress(_)) => {}
+                other => return Err(ClientError::Protocol(format!("unexpected {other:?}"))),
+            }
+        }
+        Ok(n)
+    }
+
+    fn take(
+        &mut self,
+        key: holodeck_protocol::BeamKey,
+        records: &[holodeck_protocol::RayRecord],
+        sink: &mut dyn FnMut(&[Sample]),
+    ) -> usize {
+        self.scratch.clear();
+        let bad = self.decoder.decode(key.section, key.beam, records, &mut self.scratch);
+        sink(&self.scratch);
+        bad
+    }
+
+    /// Sends a control command (a read-only session may only pause and resume).
+    pub fn control(&mut self, c: Control) -> Result<(), ClientError> {
+        self.send(&Frame::Message(Message::Control(c)))
+    }
+}

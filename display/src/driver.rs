@@ -1,0 +1,109 @@
+//! The driver abstraction every image representation implements: samples go
+//! in (with world hit points, so they reproject into any view), a view is set,
+//! and a frame of linear radiance comes out.
+
+use holodeck_protocol::{Picture, View};
+
+use crate::sample::Sample;
+
+/// The largest frame a driver accepts: 8192 x 8192 pixels (a 16384 x 16384
+/// frame would need 3 GiB of radiance alone).
+pub const MAX_VIEWPORT_PIXELS: u64 = 8192 * 8192;
+
+/// A view and the pixel size of the frame it is drawn into.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Viewport {
+    /// The view.
+    pub view: View,
+    /// Frame width in pixels.
+    pub width: u32,
+    /// Frame height in pixels.
+    pub height: u32,
+}
+
+/// Why a driver cannot take a viewport.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DriverError {
+    /// A zero-sized or oversized frame.
+    #[error("a {width}x{height} frame is not supported (1x1 up to {max} pixels)", max = MAX_VIEWPORT_PIXELS)]
+    FrameSize {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+    },
+    /// A view whose numbers are not finite or whose directions are degenerate.
+    #[error("the view is degenerate: {0}")]
+    View(String),
+}
+
+impl Viewport {
+    /// Checks the size and the view.
+    pub fn new(view: View, width: u32, height: u32) -> Result<Viewport, DriverError> {
+        if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_VIEWPORT_PIXELS {
+            return Err(DriverError::FrameSize { width, height });
+        }
+        let finite = view.position.is_finite()
+            && view.direction.is_finite()
+            && view.up.is_finite()
+            && view.horizontal.is_finite()
+            && view.vertical.is_finite();
+        if !finite || view.direction.length_squared() == 0.0 || view.direction.cross(view.up).length_squared() == 0.0 {
+            return Err(DriverError::View(view.to_spec()));
+        }
+        Ok(Viewport { view, width, height })
+    }
+
+    /// The pixel (column, row from the top) a world point projects to, with its
+    /// depth, or `None` outside the frame or behind the eye.
+    pub fn pixel(&self, world: glam::DVec3) -> Option<(u32, u32, f64)> {
+        let (x, y, depth) = self.view.project(world)?;
+        if !(0.0..1.0).contains(&x) || !(0.0..1.0).contains(&y) {
+            return None;
+        }
+        let col = (x * f64::from(self.width)) as u32;
+        let row = ((1.0 - y) * f64::from(self.height)) as u32;
+        Some((col.min(self.width - 1), row.min(self.height - 1), depth))
+    }
+}
+
+/// What a driver has seen and done.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DriverStats {
+    /// Samples given to [`Driver::add`].
+    pub received: u64,
+    /// Samples in the current image representation.
+    pub kept: u64,
+    /// Samples rejected for NaN or infinite numbers.
+    pub rejected_nonfinite: u64,
+    /// Samples that reproject outside the frame (or behind the eye).
+    pub outside: u64,
+    /// Samples that replaced one on the same pixel because their ray passed
+    /// closer to the eye.
+    pub replaced: u64,
+    /// Samples dropped because one already on the same pixel passed closer.
+    pub discarded: u64,
+    /// Pixel collisions between samples whose depths differ by more than 2%:
+    /// the multidepth samples of the paper's Figure 6.
+    pub multidepth: u64,
+    /// Times the local sample cache was dropped after a large rotation.
+    pub cache_drops: u64,
+}
+
+/// An image representation.
+pub trait Driver {
+    /// A short name ("quadtree").
+    fn name(&self) -> &'static str;
+    /// Adds samples; they appear in the next frame.
+    fn add(&mut self, samples: &[Sample]);
+    /// Changes the view (and frame size): samples are reprojected.
+    fn set_view(&mut self, viewport: Viewport);
+    /// The current viewport.
+    fn viewport(&self) -> &Viewport;
+    /// Draws the current frame, linear radiance, top row first.
+    fn render(&mut self) -> Picture;
+    /// Counters.
+    fn stats(&self) -> DriverStats;
+    /// Forgets every sample.
+    fn clear(&mut self);
+}

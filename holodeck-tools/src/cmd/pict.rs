@@ -1,0 +1,194 @@
+//! `holodeck pict`: pictures straight from a holodeck file (like Radiance's
+//! rhpict): select the beams a view sees, read them in file order, hand the
+//! samples to a display driver, and write the frame.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use holodeck_display::request::{BeamRequest, RequestOptions};
+use holodeck_display::tonemap::Histogram;
+use holodeck_display::{new_driver, output, DriverStats, Sample, SampleDecoder, Viewport};
+use holodeck_protocol::{BeamKey, View};
+use holodeck_server::{HoloFile, OpenOptions};
+
+use crate::human::count;
+
+/// Arguments of `holodeck pict`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Reads FILE directly (no server; it may be open by a server at the same time), gathers the
+beams each view sees, reconstructs the picture with a display driver and writes it: .hdr
+(Radiance RGBE, linear, nothing lost) or .png (tone mapped: camera, human or exposure:X).
+With --views, every line of the file is one frame and OUTPUT holds %d or %04d for its number.
+
+Examples:
+  holodeck pict room.hdk -o room.png
+  holodeck pict room.hdk --view '-vtv -vp 1 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45' -o v.hdr
+  holodeck pict room.hdk --views walk.vf -o frames/walk_%04d.png --tone human")]
+pub struct Args {
+    /// The holodeck file.
+    file: PathBuf,
+    /// View options (Radiance notation); default: the built-in room's view.
+    #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true, conflicts_with = "views")]
+    view: String,
+    /// A file of views, one per line (a scripted path): numbered frames.
+    #[arg(long)]
+    views: Option<PathBuf>,
+    /// Image width.
+    #[arg(short = 'x', long, default_value_t = 512)]
+    width: u32,
+    /// Image height.
+    #[arg(short = 'y', long, default_value_t = 384)]
+    height: u32,
+    /// Display driver: quadtree, or splat (plain points, the baseline).
+    #[arg(long, default_value = "quadtree")]
+    driver: String,
+    /// Tone mapping for PNG: camera, human, exposure:X or exposure:auto.
+    #[arg(long, default_value = "camera")]
+    tone: String,
+    /// Beam selection: one view ray per this many pixels across and down.
+    #[arg(long, default_value_t = 2)]
+    stride: u32,
+    /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+/// What drawing one frame took.
+pub struct FrameStats {
+    /// Beams the view selected.
+    pub beams: usize,
+    /// Samples read and handed to the driver.
+    pub samples: u64,
+    /// Reading, decoding and inserting.
+    pub recall: Duration,
+    /// Drawing the frame.
+    pub render: Duration,
+    /// The driver's counters.
+    pub driver: DriverStats,
+}
+
+/// Draws `view` from `file` with a fresh driver; returns the frame, the
+/// histogram of the samples, and the statistics.
+pub fn draw(
+    file: &mut HoloFile,
+    viewport: Viewport,
+    driver: &str,
+    stride: u32,
+    seed: u64,
+) -> Result<(holodeck_protocol::Picture, Histogram, FrameStats)> {
+    let sections = file.sections().to_vec();
+    let options = RequestOptions {
+        stride,
+        ..RequestOptions::default()
+    };
+    let request = BeamRequest::for_viewport(&sections, &viewport, &options, seed);
+    let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+    keys.sort_unstable();
+    let decoder = SampleDecoder::new(sections);
+    let mut d = new_driver(driver, viewport).map_err(anyhow::Error::msg)?;
+    let mut hist = Histogram::new();
+    let mut scratch: Vec<Sample> = Vec::new();
+    let mut samples = 0u64;
+    let start = Instant::now();
+    file.read_beams(&keys, |k, rays| {
+        scratch.clear();
+        decoder.decode(k.section, k.beam, rays, &mut scratch);
+        samples += scratch.len() as u64;
+        hist.add_many(scratch.iter().map(|s| s.color));
+        d.add(&scratch);
+    })?;
+    let recall = start.elapsed();
+    let start = Instant::now();
+    let picture = d.render();
+    let render = start.elapsed();
+    Ok((
+        picture,
+        hist,
+        FrameStats {
+            beams: keys.len(),
+            samples,
+            recall,
+            render,
+            driver: d.stats(),
+        },
+    ))
+}
+
+/// The output name of frame `n`: `%d` or `%0Nd` replaced by the number.
+fn numbered(pattern: &Path, n: usize) -> Result<PathBuf> {
+    let s = pattern.to_str().context("the output name must be valid UTF-8")?;
+    let Some(at) = s.find('%') else {
+        bail!("with --views, the output name must hold %d or %04d for the frame number")
+    };
+    let rest = &s[at + 1..];
+    let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+    if !rest[digits.len()..].starts_with('d') {
+        bail!("the output name {s:?} must use %d or %0Nd for the frame number");
+    }
+    let width: usize = digits.parse().unwrap_or(0);
+    Ok(PathBuf::from(format!(
+        "{}{n:0width$}{}",
+        &s[..at],
+        &rest[digits.len() + 1..]
+    )))
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let views = match &a.views {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+            let v = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
+            if v.is_empty() {
+                bail!("{} holds no views", path.display());
+            }
+            v
+        }
+        None => vec![View::parse(&a.view).context("--view")?],
+    };
+    let mut file =
+        HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;
+    for (i, view) in views.into_iter().enumerate() {
+        let out = if a.views.is_some() {
+            numbered(&a.output, i + 1)?
+        } else {
+            a.output.clone()
+        };
+        let viewport = Viewport::new(view, a.width, a.height)?;
+        let (picture, hist, s) = draw(&mut file, viewport, &a.driver, a.stride, i as u64)?;
+        let mode = output::parse_tone(&a.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        output::save(&picture, &hist, mode, &out)?;
+        let secs = s.recall.as_secs_f64();
+        println!(
+            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms; {} kept, {} multidepth",
+            out.display(),
+            count(s.samples),
+            count(s.beams as u64),
+            secs * 1e3,
+            count((s.samples as f64 / secs.max(1e-9)) as u64),
+            s.render.as_secs_f64() * 1e3,
+            count(s.driver.kept),
+            count(s.driver.multidepth),
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_names_take_the_number() {
+        assert_eq!(
+            numbered(Path::new("f_%04d.png"), 7).unwrap(),
+            PathBuf::from("f_0007.png")
+        );
+        assert_eq!(numbered(Path::new("d/%d.hdr"), 12).unwrap(), PathBuf::from("d/12.hdr"));
+        assert!(numbered(Path::new("f.png"), 1).is_err());
+        assert!(numbered(Path::new("f%x.png"), 1).is_err());
+    }
+}

@@ -1,0 +1,206 @@
+//! Beam selection (paper, 2.4.2): which beams a view sees, and how many
+//! samples each should get so that the view refines uniformly.
+//!
+//! Jittered view rays at low density are intersected with every section; the
+//! beam each ray's line falls in gets a count. A line is counted whether the
+//! section lies in front of the eye, behind it, or around it: samples are
+//! traced along the view direction, so a beam behind the eye still carries
+//! what the eye sees (as long as nothing stands between), and with the eye
+//! inside an interior section most of the line is behind it.
+//!
+//! Pure arithmetic, shared by displays (to request beams) and the server (to
+//! limit a batch fill to what given views see).
+
+use crate::beam::BeamKey;
+use crate::section::Section;
+use crate::view::View;
+
+/// Beams seen by a view, with the number of view rays that fell in each.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ViewBeams {
+    /// (beam, view rays in it), sorted by beam.
+    pub counts: Vec<(BeamKey, u32)>,
+    /// View rays shot (inside the image; fisheye corners are not shot).
+    pub rays: u32,
+    /// View rays whose line crossed no section.
+    pub missed: u32,
+}
+
+/// A small deterministic generator (SplitMix64): jitter must repeat for a
+/// given view so that requests do not flicker between identical frames.
+struct Jitter(u64);
+
+impl Jitter {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+impl ViewBeams {
+    /// Shoots `columns` x `rows` jittered view rays (one per cell of a grid
+    /// over the image) and counts the beams of `sections` their lines fall in.
+    pub fn select(sections: &[Section], view: &View, columns: u32, rows: u32, seed: u64) -> ViewBeams {
+        let mut jitter = Jitter(seed ^ 0x5eed_f00d);
+        let rays_of = view.rays();
+        let mut hits: Vec<BeamKey> = Vec::new();
+        let (mut rays, mut missed) = (0u32, 0u32);
+        for row in 0..rows {
+            for col in 0..columns {
+                let x = (f64::from(col) + jitter.next()) / f64::from(columns);
+                let y = (f64::from(row) + jitter.next()) / f64::from(rows);
+                let Some((origin, dir)) = rays_of.ray(x, y) else {
+                    continue;
+                };
+                rays += 1;
+                let before = hits.len();
+                for (si, s) in sections.iter().enumerate() {
+                    if let Some(at) = s.locate(origin, dir) {
+                        hits.push(BeamKey::new(si as u32, at.beam));
+                    }
+                }
+                if hits.len() == before {
+                    missed += 1;
+                }
+            }
+        }
+        hits.sort_unstable();
+        let mut counts: Vec<(BeamKey, u32)> = Vec::new();
+        for k in hits {
+            match counts.last_mut() {
+                Some((last, n)) if *last == k => *n += 1,
+                _ => counts.push((k, 1)),
+            }
+        }
+        ViewBeams { counts, rays, missed }
+    }
+
+    /// Desired samples per beam for `samples` samples over the whole view
+    /// (typically the pixel count times a density): each beam gets its share
+    /// of the view rays, rounded up, so every beam seen gets at least one.
+    pub fn desired(&self, samples: u64) -> Vec<(BeamKey, u32)> {
+        let per_ray = samples as f64 / f64::from(self.rays.max(1));
+        self.counts
+            .iter()
+            .map(|&(k, n)| {
+                (
+                    k,
+                    (f64::from(n) * per_ray).ceil().clamp(1.0, f64::from(u32::MAX)) as u32,
+                )
+            })
+            .collect()
+    }
+
+    /// The number of beams seen.
+    pub fn len(&self) -> usize {
+        self.counts.len()
+    }
+
+    /// True when the view sees no beam.
+    pub fn is_empty(&self) -> bool {
+        self.counts.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::section::SectionKind;
+
+    fn room() -> Section {
+        Section::new(
+            [0.0; 3],
+            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
+            [8, 6, 4],
+            SectionKind::Interior,
+        )
+        .unwrap()
+    }
+
+    fn view(spec: &str) -> View {
+        View::parse(spec).unwrap()
+    }
+
+    #[test]
+    fn every_view_ray_inside_a_section_lands_in_the_beam_its_line_belongs_to() {
+        let s = room();
+        let v = view("-vtv -vp 2 1.5 1 -vd 1 0.3 0.1 -vu 0 0 1 -vh 60 -vv 45");
+        let got = ViewBeams::select(std::slice::from_ref(&s), &v, 16, 12, 7);
+        assert_eq!(got.rays, 16 * 12);
+        assert_eq!(got.missed, 0, "an eye inside the section sees it everywhere");
+        let total: u32 = got.counts.iter().map(|c| c.1).sum();
+        assert_eq!(total, got.rays);
+        // A parallel view a hair wide: every ray lies in the central ray's beam.
+        let v = view("-vtl -vp 2 1.5 1 -vd 1 0.3 0.1 -vu 0 0 1 -vh 0.0001 -vv 0.0001");
+        let (o, d) = v.ray(0.5, 0.5).unwrap();
+        let central = s.locate(o, d).unwrap().beam;
+        let got = ViewBeams::select(std::slice::from_ref(&s), &v, 4, 4, 7);
+        assert_eq!(got.counts, vec![(BeamKey::new(0, central), 16)]);
+    }
+
+    #[test]
+    fn sections_behind_the_eye_count_and_views_that_miss_count_as_missed() {
+        let s = room();
+        // Outside the room looking away from it: the lines still cross it behind the eye.
+        let v = view("-vtv -vp 8 1.5 1 -vd 1 0 0 -vu 0 0 1 -vh 20 -vv 20");
+        let got = ViewBeams::select(std::slice::from_ref(&s), &v, 4, 4, 1);
+        assert_eq!(got.missed, 0);
+        assert!(!got.is_empty());
+        // Looking up from far away: no line crosses the room.
+        let v = view("-vtv -vp 100 100 100 -vd 0 0 1 -vu 0 1 0 -vh 10 -vv 10");
+        let got = ViewBeams::select(std::slice::from_ref(&s), &v, 4, 4, 1);
+        assert_eq!((got.missed, got.len()), (16, 0));
+        assert!(got.desired(1000).is_empty());
+    }
+
+    #[test]
+    fn rays_along_a_wall_do_not_panic_and_two_sections_both_count() {
+        let a = room();
+        let b = Section::new(
+            [4.0, 0.0, 0.0],
+            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
+            [8, 6, 4],
+            SectionKind::Interior,
+        )
+        .unwrap();
+        // The eye on the shared wall, looking along it.
+        let v = view("-vtv -vp 4 0 1 -vd 0 1 0 -vu 0 0 1 -vh 1 -vv 1");
+        let got = ViewBeams::select(&[a.clone(), b.clone()], &v, 8, 8, 3);
+        assert_eq!(got.rays, 64);
+        // Looking along x through both sections: every ray crosses both.
+        let v = view("-vtv -vp 1 1.5 1 -vd 1 0 0 -vu 0 0 1 -vh 10 -vv 10");
+        let got = ViewBeams::select(&[a, b], &v, 8, 8, 3);
+        let total: u32 = got.counts.iter().map(|c| c.1).sum();
+        assert_eq!(total, 128);
+        assert!(got.counts.iter().any(|c| c.0.section == 0) && got.counts.iter().any(|c| c.0.section == 1));
+    }
+
+    #[test]
+    fn desired_counts_share_the_samples_by_view_rays() {
+        let vb = ViewBeams {
+            counts: vec![(BeamKey::new(0, 1), 3), (BeamKey::new(0, 2), 1)],
+            rays: 4,
+            missed: 0,
+        };
+        assert_eq!(
+            vb.desired(400),
+            vec![(BeamKey::new(0, 1), 300), (BeamKey::new(0, 2), 100)]
+        );
+        assert_eq!(vb.desired(1), vec![(BeamKey::new(0, 1), 1), (BeamKey::new(0, 2), 1)]);
+    }
+
+    #[test]
+    fn selection_repeats_for_a_seed() {
+        let s = room();
+        let v = view("-vtv -vp 1 1 1 -vd 1 1 0 -vu 0 0 1 -vh 90 -vv 60");
+        let a = ViewBeams::select(std::slice::from_ref(&s), &v, 32, 24, 9);
+        let b = ViewBeams::select(std::slice::from_ref(&s), &v, 32, 24, 9);
+        assert_eq!(a, b);
+        let c = ViewBeams::select(std::slice::from_ref(&s), &v, 32, 24, 10);
+        assert_ne!(a.counts, c.counts, "the jitter follows the seed");
+    }
+}

@@ -1,0 +1,183 @@
+//! Serving one display (or admin): beam requests are answered at once with
+//! every stored ray (read in file order; the paper's "immediate transfer"),
+//! closed by a `Delivered` message; the request then joins the merged request
+//! list, and rays traced for it later are streamed as they land.
+//!
+//! New rays are not pushed through a queue: samplers only mark the beam dirty
+//! in the display's [`DisplayLink`], and this task reads each dirty beam past
+//! what it already sent. A display that stops reading holds back only its own
+//! task, and its memory stays bounded by the beams it asked for.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
+
+use holodeck_protocol::wire::{Control, Frame, Message};
+use holodeck_protocol::BeamKey;
+use tokio::sync::Notify;
+
+use super::connection::{Connection, ConnectionError};
+use super::service::Shared;
+
+/// Beams read from the store per round trip to the storage thread: bounds the
+/// memory one request can pin.
+const READ_CHUNK: usize = 2048;
+
+/// A display's mailbox: beams with new rays, and a wake-up.
+#[derive(Default)]
+pub(super) struct DisplayLink {
+    dirty: std::sync::Mutex<HashSet<BeamKey>>,
+    wake: Notify,
+}
+
+impl DisplayLink {
+    /// Notes that `key` has new rays.
+    pub fn mark(&self, key: BeamKey) {
+        self.dirty.lock().unwrap_or_else(|p| p.into_inner()).insert(key);
+        self.wake.notify_one();
+    }
+
+    fn take(&self) -> HashSet<BeamKey> {
+        std::mem::take(&mut *self.dirty.lock().unwrap_or_else(|p| p.into_inner()))
+    }
+}
+
+pub(super) async fn serve_display(conn: Connection, shared: &Shared, read_only: bool) -> Result<(), ConnectionError> {
+    let id = shared.id();
+    let link = Arc::new(DisplayLink::default());
+    shared.lock_displays().insert(id, Arc::clone(&link));
+    let result = display_loop(conn, shared, read_only, id, &link).await;
+    shared.lock_displays().remove(&id);
+    shared.lock_scheduler().requests().drop_display(id);
+    result
+}
+
+/// Sends `beams` (each from the ray given on), chunk by chunk; returns the
+/// rays sent per beam and in all.
+async fn send_beams(
+    conn: &mut Connection,
+    shared: &Shared,
+    wanted: Vec<(BeamKey, u64)>,
+) -> Result<Result<(Vec<(BeamKey, u64)>, u64), String>, ConnectionError> {
+    let mut sent = Vec::with_capacity(wanted.len());
+    let mut total = 0u64;
+    for chunk in wanted.chunks(READ_CHUNK) {
+        let beams = match shared.store.read(chunk.to_vec()).await {
+            Ok(b) => b,
+            Err(e) => return Ok(Err(e.to_string())),
+        };
+        let mut frames = Vec::with_capacity(beams.len());
+        for (key, records) in beams {
+            sent.push((key, records.len() as u64));
+            total += records.len() as u64;
+            frames.push(Frame::Beam { key, records });
+        }
+        conn.write_all(&frames).await?;
+    }
+    Ok(Ok((sent, total)))
+}
+
+async fn display_loop(
+    mut conn: Connection,
+    shared: &Shared,
+    read_only: bool,
+    id: u64,
+    link: &DisplayLink,
+) -> Result<(), ConnectionError> {
+    let mut stop = shared.shutdown.subscribe();
+    // Rays of each requested beam this display has been sent.
+    let mut sent: HashMap<BeamKey, u64> = HashMap::new();
+    loop {
+        let frame = tokio::select! {
+            f = conn.read() => f?,
+            _ = link.wake.notified() => {
+                let dirty: Vec<(BeamKey, u64)> = link
+                    .take()
+                    .into_iter()
+                    .filter_map(|k| sent.get(&k).map(|&n| (k, n)))
+                    .collect();
+                if !dirty.is_empty() {
+                    match send_beams(&mut conn, shared, dirty).await? {
+                        Ok((got, _)) => {
+                            for (k, n) in got {
+                                *sent.entry(k).or_default() += n;
+                            }
+                        }
+                        Err(message) => conn.write(&Frame::Message(Message::Error { message })).await?,
+                    }
+                }
+                continue;
+            }
+            _ = stop.changed() => return Ok(()),
+        };
+        let Some(frame) = frame else { return Ok(()) };
+        match frame {
+            Frame::Message(Message::BeamRequest { beams, eye, replace }) => {
+                let bad = beams.iter().find(|(k, _)| {
+                    shared
+                        .sections
+                        .get(k.section as usize)
+                        .is_none_or(|s| k.beam >= s.beam_count())
+                });
+                if let Some((k, _)) = bad {
+                    let message = format!("no beam {} in section {}", k.beam, k.section);
+                    conn.write(&Frame::Message(Message::Error { message })).await?;
+                    continue;
+                }
+                if let Err(message) = (Message::BeamRequest {
+                    beams: Vec::new(),
+                    eye,
+                    replace,
+                })
+                .validate()
+                {
+                    conn.write(&Frame::Message(Message::Error { message })).await?;
+                    continue;
+                }
+                if replace {
+                    sent.clear();
+                }
+                // Every stored ray of the requested beams, at once.
+                let wanted: Vec<(BeamKey, u64)> = beams.iter().map(|&(k, _)| (k, 0)).collect();
+                let (got, rays) = match send_beams(&mut conn, shared, wanted).await? {
+                    Ok(x) => x,
+                    Err(message) => {
+                        conn.write(&Frame::Message(Message::Error { message })).await?;
+                        continue;
+                    }
+                };
+                let stored: HashMap<BeamKey, u64> = got.iter().copied().collect();
+                for &(k, _) in &beams {
+                    sent.insert(k, stored.get(&k).copied().unwrap_or(0));
+                }
+                conn.write(&Frame::Message(Message::Delivered {
+                    beams: got.len() as u32,
+                    rays,
+                }))
+                .await?;
+                let request: Vec<(BeamKey, u32, u64)> = beams
+                    .iter()
+                    .map(|&(k, desired)| (k, desired, sent.get(&k).copied().unwrap_or(0)))
+                    .collect();
+                shared.lock_scheduler().requests().request(id, &request, eye, replace);
+                shared.work.notify_waiters();
+            }
+            Frame::Message(Message::Control(c)) if !read_only || matches!(c, Control::Pause | Control::Resume) => {
+                let quit = c == Control::Quit;
+                if let Err(message) = shared.control(c).await {
+                    conn.write(&Frame::Message(Message::Error { message })).await?;
+                }
+                if quit {
+                    return Ok(());
+                }
+            }
+            Frame::Message(Message::Control(c)) => {
+                let message = format!("{c:?} is not allowed for a read-only display");
+                conn.write(&Frame::Message(Message::Error { message })).await?;
+            }
+            _ => {
+                let message = "displays send beam requests and control commands".to_string();
+                conn.write(&Frame::Message(Message::Error { message })).await?;
+            }
+        }
+    }
+}

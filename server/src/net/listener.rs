@@ -1,0 +1,79 @@
+//! Where peers connect: a TCP port (any host) or a Unix socket (this host;
+//! file permissions guard it as well as the token).
+
+use std::path::{Path, PathBuf};
+
+use tokio::net::{TcpListener, UnixListener};
+
+use super::connection::Stream;
+
+/// A listening socket.
+pub enum Listener {
+    /// TCP.
+    Tcp(TcpListener),
+    /// A Unix socket, removed again when the listener is dropped.
+    Unix(UnixListener, UnixSocketPath),
+}
+
+/// A Unix socket's path, unlinked on drop so a restarted server can bind it again.
+pub struct UnixSocketPath(PathBuf);
+
+impl Drop for UnixSocketPath {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+impl Listener {
+    /// Binds a TCP address.
+    pub async fn tcp(addr: &str) -> std::io::Result<Listener> {
+        Ok(Listener::Tcp(TcpListener::bind(addr).await?))
+    }
+
+    /// Binds a Unix socket at `path`, replacing a stale socket file left by a
+    /// server that was killed (but never any other kind of file).
+    pub fn unix(path: &Path) -> std::io::Result<Listener> {
+        use std::os::unix::fs::FileTypeExt;
+        if let Ok(meta) = std::fs::symlink_metadata(path) {
+            if !meta.file_type().is_socket() {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    format!("{} exists and is not a socket", path.display()),
+                ));
+            }
+            // A live server still answers on it; a dead one's socket refuses.
+            if std::os::unix::net::UnixStream::connect(path).is_ok() {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AddrInUse,
+                    format!("a server is already listening on {}", path.display()),
+                ));
+            }
+            std::fs::remove_file(path)?;
+        }
+        let l = UnixListener::bind(path)?;
+        Ok(Listener::Unix(l, UnixSocketPath(path.to_path_buf())))
+    }
+
+    /// The address peers use: `host:port` or `unix:PATH`.
+    pub fn address(&self) -> String {
+        match self {
+            Listener::Tcp(l) => l.local_addr().map(|a| a.to_string()).unwrap_or_else(|e| e.to_string()),
+            Listener::Unix(_, p) => format!("unix:{}", p.0.display()),
+        }
+    }
+
+    /// Waits for the next peer.
+    pub async fn accept(&self) -> std::io::Result<(Box<dyn Stream>, String)> {
+        match self {
+            Listener::Tcp(l) => {
+                let (s, peer) = l.accept().await?;
+                let _ = s.set_nodelay(true);
+                Ok((Box::new(s), peer.to_string()))
+            }
+            Listener::Unix(l, p) => {
+                let (s, _) = l.accept().await?;
+                Ok((Box::new(s), format!("unix:{}", p.0.display())))
+            }
+        }
+    }
+}

@@ -1,0 +1,208 @@
+//! Serving one sampler: keep its queue filled to what it traces within the
+//! target latency (measured, per sampler), store what comes back, and pass
+//! new rays on to the displays that asked for them.
+//!
+//! The queue is topped up as results arrive rather than refilled when empty,
+//! so the worker never idles for a round trip; and its length follows the
+//! worker's own measured speed, so a slow worker holds little work hostage
+//! and a fast one never starves.
+
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
+
+use holodeck_protocol::wire::{Frame, Message, TracePacket};
+use holodeck_protocol::BeamKey;
+
+use super::connection::{Connection, ConnectionError};
+use super::service::Shared;
+use crate::schedule::Work;
+
+/// Most rays queued to one sampler, however fast it claims to be.
+const MAX_QUEUE: u64 = 1 << 20;
+/// Fewest rays queued (so the measurement has something to measure).
+const MIN_QUEUE: u64 = 16;
+
+/// A sampler's measured speed.
+#[derive(Debug)]
+pub(super) struct Meter {
+    /// Rays per second, smoothed.
+    rate: Option<f64>,
+    window_start: Option<Instant>,
+    window_rays: u64,
+}
+
+impl Meter {
+    pub fn new() -> Meter {
+        Meter {
+            rate: None,
+            window_start: None,
+            window_rays: 0,
+        }
+    }
+
+    /// The worker got work while it had none: it is busy from now on.
+    pub fn started(&mut self, now: Instant) {
+        if self.window_start.is_none() {
+            self.window_start = Some(now);
+            self.window_rays = 0;
+        }
+    }
+
+    /// `rays` came back; `idle` says whether the worker now has nothing left.
+    pub fn finished(&mut self, rays: u64, now: Instant, idle: bool) {
+        self.window_rays += rays;
+        let Some(start) = self.window_start else { return };
+        let elapsed = now.duration_since(start).as_secs_f64();
+        // Results come in bursts; average over at least 50 ms of work.
+        if elapsed >= 0.05 || (idle && elapsed > 0.0) {
+            let sample = self.window_rays as f64 / elapsed.max(1e-6);
+            self.rate = Some(match self.rate {
+                Some(r) => 0.5 * r + 0.5 * sample,
+                None => sample,
+            });
+            self.window_rays = 0;
+            self.window_start = (!idle).then_some(now);
+        }
+        if idle {
+            self.window_start = None;
+        }
+    }
+
+    /// Rays to keep queued so the queue drains within `latency`.
+    pub fn queue(&self, latency: Duration, initial: u64) -> u64 {
+        match self.rate {
+            Some(r) => ((r * latency.as_secs_f64()) as u64).clamp(MIN_QUEUE, MAX_QUEUE),
+            None => initial.clamp(MIN_QUEUE, MAX_QUEUE),
+        }
+    }
+
+    /// Rays per second, once known.
+    pub fn rate(&self) -> Option<f64> {
+        self.rate
+    }
+}
+
+pub(super) async fn serve_sampler(mut conn: Connection, shared: &Shared) -> Result<(), ConnectionError> {
+    let mut stop = shared.shutdown.subscribe();
+    let mut kill = shared.kill_samplers.subscribe();
+    let mut pending: HashMap<u64, Work> = HashMap::new();
+    let mut outstanding = 0u64;
+    let mut meter = Meter::new();
+    let result = loop {
+        if *stop.borrow() {
+            break Ok(());
+        }
+        let target = meter.queue(shared.config.latency, u64::from(shared.config.initial_queue));
+        // Registered before asking, so a wake-up between the two is not lost.
+        let woken = shared.work.notified();
+        tokio::pin!(woken);
+        woken.as_mut().enable();
+        if outstanding <= target / 2 && !shared.store.refusing() {
+            let work =
+                shared
+                    .lock_scheduler()
+                    .next(target - outstanding, shared.config.request_packet, shared.config.packet);
+            if !work.is_empty() {
+                let mut frames = Vec::with_capacity(work.len());
+                for w in work {
+                    let id = shared.id();
+                    outstanding += u64::from(w.rays);
+                    pending.insert(id, w);
+                    frames.push(Frame::Message(Message::Trace(TracePacket {
+                        id,
+                        key: w.key,
+                        rays: w.rays,
+                        mode: w.mode,
+                    })));
+                }
+                meter.started(Instant::now());
+                // One write for the whole batch: per-packet writes cost more than the packets.
+                if let Err(e) = conn.write_all(&frames).await {
+                    break Err(e);
+                }
+            }
+        }
+        let frame = tokio::select! {
+            f = conn.read() => f,
+            _ = &mut woken, if pending.is_empty() => continue,
+            // Nothing to do (paused, or the file is full): look again now and then.
+            _ = tokio::time::sleep(Duration::from_millis(250)), if pending.is_empty() => continue,
+            _ = stop.changed() => Ok(None),
+            _ = kill.changed() => Ok(None),
+        };
+        match frame {
+            Ok(Some(Frame::Finished { id, key, records })) => match pending.get(&id) {
+                Some(w) if w.key == key && records.len() == w.rays as usize => {
+                    let w = *w;
+                    pending.remove(&id);
+                    outstanding -= u64::from(w.rays);
+                    meter.finished(u64::from(w.rays), Instant::now(), pending.is_empty());
+                    shared.store.append(key, records);
+                    let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
+                    forward(shared, key, &displays);
+                }
+                _ => {
+                    let message = format!("packet {id} does not match any packet sent to you");
+                    conn.write(&Frame::Message(Message::Error { message })).await?;
+                }
+            },
+            Ok(Some(_)) => {
+                let message = "samplers send finished packets only".to_string();
+                conn.write(&Frame::Message(Message::Error { message })).await?;
+            }
+            Ok(None) => break Ok(()),
+            Err(e) => break Err(e),
+        }
+    };
+    // Whatever the sampler still had is traced again by someone else.
+    let mut scheduler = shared.lock_scheduler();
+    for w in pending.values() {
+        scheduler.give_back(w.key, w.rays, w.source);
+    }
+    drop(scheduler);
+    if let Some(r) = meter.rate() {
+        tracing::debug!("a sampler left after tracing at {r:.0} rays/s");
+    }
+    result
+}
+
+/// Tells the displays that want `key` that it has new rays.
+fn forward(shared: &Shared, key: BeamKey, displays: &[u64]) {
+    if displays.is_empty() {
+        return;
+    }
+    let links = shared.lock_displays();
+    for id in displays {
+        if let Some(link) = links.get(id) {
+            link.mark(key);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_queue_follows_the_measured_speed() {
+        let mut m = Meter::new();
+        let t0 = Instant::now();
+        assert_eq!(m.queue(Duration::from_millis(250), 256), 256);
+        m.started(t0);
+        m.finished(10_000, t0 + Duration::from_millis(100), true);
+        // 100k rays/s: a quarter second is 25k rays.
+        assert_eq!(m.queue(Duration::from_millis(250), 256), 25_000);
+        m.started(t0 + Duration::from_secs(1));
+        m.finished(1_000, t0 + Duration::from_secs(2), true);
+        // Smoothed halfway to 1k rays/s.
+        let q = m.queue(Duration::from_millis(250), 256);
+        assert_eq!(q, ((0.5 * 100_000.0 + 0.5 * 1_000.0) * 0.25) as u64);
+        // Idle time between bursts does not count against the worker.
+        let mut m = Meter::new();
+        m.started(t0);
+        m.finished(500, t0 + Duration::from_millis(10), true);
+        m.started(t0 + Duration::from_secs(5));
+        m.finished(500, t0 + Duration::from_secs(5) + Duration::from_millis(10), true);
+        assert_eq!(m.rate().map(|r| r.round()), Some(50_000.0));
+    }
+}

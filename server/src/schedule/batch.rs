@@ -1,0 +1,312 @@
+//! The batch request list: every beam of every section (or only the beams
+//! given views see), weighted by its world volume (the chance that a random
+//! view point lies in it) or by how much of the views it covers, served in
+//! order of increasing computed / desired sample count. Beams start at zero,
+//! so every beam gets its first rays before any beam gets a second batch: a
+//! fill is usable whenever it stops. Pure scheduling; no I/O.
+//!
+//! Updates are lazy: each beam's current ratio lives in a table, and heap
+//! entries that no longer match it are fixed up when they surface, so giving
+//! rays back or crediting rays traced for a display costs O(log n).
+
+use std::cmp::{Ordering, Reverse};
+use std::collections::BinaryHeap;
+
+use holodeck_protocol::{BeamKey, Section, SectionError};
+
+/// One entry of the request list.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Entry {
+    /// Rays stored divided by the beam's weight.
+    ratio: f64,
+    /// Larger weights first among equal ratios.
+    weight: f64,
+    key: BeamKey,
+}
+
+impl Eq for Entry {}
+
+impl Ord for Entry {
+    fn cmp(&self, o: &Self) -> Ordering {
+        self.ratio
+            .total_cmp(&o.ratio)
+            .then(o.weight.total_cmp(&self.weight))
+            .then(self.key.cmp(&o.key))
+    }
+}
+
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+/// The weighted request list of a batch fill.
+pub struct BatchSchedule {
+    heap: BinaryHeap<Reverse<Entry>>,
+    /// Weight of each beam, by section; 0 for beams not scheduled.
+    weights: Vec<Vec<f64>>,
+    /// Current ratio of each beam (rays counted / weight).
+    ratios: Vec<Vec<f64>>,
+    /// Beams scheduled.
+    beams: usize,
+}
+
+impl BatchSchedule {
+    /// Builds the list over all beams, weighted by volume; `stored` gives the
+    /// rays each beam holds already.
+    pub fn new(sections: &[Section], stored: impl Fn(BeamKey) -> u64) -> Result<BatchSchedule, SectionError> {
+        let mut weights = Vec::with_capacity(sections.len());
+        for s in sections {
+            let w: Vec<f64> = (0..s.beam_count())
+                .map(|b| s.beam_volume(b))
+                .collect::<Result<_, _>>()?;
+            weights.push(w);
+        }
+        Ok(BatchSchedule::with_weights(weights, stored))
+    }
+
+    /// Builds the list over the beams some views see (like Radiance's `rholo`
+    /// given views): each beam weighted by the view rays that fell in it.
+    pub fn for_views(sections: &[Section], seen: &[(BeamKey, u32)], stored: impl Fn(BeamKey) -> u64) -> BatchSchedule {
+        let mut weights: Vec<Vec<f64>> = sections.iter().map(|s| vec![0.0; s.beam_count() as usize]).collect();
+        for &(k, n) in seen {
+            if let Some(w) = weights
+                .get_mut(k.section as usize)
+                .and_then(|w| w.get_mut(k.beam as usize))
+            {
+                *w += f64::from(n);
+            }
+        }
+        BatchSchedule::with_weights(weights, stored)
+    }
+
+    /// Builds the list from raw weights (0: not scheduled), normalized to sum 1.
+    fn with_weights(mut weights: Vec<Vec<f64>>, stored: impl Fn(BeamKey) -> u64) -> BatchSchedule {
+        let total: f64 = weights.iter().flatten().sum();
+        let mut heap = Vec::new();
+        let mut ratios = Vec::with_capacity(weights.len());
+        for (si, w) in weights.iter_mut().enumerate() {
+            let mut r = vec![0.0; w.len()];
+            for (b, weight) in w.iter_mut().enumerate() {
+                if *weight <= 0.0 || !weight.is_finite() {
+                    *weight = 0.0;
+                    continue;
+                }
+                *weight = (*weight / total).max(f64::MIN_POSITIVE);
+                let key = BeamKey::new(si as u32, b as u32);
+                r[b] = stored(key) as f64 / *weight;
+                heap.push(Reverse(Entry {
+                    ratio: r[b],
+                    weight: *weight,
+                    key,
+                }));
+            }
+            ratios.push(r);
+        }
+        let beams = heap.len();
+        BatchSchedule {
+            heap: heap.into(),
+            weights,
+            ratios,
+            beams,
+        }
+    }
+
+    fn ratio_mut(&mut self, key: BeamKey) -> Option<&mut f64> {
+        self.ratios.get_mut(key.section as usize)?.get_mut(key.beam as usize)
+    }
+
+    /// The next `count` beams to trace, `rays` rays each, in priority order.
+    pub fn next(&mut self, count: usize, rays: u32) -> Vec<(BeamKey, u32)> {
+        let mut out = Vec::with_capacity(count);
+        let mut taken = Vec::with_capacity(count);
+        while out.len() < count {
+            let Some(Reverse(mut e)) = self.heap.pop() else { break };
+            let current = self.ratios[e.key.section as usize][e.key.beam as usize];
+            if current != e.ratio {
+                // Stale: the beam was credited or given rays back since.
+                if current > e.ratio {
+                    e.ratio = current;
+                    self.heap.push(Reverse(e));
+                }
+                // A lower current ratio has its own, newer entry.
+                continue;
+            }
+            out.push((e.key, rays));
+            taken.push(e);
+        }
+        for mut e in taken {
+            e.ratio += f64::from(rays) / e.weight;
+            self.ratios[e.key.section as usize][e.key.beam as usize] = e.ratio;
+            self.heap.push(Reverse(e));
+        }
+        out
+    }
+
+    /// Returns rays that were handed out but never came back (a sampler that
+    /// died mid-packet), so the beam is scheduled for them again.
+    pub fn give_back(&mut self, key: BeamKey, rays: u32) {
+        self.adjust(key, -f64::from(rays));
+    }
+
+    /// Counts rays a beam got outside this list (traced for a display).
+    pub fn credit(&mut self, key: BeamKey, rays: u32) {
+        self.adjust(key, f64::from(rays));
+    }
+
+    fn adjust(&mut self, key: BeamKey, rays: f64) {
+        let Some(weight) = self.weight(key).filter(|w| *w > 0.0) else {
+            return;
+        };
+        let Some(r) = self.ratio_mut(key) else { return };
+        *r = (*r + rays / weight).max(0.0);
+        let ratio = *r;
+        if rays < 0.0 {
+            self.heap.push(Reverse(Entry { ratio, weight, key }));
+        }
+        if self.heap.len() > 2 * self.beams + 1024 {
+            self.compact();
+        }
+    }
+
+    /// Rebuilds the heap from the ratio table, dropping stale entries.
+    fn compact(&mut self) {
+        let mut entries = Vec::with_capacity(self.beams);
+        for (si, (w, r)) in self.weights.iter().zip(&self.ratios).enumerate() {
+            for (b, (&weight, &ratio)) in w.iter().zip(r).enumerate() {
+                if weight > 0.0 {
+                    entries.push(Reverse(Entry {
+                        ratio,
+                        weight,
+                        key: BeamKey::new(si as u32, b as u32),
+                    }));
+                }
+            }
+        }
+        self.heap = entries.into();
+    }
+
+    /// The weight (share of the desired samples) of a beam; 0 if not scheduled.
+    pub fn weight(&self, key: BeamKey) -> Option<f64> {
+        self.weights.get(key.section as usize)?.get(key.beam as usize).copied()
+    }
+
+    /// Number of beams in the list.
+    pub fn len(&self) -> usize {
+        self.beams
+    }
+
+    /// True when there are no beams.
+    pub fn is_empty(&self) -> bool {
+        self.beams == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use holodeck_protocol::SectionKind;
+    use std::collections::HashMap;
+
+    fn section() -> Section {
+        Section::new(
+            [0.0; 3],
+            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
+            [4, 3, 2],
+            SectionKind::Interior,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn every_beam_is_served_once_before_any_twice() {
+        let s = section();
+        let n = s.beam_count() as usize;
+        let mut sched = BatchSchedule::new(std::slice::from_ref(&s), |_| 0).unwrap();
+        let first: Vec<BeamKey> = sched.next(n, 4).into_iter().map(|(k, _)| k).collect();
+        let mut unique = first.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), n, "the first round covers every beam exactly once");
+        // Bigger beams come first within the round.
+        let w0 = sched.weight(first[0]).unwrap();
+        let wl = sched.weight(first[n - 1]).unwrap();
+        assert!(w0 >= wl);
+    }
+
+    #[test]
+    fn long_fills_follow_the_volume_weights() {
+        let s = section();
+        let mut sched = BatchSchedule::new(std::slice::from_ref(&s), |_| 0).unwrap();
+        let mut got: HashMap<BeamKey, u64> = HashMap::new();
+        for _ in 0..200 {
+            for (k, r) in sched.next(s.beam_count() as usize / 3, 2) {
+                *got.entry(k).or_default() += u64::from(r);
+            }
+        }
+        let total: u64 = got.values().sum();
+        for (k, n) in &got {
+            let expected = sched.weight(*k).unwrap() * total as f64;
+            assert!(
+                (*n as f64 - expected).abs() <= 2.0 + 0.05 * expected,
+                "{k:?}: {n} vs {expected:.1}"
+            );
+        }
+    }
+
+    #[test]
+    fn rays_given_back_are_scheduled_again_first_and_credited_rays_wait() {
+        let s = section();
+        let n = s.beam_count() as usize;
+        let mut sched = BatchSchedule::new(std::slice::from_ref(&s), |_| 0).unwrap();
+        let first = sched.next(n, 4);
+        let lost = first[n / 2].0;
+        sched.give_back(lost, 4);
+        assert_eq!(sched.next(1, 4)[0].0, lost, "a beam whose packet was lost comes first");
+        let credited = first[0].0;
+        sched.credit(credited, 4000);
+        let round: Vec<BeamKey> = sched.next(n - 1, 4).into_iter().map(|(k, _)| k).collect();
+        assert!(!round.contains(&credited), "rays traced for a display count");
+        // Many adjustments keep the heap bounded.
+        for _ in 0..10_000 {
+            sched.give_back(lost, 1);
+            sched.credit(lost, 1);
+        }
+        assert!(sched.heap.len() <= 2 * n + 1024);
+    }
+
+    #[test]
+    fn a_fill_for_views_touches_only_the_beams_they_see() {
+        let s = section();
+        let seen = vec![
+            (BeamKey::new(0, 3), 30),
+            (BeamKey::new(0, 9), 10),
+            (BeamKey::new(5, 1), 1),
+        ];
+        let mut sched = BatchSchedule::for_views(std::slice::from_ref(&s), &seen, |_| 0);
+        assert_eq!(sched.len(), 2, "beams of unknown sections are ignored");
+        let mut got: HashMap<BeamKey, u64> = HashMap::new();
+        for _ in 0..400 {
+            for (k, r) in sched.next(1, 1) {
+                *got.entry(k).or_default() += u64::from(r);
+            }
+        }
+        assert_eq!(got.len(), 2);
+        assert_eq!(got[&BeamKey::new(0, 3)], 300);
+        assert_eq!(got[&BeamKey::new(0, 9)], 100);
+    }
+
+    #[test]
+    fn rays_already_stored_count() {
+        let s = section();
+        let full = BeamKey::new(0, 5);
+        let mut sched = BatchSchedule::new(std::slice::from_ref(&s), |k| if k == full { 1000 } else { 0 }).unwrap();
+        let round: Vec<BeamKey> = sched
+            .next(s.beam_count() as usize - 1, 1)
+            .into_iter()
+            .map(|(k, _)| k)
+            .collect();
+        assert!(!round.contains(&full), "a beam that is already full waits");
+    }
+}
