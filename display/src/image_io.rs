@@ -1,5 +1,5 @@
-//! Writing pictures: Radiance RGBE `.hdr` (all of the range) and 8-bit sRGB
-//! `.png` (after an exposure and a clamp).
+//! Reading and writing pictures: Radiance RGBE `.hdr` (all of the range) and
+//! 8-bit sRGB `.png` (after an exposure and a clamp, or tone mapped).
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +23,31 @@ fn err(path: &Path, e: impl std::fmt::Display) -> ImageError {
         path: path.to_path_buf(),
         message: e.to_string(),
     }
+}
+
+/// Reads a picture as linear radiance: a Radiance `.hdr` as it is, an 8-bit
+/// image decoded from sRGB.
+pub fn read_picture(path: &Path) -> Result<Picture, ImageError> {
+    let img = image::open(path).map_err(|e| err(path, e))?;
+    let hdr = matches!(
+        img,
+        image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_)
+    );
+    let rgb = img.into_rgb32f();
+    let (width, height) = (rgb.width() as usize, rgb.height() as usize);
+    let pixels = rgb
+        .pixels()
+        .map(|p| {
+            let c = if hdr {
+                p.0
+            } else {
+                // The image crate hands 8-bit values over as v/255: undo the sRGB curve.
+                p.0.map(|v| crate::tonemap::decode_srgb((v * 255.0).round() as u8))
+            };
+            glam::Vec3::from_array(c)
+        })
+        .collect();
+    Ok(Picture { width, height, pixels })
 }
 
 /// Writes a Radiance RGBE picture.

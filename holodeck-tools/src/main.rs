@@ -65,6 +65,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Serve a holodeck file to samplers and displays over TCP or a Unix socket.
     Serve(cmd::serve::Args),
+    /// Compare a picture with a reference (RMSE, PSNR, SSIM).
+    Compare(cmd::compare::Args),
     /// Draw pictures straight from a holodeck file (like rhpict).
     Pict(cmd::pict::Args),
     /// A display client: views from a server, drawn headless into files.
@@ -105,6 +107,7 @@ fn main() -> ExitCode {
         Command::Run(a) => cmd::run::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Pict(a) => cmd::pict::run(a),
+        Command::Compare(a) => cmd::compare::run(a),
         Command::View(a) => cmd::view::run(a),
         Command::Sample(a) => cmd::sample::run(a),
     };

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod bench_tracer;
 pub mod check;
+pub mod compare;
 pub mod create;
 pub mod fill;
 pub mod grid;

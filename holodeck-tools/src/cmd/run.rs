@@ -1,5 +1,6 @@
 //! `holodeck run`: the server and local sampler processes in one command
-//! (like Radiance's rholo). Without a display it is a batch fill.
+//! (like Radiance's rholo), and optionally a headless display. Without a
+//! display it is a batch fill.
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
@@ -19,11 +20,14 @@ use crate::human::count;
 #[command(after_help = "\
 Starts `holodeck serve` on a free local port and WORKERS `holodeck sample` processes
 (one tracing thread each), lets them fill FILE for --time, then asks the server to quit
-(it flushes) and waits for everything to end. Ctrl-C stops early, also cleanly.
+(it flushes) and waits for everything to end. Ctrl-C stops early, also cleanly. With
+-o DRIVER, a headless display (`holodeck view`) also walks --views, sharing --time among
+them; the samplers trace what it asks for first, and its frames go to --frames.
 For workers on other hosts, start `holodeck serve` and `holodeck sample` yourself.
 
 Examples:
   holodeck run builtin:room room.hdk -n 2 --time 30s
+  holodeck run builtin:room room.hdk -n 2 --time 20s -o quadtree --views walk.vf --frames out
   holodeck run scenes/room.toml room.hdk -n 16 --time 2h")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
@@ -36,9 +40,22 @@ pub struct Args {
     /// How long to fill (e.g. 30s, 10m, 2h).
     #[arg(long)]
     time: String,
-    /// Display driver; only `none` (a batch fill) exists so far.
+    /// Display: none (a batch fill), or a driver (quadtree, splat) for a headless
+    /// display that walks --views, drawing frames into --frames.
     #[arg(short = 'o', long, default_value = "none")]
     output: String,
+    /// Views for the display (a file of Radiance views, one per line).
+    #[arg(long)]
+    views: Option<PathBuf>,
+    /// Directory for the display's frames.
+    #[arg(long, default_value = "frames")]
+    frames: PathBuf,
+    /// Frame width.
+    #[arg(short = 'x', long, default_value_t = 512)]
+    width: u32,
+    /// Frame height.
+    #[arg(short = 'y', long, default_value_t = 384)]
+    height: u32,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
@@ -88,12 +105,24 @@ fn wait_all(children: &mut [Child], limit: Duration) {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    if a.output != "none" {
-        bail!(
-            "display driver {:?} is not available yet; use -o none for a batch fill",
+    let display = match (a.output.as_str(), &a.views) {
+        ("none", _) => None,
+        (driver, Some(views)) if holodeck_display::DRIVERS.contains(&driver) => {
+            Some((driver.to_string(), views.clone()))
+        }
+        ("voronoi" | "mesh", _) => bail!(
+            "the {} driver needs the GPU front end, which is not built yet; use -o quadtree",
             a.output
-        );
-    }
+        ),
+        (driver, Some(_)) => bail!(
+            "unknown display driver {driver:?} (known: none, {})",
+            holodeck_display::DRIVERS.join(", ")
+        ),
+        (_, None) => bail!(
+            "-o {} needs --views FILE: the headless display walks those views",
+            a.output
+        ),
+    };
     let time = parse_duration(&a.time, 1.0)
         .map_err(anyhow::Error::msg)
         .context("--time")?;
@@ -158,12 +187,45 @@ pub fn run(a: Args) -> Result<ExitCode> {
         time
     );
     let start = Instant::now();
+    let mut viewer = match &display {
+        Some((driver, views)) => {
+            let count = std::fs::read_to_string(views)
+                .with_context(|| format!("reading {}", views.display()))?
+                .lines()
+                .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+                .count()
+                .max(1);
+            let wait = format!("{}s", time.as_secs_f64() / count as f64);
+            Some(
+                me()?
+                    .args(["view", "--connect", &addr, "--token-file", &token_file, "--headless"])
+                    .arg("--views")
+                    .arg(views)
+                    .arg("-o")
+                    .arg(&a.frames)
+                    .args(["--driver", driver, "--wait", &wait, "--steps", "2"])
+                    .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
+                    .stderr(Stdio::inherit())
+                    .spawn()
+                    .context("starting the display")?,
+            )
+        }
+        None => None,
+    };
     let bar = indicatif::ProgressBar::new(time.as_secs().max(1));
     while start.elapsed() < time && server.try_wait()?.is_none() {
+        if let Some(v) = &mut viewer {
+            if v.try_wait()?.is_some() {
+                break;
+            }
+        }
         std::thread::sleep(Duration::from_millis(200));
         bar.set_position(start.elapsed().as_secs());
     }
     bar.finish_and_clear();
+    if let Some(v) = &mut viewer {
+        wait_all(std::slice::from_mut(v), Duration::from_secs(30));
+    }
     let secs = start.elapsed().as_secs_f64();
     if server.try_wait()?.is_none() {
         quit(&addr, &token).context("asking the server to quit")?;

@@ -1,0 +1,165 @@
+//! Pictures from a holodeck, measured: the quadtree reconstruction of the
+//! built-in room against the direct reference renderer, as the holodeck
+//! fills; and the cases where display methods fail.
+
+mod common;
+use common::{holodeck, text};
+
+use holodeck_display::compare::{relative_rmse, ssim};
+use holodeck_display::image_io::read_picture;
+use holodeck_display::tonemap::{DisplayRange, Histogram, ToneMap, ToneMode};
+
+const VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";
+
+fn ok(args: &[&str]) -> String {
+    let o = holodeck(args);
+    assert!(o.status.success(), "holodeck {args:?}: {}", text(&o));
+    text(&o)
+}
+
+/// The quadtree picture's error falls as the holodeck fills, down to the
+/// noise of a direct render with one sample per pixel. That floor is the
+/// right bar: each holodeck ray is one path sample, and the quadtree shows
+/// one sample per leaf, so once the view has about a sample per pixel the
+/// picture is a 1-spp render whose rays pass near (not through) the eye.
+/// The threshold allows 15% over the floor for what reprojection costs
+/// (rays that miss the eye, multidepth samples at silhouettes).
+#[test]
+fn quadtree_pictures_converge_to_the_reference_as_the_holodeck_fills() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (hdk, reference, direct) = (p("room.hdk"), p("ref.hdr"), p("direct.hdr"));
+    let size = ["-x", "64", "-y", "48"];
+    // Direct lighting only (no interreflections): the reference converges fast.
+    ok(&[
+        &[
+            "render",
+            "builtin:room",
+            "--view",
+            VIEW,
+            "--bounces",
+            "0",
+            "--spp",
+            "256",
+            "-o",
+            &reference,
+        ][..],
+        &size,
+    ]
+    .concat());
+    ok(&[
+        &[
+            "render",
+            "builtin:room",
+            "--view",
+            VIEW,
+            "--bounces",
+            "0",
+            "--spp",
+            "1",
+            "--seed",
+            "9",
+            "-o",
+            &direct,
+        ][..],
+        &size,
+    ]
+    .concat());
+    let r = read_picture(std::path::Path::new(&reference)).unwrap();
+    let tone = ToneMap::new(&Histogram::from_picture(&r), ToneMode::Camera, DisplayRange::default());
+    let floor = relative_rmse(&read_picture(std::path::Path::new(&direct)).unwrap(), &r).unwrap();
+
+    let mut errors = Vec::new();
+    for add in ["50K", "150K", "600K"] {
+        ok(&["fill", "builtin:room", &hdk, "--rays", add, "--bounces", "0"]);
+        let pict = p(&format!("pict{add}.hdr"));
+        let out = ok(&[&["pict", &hdk, "--view", VIEW, "-o", &pict][..], &size].concat());
+        let q = read_picture(std::path::Path::new(&pict)).unwrap();
+        let e = relative_rmse(&q, &r).unwrap();
+        let s = ssim(&q, &r, &tone);
+        println!("after +{add}: {out} relative rmse {e:.3} (1-spp floor {floor:.3}), ssim {s:.3}");
+        errors.push((e, s));
+    }
+    assert!(errors[0].0 > errors[1].0 && errors[1].0 > errors[2].0, "{errors:?}");
+    assert!(errors[0].1 < errors[2].1, "{errors:?}");
+    assert!(errors[2].0 <= 1.15 * floor, "{errors:?} vs floor {floor}");
+    assert!(errors[2].1 >= 0.85, "{errors:?}");
+}
+
+#[test]
+fn pictures_where_the_method_fails_are_drawn_or_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let hdk = dir.path().join("room.hdk");
+    let hdk = hdk.to_str().unwrap();
+    ok(&["fill", "builtin:room", hdk, "--rays", "20K", "--bounces", "0"]);
+    let out = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    // Outside every section, looking away: nothing to draw, a black frame, no error.
+    let away = out("away.hdr");
+    let t = ok(&[
+        "pict",
+        hdk,
+        "--view",
+        "-vtv -vp 50 50 50 -vd 0 0 1 -vu 0 1 0",
+        "-x",
+        "16",
+        "-y",
+        "16",
+        "-o",
+        &away,
+    ]);
+    assert!(t.contains(" 0 samples from 0 beams"), "{t}");
+    let black = read_picture(std::path::Path::new(&away)).unwrap();
+    assert!(black.pixels.iter().all(|p| *p == glam::Vec3::ZERO));
+    // Outside the section looking in, and along a wall: drawn.
+    let t = ok(&[
+        "pict",
+        hdk,
+        "--view",
+        "-vtv -vp -3 2 1.5 -vd 1 0 0 -vu 0 0 1",
+        "-x",
+        "32",
+        "-y",
+        "24",
+        "-o",
+        &out("in.hdr"),
+    ]);
+    assert!(!t.contains(" 0 samples"), "{t}");
+    ok(&[
+        "pict",
+        hdk,
+        "--view",
+        "-vtv -vp 0.001 2 1.5 -vd 0 1 0 -vu 0 0 1 -vh 1 -vv 1",
+        "-x",
+        "8",
+        "-y",
+        "8",
+        "-o",
+        &out("wall.hdr"),
+    ]);
+    // One pixel works; a 16384 x 16384 frame is refused with a reason.
+    ok(&["pict", hdk, "-x", "1", "-y", "1", "-o", &out("one.hdr")]);
+    let o = holodeck(&["pict", hdk, "-x", "16384", "-y", "16384", "-o", &out("huge.hdr")]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("16384x16384 frame is not supported"), "{}", text(&o));
+    // A scripted path gives numbered frames; a bad line names itself.
+    let path = dir.path().join("walk.vf");
+    std::fs::write(&path, format!("{VIEW}\n-vp 1 2 1.5\n-vp 1.3 2 1.5\n")).unwrap();
+    let t = ok(&[
+        "pict",
+        hdk,
+        "--views",
+        path.to_str().unwrap(),
+        "-x",
+        "16",
+        "-y",
+        "12",
+        "-o",
+        &out("walk_%03d.png"),
+    ]);
+    for n in 1..=3 {
+        assert!(dir.path().join(format!("walk_{n:03}.png")).exists(), "{t}");
+    }
+    std::fs::write(&path, format!("{VIEW}\n-vp 1 two 1.5\n")).unwrap();
+    let o = holodeck(&["pict", hdk, "--views", path.to_str().unwrap(), "-o", &out("w_%d.png")]);
+    assert!(text(&o).contains("walk.vf:2"), "{}", text(&o));
+}
