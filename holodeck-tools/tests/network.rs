@@ -536,3 +536,148 @@ fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
         assert_eq!(hdk.beam_len(*k).unwrap(), 60, "{k:?}");
     }
 }
+
+/// Rays that arrive for the current request within `within` (the socket has
+/// a short read timeout, so an empty spell ends the wait too).
+fn arriving(client: &mut Client, within: Duration) -> usize {
+    let start = Instant::now();
+    let mut n = 0;
+    while start.elapsed() < within {
+        match client.link.read() {
+            Ok(Some(Frame::Beam { records, .. })) => n += records.len(),
+            Ok(Some(other)) => panic!("{other:?}"),
+            Ok(None) => break,
+            Err(e) if e.is_gone() => break,
+            Err(_) => {} // timed out: look again
+        }
+    }
+    n
+}
+
+#[test]
+fn admins_pause_resume_kill_restart_and_clobber_and_diskspace_stops_the_fill() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let f = file.to_str().unwrap();
+    let token = "t";
+    let (mut server, addr) = start_server(f, "127.0.0.1:0", token);
+    let worker = sampler(&addr, token, &["builtin:room"]);
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
+
+    // Paused: no packets go out, so a display's request gets nothing new.
+    admin.send(&Frame::Message(Message::Control(Control::Pause)));
+    std::thread::sleep(Duration::from_millis(500)); // packets already out drain
+    let tcp = TcpStream::connect(&addr).unwrap();
+    let timeouts = tcp.try_clone().unwrap();
+    let mut display = Client {
+        link: FrameLink::new(Box::new(tcp)),
+    };
+    let hello = Hello {
+        version: PROTOCOL_VERSION,
+        role: Role::Display,
+        scene: String::new(),
+        token: token.into(),
+        read_only: true,
+    };
+    display.send(&Frame::Message(Message::Hello(hello)));
+    assert!(matches!(display.recv(), Frame::Message(Message::Welcome { .. })));
+    let want: Vec<(BeamKey, u32)> = (0..8).map(|b| (BeamKey::new(0, 1000 + b), 40)).collect();
+    display.request(&want, None);
+    timeouts.set_read_timeout(Some(Duration::from_millis(100))).unwrap();
+    assert_eq!(
+        arriving(&mut display, Duration::from_millis(800)),
+        0,
+        "nothing traced while paused"
+    );
+    admin.send(&Frame::Message(Message::Control(Control::Resume)));
+    assert!(
+        arriving(&mut display, Duration::from_millis(2000)) > 0,
+        "resume hands work out again"
+    );
+    // This display is read-only: it may not quit the server.
+    timeouts.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    display.send(&Frame::Message(Message::Control(Control::Quit)));
+    loop {
+        match display.recv() {
+            Frame::Beam { .. } => continue,
+            Frame::Message(Message::Error { message }) => {
+                assert!(message.contains("read-only"), "{message}");
+                break;
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    // KillSamplers disconnects them and keeps new ones out until Restart.
+    admin.send(&Frame::Message(Message::Control(Control::KillSamplers)));
+    let out = worker.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let refused = sampler(&addr, token, &["builtin:room"]).wait_with_output().unwrap();
+    assert!(
+        String::from_utf8_lossy(&refused.stderr).contains("restart"),
+        "{}",
+        String::from_utf8_lossy(&refused.stderr)
+    );
+    admin.send(&Frame::Message(Message::Control(Control::Restart)));
+    std::thread::sleep(Duration::from_millis(300));
+    let again = sampler(&addr, token, &["builtin:room"]);
+
+    // Clobber empties the file; the fill then starts over.
+    admin.send(&Frame::Message(Message::Control(Control::Clobber)));
+    std::thread::sleep(Duration::from_millis(300));
+    let got = display.request(&want, None);
+    let held: usize = got.iter().map(|g| g.1).sum();
+    assert!(held < 8 * 40, "the requested beams were emptied ({held} rays left)");
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    assert!(server.wait().unwrap().success());
+    again.wait_with_output().unwrap();
+    let after_clobber = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays();
+    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+
+    // DISKSPACE: a server whose file may grow by 1.5 MiB stops by itself within it.
+    let limit = std::fs::metadata(&file).unwrap().len() + (3 << 19);
+    let mut server = bin()
+        .args(["serve", f, "--listen", "127.0.0.1:0", "--token", token])
+        .args(["--diskspace", &limit.to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.as_mut().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line.trim().strip_prefix("listening on ").unwrap().to_string();
+    let w = sampler(&addr, token, &["builtin:room"]);
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = server.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the server did not stop at DISKSPACE"
+        );
+        assert!(
+            std::fs::metadata(&file).unwrap().len() <= limit,
+            "the file grew past DISKSPACE"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success());
+    w.wait_with_output().unwrap();
+    let size = std::fs::metadata(&file).unwrap().len();
+    assert!(size <= limit, "{size} > {limit}");
+    let rays = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays();
+    assert!(
+        rays > after_clobber + 50_000,
+        "the fill used the space it had ({after_clobber} -> {rays})"
+    );
+    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+}

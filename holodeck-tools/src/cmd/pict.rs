@@ -18,7 +18,7 @@ use crate::human::count;
 /// Arguments of `holodeck pict`.
 #[derive(clap::Args)]
 #[command(after_help = "\
-Reads FILE directly (no server; it may be open by a server at the same time), gathers the
+Reads FILE directly (no server: to draw from a file a server holds, use `holodeck view`), gathers the
 beams each view sees, reconstructs the picture with a display driver and writes it: .hdr
 (Radiance RGBE, linear, nothing lost) or .png (tone mapped: camera, human or exposure:X).
 With --views, every line of the file is one frame and OUTPUT holds %d or %04d for its number.

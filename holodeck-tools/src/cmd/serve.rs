@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use holodeck_protocol::{View, ViewBeams};
 use holodeck_server::net::{serve, Fill, Listener, ServerConfig};
-use holodeck_server::settings::parse_duration;
+use holodeck_server::settings::{parse_duration, parse_size};
 use holodeck_server::{HoloFile, OpenOptions};
 use rand::Rng;
 
@@ -54,6 +54,9 @@ pub struct Args {
     /// No batch fill: samplers trace only what displays request.
     #[arg(long)]
     no_fill: bool,
+    /// Largest file size (e.g. 2G), a hard limit; default: the file's DISKSPACE setting (0: none).
+    #[arg(long)]
+    diskspace: Option<String>,
     /// Stop after this long (e.g. 2h); default: the file's TIME setting (0: no limit).
     #[arg(long)]
     time: Option<String>,
@@ -95,7 +98,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             t
         }
     };
-    let file = HoloFile::open(&a.file, &OpenOptions::default())?;
+    let mut file = HoloFile::open(&a.file, &OpenOptions::default())?;
+    if let Some(d) = &a.diskspace {
+        let bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
+        file.set_size_limit((bytes > 0).then_some(bytes));
+    }
     let setting = |flag: &Option<String>, from_file: Duration, name: &str| -> Result<Option<Duration>> {
         let d = match flag {
             Some(t) => parse_duration(t, 1.0)
