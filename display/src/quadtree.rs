@@ -14,6 +14,7 @@
 
 use glam::{DVec3, Vec3};
 use holodeck_protocol::{Picture, ViewType};
+use rayon::prelude::*;
 
 use crate::driver::{Driver, DriverStats, Viewport};
 use crate::sample::Sample;
@@ -198,9 +199,20 @@ struct Pending {
     miss: f64,
     color: [f32; 3],
     depth: f32,
-    /// Its position in the store's cache.
+    /// Its position in the batch being inserted.
     src: u32,
 }
+
+/// Where a sample of a batch lands.
+#[derive(Clone, Copy, Debug)]
+enum Projected {
+    On(Pending),
+    Off,
+    NonFinite,
+}
+
+/// Batches at least this large are projected on every core.
+const PARALLEL_MIN: usize = 1 << 14;
 
 /// Stable least-significant-digit radix sort of `v` by key (`bits` wide),
 /// with `spare` as the second buffer. Stability keeps samples of one pixel in
@@ -243,10 +255,10 @@ fn radix_sort(v: &mut Vec<Pending>, spare: &mut Vec<Pending>, bits: u32) {
 /// The samples of a driver: the kept samples with their reprojections, the
 /// local cache of the originals, the counters and the view.
 ///
-/// The cache is in arrival order: a batch is copied in as it comes (one
-/// sequential pass) before it is sorted into tree order, and each entry points
-/// at its original. Samples that lose their pixel stay behind as garbage
-/// until it outweighs the live samples and [`Store::compact`] squeezes it out.
+/// The cache holds the original of every sample that won a pixel, in the
+/// order they won it, and each entry points at its original. Samples that
+/// later lose their pixel stay behind as garbage until it outweighs the live
+/// samples and [`Store::compact`] squeezes it out.
 #[derive(Clone, Debug)]
 pub(crate) struct Store<I> {
     pub(crate) viewport: Viewport,
@@ -262,10 +274,11 @@ pub(crate) struct Store<I> {
     stats: DriverStats,
     /// Scratch for batches.
     pending: Vec<Pending>,
+    projected: Vec<Projected>,
     spare: Vec<Pending>,
 }
 
-impl<I: PixelIndex> Store<I> {
+impl<I: PixelIndex + Sync> Store<I> {
     /// An empty store; `park` keeps samples a view change moves off-frame.
     pub(crate) fn new(viewport: Viewport, mut index: I, park: bool) -> Store<I> {
         index.reset(viewport.width, viewport.height);
@@ -279,6 +292,7 @@ impl<I: PixelIndex> Store<I> {
             park,
             stats: DriverStats::default(),
             pending: Vec::new(),
+            projected: Vec::new(),
             spare: Vec::new(),
         }
     }
@@ -311,37 +325,52 @@ impl<I: PixelIndex> Store<I> {
         let eye = self.viewport.view.position;
         let mut pending = std::mem::take(&mut self.pending);
         pending.clear();
-        for s in samples {
+        // Projection is independent per sample: large batches use every core.
+        let (projector, index) = (&self.projector, &self.index);
+        let project = |(i, s): (usize, &Sample)| -> Projected {
             if !cached && !s.is_finite() {
-                self.stats.rejected_nonfinite += 1;
-                continue;
+                return Projected::NonFinite;
             }
-            match self.projector.pixel(s.target(eye)) {
+            match projector.pixel(s.target(eye)) {
                 Some((col, row, depth)) => {
                     let miss = s.miss_distance(eye);
-                    pending.push(Pending {
-                        key: self.index.key(col, row),
+                    Projected::On(Pending {
+                        key: index.key(col, row),
                         // A NaN distance (from overflow on absurd
                         // coordinates) would never lose a comparison: make
                         // it the worst.
                         miss: if miss.is_nan() { f64::INFINITY } else { miss },
                         color: s.color,
                         depth: depth as f32,
-                        src: self.cache.len() as u32,
-                    });
-                    self.cache.push(*s);
+                        src: i as u32,
+                    })
                 }
-                None if !cached => self.stats.outside += 1,
-                None if self.parked.len() < self.park_limit() => self.parked.push(*s),
-                None => {}
+                None => Projected::Off,
+            }
+        };
+        let mut projected = std::mem::take(&mut self.projected);
+        projected.clear();
+        if samples.len() >= PARALLEL_MIN {
+            projected.par_extend(samples.par_iter().enumerate().map(project));
+        } else {
+            projected.extend(samples.iter().enumerate().map(project));
+        }
+        for (i, p) in projected.iter().enumerate() {
+            match p {
+                Projected::On(p) => pending.push(*p),
+                Projected::NonFinite => self.stats.rejected_nonfinite += 1,
+                Projected::Off if !cached => self.stats.outside += 1,
+                Projected::Off if self.parked.len() < self.park_limit() => self.parked.push(samples[i]),
+                Projected::Off => {}
             }
         }
+        self.projected = projected;
         if pending.len() >= SORT_MIN {
             radix_sort(&mut pending, &mut self.spare, self.index.key_bits());
         }
         self.entries.reserve(pending.len());
         for p in &pending {
-            self.insert(p);
+            self.insert(p, samples);
         }
         self.pending = pending;
         if self.cache.len() > 2 * self.entries.len() + SORT_MIN {
@@ -352,19 +381,22 @@ impl<I: PixelIndex> Store<I> {
     /// Puts one projected sample in, resolving a pixel collision by the
     /// closest miss (ties keep the sample already there).
     #[inline]
-    fn insert(&mut self, p: &Pending) {
+    fn insert(&mut self, p: &Pending, batch: &[Sample]) {
+        // Only winners are copied into the cache: most samples of a dense
+        // batch lose their pixel and never cost a copy.
         let entry = Entry {
             key: p.key,
             color: p.color,
             depth: p.depth,
             miss: p.miss,
-            src: p.src,
+            src: self.cache.len() as u32,
         };
         match self.index.find(&self.entries, p.key) {
             Spot::Free(at) => {
                 let slot = self.entries.len() as u32;
                 self.entries.push(entry);
                 self.index.fill(at, slot);
+                self.cache.push(batch[p.src as usize]);
             }
             Spot::Taken(slot) => {
                 let old = &mut self.entries[slot as usize];
@@ -374,6 +406,7 @@ impl<I: PixelIndex> Store<I> {
                 }
                 if p.miss < old.miss {
                     *old = entry;
+                    self.cache.push(batch[p.src as usize]);
                     self.stats.replaced += 1;
                 } else {
                     self.stats.discarded += 1;
@@ -454,7 +487,7 @@ impl<I: PixelIndex> Store<I> {
         self.index.reset(self.viewport.width, self.viewport.height);
     }
 
-    /// The originals of the kept samples, in arrival order.
+    /// The originals of the kept samples, in the order they won their pixels.
     #[cfg(test)]
     pub(crate) fn kept_samples(&mut self) -> Vec<Sample> {
         self.compact();

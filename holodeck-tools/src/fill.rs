@@ -4,7 +4,7 @@
 
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::{BeamKey, RayRecord};
+use holodeck_protocol::{BeamKey, RayRecord, Section};
 use holodeck_sampler::beam::{trace_sample, uniform_rays};
 use holodeck_sampler::{Rng, Tracer};
 use holodeck_server::schedule::BatchSchedule;
@@ -24,6 +24,8 @@ pub struct FillOptions {
     pub batch: usize,
     /// Seed of this run's random sequence.
     pub seed: u64,
+    /// Fill only these beams, weighted by view rays (beams some views see).
+    pub views: Option<Vec<(BeamKey, u32)>>,
 }
 
 /// What a fill did.
@@ -50,7 +52,11 @@ pub fn fill(
 ) -> anyhow::Result<FillReport> {
     let sections = file.sections().to_vec();
     let obstructions = file.settings().obstructions;
-    let mut schedule = BatchSchedule::new(&sections, |k| file.beam_len(k).unwrap_or(0))?;
+    let stored = |k| file.beam_len(k).unwrap_or(0);
+    let mut schedule = match &o.views {
+        Some(seen) => BatchSchedule::for_views(&sections, seen, stored),
+        None => BatchSchedule::new(&sections, stored)?,
+    };
     let start = Instant::now();
     let mut report = FillReport::default();
     let mut round = 0u64;
@@ -64,20 +70,7 @@ pub fn fill(
         if batch.is_empty() {
             break;
         }
-        let traced: Vec<(BeamKey, Vec<RayRecord>)> = batch
-            .par_iter()
-            .enumerate()
-            .map(|(i, &(key, n))| {
-                let mut rng = Rng::new(o.seed ^ round.rotate_left(32), i as u64);
-                let section = &sections[key.section as usize];
-                let samples = uniform_rays(section, key.beam, n as usize, &mut rng).unwrap_or_default();
-                let records = samples
-                    .iter()
-                    .map(|s| trace_sample(tracer, section, obstructions, s, &mut rng))
-                    .collect();
-                (key, records)
-            })
-            .collect();
+        let traced = trace_batch(tracer, &sections, obstructions, &batch, o.seed ^ round.rotate_left(32));
         let store = Instant::now();
         for (key, records) in &traced {
             file.append(*key, records)?;
@@ -95,4 +88,29 @@ pub fn fill(
     report.beams = summary.sections.iter().map(|s| u64::from(s.0)).sum();
     report.beams_filled = summary.sections.iter().map(|s| u64::from(s.1)).sum();
     Ok(report)
+}
+
+/// Traces a batch of (beam, rays) with all cores of the current rayon pool:
+/// uniform beam rays, one random sequence per beam.
+pub fn trace_batch(
+    tracer: &Tracer,
+    sections: &[Section],
+    obstructions: bool,
+    batch: &[(BeamKey, u32)],
+    seed: u64,
+) -> Vec<(BeamKey, Vec<RayRecord>)> {
+    batch
+        .par_iter()
+        .enumerate()
+        .map(|(i, &(key, n))| {
+            let mut rng = Rng::new(seed, i as u64);
+            let section = &sections[key.section as usize];
+            let samples = uniform_rays(section, key.beam, n as usize, &mut rng).unwrap_or_default();
+            let records = samples
+                .iter()
+                .map(|s| trace_sample(tracer, section, obstructions, s, &mut rng))
+                .collect();
+            (key, records)
+        })
+        .collect()
 }

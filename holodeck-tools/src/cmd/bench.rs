@@ -27,6 +27,8 @@ Example:
   holodeck bench storage --rays 50M --dir target/bench
   holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)
   holodeck bench tracer --triangles 1M --triangles 10M
+  holodeck bench display --samples 1M --rays 4M
+  holodeck bench network --seconds 8
 
 Files are written under --dir and removed afterwards unless --keep is given.")]
 pub struct Args {
@@ -57,6 +59,12 @@ pub struct Args {
     /// Rays per measurement for `tracer`: a square of this many pixels per side.
     #[arg(long, default_value_t = 512)]
     pixels: u32,
+    /// Driver samples for `display`.
+    #[arg(long, default_value = "1M", value_parser = parse_count)]
+    samples: u64,
+    /// Seconds per fill measurement for `network`.
+    #[arg(long, default_value_t = 8.0)]
+    seconds: f64,
     /// File to stream (internal, for `stream`).
     #[arg(long, hide = true)]
     file: Option<PathBuf>,
@@ -75,6 +83,10 @@ enum Target {
     Fill,
     /// The kd-tree and the path tracer.
     Tracer,
+    /// Display drivers and pictures from a holodeck.
+    Display,
+    /// The server over loopback: fill overhead, recall to displays, many peers.
+    Network,
 }
 
 /// The section of Radiance's reference fill: grid 13 x 10 x 4 gives 154,728 beams.
@@ -347,6 +359,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         Target::Tracer => {
             super::bench_tracer::run(&a.triangles, a.pixels)?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::Display => {
+            super::bench_display::run(a.samples as usize, a.rays, &a.dir, a.keep)?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::Network => {
+            super::bench_network::run(&a.dir, a.seconds, a.keep)?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Storage => {}

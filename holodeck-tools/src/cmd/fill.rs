@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
+use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
 use holodeck_server::settings::{parse_duration, Settings};
@@ -23,6 +24,7 @@ the same scene (its content hash is checked) and is filled further.
 Examples:
   holodeck fill builtin:room room.hdk --rays 2M
   holodeck fill scenes/room.toml room.hdk --time 10m --samples 4
+  holodeck fill builtin:room room.hdk --rays 1M --views walk.vf   # only what a walk sees
   holodeck info room.hdk")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
@@ -50,6 +52,9 @@ pub struct Args {
     /// Triangles for builtin:landscape.
     #[arg(long)]
     triangles: Option<u64>,
+    /// Fill only the beams these views see (a file of Radiance views, one per line).
+    #[arg(long)]
+    views: Option<PathBuf>,
 }
 
 /// Loads a scene and opens its holodeck file for writing, creating the file
@@ -80,6 +85,21 @@ pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>) -> Result<
     Ok((scene, file))
 }
 
+/// The beams the views in `path` see, with the view rays in each (the
+/// weights of a fill limited to those views).
+pub(crate) fn seen_by_views(path: &Path, sections: &[Section]) -> Result<Vec<(BeamKey, u32)>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
+    if views.is_empty() {
+        bail!("{} holds no views", path.display());
+    }
+    let mut seen = Vec::new();
+    for (i, v) in views.iter().enumerate() {
+        seen.extend(ViewBeams::select(sections, v, 256, 192, i as u64).counts);
+    }
+    Ok(seen)
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     if a.rays.is_none() && a.time.is_none() {
@@ -106,6 +126,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         packet: a.packet,
         batch: 4096,
         seed: a.seed,
+        views: match &a.views {
+            Some(path) => Some(seen_by_views(path, file.sections())?),
+            None => None,
+        },
     };
     let report = fill(&tracer, &mut file, &fill_options, &|n| bar.set_position(n))
         .with_context(|| format!("filling {}", a.file.display()))?;

@@ -1,6 +1,8 @@
 //! One module per subcommand: argument definitions and a `run` that calls the libraries.
 
 pub mod bench;
+pub mod bench_display;
+pub mod bench_network;
 pub mod bench_tracer;
 pub mod check;
 pub mod compare;

@@ -10,10 +10,14 @@ use anyhow::{bail, Context, Result};
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
 use holodeck_display::{new_driver, output, DriverStats, Sample, SampleDecoder, Viewport};
-use holodeck_protocol::{BeamKey, View};
+use holodeck_protocol::{BeamKey, RayRecord, View};
 use holodeck_server::{HoloFile, OpenOptions};
+use rayon::prelude::*;
 
 use crate::human::count;
+
+/// Rays decoded together in parallel before the driver takes them.
+const CHUNK_RAYS: usize = 1 << 17;
 
 /// Arguments of `holodeck pict`.
 #[derive(clap::Args)]
@@ -89,21 +93,42 @@ pub fn draw(
     keys.sort_unstable();
     let decoder = SampleDecoder::new(sections);
     let mut d = new_driver(driver, viewport).map_err(anyhow::Error::msg)?;
-    let mut hist = Histogram::new();
-    let mut scratch: Vec<Sample> = Vec::new();
     let mut samples = 0u64;
     let start = Instant::now();
+    // Beams are gathered into chunks, decoded in parallel, and handed to the
+    // driver (which inserts on one thread) a chunk at a time.
+    let mut chunk: Vec<(BeamKey, Vec<RayRecord>)> = Vec::new();
+    let mut chunk_rays = 0usize;
+    let mut flush = |chunk: &mut Vec<(BeamKey, Vec<RayRecord>)>, d: &mut Box<dyn holodeck_display::Driver>| {
+        let decoded: Vec<Vec<Sample>> = chunk
+            .par_iter()
+            .map(|(k, rays)| {
+                let mut out = Vec::with_capacity(rays.len());
+                decoder.decode(k.section, k.beam, rays, &mut out);
+                out
+            })
+            .collect();
+        for s in &decoded {
+            samples += s.len() as u64;
+            d.add(s);
+        }
+        chunk.clear();
+    };
     file.read_beams(&keys, |k, rays| {
-        scratch.clear();
-        decoder.decode(k.section, k.beam, rays, &mut scratch);
-        samples += scratch.len() as u64;
-        hist.add_many(scratch.iter().map(|s| s.color));
-        d.add(&scratch);
+        chunk_rays += rays.len();
+        chunk.push((k, rays.to_vec()));
+        if chunk_rays >= CHUNK_RAYS {
+            flush(&mut chunk, &mut d);
+            chunk_rays = 0;
+        }
     })?;
+    flush(&mut chunk, &mut d);
     let recall = start.elapsed();
     let start = Instant::now();
     let picture = d.render();
     let render = start.elapsed();
+    // Tone mapping follows what is on screen (as rhpict's does).
+    let hist = Histogram::from_picture(&picture);
     Ok((
         picture,
         hist,

@@ -6,7 +6,6 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use holodeck_protocol::{View, ViewBeams};
 use holodeck_server::net::{serve, Fill, Listener, ServerConfig};
 use holodeck_server::settings::{parse_duration, parse_size};
 use holodeck_server::{HoloFile, OpenOptions};
@@ -54,6 +53,9 @@ pub struct Args {
     /// No batch fill: samplers trace only what displays request.
     #[arg(long)]
     no_fill: bool,
+    /// Beam cache size (e.g. 256M); default: the file's CACHE setting.
+    #[arg(long)]
+    cache: Option<String>,
     /// Largest file size (e.g. 2G), a hard limit; default: the file's DISKSPACE setting (0: none).
     #[arg(long)]
     diskspace: Option<String>,
@@ -98,7 +100,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             t
         }
     };
-    let mut file = HoloFile::open(&a.file, &OpenOptions::default())?;
+    let cache_bytes = match &a.cache {
+        Some(c) => Some(parse_size(c).map_err(anyhow::Error::msg).context("--cache")?),
+        None => None,
+    };
+    let mut file = HoloFile::open(
+        &a.file,
+        &OpenOptions {
+            cache_bytes,
+            ..OpenOptions::default()
+        },
+    )?;
     if let Some(d) = &a.diskspace {
         let bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
         file.set_size_limit((bytes > 0).then_some(bytes));
@@ -117,21 +129,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let fill = match (&a.views, a.no_fill) {
         (_, true) => Fill::Off,
         (Some(path), false) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-            let views =
-                View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
-            if views.is_empty() {
-                anyhow::bail!("{} holds no views", path.display());
-            }
-            let mut seen = Vec::new();
-            for (i, v) in views.iter().enumerate() {
-                seen.extend(ViewBeams::select(file.sections(), v, 256, 192, i as u64).counts);
-            }
-            eprintln!(
-                "filling only what {} view(s) see: {} beam requests",
-                views.len(),
-                seen.len()
-            );
+            let seen = super::fill::seen_by_views(path, file.sections())?;
+            eprintln!("filling only what the views see: {} beam requests", seen.len());
             Fill::Views(seen)
         }
         (None, false) => Fill::All,

@@ -77,7 +77,16 @@ impl Connection {
             encode_frame(f, &mut self.out)?;
         }
         self.stream.write_all(&self.out).await?;
+        self.trim();
         Ok(())
+    }
+
+    /// Gives back a write buffer a big batch left large, so that idle
+    /// connections hold little memory.
+    fn trim(&mut self) {
+        if self.out.capacity() > 1 << 20 {
+            self.out = Vec::new();
+        }
     }
 
     /// Sends one frame.

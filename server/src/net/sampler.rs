@@ -18,7 +18,7 @@ use super::service::Shared;
 use crate::schedule::Work;
 
 /// Most rays queued to one sampler, however fast it claims to be.
-const MAX_QUEUE: u64 = 1 << 20;
+const MAX_QUEUE: u64 = 1 << 18;
 /// Fewest rays queued (so the measurement has something to measure).
 const MIN_QUEUE: u64 = 16;
 
@@ -137,7 +137,7 @@ pub(super) async fn serve_sampler(mut conn: Connection, shared: &Shared) -> Resu
                     pending.remove(&id);
                     outstanding -= u64::from(w.rays);
                     meter.finished(u64::from(w.rays), Instant::now(), pending.is_empty());
-                    shared.store.append(key, records);
+                    shared.store.append(key, records).await;
                     let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
                     forward(shared, key, &displays);
                 }

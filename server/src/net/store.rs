@@ -24,10 +24,13 @@ enum Request {
     Summary(oneshot::Sender<FileSummary>),
 }
 
+/// Requests the storage thread may have waiting.
+const QUEUE: usize = 4096;
+
 /// A handle to the storage thread; cheap to clone.
 #[derive(Clone)]
 pub struct Store {
-    tx: mpsc::UnboundedSender<Request>,
+    tx: mpsc::Sender<Request>,
     refusing: Arc<AtomicBool>,
 }
 
@@ -39,7 +42,7 @@ pub struct StoreThread {
 impl Store {
     /// Moves `file` onto a new thread.
     pub fn spawn(mut file: HoloFile) -> (Store, StoreThread) {
-        let (tx, mut rx) = mpsc::unbounded_channel::<Request>();
+        let (tx, mut rx) = mpsc::channel::<Request>(QUEUE);
         let refusing = Arc::new(AtomicBool::new(false));
         let refused = Arc::clone(&refusing);
         let handle = std::thread::spawn(move || -> Result<()> {
@@ -116,8 +119,10 @@ impl Store {
     }
 
     /// Queues rays for a beam.
-    pub fn append(&self, key: BeamKey, rays: Vec<RayRecord>) {
-        let _ = self.tx.send(Request::Append(key, rays));
+    /// Waits while the storage thread is [`QUEUE`] requests behind: samplers
+    /// are then slowed to what the disk takes, and memory stays bounded.
+    pub async fn append(&self, key: BeamKey, rays: Vec<RayRecord>) {
+        let _ = self.tx.send(Request::Append(key, rays)).await;
     }
 
     /// Reads beams (in file order, through the cache), each from the given
@@ -125,28 +130,31 @@ impl Store {
     /// that point are left out.
     pub async fn read(&self, wanted: Vec<(BeamKey, u64)>) -> Result<Beams> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Read(wanted, tx)).map_err(|_| Store::gone())?;
+        self.tx
+            .send(Request::Read(wanted, tx))
+            .await
+            .map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())?
     }
 
     /// Deletes every ray in the file (durably).
     pub async fn clobber(&self) -> Result<()> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Clobber(tx)).map_err(|_| Store::gone())?;
+        self.tx.send(Request::Clobber(tx)).await.map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())?
     }
 
     /// Rays held by every beam, by section.
     pub async fn lens(&self) -> Result<Vec<Vec<u64>>> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Lens(tx)).map_err(|_| Store::gone())?;
+        self.tx.send(Request::Lens(tx)).await.map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())
     }
 
     /// Rays a beam holds.
     pub async fn len(&self, key: BeamKey) -> u64 {
         let (tx, rx) = oneshot::channel();
-        if self.tx.send(Request::Len(key, tx)).is_err() {
+        if self.tx.send(Request::Len(key, tx)).await.is_err() {
             return 0;
         }
         rx.await.unwrap_or(0)
@@ -155,14 +163,14 @@ impl Store {
     /// Counts for a progress report.
     pub async fn summary(&self) -> Option<FileSummary> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Summary(tx)).ok()?;
+        self.tx.send(Request::Summary(tx)).await.ok()?;
         rx.await.ok()
     }
 
     /// Makes everything stored so far durable.
     pub async fn flush(&self) -> Result<()> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Flush(tx)).map_err(|_| Store::gone())?;
+        self.tx.send(Request::Flush(tx)).await.map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())?
     }
 }

@@ -1,0 +1,179 @@
+//! `holodeck bench display`: the quadtree driver against plain point
+//! splatting on the same samples, and `holodeck pict`'s recall rate against
+//! reading the same beams without drawing them, all in one run.
+//!
+//! Samples are real: rays traced in the built-in room from points near the
+//! eye (as proximity sampling makes them), so depth discontinuities and
+//! multidepth collisions are those of a real view.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Result;
+use glam::DVec3;
+use holodeck_display::{new_driver, Sample, Viewport};
+use holodeck_protocol::{BeamKey, View};
+use holodeck_sampler::shade::Rng;
+use holodeck_sampler::{TraceOptions, Tracer};
+use holodeck_server::{HoloFile, OpenOptions};
+use rayon::prelude::*;
+
+use super::render::ROOM_VIEW;
+use crate::fill::{fill, FillOptions};
+use crate::human::count;
+
+/// Samples through random pixels of `view`, traced from points within
+/// `radius` of the eye: the kind a display receives.
+fn room_samples(tracer: &Tracer, view: &View, n: usize, radius: f64) -> Vec<Sample> {
+    let rays = view.rays();
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = Rng::new(7, i as u64);
+            let (x, y) = rng.f32x2();
+            let (eye, dir) = rays.ray(f64::from(x), f64::from(y))?;
+            let (a, b) = rng.f32x2();
+            let off = DVec3::new(f64::from(a) - 0.5, f64::from(b) - 0.5, f64::from(rng.f32()) - 0.5) * (2.0 * radius);
+            let origin = eye + off;
+            let t = tracer.trace(origin.as_vec3(), dir.as_vec3(), &mut rng);
+            Some(Sample {
+                origin,
+                direction: dir,
+                hit: t.distance.is_finite().then(|| origin + dir * f64::from(t.distance)),
+                color: t.radiance.to_array(),
+            })
+        })
+        .flatten()
+        .collect()
+}
+
+/// Insertion rate (samples/s) into a warm driver in batches of `batch`, and
+/// the best of three frame times (ms).
+fn time_driver(name: &str, viewport: &Viewport, samples: &[Sample], batch: usize) -> Result<(f64, f64, u64, u64)> {
+    let mut d = new_driver(name, viewport.clone()).map_err(anyhow::Error::msg)?;
+    // A display keeps its driver from frame to frame: time a warm one (the
+    // first pass pays the kernel for fresh pages).
+    for chunk in samples.chunks(batch.max(1)) {
+        d.add(chunk);
+    }
+    d.clear();
+    let before = d.stats();
+    let start = Instant::now();
+    for chunk in samples.chunks(batch.max(1)) {
+        d.add(chunk);
+    }
+    let add = samples.len() as f64 / start.elapsed().as_secs_f64();
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let start = Instant::now();
+        let p = d.render();
+        best = best.min(start.elapsed().as_secs_f64() * 1e3);
+        std::hint::black_box(p);
+    }
+    let after = d.stats();
+    Ok((add, best, after.kept, after.multidepth - before.multidepth))
+}
+
+fn row(what: &str, result: String, baseline: String, ratio: f64) {
+    println!("| {what} | {result} | {baseline} | {ratio:.2} |");
+}
+
+/// Runs the benchmark: `samples` driver samples at 1024 x 768, and a
+/// holodeck of `rays` rays filled for one view, recalled into 512 x 512.
+pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
+    let scene = super::render::load("builtin:room", None)?;
+    let tracer = Tracer::new(
+        scene,
+        TraceOptions {
+            max_bounces: 1,
+            ..TraceOptions::default()
+        },
+    );
+    let view = View::parse(ROOM_VIEW)?;
+    let viewport = Viewport::new(view.clone(), 1024, 768)?;
+    eprintln!("tracing {} samples in the room...", count(samples as u64));
+    let s = room_samples(&tracer, &view, samples, 0.02);
+    println!("| measurement | result | baseline (same run) | ratio |");
+    println!("|---|---|---|---|");
+    for batch in [10_000, s.len()] {
+        let (q_add, q_frame, kept, multidepth) = time_driver("quadtree", &viewport, &s, batch)?;
+        let (s_add, s_frame, _, _) = time_driver("splat", &viewport, &s, batch)?;
+        let what = format!(
+            "insert {} samples in batches of {}",
+            count(s.len() as u64),
+            count(batch as u64)
+        );
+        row(
+            &format!("quadtree: {what}, samples/s (projection on all cores from 16k)"),
+            format!("{:.2} M/s", q_add / 1e6),
+            format!("point splatting {:.2} M/s", s_add / 1e6),
+            q_add / s_add,
+        );
+        row(
+            &format!(
+                "quadtree: frame at 1024x768 after that ({} kept, {} multidepth)",
+                count(kept),
+                count(multidepth)
+            ),
+            format!("{q_frame:.1} ms"),
+            format!("point splatting {s_frame:.1} ms"),
+            q_frame / s_frame,
+        );
+    }
+
+    // pict: a holodeck filled only for this view, so that the view's beams hold many rays.
+    std::fs::create_dir_all(dir)?;
+    let path = dir.join("pict-bench.hdk");
+    let _ = std::fs::remove_file(&path);
+    let (_, mut file) = super::fill::prepare("builtin:room", &path, None)?;
+    let seen = holodeck_protocol::ViewBeams::select(file.sections(), &view, 256, 192, 0).counts;
+    eprintln!("filling {} rays for one view...", count(rays));
+    let o = FillOptions {
+        rays: Some(rays),
+        time: None,
+        packet: 64,
+        batch: 4096,
+        seed: 1,
+        views: Some(seen),
+    };
+    fill(&tracer, &mut file, &o, &|_| {})?;
+    file.close()?;
+    let vp = Viewport::new(view.clone(), 512, 512)?;
+    for driver in ["quadtree", "splat"] {
+        let mut file = HoloFile::open(&path, &OpenOptions::read_only())?;
+        // Warm: the first call reads the file into the cache.
+        super::pict::draw(&mut file, vp.clone(), driver, 2, 0)?;
+        let (_, _, st) = super::pict::draw(&mut file, vp.clone(), driver, 2, 0)?;
+        let drawn = st.samples as f64 / st.recall.as_secs_f64();
+        // The same beams read and decoded, not drawn.
+        let request = holodeck_display::request::BeamRequest::for_viewport(
+            file.sections(),
+            &vp,
+            &holodeck_display::request::RequestOptions {
+                stride: 2,
+                ..Default::default()
+            },
+            0,
+        );
+        let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+        keys.sort_unstable();
+        let start = Instant::now();
+        let mut n = 0u64;
+        file.read_beams(&keys, |_, r| n += std::hint::black_box(r).len() as u64)?;
+        let read = n as f64 / start.elapsed().as_secs_f64();
+        row(
+            &format!(
+                "pict recall ({driver}): {} samples of {} beams, cached, read and drawn at 512x512",
+                count(st.samples),
+                count(st.beams as u64)
+            ),
+            format!("{:.1} M/s", drawn / 1e6),
+            format!("reading them only {:.1} M/s; rhpict 2.7 M/s (DESIGN.md)", read / 1e6),
+            drawn / read,
+        );
+    }
+    if !keep {
+        let _ = std::fs::remove_file(&path);
+    }
+    Ok(())
+}
