@@ -66,10 +66,22 @@ pub fn fill(
         }
         let left = o.rays.map_or(u64::MAX, |n| n - report.rays);
         let beams = (o.batch as u64).min(left.div_ceil(u64::from(o.packet.max(1)))).max(1) as usize;
-        let batch = schedule.next(beams, o.packet.max(1));
+        let mut batch = schedule.next(beams, o.packet.max(1));
         if batch.is_empty() {
             break;
         }
+        // Trim to exactly the rays asked for (empty beams get single rays, so
+        // the batch may hold fewer or more than beams x packet).
+        let mut budget = left;
+        for (key, n) in batch.iter_mut() {
+            let keep = u64::from(*n).min(budget) as u32;
+            if keep < *n {
+                schedule.give_back(*key, *n - keep);
+            }
+            *n = keep;
+            budget -= u64::from(keep);
+        }
+        batch.retain(|b| b.1 > 0);
         let traced = trace_batch(tracer, &sections, obstructions, &batch, o.seed ^ round.rotate_left(32));
         let store = Instant::now();
         for (key, records) in &traced {

@@ -1,20 +1,11 @@
 //! `holodeck fill` end to end: a real process traces the built-in room into a
 //! holodeck file; the test then checks every stored ray against the scene.
 
-use std::process::Command;
+mod common;
+use common::holodeck;
 
-use holodeck_protocol::BeamKey;
-use holodeck_sampler::geom::Ray;
 use holodeck_sampler::scene::gen::{generate, GenParams};
-use holodeck_sampler::{KdTree, Material};
 use holodeck_server::{HoloFile, OpenOptions};
-
-fn holodeck(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_holodeck"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 #[test]
 fn filled_rays_agree_with_the_scene() {
@@ -29,7 +20,6 @@ fn filled_rays_agree_with_the_scene() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("600,000 rays"));
 
     let scene = generate("room", &GenParams::default()).unwrap();
-    let tree = KdTree::build(&scene, &Default::default());
     let mut hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
     assert_eq!(
         hdk.sections(),
@@ -47,46 +37,7 @@ fn filled_rays_agree_with_the_scene() {
         "{summary:?}"
     );
 
-    let section = hdk.sections()[0].clone();
-    let keys: Vec<BeamKey> = (0..section.beam_count()).map(|b| BeamKey::new(0, b)).collect();
-    let (mut checked, mut lights) = (0, 0);
-    hdk.read_beams(&keys, |key, rays| {
-        for r in rays {
-            let d = section.decode_record(key.beam, r).unwrap();
-            // The interior section's rays were traced from the exit wall outward.
-            let start = d.ray.origin + d.ray.direction * d.ray.length;
-            let probe = Ray::new(start.as_vec3(), d.ray.direction.as_vec3());
-            let hit = tree
-                .intersect(&scene, &probe)
-                .expect("the room is closed but for its pane");
-            let traced = d.ray.length + f64::from(hit.t);
-            let holodeck_protocol::Hit::Point(p) = d.hit else {
-                panic!("finite hits decode as points")
-            };
-            let stored = (p - d.ray.origin).length();
-            let tolerance = 6e-4 * traced.max(section.diagonal()) + 1e-4;
-            assert!(
-                (stored - traced).abs() <= tolerance,
-                "beam {}: stored {stored}, traced {traced}",
-                key.beam
-            );
-            assert!(d.color.iter().all(|c| c.is_finite() && *c >= 0.0));
-            let m = &scene.materials[scene.triangles[hit.tri as usize].material as usize];
-            match m {
-                Material::Emitter { radiance } => {
-                    // Seen directly, a light shows its exact radiance (within RGBE's quantization).
-                    for (got, want) in d.color.iter().zip(radiance) {
-                        assert!((got - want).abs() <= want / 64.0, "light seen as {:?}", d.color);
-                    }
-                    lights += 1;
-                }
-                Material::Glass { thin: true, .. } => {} // the window: sky and sun behind it
-                _ => assert_eq!(d.color, [0.0; 3], "an unlit surface without bounces is black"),
-            }
-            checked += 1;
-        }
-    })
-    .unwrap();
+    let (checked, lights) = common::check_rays_against_room(&mut hdk);
     assert_eq!(checked, 600_000);
     assert!(lights > 100, "some rays see the ceiling light ({lights})");
 

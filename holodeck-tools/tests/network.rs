@@ -11,6 +11,8 @@ use holodeck_protocol::BeamKey;
 use holodeck_sampler::worker::{connect, ServerStream};
 use holodeck_server::{HoloFile, OpenOptions};
 
+mod common;
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_holodeck"))
 }
@@ -303,17 +305,20 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
             "--time",
             "2s",
             "--bounces",
-            "1",
+            "0",
         ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("rays added"));
-    let rays = HoloFile::open(&file, &OpenOptions::read_only())
-        .unwrap()
-        .summary()
-        .rays();
+    let mut hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
+    let rays = hdk.summary().rays();
     assert!(rays > 10_000, "{rays}");
+    // What the two sampler processes sent is what the scene shows along those rays.
+    let (checked, lights) = common::check_rays_against_room(&mut hdk);
+    assert_eq!(checked, rays);
+    assert!(lights > 0);
+    drop(hdk);
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
     // With a display: it walks two views and draws frames while samplers fill.
     let views = dir.path().join("walk.vf");
@@ -680,4 +685,83 @@ fn admins_pause_resume_kill_restart_and_clobber_and_diskspace_stops_the_fill() {
         "the fill used the space it had ({after_clobber} -> {rays})"
     );
     assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+}
+
+#[test]
+fn a_display_only_server_replays_the_file_to_a_headless_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = bin()
+        .args([
+            "fill",
+            "builtin:room",
+            file.to_str().unwrap(),
+            "--rays",
+            "200K",
+            "--bounces",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let mut server = bin()
+        .args([
+            "serve",
+            file.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+            "--token",
+            "t",
+            "--no-fill",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.as_mut().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line.trim().strip_prefix("listening on ").unwrap().to_string();
+    let views = dir.path().join("v.vf");
+    std::fs::write(
+        &views,
+        "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56\n-vd 0 1 0\n",
+    )
+    .unwrap();
+    let frames = dir.path().join("frames");
+    let o = bin()
+        .args(["view", "--connect", &addr, "--token", "t", "--headless", "--read-only"])
+        .arg("--views")
+        .arg(&views)
+        .arg("-o")
+        .arg(&frames)
+        .args(["-x", "64", "-y", "48", "--format", "hdr"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    // One frame per view, each drawn from the stored samples alone.
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    for l in &lines {
+        let n: u64 = l
+            .split(" new samples")
+            .next()
+            .unwrap()
+            .rsplit(' ')
+            .next()
+            .unwrap()
+            .replace(',', "")
+            .parse()
+            .unwrap();
+        assert!(n > 100, "{l}");
+    }
+    let p = holodeck_display::image_io::read_picture(&frames.join("view0002_00.hdr")).unwrap();
+    assert!(p.pixels.iter().filter(|c| c.max_element() > 0.0).count() > p.pixels.len() / 2);
+    // Read-only: the server is still there for the next display.
+    assert!(server.try_wait().unwrap().is_none());
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, "t");
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    assert!(server.wait().unwrap().success());
 }

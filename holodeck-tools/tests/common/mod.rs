@@ -3,6 +3,7 @@
 use std::process::{Command, Output};
 
 /// Runs `holodeck` with `args` and waits for it.
+#[allow(dead_code)]
 pub fn holodeck(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_holodeck"))
         .args(args)
@@ -11,10 +12,66 @@ pub fn holodeck(args: &[&str]) -> Output {
 }
 
 /// Standard output and standard error together, as text.
+#[allow(dead_code)]
 pub fn text(o: &Output) -> String {
     format!(
         "{}{}",
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     )
+}
+
+/// Checks every ray of a holodeck of the built-in room filled with no
+/// bounces against the scene itself: the stored depth is where the ray hits,
+/// a ray that sees the light carries its exact radiance, and one that sees an
+/// unlit surface is black. Returns (rays checked, rays that saw the light).
+#[allow(dead_code)]
+pub fn check_rays_against_room(hdk: &mut holodeck_server::HoloFile) -> (u64, u64) {
+    use holodeck_protocol::BeamKey;
+    use holodeck_sampler::geom::Ray;
+    use holodeck_sampler::scene::gen::{generate, GenParams};
+    use holodeck_sampler::{KdTree, Material};
+    let scene = generate("room", &GenParams::default()).unwrap();
+    let tree = KdTree::build(&scene, &Default::default());
+    let section = hdk.sections()[0].clone();
+    let keys: Vec<BeamKey> = (0..section.beam_count()).map(|b| BeamKey::new(0, b)).collect();
+    let (mut checked, mut lights) = (0, 0);
+    hdk.read_beams(&keys, |key, rays| {
+        for r in rays {
+            let d = section.decode_record(key.beam, r).unwrap();
+            // The interior section's rays were traced from the exit wall outward.
+            let start = d.ray.origin + d.ray.direction * d.ray.length;
+            let probe = Ray::new(start.as_vec3(), d.ray.direction.as_vec3());
+            let hit = tree
+                .intersect(&scene, &probe)
+                .expect("the room is closed but for its pane");
+            let traced = d.ray.length + f64::from(hit.t);
+            let holodeck_protocol::Hit::Point(p) = d.hit else {
+                panic!("finite hits decode as points")
+            };
+            let stored = (p - d.ray.origin).length();
+            let tolerance = 6e-4 * traced.max(section.diagonal()) + 1e-4;
+            assert!(
+                (stored - traced).abs() <= tolerance,
+                "beam {}: stored {stored}, traced {traced}",
+                key.beam
+            );
+            assert!(d.color.iter().all(|c| c.is_finite() && *c >= 0.0));
+            let m = &scene.materials[scene.triangles[hit.tri as usize].material as usize];
+            match m {
+                Material::Emitter { radiance } => {
+                    // Seen directly, a light shows its exact radiance (within RGBE's quantization).
+                    for (got, want) in d.color.iter().zip(radiance) {
+                        assert!((got - want).abs() <= want / 64.0, "light seen as {:?}", d.color);
+                    }
+                    lights += 1;
+                }
+                Material::Glass { thin: true, .. } => {} // the window: sky and sun behind it
+                _ => assert_eq!(d.color, [0.0; 3], "an unlit surface without bounces is black"),
+            }
+            checked += 1;
+        }
+    })
+    .unwrap();
+    (checked, lights)
 }

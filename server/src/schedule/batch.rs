@@ -117,7 +117,8 @@ impl BatchSchedule {
         self.ratios.get_mut(key.section as usize)?.get_mut(key.beam as usize)
     }
 
-    /// The next `count` beams to trace, `rays` rays each, in priority order.
+    /// The next `count` beams to trace, in priority order: `rays` rays each,
+    /// but a single ray for a beam that holds none yet.
     pub fn next(&mut self, count: usize, rays: u32) -> Vec<(BeamKey, u32)> {
         let mut out = Vec::with_capacity(count);
         let mut taken = Vec::with_capacity(count);
@@ -133,11 +134,14 @@ impl BatchSchedule {
                 // A lower current ratio has its own, newer entry.
                 continue;
             }
-            out.push((e.key, rays));
-            taken.push(e);
+            // An empty beam gets one ray first: every beam then holds rays
+            // after as few rays as there are beams.
+            let n = if e.ratio == 0.0 { 1 } else { rays };
+            out.push((e.key, n));
+            taken.push((e, n));
         }
-        for mut e in taken {
-            e.ratio += f64::from(rays) / e.weight;
+        for (mut e, n) in taken {
+            e.ratio += f64::from(n) / e.weight;
             self.ratios[e.key.section as usize][e.key.beam as usize] = e.ratio;
             self.heap.push(Reverse(e));
         }

@@ -88,15 +88,23 @@ impl Scheduler {
             .collect();
         let used: u64 = out.iter().map(|w| u64::from(w.rays)).sum();
         if let Some(batch) = &mut self.batch {
-            let left = budget.saturating_sub(used);
             let batch_packet = batch_packet.max(1);
-            let count = left.div_ceil(u64::from(batch_packet)) as usize;
-            out.extend(batch.next(count, batch_packet).into_iter().map(|(key, rays)| Work {
-                key,
-                rays,
-                mode: SamplingMode::Uniform,
-                source: Source::Batch,
-            }));
+            let mut used = used;
+            // Empty beams get single rays, so one pass may fall short of the budget.
+            while used < budget {
+                let count = (budget - used).div_ceil(u64::from(batch_packet)) as usize;
+                let got = batch.next(count, batch_packet);
+                if got.is_empty() {
+                    break;
+                }
+                used += got.iter().map(|g| u64::from(g.1)).sum::<u64>();
+                out.extend(got.into_iter().map(|(key, rays)| Work {
+                    key,
+                    rays,
+                    mode: SamplingMode::Uniform,
+                    source: Source::Batch,
+                }));
+            }
         }
         out
     }
@@ -168,6 +176,7 @@ mod tests {
         assert_eq!(work[0].key, BeamKey::new(0, 11));
         assert_eq!(work[0].rays, 8);
         assert_eq!(work[1].rays, 4);
+        assert_eq!(work[2].rays, 1, "an empty beam gets a single ray first");
         assert!(matches!(work[0].mode, SamplingMode::NearEye { radius, .. } if radius == 0.05));
         assert_eq!(work[0].source, Source::Request);
         let total: u64 = work.iter().map(|w| u64::from(w.rays)).sum();
