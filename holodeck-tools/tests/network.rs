@@ -365,11 +365,11 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
             "--time",
             "1s",
             "-o",
-            "quadtree",
+            "mesh",
         ])
         .output()
         .unwrap();
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("needs --views"));
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("GPU front end"));
 }
 
 #[test]

@@ -44,7 +44,8 @@ pub struct Args {
     /// display that walks --views, drawing frames into --frames.
     #[arg(short = 'o', long, default_value = "none")]
     output: String,
-    /// Views for the display (a file of Radiance views, one per line).
+    /// Views for the display (a file of Radiance views, one per line); default:
+    /// one view from the middle of the first section.
     #[arg(long)]
     views: Option<PathBuf>,
     /// Directory for the display's frames.
@@ -59,6 +60,9 @@ pub struct Args {
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
+    /// Path samples averaged per ray (less noise per ray, fewer rays).
+    #[arg(long, default_value_t = 1)]
+    samples: u32,
 }
 
 fn me() -> Result<Command> {
@@ -103,32 +107,53 @@ fn wait_all(children: &mut [Child], limit: Duration) {
     }
 }
 
+/// A view from the middle of `section` along its first axis, level, 75 x 56 degrees.
+fn default_view(section: &holodeck_protocol::Section) -> String {
+    let [x, y, z] = section.axes();
+    let c = section.origin() + (x + y + z) * 0.5;
+    let d = x.normalize_or_zero();
+    format!(
+        "-vtv -vp {} {} {} -vd {} {} {} -vu 0 0 1 -vh 75 -vv 56",
+        c.x, c.y, c.z, d.x, d.y, d.z
+    )
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let display = match (a.output.as_str(), &a.views) {
-        ("none", _) => None,
-        (driver, Some(views)) if holodeck_display::DRIVERS.contains(&driver) => {
-            Some((driver.to_string(), views.clone()))
-        }
-        ("voronoi" | "mesh", _) => bail!(
+    let driver = match a.output.as_str() {
+        "none" => None,
+        d if holodeck_display::DRIVERS.contains(&d) => Some(d.to_string()),
+        "voronoi" | "mesh" => bail!(
             "the {} driver needs the GPU front end, which is not built yet; use -o quadtree",
             a.output
         ),
-        (driver, Some(_)) => bail!(
-            "unknown display driver {driver:?} (known: none, {})",
+        d => bail!(
+            "unknown display driver {d:?} (known: none, {})",
             holodeck_display::DRIVERS.join(", ")
-        ),
-        (_, None) => bail!(
-            "-o {} needs --views FILE: the headless display walks those views",
-            a.output
         ),
     };
     let time = parse_duration(&a.time, 1.0)
         .map_err(anyhow::Error::msg)
         .context("--time")?;
-    let before = {
+    let (before, default_view) = {
         let (_, file) = super::fill::prepare(&a.scene, &a.file, None)?;
-        file.summary().rays()
+        let view = if a.scene == "builtin:room" {
+            super::render::ROOM_VIEW.to_string()
+        } else {
+            default_view(&file.sections()[0])
+        };
+        (file.summary().rays(), view)
+    };
+    let display = match (driver, &a.views) {
+        (None, _) => None,
+        (Some(d), Some(views)) => Some((d, views.clone())),
+        (Some(d), None) => {
+            // No views given: the room's own view, or along the first section from its middle.
+            std::fs::create_dir_all(&a.frames).with_context(|| format!("creating {}", a.frames.display()))?;
+            let path = a.frames.join("views.vf");
+            std::fs::write(&path, format!("{default_view}\n")).with_context(|| format!("writing {}", path.display()))?;
+            Some((d, path))
+        }
     };
     let file = a
         .file
@@ -153,6 +178,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .trim()
         .to_string();
     let bounces = a.bounces.to_string();
+    let samples = a.samples.to_string();
     let mut workers: Vec<Child> = (0..a.workers.max(1))
         .map(|i| {
             me()?
@@ -169,6 +195,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .args([
                     "--bounces",
                     &bounces,
+                    "--samples",
+                    &samples,
                     "--retry-for",
                     "0s",
                     "--seed",
