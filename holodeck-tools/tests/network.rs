@@ -184,7 +184,7 @@ fn server_samplers_display_and_quit() {
     let hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
     let stored = hdk.summary().rays();
     assert!(stored > 5_000, "the samplers' rays were stored ({stored})");
-    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    assert_clean(&file);
 }
 
 /// A holodeck file of the built-in room that records its scene.
@@ -208,8 +208,14 @@ fn small_room(dir: &std::path::Path) -> std::path::PathBuf {
 
 /// Starts `holodeck serve` and returns it with the address it listens on.
 fn start_server(f: &str, addr: &str, token: &str) -> (Child, String) {
+    start_server_with(f, addr, token, &[])
+}
+
+/// Starts `holodeck serve` with more flags.
+fn start_server_with(f: &str, addr: &str, token: &str, extra: &[&str]) -> (Child, String) {
     let mut server = bin()
         .args(["serve", f, "--listen", addr, "--token", token])
+        .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -262,15 +268,12 @@ fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
     first.kill().unwrap(); // SIGKILL: no flush, no goodbye
     first.wait().unwrap();
 
-    let after_crash = HoloFile::open(&file, &OpenOptions::read_only())
-        .unwrap()
-        .summary()
-        .rays();
+    let after_crash = rays_in(&file);
     assert!(
         after_crash > 1_000,
         "rays flushed before the crash survive ({after_crash})"
     );
-    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    assert_clean(&file);
 
     // Same file, same address: the worker reconnects by itself.
     let (mut second, _) = start_server(f, &addr, token);
@@ -280,15 +283,12 @@ fn a_killed_server_restarts_on_its_file_and_workers_come_back() {
     assert!(second.wait().unwrap().success());
     worker.kill().unwrap();
     worker.wait().unwrap();
-    let finally = HoloFile::open(&file, &OpenOptions::read_only())
-        .unwrap()
-        .summary()
-        .rays();
+    let finally = rays_in(&file);
     assert!(
         finally > after_crash,
         "the worker came back to the restarted server ({after_crash} -> {finally})"
     );
-    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    assert_clean(&file);
 }
 
 #[test]
@@ -319,7 +319,7 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
     assert_eq!(checked, rays);
     assert!(lights > 0);
     drop(hdk);
-    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    assert_clean(&file);
     // With a display: it walks two views and draws frames while samplers fill.
     let views = dir.path().join("walk.vf");
     std::fs::write(
@@ -636,26 +636,12 @@ fn admins_pause_resume_kill_restart_and_clobber_and_diskspace_stops_the_fill() {
     admin.send(&Frame::Message(Message::Control(Control::Quit)));
     assert!(server.wait().unwrap().success());
     again.wait_with_output().unwrap();
-    let after_clobber = HoloFile::open(&file, &OpenOptions::read_only())
-        .unwrap()
-        .summary()
-        .rays();
-    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    let after_clobber = rays_in(&file);
+    assert_clean(&file);
 
     // DISKSPACE: a server whose file may grow by 1.5 MiB stops by itself within it.
     let limit = std::fs::metadata(&file).unwrap().len() + (3 << 19);
-    let mut server = bin()
-        .args(["serve", f, "--listen", "127.0.0.1:0", "--token", token])
-        .args(["--diskspace", &limit.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(server.stdout.as_mut().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line.trim().strip_prefix("listening on ").unwrap().to_string();
+    let (mut server, addr) = start_server_with(f, "127.0.0.1:0", token, &["--diskspace", &limit.to_string()]);
     let w = sampler(&addr, token, &["builtin:room"]);
     let start = Instant::now();
     let status = loop {
@@ -676,15 +662,12 @@ fn admins_pause_resume_kill_restart_and_clobber_and_diskspace_stops_the_fill() {
     w.wait_with_output().unwrap();
     let size = std::fs::metadata(&file).unwrap().len();
     assert!(size <= limit, "{size} > {limit}");
-    let rays = HoloFile::open(&file, &OpenOptions::read_only())
-        .unwrap()
-        .summary()
-        .rays();
+    let rays = rays_in(&file);
     assert!(
         rays > after_clobber + 50_000,
         "the fill used the space it had ({after_clobber} -> {rays})"
     );
-    assert!(holodeck_server::storage::check(&file, |_, _| {}).unwrap().is_clean());
+    assert_clean(&file);
 }
 
 #[test]
@@ -697,32 +680,14 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
             "builtin:room",
             file.to_str().unwrap(),
             "--rays",
-            "200K",
+            "500K",
             "--bounces",
             "1",
         ])
         .output()
         .unwrap();
     assert!(o.status.success());
-    let mut server = bin()
-        .args([
-            "serve",
-            file.to_str().unwrap(),
-            "--listen",
-            "127.0.0.1:0",
-            "--token",
-            "t",
-            "--no-fill",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(server.stdout.as_mut().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line.trim().strip_prefix("listening on ").unwrap().to_string();
+    let (mut server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", "t", &["--no-fill"]);
     let views = dir.path().join("v.vf");
     std::fs::write(
         &views,
@@ -764,4 +729,17 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
     let (mut admin, _) = Client::connect(&addr, Role::Admin, "t");
     admin.send(&Frame::Message(Message::Control(Control::Quit)));
     assert!(server.wait().unwrap().success());
+}
+
+/// Rays a closed holodeck file holds.
+fn rays_in(file: &std::path::Path) -> u64 {
+    HoloFile::open(file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays()
+}
+
+/// The file passes a full check.
+fn assert_clean(file: &std::path::Path) {
+    assert!(holodeck_server::storage::check(file, |_, _| {}).unwrap().is_clean());
 }

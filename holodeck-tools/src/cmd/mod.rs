@@ -1,5 +1,6 @@
 //! One module per subcommand: argument definitions and a `run` that calls the libraries.
 
+pub mod args;
 pub mod bench;
 pub mod bench_display;
 pub mod bench_network;

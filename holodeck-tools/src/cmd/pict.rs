@@ -40,18 +40,8 @@ pub struct Args {
     /// A file of views, one per line (a scripted path): numbered frames.
     #[arg(long)]
     views: Option<PathBuf>,
-    /// Image width.
-    #[arg(short = 'x', long, default_value_t = 512)]
-    width: u32,
-    /// Image height.
-    #[arg(short = 'y', long, default_value_t = 384)]
-    height: u32,
-    /// Display driver: quadtree, or splat (plain points, the baseline).
-    #[arg(long, default_value = "quadtree")]
-    driver: String,
-    /// Tone mapping for PNG: camera, human, exposure:X or exposure:auto.
-    #[arg(long, default_value = "camera")]
-    tone: String,
+    #[command(flatten)]
+    frame: super::args::FrameArgs,
     /// Beam selection: one view ray per this many pixels across and down.
     #[arg(long, default_value_t = 2)]
     stride: u32,
@@ -182,9 +172,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         } else {
             a.output.clone()
         };
-        let viewport = Viewport::new(view, a.width, a.height)?;
-        let (picture, hist, s) = draw(&mut file, viewport, &a.driver, a.stride, i as u64)?;
-        let mode = output::parse_tone(&a.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
+        let (picture, hist, s) = draw(&mut file, viewport, &a.frame.driver, a.stride, i as u64)?;
+        let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
         output::save(&picture, &hist, mode, &out)?;
         let secs = s.recall.as_secs_f64();
         println!(

@@ -151,7 +151,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
             // No views given: the room's own view, or along the first section from its middle.
             std::fs::create_dir_all(&a.frames).with_context(|| format!("creating {}", a.frames.display()))?;
             let path = a.frames.join("views.vf");
-            std::fs::write(&path, format!("{default_view}\n")).with_context(|| format!("writing {}", path.display()))?;
+            std::fs::write(&path, format!("{default_view}\n"))
+                .with_context(|| format!("writing {}", path.display()))?;
             Some((d, path))
         }
     };

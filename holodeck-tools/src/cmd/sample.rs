@@ -1,6 +1,5 @@
 //! `holodeck sample`: a sampler worker for a holodeck server on any host.
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -29,12 +28,8 @@ pub struct Args {
     /// The server's address.
     #[arg(long)]
     connect: String,
-    /// Access token.
-    #[arg(long, conflicts_with = "token_file")]
-    token: Option<String>,
-    /// File holding the access token (as `holodeck serve` writes it).
-    #[arg(long)]
-    token_file: Option<PathBuf>,
+    #[command(flatten)]
+    token: super::args::TokenArgs,
     /// Worker connections (one tracing thread each); default: one per core.
     #[arg(short = 'j', long)]
     jobs: Option<usize>,
@@ -97,21 +92,9 @@ fn work(
     }
 }
 
-/// The access token from --token or --token-file.
-pub(crate) fn token(token: &Option<String>, file: &Option<PathBuf>) -> Result<String> {
-    Ok(match (token, file) {
-        (Some(t), _) => t.clone(),
-        (None, Some(p)) => std::fs::read_to_string(p)
-            .with_context(|| format!("reading {}", p.display()))?
-            .trim()
-            .to_string(),
-        (None, None) => bail!("give --token or --token-file (the server writes FILE.token)"),
-    })
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let token = token(&a.token, &a.token_file)?;
+    let token = a.token.token()?;
     let scene = super::render::load(&a.scene, a.triangles)?;
     let hash = content_hash(&scene);
     let options = TraceOptions {

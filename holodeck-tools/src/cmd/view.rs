@@ -34,12 +34,8 @@ pub struct Args {
     /// The server: HOST:PORT or unix:PATH.
     #[arg(long)]
     connect: String,
-    /// Access token.
-    #[arg(long, conflicts_with = "token_file")]
-    token: Option<String>,
-    /// File holding the access token.
-    #[arg(long)]
-    token_file: Option<PathBuf>,
+    #[command(flatten)]
+    token: super::args::TokenArgs,
     /// Run without a window (the only front end so far).
     #[arg(long)]
     headless: bool,
@@ -49,18 +45,8 @@ pub struct Args {
     /// Directory for the frames.
     #[arg(short, long)]
     output: PathBuf,
-    /// Frame width.
-    #[arg(short = 'x', long, default_value_t = 512)]
-    width: u32,
-    /// Frame height.
-    #[arg(short = 'y', long, default_value_t = 384)]
-    height: u32,
-    /// Display driver.
-    #[arg(long, default_value = "quadtree")]
-    driver: String,
-    /// Tone mapping for PNG: camera, human, exposure:X or exposure:auto.
-    #[arg(long, default_value = "camera")]
-    tone: String,
+    #[command(flatten)]
+    frame: super::args::FrameArgs,
     /// Frame format: png or hdr.
     #[arg(long, default_value = "png")]
     format: String,
@@ -89,7 +75,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.format != "png" && a.format != "hdr" {
         bail!("--format must be png or hdr, not {:?}", a.format);
     }
-    let token = super::sample::token(&a.token, &a.token_file)?;
+    let token = a.token.token()?;
     let wait = parse_duration(&a.wait, 1.0)
         .map_err(anyhow::Error::msg)
         .context("--wait")?;
@@ -106,11 +92,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         eye_radius: a.eye_radius,
         ..RequestOptions::default()
     };
-    let first = Viewport::new(views[0].clone(), a.width, a.height)?;
-    let mut driver = new_driver(&a.driver, first).map_err(anyhow::Error::msg)?;
+    let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
+    let mut driver = new_driver(&a.frame.driver, first).map_err(anyhow::Error::msg)?;
     let mut hist = Histogram::new();
     for (i, view) in views.into_iter().enumerate() {
-        let viewport = Viewport::new(view, a.width, a.height)?;
+        let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
         driver.set_view(viewport.clone());
         let request = BeamRequest::for_viewport(session.sections(), &viewport, &options, i as u64);
         let mut sink = |s: &[Sample]| {
@@ -131,7 +117,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let picture = driver.render();
             let render = start.elapsed();
             let path = a.output.join(format!("view{:04}_{step:02}.{}", i + 1, a.format));
-            let mode = output::parse_tone(&a.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+            let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
             output::save(&picture, hist, mode, &path)?;
             println!(
                 "{}: {} new samples in {:.0} ms ({} in all, {} kept), drawn in {:.1} ms",

@@ -175,6 +175,52 @@ pub fn decode_frame(buf: &[u8]) -> Result<Option<(Frame, usize)>, FrameError> {
     Ok(Some((frame, FRAME_HEADER + len)))
 }
 
+/// Bytes received and not yet decoded: the half of a connection that the
+/// blocking and the async links share. Bytes go in as they arrive; whole
+/// frames come out.
+#[derive(Debug, Default)]
+pub struct FrameBuffer {
+    buf: Vec<u8>,
+    start: usize,
+}
+
+impl FrameBuffer {
+    /// An empty buffer.
+    pub fn new() -> FrameBuffer {
+        FrameBuffer {
+            buf: Vec::with_capacity(64 << 10),
+            start: 0,
+        }
+    }
+
+    /// The next whole frame, if the bytes so far hold one.
+    pub fn next_frame(&mut self) -> Result<Option<Frame>, FrameError> {
+        let Some((frame, used)) = decode_frame(&self.buf[self.start..])? else {
+            return Ok(None);
+        };
+        self.start += used;
+        if self.start == self.buf.len() {
+            self.buf.clear();
+            self.start = 0;
+        }
+        Ok(Some(frame))
+    }
+
+    /// Appends received bytes.
+    pub fn push(&mut self, bytes: &[u8]) {
+        if self.start > 0 {
+            self.buf.drain(..self.start);
+            self.start = 0;
+        }
+        self.buf.extend_from_slice(bytes);
+    }
+
+    /// True when no partial frame is waiting (a peer closing now closed cleanly).
+    pub fn is_empty(&self) -> bool {
+        self.start == self.buf.len()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,7 +5,7 @@
 
 use std::io::{Read, Write};
 
-use super::frame::{decode_frame, encode_frame, Frame, FrameError};
+use super::frame::{encode_frame, Frame, FrameBuffer, FrameError};
 
 /// What can go wrong on a link.
 #[derive(Debug, thiserror::Error)]
@@ -39,8 +39,7 @@ impl LinkError {
 /// A framed blocking connection.
 pub struct FrameLink<S> {
     stream: S,
-    buf: Vec<u8>,
-    start: usize,
+    frames: FrameBuffer,
     out: Vec<u8>,
 }
 
@@ -49,8 +48,7 @@ impl<S: Read + Write> FrameLink<S> {
     pub fn new(stream: S) -> FrameLink<S> {
         FrameLink {
             stream,
-            buf: Vec::with_capacity(64 << 10),
-            start: 0,
+            frames: FrameBuffer::new(),
             out: Vec::new(),
         }
     }
@@ -59,29 +57,20 @@ impl<S: Read + Write> FrameLink<S> {
     /// Queued writes are flushed first: the peer may be waiting for them.
     pub fn read(&mut self) -> Result<Option<Frame>, LinkError> {
         loop {
-            if let Some((frame, used)) = decode_frame(&self.buf[self.start..])? {
-                self.start += used;
-                if self.start == self.buf.len() {
-                    self.buf.clear();
-                    self.start = 0;
-                }
+            if let Some(frame) = self.frames.next_frame()? {
                 return Ok(Some(frame));
-            }
-            if self.start > 0 {
-                self.buf.drain(..self.start);
-                self.start = 0;
             }
             self.flush()?;
             let mut chunk = [0u8; 64 << 10];
             let n = self.stream.read(&mut chunk)?;
             if n == 0 {
-                return if self.buf.is_empty() {
+                return if self.frames.is_empty() {
                     Ok(None)
                 } else {
                     Err(LinkError::Truncated)
                 };
             }
-            self.buf.extend_from_slice(&chunk[..n]);
+            self.frames.push(&chunk[..n]);
         }
     }
 

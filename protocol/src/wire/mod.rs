@@ -7,7 +7,7 @@ mod frame;
 mod link;
 mod message;
 
-pub use frame::{decode_frame, encode_frame, Frame, FrameError, FRAME_HEADER, MAX_FRAME};
+pub use frame::{decode_frame, encode_frame, Frame, FrameBuffer, FrameError, FRAME_HEADER, MAX_FRAME};
 pub use link::{FrameLink, LinkError};
 pub use message::{Control, EyePoint, Hello, Message, Progress, Role, SamplingMode, TracePacket};
 

@@ -1,7 +1,7 @@
 //! Whole frames over one socket: buffered reads until a frame is complete,
 //! writes of one encoded frame (or a batch of them) at a time.
 
-use holodeck_protocol::wire::{decode_frame, encode_frame, Frame, FrameError};
+use holodeck_protocol::wire::{encode_frame, Frame, FrameBuffer, FrameError};
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
 /// A byte stream a peer is connected by: TCP or a Unix socket.
@@ -26,8 +26,7 @@ pub enum ConnectionError {
 /// A framed connection.
 pub struct Connection {
     stream: Box<dyn Stream>,
-    buf: Vec<u8>,
-    start: usize,
+    frames: FrameBuffer,
     out: Vec<u8>,
 }
 
@@ -36,37 +35,28 @@ impl Connection {
     pub fn new(stream: Box<dyn Stream>) -> Connection {
         Connection {
             stream,
-            buf: Vec::with_capacity(64 << 10),
-            start: 0,
+            frames: FrameBuffer::new(),
             out: Vec::new(),
         }
     }
 
     /// The next frame, or `None` when the peer closed cleanly between frames.
+    /// Cancel-safe: bytes already received stay buffered.
     pub async fn read(&mut self) -> Result<Option<Frame>, ConnectionError> {
         loop {
-            if let Some((frame, used)) = decode_frame(&self.buf[self.start..])? {
-                self.start += used;
-                if self.start == self.buf.len() {
-                    self.buf.clear();
-                    self.start = 0;
-                }
+            if let Some(frame) = self.frames.next_frame()? {
                 return Ok(Some(frame));
-            }
-            if self.start > 0 {
-                self.buf.drain(..self.start);
-                self.start = 0;
             }
             let mut chunk = [0u8; 64 << 10];
             let n = self.stream.read(&mut chunk).await?;
             if n == 0 {
-                return if self.buf.is_empty() {
+                return if self.frames.is_empty() {
                     Ok(None)
                 } else {
                     Err(ConnectionError::Truncated)
                 };
             }
-            self.buf.extend_from_slice(&chunk[..n]);
+            self.frames.push(&chunk[..n]);
         }
     }
 

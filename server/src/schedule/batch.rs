@@ -210,17 +210,10 @@ impl BatchSchedule {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use holodeck_protocol::SectionKind;
     use std::collections::HashMap;
 
     fn section() -> Section {
-        Section::new(
-            [0.0; 3],
-            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
-            [4, 3, 2],
-            SectionKind::Interior,
-        )
-        .unwrap()
+        crate::schedule::test_section()
     }
 
     #[test]

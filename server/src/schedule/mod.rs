@@ -144,20 +144,25 @@ impl Scheduler {
     }
 }
 
+/// A small interior section for the schedulers' tests.
+#[cfg(test)]
+pub(crate) fn test_section() -> holodeck_protocol::Section {
+    holodeck_protocol::Section::new(
+        [0.0; 3],
+        [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
+        [4, 3, 2],
+        holodeck_protocol::SectionKind::Interior,
+    )
+    .unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use holodeck_protocol::wire::EyePoint;
-    use holodeck_protocol::{Section, SectionKind};
 
-    fn section() -> Section {
-        Section::new(
-            [0.0; 3],
-            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
-            [4, 3, 2],
-            SectionKind::Interior,
-        )
-        .unwrap()
+    fn section() -> holodeck_protocol::Section {
+        test_section()
     }
 
     #[test]
