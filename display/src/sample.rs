@@ -61,19 +61,16 @@ impl SampleDecoder {
         &self.sections
     }
 
-    /// Appends the samples of `records` (all of beam `beam` of section
-    /// `section`) to `out`. Returns the records that could not be decoded
-    /// (unknown section or beam): the caller counts them.
-    pub fn decode(&self, section: u32, beam: BeamIndex, records: &[RayRecord], out: &mut Vec<Sample>) -> usize {
-        let Some(d) = self
-            .sections
-            .get(section as usize)
-            .and_then(|s| s.beam_decoder(beam).ok())
-        else {
-            return records.len();
-        };
-        out.reserve(records.len());
-        out.extend(records.iter().map(|r| {
+    /// The samples of `records` of one beam, lazily (for parallel decoding
+    /// into a reused buffer); `None` for an unknown section or beam.
+    pub fn samples<'a>(
+        &self,
+        section: u32,
+        beam: BeamIndex,
+        records: &'a [RayRecord],
+    ) -> Option<impl Iterator<Item = Sample> + 'a> {
+        let d = self.sections.get(section as usize)?.beam_decoder(beam).ok()?;
+        Some(records.iter().map(move |r| {
             let ray = d.decode(r);
             Sample {
                 origin: ray.ray.origin,
@@ -84,7 +81,19 @@ impl SampleDecoder {
                 },
                 color: ray.color,
             }
-        }));
-        0
+        }))
+    }
+
+    /// Appends the samples of `records` (all of beam `beam` of section
+    /// `section`) to `out`. Returns the records that could not be decoded
+    /// (unknown section or beam): the caller counts them.
+    pub fn decode(&self, section: u32, beam: BeamIndex, records: &[RayRecord], out: &mut Vec<Sample>) -> usize {
+        match self.samples(section, beam, records) {
+            Some(samples) => {
+                out.extend(samples);
+                0
+            }
+            None => records.len(),
+        }
     }
 }

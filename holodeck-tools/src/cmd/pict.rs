@@ -16,6 +16,15 @@ use rayon::prelude::*;
 
 use crate::human::count;
 
+/// Fills decode slots before decoding overwrites them (not finite: a slot
+/// left unfilled is rejected by the driver).
+const PLACEHOLDER: Sample = Sample {
+    origin: glam::DVec3::NAN,
+    direction: glam::DVec3::X,
+    hit: None,
+    color: [0.0; 3],
+};
+
 /// Rays decoded together in parallel before the driver takes them.
 const CHUNK_RAYS: usize = 1 << 17;
 
@@ -85,34 +94,44 @@ pub fn draw(
     let mut d = new_driver(driver, viewport).map_err(anyhow::Error::msg)?;
     let mut samples = 0u64;
     let start = Instant::now();
-    // Beams are gathered into chunks, decoded in parallel, and handed to the
-    // driver (which inserts on one thread) a chunk at a time.
-    let mut chunk: Vec<(BeamKey, Vec<RayRecord>)> = Vec::new();
-    let mut chunk_rays = 0usize;
-    let mut flush = |chunk: &mut Vec<(BeamKey, Vec<RayRecord>)>, d: &mut Box<dyn holodeck_display::Driver>| {
-        let decoded: Vec<Vec<Sample>> = chunk
-            .par_iter()
-            .map(|(k, rays)| {
-                let mut out = Vec::with_capacity(rays.len());
-                decoder.decode(k.section, k.beam, rays, &mut out);
-                out
-            })
-            .collect();
-        for s in &decoded {
-            samples += s.len() as u64;
-            d.add(s);
+    // Beams are gathered into chunks, decoded in parallel into one reused
+    // buffer, and handed to the driver (which inserts on one thread).
+    let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * 2);
+    let mut beams: Vec<(BeamKey, std::ops::Range<usize>)> = Vec::new();
+    let mut decoded: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
+    let mut flush = |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>| {
+        // One slot per record, each beam decoded into its own slice.
+        decoded.resize(records.len(), PLACEHOLDER);
+        let mut jobs = Vec::with_capacity(beams.len());
+        let mut rest = &mut decoded[..];
+        for (k, r) in beams.iter() {
+            let (mine, tail) = rest.split_at_mut(r.len());
+            jobs.push((*k, &records[r.clone()], mine));
+            rest = tail;
         }
-        chunk.clear();
+        jobs.into_par_iter().for_each(|(k, recs, out)| {
+            // Slots of a beam that cannot decode keep the NaN placeholder,
+            // which the driver rejects and counts.
+            if let Some(it) = decoder.samples(k.section, k.beam, recs) {
+                for (slot, s) in out.iter_mut().zip(it) {
+                    *slot = s;
+                }
+            }
+        });
+        samples += decoded.len() as u64;
+        d.add(&decoded);
+        records.clear();
+        beams.clear();
     };
     file.read_beams(&keys, |k, rays| {
-        chunk_rays += rays.len();
-        chunk.push((k, rays.to_vec()));
-        if chunk_rays >= CHUNK_RAYS {
-            flush(&mut chunk, &mut d);
-            chunk_rays = 0;
+        let at = records.len();
+        records.extend_from_slice(rays);
+        beams.push((k, at..records.len()));
+        if records.len() >= CHUNK_RAYS {
+            flush(&mut records, &mut beams);
         }
     })?;
-    flush(&mut chunk, &mut d);
+    flush(&mut records, &mut beams);
     let recall = start.elapsed();
     let start = Instant::now();
     let picture = d.render();
