@@ -369,8 +369,18 @@ impl<I: PixelIndex + Sync> Store<I> {
             radix_sort(&mut pending, &mut self.spare, self.index.key_bits());
         }
         self.entries.reserve(pending.len());
+        // Samples of one pixel are adjacent after the sort: after the first,
+        // the rest go straight to its slot instead of down the tree again.
+        let mut last: Option<(u64, u32)> = None;
         for p in &pending {
-            self.insert(p, samples);
+            let slot = match last {
+                Some((key, slot)) if key == p.key => {
+                    self.collide(slot, p, samples);
+                    slot
+                }
+                _ => self.insert(p, samples),
+            };
+            last = Some((p.key, slot));
         }
         self.pending = pending;
         if self.cache.len() > 2 * self.entries.len() + SORT_MIN {
@@ -381,37 +391,52 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// Puts one projected sample in, resolving a pixel collision by the
     /// closest miss (ties keep the sample already there).
     #[inline]
-    fn insert(&mut self, p: &Pending, batch: &[Sample]) {
-        // Only winners are copied into the cache: most samples of a dense
-        // batch lose their pixel and never cost a copy.
-        let entry = Entry {
-            key: p.key,
-            color: p.color,
-            depth: p.depth,
-            miss: p.miss,
-            src: self.cache.len() as u32,
-        };
+    fn insert(&mut self, p: &Pending, batch: &[Sample]) -> u32 {
         match self.index.find(&self.entries, p.key) {
             Spot::Free(at) => {
                 let slot = self.entries.len() as u32;
-                self.entries.push(entry);
+                // Only winners are copied into the cache: most samples of a
+                // dense batch lose their pixel and never cost a copy.
+                self.entries.push(Entry {
+                    key: p.key,
+                    color: p.color,
+                    depth: p.depth,
+                    miss: p.miss,
+                    src: self.cache.len() as u32,
+                });
                 self.index.fill(at, slot);
                 self.cache.push(batch[p.src as usize]);
+                slot
             }
             Spot::Taken(slot) => {
-                let old = &mut self.entries[slot as usize];
-                let (a, b) = (f64::from(old.depth).abs(), f64::from(p.depth).abs());
-                if (a - b).abs() > MULTIDEPTH_TOLERANCE * a.min(b) {
-                    self.stats.multidepth += 1;
-                }
-                if p.miss < old.miss {
-                    *old = entry;
-                    self.cache.push(batch[p.src as usize]);
-                    self.stats.replaced += 1;
-                } else {
-                    self.stats.discarded += 1;
-                }
+                self.collide(slot, p, batch);
+                slot
             }
+        }
+    }
+
+    /// A sample lands on the pixel whose entry is `slot`: the closer miss
+    /// wins (ties keep the sample already there).
+    #[inline]
+    fn collide(&mut self, slot: u32, p: &Pending, batch: &[Sample]) {
+        let src = self.cache.len() as u32;
+        let old = &mut self.entries[slot as usize];
+        let (a, b) = (f64::from(old.depth).abs(), f64::from(p.depth).abs());
+        if (a - b).abs() > MULTIDEPTH_TOLERANCE * a.min(b) {
+            self.stats.multidepth += 1;
+        }
+        if p.miss < old.miss {
+            *old = Entry {
+                key: p.key,
+                color: p.color,
+                depth: p.depth,
+                miss: p.miss,
+                src,
+            };
+            self.cache.push(batch[p.src as usize]);
+            self.stats.replaced += 1;
+        } else {
+            self.stats.discarded += 1;
         }
     }
 

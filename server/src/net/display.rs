@@ -3,6 +3,9 @@
 //! closed by a `Delivered` message; the request then joins the merged request
 //! list, and rays traced for it later are streamed as they land.
 //!
+//! Rays that land while a request is being read are found by epoch and
+//! sent on the next wake, so none fall between the read and the request.
+//!
 //! New rays are not pushed through a queue: samplers only mark the beam dirty
 //! in the display's [`DisplayLink`], and this task reads each dirty beam past
 //! what it already sent. A display that stops reading holds back only its own
@@ -136,6 +139,8 @@ async fn display_loop(
                 if replace {
                     sent.clear();
                 }
+                // Rays that land while the beams are read are caught below.
+                let epoch = shared.lock_scheduler().epoch();
                 // Every stored ray of the requested beams, at once.
                 let wanted: Vec<(BeamKey, u64)> = beams.iter().map(|&(k, _)| (k, 0)).collect();
                 let (got, rays) = match send_beams(&mut conn, shared, wanted).await? {
@@ -158,7 +163,17 @@ async fn display_loop(
                     .iter()
                     .map(|&(k, desired)| (k, desired, sent.get(&k).copied().unwrap_or(0)))
                     .collect();
-                shared.lock_scheduler().requests().request(id, &request, eye, replace);
+                let keys: Vec<BeamKey> = beams.iter().map(|b| b.0).collect();
+                let landed = {
+                    let mut scheduler = shared.lock_scheduler();
+                    scheduler.requests().request(id, &request, eye, replace);
+                    scheduler.finished_since(&keys, epoch)
+                };
+                // Those rays may have missed the read (their beam was not yet
+                // this display's): send what is past `sent` on the next wake.
+                for k in landed {
+                    link.mark(k);
+                }
                 shared.work.notify_waiters();
             }
             Frame::Message(Message::Control(c)) if !read_only || matches!(c, Control::Pause | Control::Resume) => {

@@ -40,6 +40,10 @@ pub struct Scheduler {
     batch: Option<BatchSchedule>,
     requests: RequestList,
     paused: bool,
+    /// Counts finished packets; with `finished_at`, tells a display which of
+    /// its beams got rays while it was reading them.
+    epoch: u64,
+    finished_at: std::collections::HashMap<BeamKey, u64>,
 }
 
 impl Scheduler {
@@ -50,7 +54,22 @@ impl Scheduler {
             batch,
             requests: RequestList::new(),
             paused: false,
+            epoch: 0,
+            finished_at: std::collections::HashMap::new(),
         }
+    }
+
+    /// The current epoch: packets finished so far.
+    pub fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    /// Which of `keys` got rays after `epoch`.
+    pub fn finished_since(&self, keys: &[BeamKey], epoch: u64) -> Vec<BeamKey> {
+        keys.iter()
+            .copied()
+            .filter(|k| self.finished_at.get(k).is_some_and(|&e| e > epoch))
+            .collect()
     }
 
     /// Stops (or resumes) handing out work.
@@ -111,6 +130,8 @@ impl Scheduler {
 
     /// Rays came back; returns the displays that want them.
     pub fn finished(&mut self, key: BeamKey, rays: u32, source: Source) -> Vec<DisplayId> {
+        self.epoch += 1;
+        self.finished_at.insert(key, self.epoch);
         if source == Source::Request {
             if let Some(b) = &mut self.batch {
                 b.credit(key, rays);
@@ -192,6 +213,17 @@ mod tests {
         assert_eq!(sched.finished(BeamKey::new(0, 11), 8, Source::Request), vec![7]);
         sched.set_paused(true);
         assert!(sched.next(40, 8, 4).is_empty());
+    }
+
+    #[test]
+    fn a_display_learns_which_beams_got_rays_while_it_read_them() {
+        let mut sched = Scheduler::new(None);
+        let (a, b) = (BeamKey::new(0, 1), BeamKey::new(0, 2));
+        sched.finished(a, 4, Source::Batch);
+        let before = sched.epoch();
+        assert!(sched.finished_since(&[a, b], before).is_empty());
+        sched.finished(b, 4, Source::Batch);
+        assert_eq!(sched.finished_since(&[a, b], before), vec![b]);
     }
 
     #[test]
