@@ -726,6 +726,33 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
     assert!(p.pixels.iter().filter(|c| c.max_element() > 0.0).count() > p.pixels.len() / 2);
     // Read-only: the server is still there for the next display.
     assert!(server.try_wait().unwrap().is_none());
+    // A beam asked for three times is sent once; a request for more beams
+    // than the holodeck has is refused with a reason.
+    let (mut display, _) = Client::connect(&addr, Role::Display, "t");
+    let k = BeamKey::new(0, 4242);
+    let got = display.request(&[(k, 5), (k, 9), (k, 7)], None);
+    assert!(got.len() <= 1 && got.iter().all(|g| g.0 == k), "{got:?}");
+    display.send(&Frame::Message(Message::BeamRequest {
+        beams: vec![(k, 1); 200_000],
+        eye: None,
+        replace: true,
+    }));
+    match display.recv() {
+        Frame::Message(Message::Error { message }) => assert!(message.contains("beams requested"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+    // Before its Hello, a peer may not send a big frame.
+    let mut raw = TcpStream::connect(&addr).unwrap();
+    let mut big = vec![0u8; 5 + (100 << 10)];
+    big[..4].copy_from_slice(&((100u32 << 10) + 1).to_le_bytes());
+    let _ = raw.write_all(&big);
+    let mut c = Client {
+        link: FrameLink::new(Box::new(raw)),
+    };
+    match c.recv() {
+        Frame::Message(Message::Refused { reason }) => assert!(reason.contains("65536 allowed"), "{reason}"),
+        other => panic!("{other:?}"),
+    }
     let (mut admin, _) = Client::connect(&addr, Role::Admin, "t");
     admin.send(&Frame::Message(Message::Control(Control::Quit)));
     assert!(server.wait().unwrap().success());

@@ -7,7 +7,9 @@ use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use holodeck_protocol::wire::{Frame, FrameLink, Hello, LinkError, Message, Role, SamplingMode, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{
+    Frame, FrameLink, Hello, LinkError, Message, Role, SamplingMode, MAX_PACKET_RAYS, PROTOCOL_VERSION,
+};
 use holodeck_protocol::{RayRecord, Section, SectionError};
 
 use crate::beam::{proximity_rays, trace_sample, uniform_rays};
@@ -108,7 +110,7 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
             .ok_or_else(|| WorkerError::Protocol(format!("packet for unknown section {}", packet.key.section)))?;
         let mut rng = Rng::new(seed, n);
         n += 1;
-        let count = packet.rays.min(1 << 16) as usize;
+        let count = packet.rays.min(MAX_PACKET_RAYS) as usize;
         let samples = match packet.mode {
             SamplingMode::Uniform => uniform_rays(section, packet.key.beam, count, &mut rng)?,
             SamplingMode::NearEye { eye, radius } => {

@@ -48,8 +48,13 @@ pub enum Frame {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum FrameError {
     /// The declared payload is larger than [`MAX_FRAME`].
-    #[error("frame of {0} bytes is larger than the {max} allowed", max = MAX_FRAME)]
-    TooLarge(usize),
+    #[error("frame of {len} bytes is larger than the {max} allowed")]
+    TooLarge {
+        /// Its declared length.
+        len: usize,
+        /// The most allowed here.
+        max: usize,
+    },
     /// An unknown kind byte.
     #[error("unknown frame kind {0}")]
     UnknownKind(u8),
@@ -93,7 +98,7 @@ pub fn encode_frame(frame: &Frame, out: &mut Vec<u8>) -> Result<(), FrameError> 
     let len = out.len() - start - FRAME_HEADER;
     if len > MAX_FRAME {
         out.truncate(start);
-        return Err(FrameError::TooLarge(len));
+        return Err(FrameError::TooLarge { len, max: MAX_FRAME });
     }
     out[start..start + 4].copy_from_slice(&(len as u32).to_le_bytes());
     out[start + 4] = kind;
@@ -123,7 +128,7 @@ pub fn decode_frame(buf: &[u8]) -> Result<Option<(Frame, usize)>, FrameError> {
     }
     let len = u32_at(buf, 0) as usize;
     if len > MAX_FRAME {
-        return Err(FrameError::TooLarge(len));
+        return Err(FrameError::TooLarge { len, max: MAX_FRAME });
     }
     if buf.len() < FRAME_HEADER + len {
         return Ok(None);
@@ -182,6 +187,8 @@ pub fn decode_frame(buf: &[u8]) -> Result<Option<(Frame, usize)>, FrameError> {
 pub struct FrameBuffer {
     buf: Vec<u8>,
     start: usize,
+    /// Largest frame accepted (at most [`MAX_FRAME`]; 0 means [`MAX_FRAME`]).
+    max: usize,
 }
 
 impl FrameBuffer {
@@ -190,11 +197,27 @@ impl FrameBuffer {
         FrameBuffer {
             buf: Vec::with_capacity(64 << 10),
             start: 0,
+            max: MAX_FRAME,
         }
+    }
+
+    /// Accepts frames of at most `max` bytes from now on (capped at
+    /// [`MAX_FRAME`]): a server takes only small frames before a peer has
+    /// shown its token.
+    pub fn set_max_frame(&mut self, max: usize) {
+        self.max = max.min(MAX_FRAME);
     }
 
     /// The next whole frame, if the bytes so far hold one.
     pub fn next_frame(&mut self) -> Result<Option<Frame>, FrameError> {
+        let pending = &self.buf[self.start..];
+        let max = if self.max == 0 { MAX_FRAME } else { self.max };
+        if pending.len() >= 4 {
+            let len = u32::from_le_bytes([pending[0], pending[1], pending[2], pending[3]]) as usize;
+            if len > max {
+                return Err(FrameError::TooLarge { len, max });
+            }
+        }
         let Some((frame, used)) = decode_frame(&self.buf[self.start..])? else {
             return Ok(None);
         };
@@ -322,7 +345,13 @@ mod tests {
     fn bad_frames_are_refused_with_reasons() {
         let mut huge = ((MAX_FRAME + 1) as u32).to_le_bytes().to_vec();
         huge.push(0);
-        assert_eq!(decode_frame(&huge), Err(FrameError::TooLarge(MAX_FRAME + 1)));
+        assert_eq!(
+            decode_frame(&huge),
+            Err(FrameError::TooLarge {
+                len: MAX_FRAME + 1,
+                max: MAX_FRAME
+            })
+        );
         assert_eq!(decode_frame(&[0, 0, 0, 0, 7]), Err(FrameError::UnknownKind(7)));
         // Records that are not whole.
         let mut odd = vec![11, 0, 0, 0, KIND_BEAM];
@@ -358,7 +387,7 @@ mod tests {
         let mut out = Vec::new();
         assert!(matches!(
             encode_frame(&too_many, &mut out),
-            Err(FrameError::TooLarge(_))
+            Err(FrameError::TooLarge { .. })
         ));
         assert!(out.is_empty(), "a refused frame leaves nothing behind");
     }

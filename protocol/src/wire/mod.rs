@@ -11,5 +11,8 @@ pub use frame::{decode_frame, encode_frame, Frame, FrameBuffer, FrameError, FRAM
 pub use link::{FrameLink, LinkError};
 pub use message::{Control, EyePoint, Hello, Message, Progress, Role, SamplingMode, TracePacket};
 
+/// Most rays one trace packet may ask for; samplers trace at most this many.
+pub const MAX_PACKET_RAYS: u32 = 1 << 16;
+
 /// Version of the protocol; peers with another version are refused.
 pub const PROTOCOL_VERSION: u32 = 2;

@@ -2,7 +2,7 @@
 //! writes of one encoded frame (or a batch of them) at a time.
 
 use holodeck_protocol::wire::{encode_frame, Frame, FrameBuffer, FrameError};
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt, ReadHalf, WriteHalf};
 
 /// A byte stream a peer is connected by: TCP or a Unix socket.
 pub trait Stream: AsyncRead + AsyncWrite + Unpin + Send {}
@@ -21,25 +21,74 @@ pub enum ConnectionError {
     /// The peer closed the connection in the middle of a frame.
     #[error("peer closed the connection mid-frame")]
     Truncated,
+    /// The peer held work without answering, or did not read what was sent.
+    #[error("peer stalled: {0}")]
+    Stalled(String),
 }
 
-/// A framed connection.
+/// A framed connection: a reader and a writer half, which a task may also
+/// drive separately (see [`Connection::split`]).
 pub struct Connection {
-    stream: Box<dyn Stream>,
+    reader: FrameReader,
+    writer: FrameWriter,
+}
+
+/// The receiving half.
+pub struct FrameReader {
+    stream: ReadHalf<Box<dyn Stream>>,
     frames: FrameBuffer,
+}
+
+/// The sending half.
+pub struct FrameWriter {
+    stream: WriteHalf<Box<dyn Stream>>,
     out: Vec<u8>,
 }
 
 impl Connection {
     /// Wraps a connected socket.
     pub fn new(stream: Box<dyn Stream>) -> Connection {
+        let (read, write) = tokio::io::split(stream);
         Connection {
-            stream,
-            frames: FrameBuffer::new(),
-            out: Vec::new(),
+            reader: FrameReader {
+                stream: read,
+                frames: FrameBuffer::new(),
+            },
+            writer: FrameWriter {
+                stream: write,
+                out: Vec::new(),
+            },
         }
     }
 
+    /// The two halves, for a peer that must be read while a long write is
+    /// under way (samplers: each side may be writing to the other at once).
+    pub fn split(self) -> (FrameReader, FrameWriter) {
+        (self.reader, self.writer)
+    }
+
+    /// Accepts only frames up to `max` bytes from now on.
+    pub fn set_max_frame(&mut self, max: usize) {
+        self.reader.frames.set_max_frame(max);
+    }
+
+    /// See [`FrameReader::read`].
+    pub async fn read(&mut self) -> Result<Option<Frame>, ConnectionError> {
+        self.reader.read().await
+    }
+
+    /// See [`FrameWriter::write_all`].
+    pub async fn write_all(&mut self, frames: &[Frame]) -> Result<(), ConnectionError> {
+        self.writer.write_all(frames).await
+    }
+
+    /// See [`FrameWriter::write`].
+    pub async fn write(&mut self, frame: &Frame) -> Result<(), ConnectionError> {
+        self.writer.write(frame).await
+    }
+}
+
+impl FrameReader {
     /// The next frame, or `None` when the peer closed cleanly between frames.
     /// Cancel-safe: bytes already received stay buffered.
     pub async fn read(&mut self) -> Result<Option<Frame>, ConnectionError> {
@@ -59,7 +108,9 @@ impl Connection {
             self.frames.push(&chunk[..n]);
         }
     }
+}
 
+impl FrameWriter {
     /// Sends several frames in one write.
     pub async fn write_all(&mut self, frames: &[Frame]) -> Result<(), ConnectionError> {
         self.out.clear();
@@ -67,16 +118,12 @@ impl Connection {
             encode_frame(f, &mut self.out)?;
         }
         self.stream.write_all(&self.out).await?;
-        self.trim();
-        Ok(())
-    }
-
-    /// Gives back a write buffer a big batch left large, so that idle
-    /// connections hold little memory.
-    fn trim(&mut self) {
+        // A big batch leaves a big buffer: give it back, so that idle
+        // connections hold little memory.
         if self.out.capacity() > 1 << 20 {
             self.out = Vec::new();
         }
+        Ok(())
     }
 
     /// Sends one frame.

@@ -14,8 +14,8 @@
 use std::collections::{HashMap, HashSet};
 use std::sync::Arc;
 
-use holodeck_protocol::wire::{Control, Frame, Message};
-use holodeck_protocol::BeamKey;
+use holodeck_protocol::wire::{Control, Frame, Message, MAX_FRAME};
+use holodeck_protocol::{BeamKey, RAY_RECORD_BYTES};
 use tokio::sync::Notify;
 
 use super::connection::{Connection, ConnectionError};
@@ -24,6 +24,9 @@ use super::service::Shared;
 /// Beams read from the store per round trip to the storage thread: bounds the
 /// memory one request can pin.
 const READ_CHUNK: usize = 2048;
+
+/// Most records in one beam frame (a frame holds at most [`MAX_FRAME`] bytes).
+const MAX_FRAME_RAYS: usize = (MAX_FRAME - 64) / RAY_RECORD_BYTES;
 
 /// A display's mailbox: beams with new rays, and a wake-up.
 #[derive(Default)]
@@ -72,7 +75,17 @@ async fn send_beams(
         for (key, records) in beams {
             sent.push((key, records.len() as u64));
             total += records.len() as u64;
-            frames.push(Frame::Beam { key, records });
+            if records.len() <= MAX_FRAME_RAYS {
+                frames.push(Frame::Beam { key, records });
+            } else {
+                // A beam too big for one frame goes in several.
+                for part in records.chunks(MAX_FRAME_RAYS) {
+                    frames.push(Frame::Beam {
+                        key,
+                        records: part.to_vec(),
+                    });
+                }
+            }
         }
         conn.write_all(&frames).await?;
     }
@@ -89,7 +102,14 @@ async fn display_loop(
     let mut stop = shared.shutdown.subscribe();
     // Rays of each requested beam this display has been sent.
     let mut sent: HashMap<BeamKey, u64> = HashMap::new();
+    let mut generation = shared.generation.load(std::sync::atomic::Ordering::SeqCst);
     loop {
+        // The file was clobbered: every beam starts again from its first ray.
+        let now = shared.generation.load(std::sync::atomic::Ordering::SeqCst);
+        if now != generation {
+            generation = now;
+            sent.values_mut().for_each(|n| *n = 0);
+        }
         let frame = tokio::select! {
             f = conn.read() => f?,
             _ = link.wake.notified() => {
@@ -115,6 +135,24 @@ async fn display_loop(
         let Some(frame) = frame else { return Ok(()) };
         match frame {
             Frame::Message(Message::BeamRequest { beams, eye, replace }) => {
+                // Each beam once (the last count asked for wins), and never
+                // more beams than the holodeck has.
+                let all: usize = shared.sections.iter().map(|s| s.beam_count() as usize).sum();
+                if beams.len() > all {
+                    let message = format!("{} beams requested; the holodeck has {all}", beams.len());
+                    conn.write(&Frame::Message(Message::Error { message })).await?;
+                    continue;
+                }
+                let beams: Vec<(BeamKey, u32)> = {
+                    let mut last: HashMap<BeamKey, u32> = HashMap::with_capacity(beams.len());
+                    let mut order = Vec::with_capacity(beams.len());
+                    for (k, n) in beams {
+                        if last.insert(k, n).is_none() {
+                            order.push(k);
+                        }
+                    }
+                    order.into_iter().map(|k| (k, last[&k])).collect()
+                };
                 let bad = beams.iter().find(|(k, _)| {
                     shared
                         .sections

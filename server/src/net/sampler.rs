@@ -10,8 +10,9 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::wire::{Frame, Message, TracePacket};
+use holodeck_protocol::wire::{Frame, Message, TracePacket, MAX_PACKET_RAYS};
 use holodeck_protocol::BeamKey;
+use tokio::sync::mpsc;
 
 use super::connection::{Connection, ConnectionError};
 use super::service::Shared;
@@ -21,6 +22,12 @@ use crate::schedule::Work;
 const MAX_QUEUE: u64 = 1 << 18;
 /// Fewest rays queued (so the measurement has something to measure).
 const MIN_QUEUE: u64 = 16;
+/// A sampler that returns nothing for this long (or 20 target latencies,
+/// whichever is longer) while holding work is dropped and its work given
+/// back: a stopped process or a half-open connection must not hold beams.
+const MIN_STALL: Duration = Duration::from_secs(30);
+/// A batch that cannot be written within this long ends the connection.
+const WRITE_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// A sampler's measured speed.
 #[derive(Debug)]
@@ -82,12 +89,28 @@ impl Meter {
     }
 }
 
-pub(super) async fn serve_sampler(mut conn: Connection, shared: &Shared) -> Result<(), ConnectionError> {
+pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(), ConnectionError> {
+    let (mut reader, mut writer) = conn.split();
+    // The writer runs on its own task: while a big batch goes out the
+    // sampler's results keep being read, so neither side can block the other
+    // with full socket buffers. One batch waits at most.
+    let (batches, mut to_write) = mpsc::channel::<Vec<Frame>>(1);
+    let writing = tokio::spawn(async move {
+        while let Some(frames) = to_write.recv().await {
+            match tokio::time::timeout(WRITE_TIMEOUT, writer.write_all(&frames)).await {
+                Ok(Ok(())) => {}
+                // Dropping the receiver tells the reader the sampler is gone.
+                _ => return,
+            }
+        }
+    });
+    let stall = (shared.config.latency * 20).max(MIN_STALL);
     let mut stop = shared.shutdown.subscribe();
     let mut kill = shared.kill_samplers.subscribe();
     let mut pending: HashMap<u64, Work> = HashMap::new();
     let mut outstanding = 0u64;
     let mut meter = Meter::new();
+    let mut progress = Instant::now();
     let result = loop {
         if *stop.borrow() {
             break Ok(());
@@ -98,35 +121,49 @@ pub(super) async fn serve_sampler(mut conn: Connection, shared: &Shared) -> Resu
         tokio::pin!(woken);
         woken.as_mut().enable();
         if outstanding <= target / 2 && !shared.store.refusing() {
-            let work =
-                shared
-                    .lock_scheduler()
-                    .next(target - outstanding, shared.config.request_packet, shared.config.packet);
-            if !work.is_empty() {
-                let mut frames = Vec::with_capacity(work.len());
-                for w in work {
-                    let id = shared.id();
-                    outstanding += u64::from(w.rays);
-                    pending.insert(id, w);
-                    frames.push(Frame::Message(Message::Trace(TracePacket {
-                        id,
-                        key: w.key,
-                        rays: w.rays,
-                        mode: w.mode,
-                    })));
+            match batches.try_reserve() {
+                Ok(slot) => {
+                    let work = shared.lock_scheduler().next(
+                        target - outstanding,
+                        shared.config.request_packet.min(MAX_PACKET_RAYS),
+                        shared.config.packet.min(MAX_PACKET_RAYS),
+                    );
+                    if !work.is_empty() {
+                        if pending.is_empty() {
+                            progress = Instant::now();
+                        }
+                        let mut frames = Vec::with_capacity(work.len());
+                        for w in work {
+                            let id = shared.id();
+                            outstanding += u64::from(w.rays);
+                            pending.insert(id, w);
+                            frames.push(Frame::Message(Message::Trace(TracePacket {
+                                id,
+                                key: w.key,
+                                rays: w.rays,
+                                mode: w.mode,
+                            })));
+                        }
+                        meter.started(Instant::now());
+                        slot.send(frames);
+                    }
                 }
-                meter.started(Instant::now());
-                // One write for the whole batch: per-packet writes cost more than the packets.
-                if let Err(e) = conn.write_all(&frames).await {
-                    break Err(e);
+                Err(mpsc::error::TrySendError::Closed(())) => {
+                    break Err(ConnectionError::Stalled("the sampler stopped taking work".into()));
                 }
+                // The last batch is still going out: top up once it has.
+                Err(mpsc::error::TrySendError::Full(())) => {}
             }
         }
+        let deadline = tokio::time::sleep_until((progress + stall).into());
         let frame = tokio::select! {
-            f = conn.read() => f,
+            f = reader.read() => f,
             _ = &mut woken, if pending.is_empty() => continue,
             // Nothing to do (paused, or the file is full): look again now and then.
-            _ = tokio::time::sleep(Duration::from_millis(250)), if pending.is_empty() => continue,
+            _ = tokio::time::sleep(Duration::from_millis(250)), if pending.is_empty() || batches.capacity() == 0 => continue,
+            _ = deadline, if !pending.is_empty() => {
+                break Err(ConnectionError::Stalled(format!("no results for {stall:?} with work outstanding")));
+            }
             _ = stop.changed() => Ok(None),
             _ = kill.changed() => Ok(None),
         };
@@ -136,24 +173,26 @@ pub(super) async fn serve_sampler(mut conn: Connection, shared: &Shared) -> Resu
                     let w = *w;
                     pending.remove(&id);
                     outstanding -= u64::from(w.rays);
-                    meter.finished(u64::from(w.rays), Instant::now(), pending.is_empty());
+                    progress = Instant::now();
+                    meter.finished(u64::from(w.rays), progress, pending.is_empty());
                     shared.store.append(key, records).await;
                     let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
                     forward(shared, key, &displays);
                 }
                 _ => {
                     let message = format!("packet {id} does not match any packet sent to you");
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
+                    let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
                 }
             },
             Ok(Some(_)) => {
                 let message = "samplers send finished packets only".to_string();
-                conn.write(&Frame::Message(Message::Error { message })).await?;
+                let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
             }
             Ok(None) => break Ok(()),
             Err(e) => break Err(e),
         }
     };
+    writing.abort();
     // Whatever the sampler still had is traced again by someone else.
     let mut scheduler = shared.lock_scheduler();
     for w in pending.values() {

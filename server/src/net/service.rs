@@ -109,6 +109,8 @@ pub(super) struct Shared {
     pub kill_samplers: watch::Sender<u64>,
     /// False after KillSamplers until Restart: samplers are refused.
     pub samplers_allowed: AtomicBool,
+    /// Bumped by Clobber: displays then count their beams from the start.
+    pub generation: AtomicU64,
     pub shutdown: watch::Sender<bool>,
 }
 
@@ -162,9 +164,13 @@ impl Shared {
             }
             Control::Clobber => {
                 self.store.clobber().await.map_err(|e| e.to_string())?;
+                self.generation.fetch_add(1, Ordering::SeqCst);
                 let lens = self.store.lens().await.map_err(|e| e.to_string())?;
                 let batch = self.batch(&lens).map_err(|e| e.to_string())?;
-                self.lock_scheduler().restart(batch);
+                let mut scheduler = self.lock_scheduler();
+                scheduler.restart(batch);
+                scheduler.requests().forget_stored();
+                drop(scheduler);
                 self.work.notify_waiters();
             }
             Control::Quit => {
@@ -199,6 +205,7 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         displays: std::sync::Mutex::new(HashMap::new()),
         kill_samplers: watch::channel(0).0,
         samplers_allowed: AtomicBool::new(true),
+        generation: AtomicU64::new(0),
         shutdown,
     });
     let lens = store.lens().await?;
@@ -253,6 +260,10 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     drop(peers_tx);
     let mut full_check = tokio::time::interval(Duration::from_millis(200));
     let mut tasks = tokio::task::JoinSet::new();
+    // Made once: a signal arriving between two turns of the loop is not lost.
+    let interrupted = tokio::signal::ctrl_c();
+    let terminated = terminate();
+    tokio::pin!(interrupted, terminated);
     loop {
         tokio::select! {
             Some((stream, peer)) = peers.recv() => {
@@ -275,8 +286,8 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
                     break;
                 }
             }
-            _ = tokio::signal::ctrl_c() => break,
-            _ = terminate() => break,
+            _ = &mut interrupted => break,
+            _ = &mut terminated => break,
         }
     }
     // Tell every connection to stop, then end those that do not: packets they
@@ -295,11 +306,13 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     drop(store);
     drop(shared);
     drop(acceptors);
-    flushed?;
-    // The storage thread exits once every handle is gone.
-    tokio::task::spawn_blocking(move || thread.join())
+    // The storage thread exits once every handle is gone; wait for it even
+    // when the flush failed, so that closing does not race the exit.
+    let closed = tokio::task::spawn_blocking(move || thread.join())
         .await
-        .unwrap_or(Ok(()))?;
+        .unwrap_or(Ok(()));
+    flushed?;
+    closed?;
     Ok(())
 }
 
@@ -348,6 +361,19 @@ async fn terminate() {
     std::future::pending::<()>().await
 }
 
+/// Compares two secrets in time that does not depend on where they differ.
+fn same_secret(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    let mut diff = u8::from(a.len() != b.len());
+    for i in 0..a.len().max(b.len()) {
+        diff |= a.get(i).copied().unwrap_or(0) ^ b.get(i).copied().unwrap_or(0);
+    }
+    diff == 0
+}
+
+/// Frames a peer may send before its Hello is checked.
+const HANDSHAKE_FRAME: usize = 64 << 10;
+
 /// Why a peer is refused, if it is.
 fn check(hello: &Hello, shared: &Shared) -> Option<String> {
     if hello.version != PROTOCOL_VERSION {
@@ -356,7 +382,7 @@ fn check(hello: &Hello, shared: &Shared) -> Option<String> {
             hello.version
         ));
     }
-    if hello.token != shared.config.token {
+    if !same_secret(&hello.token, &shared.config.token) {
         return Some("wrong access token".into());
     }
     match (&shared.scene, hello.role) {
@@ -373,6 +399,8 @@ fn check(hello: &Hello, shared: &Shared) -> Option<String> {
 
 async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), ConnectionError> {
     let mut conn = Connection::new(stream);
+    // Nobody unauthenticated gets to make the server buffer 16 MiB.
+    conn.set_max_frame(HANDSHAKE_FRAME);
     let first = tokio::time::timeout(Duration::from_secs(10), conn.read()).await;
     let hello = match first {
         Ok(Ok(Some(Frame::Message(Message::Hello(h))))) => h,
@@ -394,6 +422,7 @@ async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), Connecti
         conn.write(&Frame::Message(Message::Refused { reason })).await?;
         return Ok(());
     }
+    conn.set_max_frame(holodeck_protocol::wire::MAX_FRAME);
     let sections = shared.sections.iter().map(Section::spec).collect();
     let obstructions = shared.obstructions;
     conn.write(&Frame::Message(Message::Welcome { sections, obstructions }))

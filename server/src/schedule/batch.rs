@@ -22,6 +22,9 @@ struct Entry {
     /// Larger weights first among equal ratios.
     weight: f64,
     key: BeamKey,
+    /// The beam's sequence number when pushed: only the newest entry of a
+    /// beam is live, so no beam is ever in the list twice.
+    seq: u32,
 }
 
 impl Eq for Entry {}
@@ -48,6 +51,8 @@ pub struct BatchSchedule {
     weights: Vec<Vec<f64>>,
     /// Current ratio of each beam (rays counted / weight).
     ratios: Vec<Vec<f64>>,
+    /// Sequence number of each beam's live heap entry.
+    seqs: Vec<Vec<u32>>,
     /// Beams scheduled.
     beams: usize,
 }
@@ -100,16 +105,35 @@ impl BatchSchedule {
                     ratio: r[b],
                     weight: *weight,
                     key,
+                    seq: 0,
                 }));
             }
             ratios.push(r);
         }
         let beams = heap.len();
+        let seqs = weights.iter().map(|w| vec![0; w.len()]).collect();
         BatchSchedule {
             heap: heap.into(),
             weights,
             ratios,
+            seqs,
             beams,
+        }
+    }
+
+    /// Pushes the beam's live entry for its current ratio, retiring older ones.
+    fn push(&mut self, key: BeamKey, weight: f64) {
+        let (s, b) = (key.section as usize, key.beam as usize);
+        let seq = self.seqs[s][b].wrapping_add(1);
+        self.seqs[s][b] = seq;
+        self.heap.push(Reverse(Entry {
+            ratio: self.ratios[s][b],
+            weight,
+            key,
+            seq,
+        }));
+        if self.heap.len() > 2 * self.beams + 1024 {
+            self.compact();
         }
     }
 
@@ -120,32 +144,27 @@ impl BatchSchedule {
     /// The next `count` beams to trace, in priority order: `rays` rays each,
     /// but a single ray for a beam that holds none yet.
     pub fn next(&mut self, count: usize, rays: u32) -> Vec<(BeamKey, u32)> {
+        // Each beam at most once per call.
+        let count = count.min(self.beams);
         let mut out = Vec::with_capacity(count);
-        let mut taken = Vec::with_capacity(count);
         while out.len() < count {
-            let Some(Reverse(mut e)) = self.heap.pop() else { break };
-            let current = self.ratios[e.key.section as usize][e.key.beam as usize];
-            if current != e.ratio {
-                // Stale: the beam was credited or given rays back since.
-                if current > e.ratio {
-                    e.ratio = current;
-                    self.heap.push(Reverse(e));
-                }
-                // A lower current ratio has its own, newer entry.
-                continue;
+            let Some(Reverse(e)) = self.heap.pop() else { break };
+            let (s, b) = (e.key.section as usize, e.key.beam as usize);
+            if self.seqs[s][b] != e.seq {
+                continue; // retired: the beam has a newer entry
             }
             // An empty beam gets one ray first: every beam then holds rays
             // after as few rays as there are beams.
             let n = if e.ratio == 0.0 { 1 } else { rays };
-            out.push((e.key, n));
-            taken.push((e, n));
+            out.push((e.key, n, e.weight));
         }
-        for (mut e, n) in taken {
-            e.ratio += f64::from(n) / e.weight;
-            self.ratios[e.key.section as usize][e.key.beam as usize] = e.ratio;
-            self.heap.push(Reverse(e));
-        }
-        out
+        out.into_iter()
+            .map(|(key, n, weight)| {
+                self.ratios[key.section as usize][key.beam as usize] += f64::from(n) / weight;
+                self.push(key, weight);
+                (key, n)
+            })
+            .collect()
     }
 
     /// Returns rays that were handed out but never came back (a sampler that
@@ -165,25 +184,20 @@ impl BatchSchedule {
         };
         let Some(r) = self.ratio_mut(key) else { return };
         *r = (*r + rays / weight).max(0.0);
-        let ratio = *r;
-        if rays < 0.0 {
-            self.heap.push(Reverse(Entry { ratio, weight, key }));
-        }
-        if self.heap.len() > 2 * self.beams + 1024 {
-            self.compact();
-        }
+        self.push(key, weight);
     }
 
-    /// Rebuilds the heap from the ratio table, dropping stale entries.
+    /// Rebuilds the heap from the ratio table, dropping retired entries.
     fn compact(&mut self) {
         let mut entries = Vec::with_capacity(self.beams);
-        for (si, (w, r)) in self.weights.iter().zip(&self.ratios).enumerate() {
-            for (b, (&weight, &ratio)) in w.iter().zip(r).enumerate() {
+        for (si, w) in self.weights.iter().enumerate() {
+            for (b, &weight) in w.iter().enumerate() {
                 if weight > 0.0 {
                     entries.push(Reverse(Entry {
-                        ratio,
+                        ratio: self.ratios[si][b],
                         weight,
                         key: BeamKey::new(si as u32, b as u32),
+                        seq: self.seqs[si][b],
                     }));
                 }
             }
@@ -271,6 +285,27 @@ mod tests {
             sched.credit(lost, 1);
         }
         assert!(sched.heap.len() <= 2 * n + 1024);
+    }
+
+    #[test]
+    fn a_beam_given_back_is_never_in_the_list_twice() {
+        let s = section();
+        let n = s.beam_count() as usize;
+        let mut sched = BatchSchedule::new(std::slice::from_ref(&s), |_| 0).unwrap();
+        let first = sched.next(n, 4);
+        let x = first[0].0;
+        // Its packet is lost, then handed out again: back at its old ratio.
+        sched.give_back(x, 1);
+        assert_eq!(sched.next(1, 4)[0].0, x);
+        for _ in 0..50 {
+            let round = sched.next(n, 4);
+            let mut keys: Vec<BeamKey> = round.iter().map(|r| r.0).collect();
+            keys.sort();
+            keys.dedup();
+            assert_eq!(keys.len(), round.len(), "a beam handed out twice in one call");
+        }
+        let asked: usize = sched.next(10 * n, 4).len();
+        assert_eq!(asked, n, "one packet per beam per call, however many are asked for");
     }
 
     #[test]

@@ -157,10 +157,9 @@ impl Scheduler {
         &mut self.requests
     }
 
-    /// Drops every request and, with a batch list, starts it afresh from
-    /// `stored` (the Restart command).
+    /// Starts the batch list afresh (the Restart command, and after a
+    /// Clobber); displays' requests stay, so their refinement goes on.
     pub fn restart(&mut self, batch: Option<BatchSchedule>) {
-        self.requests = RequestList::new();
         self.batch = batch;
     }
 }

@@ -216,6 +216,18 @@ impl RequestList {
         }
     }
 
+    /// Forgets what is stored (the file was clobbered): requests are
+    /// refilled from nothing.
+    pub fn forget_stored(&mut self) {
+        let keys: Vec<BeamKey> = self.beams.keys().copied().collect();
+        for k in keys {
+            if let Some(w) = self.beams.get_mut(&k) {
+                w.stored = 0;
+            }
+            self.requeue(k);
+        }
+    }
+
     /// Rays still wanted over all requests.
     pub fn missing(&self) -> u64 {
         self.beams
