@@ -89,6 +89,11 @@ impl Connection {
 }
 
 impl FrameReader {
+    /// The next frame if one is already buffered, without waiting.
+    pub fn buffered(&mut self) -> Result<Option<Frame>, ConnectionError> {
+        Ok(self.frames.next_frame()?)
+    }
+
     /// The next frame, or `None` when the peer closed cleanly between frames.
     /// Cancel-safe: bytes already received stay buffered.
     pub async fn read(&mut self) -> Result<Option<Frame>, ConnectionError> {

@@ -47,6 +47,39 @@ impl DisplayLink {
     }
 }
 
+/// A display reading beams while samplers may be adding to them: the
+/// scheduler notes which beams got rays meanwhile, until the watch ends.
+struct Watch<'a> {
+    shared: &'a Shared,
+    epoch: Option<u64>,
+}
+
+impl<'a> Watch<'a> {
+    fn new(shared: &'a Shared) -> Watch<'a> {
+        Watch {
+            epoch: Some(shared.lock_scheduler().watch()),
+            shared,
+        }
+    }
+
+    /// Runs `register` under the scheduler's lock (which names the beams
+    /// read) and returns those that got rays since the watch began.
+    fn end<'k>(mut self, register: impl FnOnce(&mut crate::schedule::Scheduler) -> &'k [BeamKey]) -> Vec<BeamKey> {
+        let epoch = self.epoch.take().unwrap_or(0);
+        let mut scheduler = self.shared.lock_scheduler();
+        let keys = register(&mut scheduler);
+        scheduler.landed_since(keys, epoch)
+    }
+}
+
+impl Drop for Watch<'_> {
+    fn drop(&mut self) {
+        if let Some(epoch) = self.epoch {
+            self.shared.lock_scheduler().landed_since(&[], epoch);
+        }
+    }
+}
+
 pub(super) async fn serve_display(conn: Connection, shared: &Shared, read_only: bool) -> Result<(), ConnectionError> {
     let id = shared.id();
     let link = Arc::new(DisplayLink::default());
@@ -177,8 +210,9 @@ async fn display_loop(
                 if replace {
                     sent.clear();
                 }
-                // Rays that land while the beams are read are caught below.
-                let epoch = shared.lock_scheduler().epoch();
+                // Rays that land while the beams are read are caught below
+                // (and the watch ends on every path out of here).
+                let watch = Watch::new(shared);
                 // Every stored ray of the requested beams, at once.
                 let wanted: Vec<(BeamKey, u64)> = beams.iter().map(|&(k, _)| (k, 0)).collect();
                 let (got, rays) = match send_beams(&mut conn, shared, wanted).await? {
@@ -202,11 +236,10 @@ async fn display_loop(
                     .map(|&(k, desired)| (k, desired, sent.get(&k).copied().unwrap_or(0)))
                     .collect();
                 let keys: Vec<BeamKey> = beams.iter().map(|b| b.0).collect();
-                let landed = {
-                    let mut scheduler = shared.lock_scheduler();
+                let landed = watch.end(|scheduler| {
                     scheduler.requests().request(id, &request, eye, replace);
-                    scheduler.finished_since(&keys, epoch)
-                };
+                    &keys
+                });
                 // Those rays may have missed the read (their beam was not yet
                 // this display's): send what is past `sent` on the next wake.
                 for k in landed {

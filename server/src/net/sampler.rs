@@ -111,6 +111,10 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
     let mut outstanding = 0u64;
     let mut meter = Meter::new();
     let mut progress = Instant::now();
+    // Timers made once: a sampler sends a frame per packet, and a timer per
+    // frame would cost more than the frame.
+    let mut idle = tokio::time::interval(Duration::from_millis(250));
+    let mut watchdog = tokio::time::interval(Duration::from_secs(1));
     let result = loop {
         if *stop.borrow() {
             break Ok(());
@@ -155,41 +159,54 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
                 Err(mpsc::error::TrySendError::Full(())) => {}
             }
         }
-        let deadline = tokio::time::sleep_until((progress + stall).into());
-        let frame = tokio::select! {
+        let mut frame = tokio::select! {
             f = reader.read() => f,
             _ = &mut woken, if pending.is_empty() => continue,
             // Nothing to do (paused, or the file is full): look again now and then.
-            _ = tokio::time::sleep(Duration::from_millis(250)), if pending.is_empty() || batches.capacity() == 0 => continue,
-            _ = deadline, if !pending.is_empty() => {
-                break Err(ConnectionError::Stalled(format!("no results for {stall:?} with work outstanding")));
+            _ = idle.tick(), if pending.is_empty() || batches.capacity() == 0 => continue,
+            _ = watchdog.tick(), if !pending.is_empty() => {
+                if progress.elapsed() > stall {
+                    break Err(ConnectionError::Stalled(format!("no results for {stall:?} with work outstanding")));
+                }
+                continue;
             }
             _ = stop.changed() => Ok(None),
             _ = kill.changed() => Ok(None),
         };
-        match frame {
-            Ok(Some(Frame::Finished { id, key, records })) => match pending.get(&id) {
-                Some(w) if w.key == key && records.len() == w.rays as usize => {
-                    let w = *w;
-                    pending.remove(&id);
-                    outstanding -= u64::from(w.rays);
-                    progress = Instant::now();
-                    meter.finished(u64::from(w.rays), progress, pending.is_empty());
-                    shared.store.append(key, records).await;
-                    let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
-                    forward(shared, key, &displays);
-                }
-                _ => {
-                    let message = format!("packet {id} does not match any packet sent to you");
+        // That frame and every one that came with it, before looking for more work.
+        let end = loop {
+            match frame {
+                Ok(Some(Frame::Finished { id, key, records })) => match pending.get(&id) {
+                    Some(w) if w.key == key && records.len() == w.rays as usize => {
+                        let w = *w;
+                        pending.remove(&id);
+                        outstanding -= u64::from(w.rays);
+                        progress = Instant::now();
+                        meter.finished(u64::from(w.rays), progress, pending.is_empty());
+                        shared.store.append(key, records).await;
+                        let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
+                        forward(shared, key, &displays);
+                    }
+                    _ => {
+                        let message = format!("packet {id} does not match any packet sent to you");
+                        let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
+                    }
+                },
+                Ok(Some(_)) => {
+                    let message = "samplers send finished packets only".to_string();
                     let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
                 }
-            },
-            Ok(Some(_)) => {
-                let message = "samplers send finished packets only".to_string();
-                let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
+                Ok(None) => break Some(Ok(())),
+                Err(e) => break Some(Err(e)),
             }
-            Ok(None) => break Ok(()),
-            Err(e) => break Err(e),
+            frame = match reader.buffered() {
+                Ok(Some(f)) => Ok(Some(f)),
+                Ok(None) => break None,
+                Err(e) => Err(e),
+            };
+        };
+        if let Some(end) = end {
+            break end;
         }
     };
     writing.abort();

@@ -44,6 +44,9 @@ pub struct Scheduler {
     /// its beams got rays while it was reading them.
     epoch: u64,
     finished_at: std::collections::HashMap<BeamKey, u64>,
+    /// Displays between [`Scheduler::watch`] and [`Scheduler::landed_since`]:
+    /// only then is `finished_at` kept (it costs a map insert per packet).
+    watchers: usize,
 }
 
 impl Scheduler {
@@ -56,20 +59,30 @@ impl Scheduler {
             paused: false,
             epoch: 0,
             finished_at: std::collections::HashMap::new(),
+            watchers: 0,
         }
     }
 
-    /// The current epoch: packets finished so far.
-    pub fn epoch(&self) -> u64 {
+    /// A display starts reading beams: returns the epoch to pass to
+    /// [`Scheduler::landed_since`], which it must call afterwards.
+    pub fn watch(&mut self) -> u64 {
+        self.watchers += 1;
         self.epoch
     }
 
-    /// Which of `keys` got rays after `epoch`.
-    pub fn finished_since(&self, keys: &[BeamKey], epoch: u64) -> Vec<BeamKey> {
-        keys.iter()
+    /// Which of `keys` got rays after `epoch` (from [`Scheduler::watch`]);
+    /// ends the watch.
+    pub fn landed_since(&mut self, keys: &[BeamKey], epoch: u64) -> Vec<BeamKey> {
+        let landed = keys
+            .iter()
             .copied()
             .filter(|k| self.finished_at.get(k).is_some_and(|&e| e > epoch))
-            .collect()
+            .collect();
+        self.watchers = self.watchers.saturating_sub(1);
+        if self.watchers == 0 {
+            self.finished_at.clear();
+        }
+        landed
     }
 
     /// Stops (or resumes) handing out work.
@@ -131,7 +144,9 @@ impl Scheduler {
     /// Rays came back; returns the displays that want them.
     pub fn finished(&mut self, key: BeamKey, rays: u32, source: Source) -> Vec<DisplayId> {
         self.epoch += 1;
-        self.finished_at.insert(key, self.epoch);
+        if self.watchers > 0 {
+            self.finished_at.insert(key, self.epoch);
+        }
         if source == Source::Request {
             if let Some(b) = &mut self.batch {
                 b.credit(key, rays);
@@ -219,10 +234,12 @@ mod tests {
         let mut sched = Scheduler::new(None);
         let (a, b) = (BeamKey::new(0, 1), BeamKey::new(0, 2));
         sched.finished(a, 4, Source::Batch);
-        let before = sched.epoch();
-        assert!(sched.finished_since(&[a, b], before).is_empty());
+        let before = sched.watch();
         sched.finished(b, 4, Source::Batch);
-        assert_eq!(sched.finished_since(&[a, b], before), vec![b]);
+        assert_eq!(sched.landed_since(&[a, b], before), vec![b]);
+        // Nobody watching: nothing is kept.
+        sched.finished(a, 4, Source::Batch);
+        assert!(sched.finished_at.is_empty());
     }
 
     #[test]
