@@ -207,12 +207,12 @@ fn small_room(dir: &std::path::Path) -> std::path::PathBuf {
 }
 
 /// Starts `holodeck serve` and returns it with the address it listens on.
-fn start_server(f: &str, addr: &str, token: &str) -> (Child, String) {
+fn start_server(f: &str, addr: &str, token: &str) -> (Server, String) {
     start_server_with(f, addr, token, &[])
 }
 
 /// Starts `holodeck serve` with more flags.
-fn start_server_with(f: &str, addr: &str, token: &str, extra: &[&str]) -> (Child, String) {
+fn start_server_with(f: &str, addr: &str, token: &str, extra: &[&str]) -> (Server, String) {
     let mut server = bin()
         .args(["serve", f, "--listen", addr, "--token", token])
         .args(extra)
@@ -229,7 +229,32 @@ fn start_server_with(f: &str, addr: &str, token: &str, extra: &[&str]) -> (Child
         .strip_prefix("listening on ")
         .expect("the server prints its address")
         .to_string();
-    (server, addr)
+    (Server(server), addr)
+}
+
+/// A server process that is killed if a failing test leaves it running.
+struct Server(Child);
+
+impl std::ops::Deref for Server {
+    type Target = Child;
+    fn deref(&self) -> &Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Server {
+    fn deref_mut(&mut self) -> &mut Child {
+        &mut self.0
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        if self.0.try_wait().ok().flatten().is_none() {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
 }
 
 #[test]
@@ -460,6 +485,7 @@ fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
+        .map(Server)
         .unwrap();
     let mut out = BufReader::new(server.stdout.take().unwrap());
     let (mut l1, mut l2) = (String::new(), String::new());
