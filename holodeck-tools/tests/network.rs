@@ -650,17 +650,19 @@ fn admins_pause_resume_kill_restart_and_clobber_and_diskspace_stops_the_fill() {
         "{}",
         String::from_utf8_lossy(&refused.stderr)
     );
-    admin.send(&Frame::Message(Message::Control(Control::Restart)));
-    std::thread::sleep(Duration::from_millis(300));
-    let again = sampler(&addr, token, &["builtin:room"]);
 
-    // Clobber empties the file; the fill then starts over.
-    let others: Vec<(BeamKey, u32)> = (0..200).map(|b| (BeamKey::new(0, 20_000 + 97 * b), 1)).collect();
+    // Clobber empties the file (no sampler is running to refill it).
+    // Every beam, wanting nothing more: the answer is everything stored.
+    let beams = match display_sections(&addr, token) {
+        n if n > 0 => n,
+        _ => panic!("no beams"),
+    };
+    let others: Vec<(BeamKey, u32)> = (0..beams).map(|b| (BeamKey::new(0, b), 0)).collect();
     let held = |got: Vec<(BeamKey, usize)>| got.iter().map(|g| g.1).sum::<usize>();
     let before = held(display.request(&others, None));
     admin.send(&Frame::Message(Message::Control(Control::Clobber)));
     // The command is carried out when the server gets to it (a loaded machine
-    // may take a while); the fill then starts refilling from nothing.
+    // may take a while).
     let start = Instant::now();
     let mut after = before;
     while after * 2 >= before && start.elapsed() < Duration::from_secs(20) {
@@ -671,6 +673,19 @@ fn admins_pause_resume_kill_restart_and_clobber_and_diskspace_stops_the_fill() {
         after * 2 < before,
         "the beams were emptied ({before} rays, then {after})"
     );
+
+    // Restart lets samplers in again, and the fill goes on.
+    admin.send(&Frame::Message(Message::Control(Control::Restart)));
+    let start = Instant::now();
+    let mut again = sampler(&addr, token, &["builtin:room"]);
+    while held(display.request(&others, None)) <= after {
+        assert!(start.elapsed() < Duration::from_secs(30), "no fill after a restart");
+        if again.try_wait().unwrap().is_some() {
+            // It came before the restart did, and was refused: try again.
+            again = sampler(&addr, token, &["builtin:room"]);
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
     admin.send(&Frame::Message(Message::Control(Control::Quit)));
     assert!(server.wait().unwrap().success());
     again.wait_with_output().unwrap();
@@ -807,4 +822,15 @@ fn rays_in(file: &std::path::Path) -> u64 {
 /// The file passes a full check.
 fn assert_clean(file: &std::path::Path) {
     assert!(holodeck_server::storage::check(file, |_, _| {}).unwrap().is_clean());
+}
+
+/// Beams of section 0 of the holodeck a server serves.
+fn display_sections(addr: &str, token: &str) -> u32 {
+    let (_, welcome) = Client::connect(addr, Role::Display, token);
+    let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
+        panic!("{welcome:?}")
+    };
+    holodeck_protocol::Section::try_from(sections[0].clone())
+        .unwrap()
+        .beam_count()
 }
