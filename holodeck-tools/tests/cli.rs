@@ -161,7 +161,10 @@ fn bad_input_gets_a_clear_error_and_a_failing_exit() {
 
 #[test]
 fn every_command_has_help_with_examples() {
-    for cmd in ["create", "info", "check", "optimize", "grid", "bench"] {
+    for cmd in [
+        "create", "info", "check", "optimize", "grid", "bench", "scene", "render", "fill", "run", "serve", "sample",
+        "pict", "view", "compare",
+    ] {
         let o = holodeck(&[cmd, "--help"]);
         assert!(o.status.success());
         assert!(text(&o).contains("Example"), "{cmd} --help has no examples");
