@@ -45,3 +45,31 @@ pub fn two_sections(room_grid: [u16; 3], box_grid: [u16; 3], cache_bytes: u64) -
         ..Settings::default()
     }
 }
+
+/// Every beam of every section, in order.
+pub fn all_keys(f: &crate::HoloFile) -> Vec<BeamKey> {
+    let mut keys = Vec::new();
+    for (s, sec) in f.sections().iter().enumerate() {
+        keys.extend((0..sec.beam_count()).map(|b| BeamKey::new(s as u32, b)));
+    }
+    keys
+}
+
+/// Asserts (panics otherwise: for tests) that every beam of the file at
+/// `path` holds exactly `expected[key]` pattern rays, in order, and nothing
+/// reads back corrupt.
+pub fn assert_pattern_contents(path: &std::path::Path, expected: &std::collections::HashMap<BeamKey, u64>) {
+    let mut f = crate::HoloFile::open(path, &crate::OpenOptions::read_only()).expect("open for the check");
+    let keys = all_keys(&f);
+    let mut seen = 0;
+    let report = f
+        .read_beams(&keys, |k, got| {
+            let n = expected.get(&k).copied().unwrap_or(0);
+            assert_eq!(got.len() as u64, n, "beam {k:?}");
+            assert_eq!(got, pattern_rays(k, 0, n).as_slice(), "contents of {k:?}");
+            seen += 1;
+        })
+        .expect("read every beam");
+    assert!(report.corrupt.is_empty());
+    assert_eq!(seen, keys.len());
+}

@@ -9,7 +9,9 @@ use std::path::{Path, PathBuf};
 use holodeck_protocol::BeamKey;
 use holodeck_server::settings::Settings;
 use holodeck_server::storage::{HoloFile, OpenOptions, StorageError};
-use holodeck_server::testing::{pattern_rays as rays, two_sections};
+use holodeck_server::testing::{
+    all_keys, assert_pattern_contents as assert_contents, pattern_rays as rays, two_sections,
+};
 use rand::{Rng, SeedableRng};
 
 const LIMIT: u64 = 300 << 10;
@@ -37,31 +39,6 @@ fn writable(cache: u64) -> OpenOptions {
 
 fn disk_len(path: &Path) -> u64 {
     fs::metadata(path).unwrap().len()
-}
-
-fn all_keys(f: &HoloFile) -> Vec<BeamKey> {
-    let mut keys = Vec::new();
-    for (s, sec) in f.sections().iter().enumerate() {
-        keys.extend((0..sec.beam_count()).map(|b| BeamKey::new(s as u32, b)));
-    }
-    keys
-}
-
-/// Asserts every beam holds exactly `expected[key]` rays with the right contents.
-fn assert_contents(path: &Path, expected: &HashMap<BeamKey, u64>) {
-    let mut f = HoloFile::open(path, &OpenOptions::read_only()).unwrap();
-    let keys = all_keys(&f);
-    let mut seen = 0;
-    let report = f
-        .read_beams(&keys, |k, got| {
-            let n = expected.get(&k).copied().unwrap_or(0);
-            assert_eq!(got.len() as u64, n, "beam {k:?}");
-            assert_eq!(got, rays(k, 0, n).as_slice(), "contents of {k:?}");
-            seen += 1;
-        })
-        .unwrap();
-    assert!(report.corrupt.is_empty());
-    assert_eq!(seen, keys.len());
 }
 
 /// Asserts `e` is the DISKSPACE refusal for `path` and `limit`.

@@ -9,7 +9,7 @@ use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::settings::Settings;
 use holodeck_server::storage::{self, format, HoloFile, OpenOptions, StorageError};
 
-use holodeck_server::testing::{pattern_rays as rays, two_sections};
+use holodeck_server::testing::{assert_pattern_contents as assert_contents, pattern_rays as rays, two_sections};
 
 fn settings() -> Settings {
     two_sections([4, 3, 2], [2, 2, 2], 1 << 20)
@@ -27,26 +27,6 @@ fn writable(cache: u64) -> OpenOptions {
         cache_bytes: Some(cache),
         flush_interval: None,
     }
-}
-
-/// Asserts every beam holds exactly `expected[key]` rays with the right contents.
-fn assert_contents(path: &Path, expected: &std::collections::HashMap<BeamKey, u64>) {
-    let mut f = HoloFile::open(path, &OpenOptions::read_only()).unwrap();
-    let mut keys = Vec::new();
-    for (s, sec) in f.sections().iter().enumerate() {
-        keys.extend((0..sec.beam_count()).map(|b| BeamKey::new(s as u32, b)));
-    }
-    let mut seen = 0;
-    let report = f
-        .read_beams(&keys, |k, got| {
-            let n = expected.get(&k).copied().unwrap_or(0);
-            assert_eq!(got.len() as u64, n, "beam {k:?}");
-            assert_eq!(got, rays(k, 0, n).as_slice(), "contents of {k:?}");
-            seen += 1;
-        })
-        .unwrap();
-    assert!(report.corrupt.is_empty());
-    assert_eq!(seen, keys.len());
 }
 
 #[test]
