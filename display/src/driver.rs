@@ -90,8 +90,9 @@ pub struct DriverStats {
     pub cache_drops: u64,
 }
 
-/// An image representation.
-pub trait Driver {
+/// An image representation (`Send`, so that a display may fill it on one
+/// thread while it decodes on others).
+pub trait Driver: Send {
     /// A short name ("quadtree").
     fn name(&self) -> &'static str;
     /// Adds samples; they appear in the next frame.

@@ -94,32 +94,23 @@ pub fn draw(
     let mut d = new_driver(driver, viewport).map_err(anyhow::Error::msg)?;
     let mut samples = 0u64;
     let start = Instant::now();
-    // Beams are gathered into chunks, decoded in parallel into one reused
-    // buffer, and handed to the driver (which inserts on one thread).
+    // Beams are gathered into chunks and decoded in parallel; while the
+    // driver inserts one chunk (on one thread), the next is decoded.
     let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * 2);
     let mut beams: Vec<(BeamKey, std::ops::Range<usize>)> = Vec::new();
     let mut decoded: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
+    let mut waiting: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
     let mut flush = |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>| {
-        // One slot per record, each beam decoded into its own slice.
-        decoded.resize(records.len(), PLACEHOLDER);
-        let mut jobs = Vec::with_capacity(beams.len());
-        let mut rest = &mut decoded[..];
-        for (k, r) in beams.iter() {
-            let (mine, tail) = rest.split_at_mut(r.len());
-            jobs.push((*k, &records[r.clone()], mine));
-            rest = tail;
-        }
-        jobs.into_par_iter().for_each(|(k, recs, out)| {
-            // Slots of a beam that cannot decode keep the NaN placeholder,
-            // which the driver rejects and counts.
-            if let Some(it) = decoder.samples(k.section, k.beam, recs) {
-                for (slot, s) in out.iter_mut().zip(it) {
-                    *slot = s;
-                }
+        let d = &mut d;
+        let insert = || {
+            if !waiting.is_empty() {
+                d.add(&waiting);
             }
-        });
+        };
+        let decode = || decode_chunk(&decoder, records, beams, &mut decoded);
+        rayon::join(insert, decode);
         samples += decoded.len() as u64;
-        d.add(&decoded);
+        std::mem::swap(&mut waiting, &mut decoded);
         records.clear();
         beams.clear();
     };
@@ -131,6 +122,8 @@ pub fn draw(
             flush(&mut records, &mut beams);
         }
     })?;
+    flush(&mut records, &mut beams);
+    // The last chunk decoded is still waiting.
     flush(&mut records, &mut beams);
     let recall = start.elapsed();
     let start = Instant::now();
@@ -149,6 +142,34 @@ pub fn draw(
             driver: d.stats(),
         },
     ))
+}
+
+/// Decodes one chunk of beams into `out`, one slot per record, each beam
+/// into its own slice, in parallel.
+fn decode_chunk(
+    decoder: &SampleDecoder,
+    records: &[RayRecord],
+    beams: &[(BeamKey, std::ops::Range<usize>)],
+    out: &mut Vec<Sample>,
+) {
+    out.clear();
+    out.resize(records.len(), PLACEHOLDER);
+    let mut jobs = Vec::with_capacity(beams.len());
+    let mut rest = &mut out[..];
+    for (k, r) in beams {
+        let (mine, tail) = rest.split_at_mut(r.len());
+        jobs.push((*k, &records[r.clone()], mine));
+        rest = tail;
+    }
+    jobs.into_par_iter().for_each(|(k, recs, slots)| {
+        // Slots of a beam that cannot decode keep the NaN placeholder, which
+        // the driver rejects and counts.
+        if let Some(it) = decoder.samples(k.section, k.beam, recs) {
+            for (slot, s) in slots.iter_mut().zip(it) {
+                *slot = s;
+            }
+        }
+    });
 }
 
 /// The output name of frame `n`: `%d` or `%0Nd` replaced by the number.
