@@ -835,3 +835,56 @@ fn display_sections(addr: &str, token: &str) -> u32 {
         .unwrap()
         .beam_count()
 }
+
+#[test]
+fn a_sampler_that_stops_answering_is_dropped_and_its_work_traced_by_another() {
+    use std::collections::HashMap;
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let scene = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .settings()
+        .scene
+        .clone()
+        .unwrap();
+    let token = "t";
+    let (mut server, addr) = start_server_with(
+        file.to_str().unwrap(),
+        "127.0.0.1:0",
+        token,
+        &["--no-fill", "--stall-timeout", "1s"],
+    );
+    // A "sampler" that takes packets and never answers (a stopped process).
+    let mut silent = Client::raw(&addr);
+    silent.send(&Frame::Message(Message::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        role: Role::Sampler,
+        scene,
+        token: token.into(),
+        read_only: true,
+    })));
+    assert!(matches!(silent.recv(), Frame::Message(Message::Welcome { .. })));
+    let (mut display, _) = Client::connect(&addr, Role::Display, token);
+    let want: Vec<(BeamKey, u32)> = (0..4).map(|b| (BeamKey::new(0, 3000 + 11 * b), 50)).collect();
+    let base: HashMap<BeamKey, usize> = display.request(&want, None).into_iter().collect();
+    assert!(
+        matches!(silent.recv(), Frame::Message(Message::Trace(_))),
+        "the work went to it"
+    );
+    // The server gives up on it: the connection ends.
+    let start = Instant::now();
+    loop {
+        match silent.link.read() {
+            Ok(Some(_)) => assert!(start.elapsed() < Duration::from_secs(20), "never dropped"),
+            Ok(None) | Err(_) => break,
+        }
+    }
+    // Its packets were given back: a working sampler traces all of them.
+    let worker = sampler(&addr, token, &["builtin:room"]);
+    let mut have = HashMap::new();
+    collect_until(&mut display, &want, &mut have, &base);
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    assert!(server.wait().unwrap().success());
+    worker.wait_with_output().unwrap();
+}

@@ -47,6 +47,9 @@ pub struct Args {
     /// Each sampler's queue drains within this many milliseconds.
     #[arg(long, default_value_t = 250)]
     latency_ms: u64,
+    /// Drop a sampler that returns nothing for this long while holding work (e.g. 30s).
+    #[arg(long, default_value = "30s")]
+    stall_timeout: String,
     /// Fill only the beams these views see (a file of Radiance views, one per line).
     #[arg(long, conflicts_with = "no_fill")]
     views: Option<PathBuf>,
@@ -142,6 +145,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         fill,
         time,
         report,
+        stall: parse_duration(&a.stall_timeout, 1.0)
+            .map_err(anyhow::Error::msg)
+            .context("--stall-timeout")?,
         ..ServerConfig::new(token)
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;

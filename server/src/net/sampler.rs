@@ -22,10 +22,7 @@ use crate::schedule::Work;
 const MAX_QUEUE: u64 = 1 << 18;
 /// Fewest rays queued (so the measurement has something to measure).
 const MIN_QUEUE: u64 = 16;
-/// A sampler that returns nothing for this long (or 20 target latencies,
-/// whichever is longer) while holding work is dropped and its work given
-/// back: a stopped process or a half-open connection must not hold beams.
-const MIN_STALL: Duration = Duration::from_secs(30);
+
 /// A batch that cannot be written within this long ends the connection.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -104,7 +101,8 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
             }
         }
     });
-    let stall = (shared.config.latency * 20).max(MIN_STALL);
+    // A stopped process or a half-open connection must not hold beams.
+    let stall = shared.config.stall.max(shared.config.latency * 4);
     let mut stop = shared.shutdown.subscribe();
     let mut kill = shared.kill_samplers.subscribe();
     let mut pending: HashMap<u64, Work> = HashMap::new();

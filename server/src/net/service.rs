@@ -59,6 +59,9 @@ pub struct ServerConfig {
     pub report: Option<Duration>,
     /// Stop once the file refuses rays (DISKSPACE reached) and no display is connected.
     pub stop_when_full: bool,
+    /// A sampler that returns nothing for this long while it holds work is
+    /// dropped and its work given back.
+    pub stall: Duration,
 }
 
 impl ServerConfig {
@@ -74,6 +77,7 @@ impl ServerConfig {
             time: None,
             report: None,
             stop_when_full: true,
+            stall: Duration::from_secs(30),
         }
     }
 }
