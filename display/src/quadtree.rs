@@ -13,7 +13,7 @@
 //! tree and new nodes are laid out in drawing order.
 
 use glam::{DVec3, Vec3};
-use holodeck_protocol::{Picture, ViewType};
+use holodeck_protocol::{Picture, ViewProjector};
 use rayon::prelude::*;
 
 use crate::driver::{Driver, DriverStats, Viewport};
@@ -47,25 +47,12 @@ const CHUNK: usize = 1 << 18;
 /// costs more than it saves.
 const SORT_MIN: usize = 256;
 
-/// [`View::project`](holodeck_protocol::View::project) followed by
-/// [`Viewport::pixel`] with the per-view trigonometry done once. The
-/// arithmetic is the same, operation for operation, so the pixels agree
-/// exactly with [`Viewport::pixel`]; the saving is the basis and the tangents
-/// that `project` recomputes for every point.
+/// [`Viewport::pixel`] with the view's projector made once (the basis and
+/// the tangents are not recomputed per point); the same arithmetic, so the
+/// pixels agree exactly.
 #[derive(Clone, Debug)]
 pub(crate) struct Projector {
-    kind: ViewType,
-    position: DVec3,
-    direction: DVec3,
-    right: DVec3,
-    up: DVec3,
-    /// Horizontal scale: the tangent factor, the field in radians, the
-    /// hemisphere's sine factor or the parallel width, by view type.
-    sx: f64,
-    /// Vertical scale, as `sx`.
-    sy: f64,
-    shift: f64,
-    lift: f64,
+    view: ViewProjector,
     width: u32,
     height: u32,
 }
@@ -73,74 +60,18 @@ pub(crate) struct Projector {
 impl Projector {
     /// Precomputes the constants of `viewport`.
     pub(crate) fn new(viewport: &Viewport) -> Projector {
-        let view = &viewport.view;
-        let (right, up) = view.basis();
-        let (sx, sy) = match view.kind {
-            ViewType::Perspective => (
-                (view.horizontal.to_radians() / 2.0).tan() * 2.0,
-                (view.vertical.to_radians() / 2.0).tan() * 2.0,
-            ),
-            ViewType::Angular => (view.horizontal.to_radians(), view.vertical.to_radians()),
-            ViewType::Hemispherical => (
-                2.0 * (view.horizontal.to_radians() / 2.0).sin(),
-                2.0 * (view.vertical.to_radians() / 2.0).sin(),
-            ),
-            ViewType::Parallel => (view.horizontal, view.vertical),
-        };
         Projector {
-            kind: view.kind,
-            position: view.position,
-            direction: view.direction,
-            right,
-            up,
-            sx,
-            sy,
-            shift: view.shift,
-            lift: view.lift,
+            view: viewport.view.projector(),
             width: viewport.width,
             height: viewport.height,
         }
-    }
-
-    /// Image coordinates and depth of a world point, as `View::project`.
-    #[inline]
-    fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
-        let d = p - self.position;
-        let (fx, fy, fz) = (d.dot(self.right), d.dot(self.up), d.dot(self.direction));
-        let (dx, dy, depth) = match self.kind {
-            ViewType::Perspective => {
-                if fz <= 0.0 {
-                    return None;
-                }
-                (fx / fz / self.sx, fy / fz / self.sy, d.length())
-            }
-            ViewType::Angular => {
-                let len = d.length();
-                if len == 0.0 {
-                    return None;
-                }
-                let r = (fz / len).clamp(-1.0, 1.0).acos();
-                let s = (fx * fx + fy * fy).sqrt();
-                let (ux, uy) = if s > 0.0 { (fx / s, fy / s) } else { (0.0, 0.0) };
-                (ux * r / self.sx, uy * r / self.sy, len)
-            }
-            ViewType::Hemispherical => {
-                let len = d.length();
-                if len == 0.0 || fz < 0.0 {
-                    return None;
-                }
-                (fx / len / self.sx, fy / len / self.sy, len)
-            }
-            ViewType::Parallel => (fx / self.sx, fy / self.sy, fz),
-        };
-        Some((dx + 0.5 - self.shift, dy + 0.5 - self.lift, depth))
     }
 
     /// The pixel (column, row from the top) and depth of a world point, as
     /// [`Viewport::pixel`].
     #[inline]
     pub(crate) fn pixel(&self, p: DVec3) -> Option<(u32, u32, f64)> {
-        let (x, y, depth) = self.project(p)?;
+        let (x, y, depth) = self.view.project(p)?;
         // A hand-built zero-sized viewport has no pixels to land on.
         if self.width == 0 || self.height == 0 || !(0.0..1.0).contains(&x) || !(0.0..1.0).contains(&y) {
             return None;

@@ -320,17 +320,68 @@ impl View {
     /// Where a world point appears: image (x, y) and its distance along the
     /// view (depth), or `None` if it is behind a perspective eye or outside a fisheye.
     pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
+        self.projector().project(p)
+    }
+
+    /// A projector of world points into this view with the per-view
+    /// trigonometry done once: for displays that reproject millions of samples.
+    pub fn projector(&self) -> ViewProjector {
         let (right, up) = self.basis();
+        let (sx, sy) = match self.kind {
+            ViewType::Perspective => (
+                (self.horizontal.to_radians() / 2.0).tan() * 2.0,
+                (self.vertical.to_radians() / 2.0).tan() * 2.0,
+            ),
+            ViewType::Angular => (self.horizontal.to_radians(), self.vertical.to_radians()),
+            ViewType::Hemispherical => (
+                2.0 * (self.horizontal.to_radians() / 2.0).sin(),
+                2.0 * (self.vertical.to_radians() / 2.0).sin(),
+            ),
+            ViewType::Parallel => (self.horizontal, self.vertical),
+        };
+        ViewProjector {
+            kind: self.kind,
+            position: self.position,
+            direction: self.direction,
+            right,
+            up,
+            sx,
+            sy,
+            shift: self.shift,
+            lift: self.lift,
+        }
+    }
+}
+
+/// Projection into a view with its constants precomputed (see [`View::projector`]).
+#[derive(Clone, Debug)]
+pub struct ViewProjector {
+    kind: ViewType,
+    position: DVec3,
+    direction: DVec3,
+    right: DVec3,
+    up: DVec3,
+    /// Horizontal scale: the tangent factor, the field in radians, the
+    /// hemisphere's sine factor or the parallel width, by view type.
+    sx: f64,
+    /// Vertical scale, as `sx`.
+    sy: f64,
+    shift: f64,
+    lift: f64,
+}
+
+impl ViewProjector {
+    /// The same as [`View::project`].
+    #[inline]
+    pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
         let d = p - self.position;
-        let (fx, fy, fz) = (d.dot(right), d.dot(up), d.dot(self.direction));
+        let (fx, fy, fz) = (d.dot(self.right), d.dot(self.up), d.dot(self.direction));
         let (dx, dy, depth) = match self.kind {
             ViewType::Perspective => {
                 if fz <= 0.0 {
                     return None;
                 }
-                let h = (self.horizontal.to_radians() / 2.0).tan() * 2.0;
-                let v = (self.vertical.to_radians() / 2.0).tan() * 2.0;
-                (fx / fz / h, fy / fz / v, d.length())
+                (fx / fz / self.sx, fy / fz / self.sy, d.length())
             }
             ViewType::Angular => {
                 let len = d.length();
@@ -340,22 +391,16 @@ impl View {
                 let r = (fz / len).clamp(-1.0, 1.0).acos();
                 let s = (fx * fx + fy * fy).sqrt();
                 let (ux, uy) = if s > 0.0 { (fx / s, fy / s) } else { (0.0, 0.0) };
-                (
-                    ux * r / self.horizontal.to_radians(),
-                    uy * r / self.vertical.to_radians(),
-                    len,
-                )
+                (ux * r / self.sx, uy * r / self.sy, len)
             }
             ViewType::Hemispherical => {
                 let len = d.length();
                 if len == 0.0 || fz < 0.0 {
                     return None;
                 }
-                let sh = 2.0 * (self.horizontal.to_radians() / 2.0).sin();
-                let sv = 2.0 * (self.vertical.to_radians() / 2.0).sin();
-                (fx / len / sh, fy / len / sv, len)
+                (fx / len / self.sx, fy / len / self.sy, len)
             }
-            ViewType::Parallel => (fx / self.horizontal, fy / self.vertical, fz),
+            ViewType::Parallel => (fx / self.sx, fy / self.sy, fz),
         };
         Some((dx + 0.5 - self.shift, dy + 0.5 - self.lift, depth))
     }
