@@ -3,12 +3,13 @@
 //! a channel so the display can wait for samples with a deadline while it
 //! keeps drawing.
 
+use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, LinkError, Message, Role, PROTOCOL_VERSION};
-use holodeck_protocol::{Section, SectionError};
+use holodeck_protocol::{BeamKey, Section, SectionError};
 
 use crate::request::BeamRequest;
 use crate::sample::{Sample, SampleDecoder};
@@ -84,6 +85,8 @@ pub struct DisplaySession {
     frames: Receiver<Result<Frame, LinkError>>,
     decoder: SampleDecoder,
     scratch: Vec<Sample>,
+    /// Rays received per beam (since the last request that asked to resend).
+    received: HashMap<BeamKey, u64>,
 }
 
 impl DisplaySession {
@@ -129,6 +132,7 @@ impl DisplaySession {
             frames,
             decoder: SampleDecoder::new(Vec::new()),
             scratch: Vec::new(),
+            received: HashMap::new(),
         };
         match session.next(None)? {
             Some(Frame::Message(Message::Welcome { sections, .. })) => {
@@ -175,15 +179,25 @@ impl DisplaySession {
             })
     }
 
-    /// Asks for a view's beams (replacing the last request) and receives
-    /// every stored sample at once (the immediate transfer), handing them to
-    /// `sink` beam by beam.
-    pub fn request(&mut self, req: &BeamRequest, sink: &mut dyn FnMut(&[Sample])) -> Result<Transfer, ClientError> {
+    /// Asks for a view's beams (replacing the last request) and receives at
+    /// once the stored samples this session was not sent before (all of
+    /// them with `resend`: after the display forgot what it had), handing
+    /// them to `sink` beam by beam.
+    pub fn request(
+        &mut self,
+        req: &BeamRequest,
+        resend: bool,
+        sink: &mut dyn FnMut(&[Sample]),
+    ) -> Result<Transfer, ClientError> {
         let start = Instant::now();
+        if resend {
+            self.received.clear();
+        }
         self.send(&Frame::Message(Message::BeamRequest {
             beams: req.beams.clone(),
             eye: req.eye,
             replace: true,
+            resend,
         }))?;
         let mut t = Transfer::default();
         loop {
@@ -202,6 +216,19 @@ impl DisplaySession {
         Ok(t)
     }
 
+    /// Raises the counts of the current view's beams to `req`'s (the view
+    /// has not changed): the server traces more for them; what it has
+    /// already sent is not sent again, and new samples come through
+    /// [`DisplaySession::refine`].
+    pub fn raise(&mut self, req: &BeamRequest) -> Result<(), ClientError> {
+        self.send(&Frame::Message(Message::BeamRequest {
+            beams: req.beams.clone(),
+            eye: req.eye,
+            replace: false,
+            resend: false,
+        }))
+    }
+
     /// Receives newly traced samples of the requested beams until `deadline`;
     /// returns how many came.
     pub fn refine(&mut self, deadline: Instant, sink: &mut dyn FnMut(&[Sample])) -> Result<u64, ClientError> {
@@ -213,19 +240,27 @@ impl DisplaySession {
                     self.take(key, &records, sink);
                 }
                 Frame::Message(Message::Error { message }) => return Err(ClientError::Protocol(message)),
-                Frame::Message(Message::Progress(_)) => {}
+                // The end of the (empty) immediate transfer of a raise.
+                Frame::Message(Message::Progress(_) | Message::Delivered { .. }) => {}
                 other => return Err(ClientError::Protocol(format!("unexpected {other:?}"))),
             }
         }
         Ok(n)
     }
 
+    /// Rays of `key` this session was sent (since the last request that
+    /// asked to resend): what a refining request counts on.
+    pub fn received(&self, key: BeamKey) -> u64 {
+        self.received.get(&key).copied().unwrap_or(0)
+    }
+
     fn take(
         &mut self,
-        key: holodeck_protocol::BeamKey,
+        key: BeamKey,
         records: &[holodeck_protocol::RayRecord],
         sink: &mut dyn FnMut(&[Sample]),
     ) -> usize {
+        *self.received.entry(key).or_default() += records.len() as u64;
         self.scratch.clear();
         let bad = self.decoder.decode(key.section, key.beam, records, &mut self.scratch);
         sink(&self.scratch);

@@ -67,26 +67,30 @@ impl Viewport {
     }
 }
 
-/// What a driver has seen and done.
+/// What a driver has seen and done. Every ray received is counted once, as
+/// `kept` (it started a pixel's estimate), `merged`, `replaced`, `discarded`,
+/// `outside` or `rejected_nonfinite`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DriverStats {
-    /// Samples given to [`Driver::add`].
+    /// Rays given to [`Driver::add`].
     pub received: u64,
-    /// Samples in the current image representation.
+    /// Pixel estimates held for the current frame.
     pub kept: u64,
-    /// Samples rejected for NaN or infinite numbers.
-    pub rejected_nonfinite: u64,
-    /// Samples that reproject outside the frame (or behind the eye).
-    pub outside: u64,
-    /// Samples that replaced one on the same pixel because their ray passed
-    /// closer to the eye.
+    /// Rays that joined the estimate of their pixel's surface.
+    pub merged: u64,
+    /// Rays that hit a surface in front of their pixel's estimate, which
+    /// they replaced (the earlier rays saw something hidden from the eye).
     pub replaced: u64,
-    /// Samples dropped because one already on the same pixel passed closer.
+    /// Rays that hit behind their pixel's surface (past a silhouette, through
+    /// a window): the multidepth rays of the paper's Figure 6, left out.
     pub discarded: u64,
-    /// Pixel collisions between samples whose depths differ by more than 2%:
-    /// the multidepth samples of the paper's Figure 6.
-    pub multidepth: u64,
-    /// Times the local sample cache was dropped after a large rotation.
+    /// Rays rejected for NaN or infinite numbers.
+    pub rejected_nonfinite: u64,
+    /// Rays that reproject outside the frame (or behind the eye).
+    pub outside: u64,
+    /// Estimates whose brightest ray was cut as a firefly in the last frame.
+    pub fireflies: u64,
+    /// Times the stored estimates were dropped after a large rotation.
     pub cache_drops: u64,
 }
 
@@ -107,4 +111,10 @@ pub trait Driver: Send {
     fn stats(&self) -> DriverStats;
     /// Forgets every sample.
     fn clear(&mut self);
+    /// Heap bytes held: bounded by the frame size, not by the rays received.
+    fn heap_bytes(&self) -> usize;
+    /// How many more rays each pixel wants for `density` rays per pixel on
+    /// average, spent where they reduce the error most (row-major, top row
+    /// first); see [`crate::store::Store::needs`].
+    fn needs(&self, density: f32) -> Vec<f32>;
 }

@@ -1,7 +1,8 @@
 //! The display: what the user sees and what gets computed next.
 //!
 //! A display turns a view into beam requests ([`request`]), turns the samples
-//! that come back into an image with a [`Driver`] (the CPU quadtree here; GPU
+//! that come back into per-pixel estimates ([`store`], shared by every
+//! driver) and an image with a [`Driver`] (the CPU quadtree here; GPU
 //! drivers elsewhere), and maps radiance to display values ([`tonemap`]).
 //! Drivers know no sockets and no files: the headless client and
 //! `holodeck pict` feed them.
@@ -11,23 +12,33 @@ pub mod compare;
 pub mod driver;
 pub mod image_io;
 pub mod output;
+pub mod project;
 pub mod quadtree;
 pub mod request;
 pub mod sample;
 pub mod splat;
+pub mod store;
+#[cfg(test)]
+pub(crate) mod testkit;
 pub mod tonemap;
 
 pub use driver::{Driver, DriverError, DriverStats, Viewport, MAX_VIEWPORT_PIXELS};
 pub use sample::{Sample, SampleDecoder};
+pub use store::EstimatorOptions;
 
 /// The drivers this crate has, by name.
 pub const DRIVERS: &[&str] = &["quadtree", "splat"];
 
 /// Makes the driver called `name` (see [`DRIVERS`]).
 pub fn new_driver(name: &str, viewport: Viewport) -> Result<Box<dyn Driver>, String> {
+    new_driver_with(name, viewport, EstimatorOptions::default())
+}
+
+/// [`new_driver`] with pixels that combine rays as `options` say.
+pub fn new_driver_with(name: &str, viewport: Viewport, options: EstimatorOptions) -> Result<Box<dyn Driver>, String> {
     match name {
-        "quadtree" => Ok(Box::new(quadtree::QuadtreeDriver::new(viewport))),
-        "splat" => Ok(Box::new(splat::SplatDriver::new(viewport))),
+        "quadtree" => Ok(Box::new(quadtree::QuadtreeDriver::with_options(viewport, options))),
+        "splat" => Ok(Box::new(splat::SplatDriver::with_options(viewport, options))),
         "voronoi" | "mesh" => Err(format!(
             "the {name} driver needs a GPU front end, which is not built yet"
         )),

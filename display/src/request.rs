@@ -24,7 +24,7 @@ impl Default for RequestOptions {
         RequestOptions {
             density: 1.0,
             stride: 8,
-            eye_radius: 0.01,
+            eye_radius: 0.0005,
         }
     }
 }
@@ -51,19 +51,126 @@ impl BeamRequest {
         let seen = ViewBeams::select(sections, &viewport.view, columns, rows, seed);
         let pixels = f64::from(viewport.width) * f64::from(viewport.height);
         let beams = seen.desired((pixels * o.density.max(0.0)).ceil() as u64);
-        let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
-        let radius = o.eye_radius * smallest;
-        let eye = (radius.is_finite() && radius > 0.0).then(|| EyePoint {
-            position: viewport.view.position.to_array(),
-            radius,
-        });
-        BeamRequest { beams, eye, seen }
+        BeamRequest {
+            beams,
+            eye: eye_point(sections, viewport, o),
+            seen,
+        }
+    }
+
+    /// A request that refines what a display holds: `want` says how many
+    /// more rays each pixel wants (row-major, from [`crate::Driver::needs`]),
+    /// `have` how many rays of each beam the display was given; each beam
+    /// asks for what it has plus its share of the pixels' wants, so the
+    /// server traces only that share, where the picture needs it.
+    pub fn refining(
+        sections: &[Section],
+        viewport: &Viewport,
+        o: &RequestOptions,
+        seed: u64,
+        want: &[f32],
+        have: &dyn Fn(BeamKey) -> u64,
+    ) -> BeamRequest {
+        let stride = o.stride.max(1);
+        let columns = viewport.width.div_ceil(stride).clamp(4, 1024);
+        let rows = viewport.height.div_ceil(stride).clamp(3, 1024);
+        let (w, h) = (viewport.width as usize, viewport.height as usize);
+        let at = |x: f64, y: f64| {
+            let col = ((x * w as f64) as usize).min(w - 1);
+            let row = (((1.0 - y) * h as f64) as usize).min(h - 1);
+            want.get(row * w + col).map_or(1.0, |&v| f64::from(v))
+        };
+        let seen = ViewBeams::select_weighted(sections, &viewport.view, columns, rows, seed, at);
+        let wanted: f64 = want.iter().map(|&v| f64::from(v)).sum();
+        let more = if wanted > 0.0 {
+            seen.desired(wanted.ceil() as u64)
+        } else {
+            Vec::new()
+        };
+        let more: std::collections::HashMap<BeamKey, u32> = more.into_iter().collect();
+        let beams = seen
+            .counts
+            .iter()
+            .map(|&(k, _)| {
+                let n = have(k) + u64::from(more.get(&k).copied().unwrap_or(0));
+                (k, n.min(u64::from(u32::MAX)) as u32)
+            })
+            .collect();
+        BeamRequest {
+            beams,
+            eye: eye_point(sections, viewport, o),
+            seen,
+        }
     }
 
     /// Samples wanted in all.
     pub fn total(&self) -> u64 {
         self.beams.iter().map(|b| u64::from(b.1)).sum()
     }
+}
+
+/// Keeps a still view converging: once most of what was last asked for has
+/// arrived (or nothing came for a while: the server has it all), the view's
+/// density is doubled, so samplers go on refining what people look at before
+/// they fill the rest of the holodeck by volume. A new view starts over.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Refinement {
+    density: f64,
+    max: f64,
+    asked: u64,
+}
+
+impl Refinement {
+    /// Starts at `density` samples per pixel and never asks for more than `max`.
+    pub fn new(density: f64, max: f64) -> Refinement {
+        Refinement {
+            density,
+            max: max.max(density),
+            asked: 0,
+        }
+    }
+
+    /// The density asked for now.
+    pub fn density(&self) -> f64 {
+        self.density
+    }
+
+    /// Records a request for `rays` more rays than the display holds.
+    pub fn asked(&mut self, rays: u64) {
+        self.asked = rays;
+    }
+
+    /// The density to ask for next, if it is time to raise it: `outstanding`
+    /// is how many of the rays last asked for have not arrived, `quiet` says
+    /// nothing arrived lately.
+    pub fn raise(&mut self, outstanding: u64, quiet: bool) -> Option<f64> {
+        let met = outstanding as f64 <= 0.1 * self.asked as f64;
+        if (met || quiet) && self.density < self.max {
+            self.density = (self.density * 2.0).min(self.max);
+            return Some(self.density);
+        }
+        None
+    }
+}
+
+/// Rays `request` asks for beyond what `have` says the display holds.
+pub fn outstanding(request: &BeamRequest, have: &dyn Fn(BeamKey) -> u64) -> u64 {
+    request
+        .beams
+        .iter()
+        .map(|&(k, n)| u64::from(n).saturating_sub(have(k)))
+        .sum()
+}
+
+/// Where new rays should pass: near the eye, in its frame.
+fn eye_point(sections: &[Section], viewport: &Viewport, o: &RequestOptions) -> Option<EyePoint> {
+    let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
+    let radius = o.eye_radius * smallest;
+    (radius.is_finite() && radius > 0.0).then(|| EyePoint {
+        position: viewport.view.position.to_array(),
+        radius,
+        frustum: viewport.view.frustum(),
+    })
 }
 
 #[cfg(test)]
@@ -96,7 +203,43 @@ mod tests {
         );
         let eye = r.eye.unwrap();
         assert_eq!(eye.position, [2.0, 1.5, 1.0]);
-        assert!((eye.radius - 0.01 * s.diagonal()).abs() < 1e-12);
+        assert!((eye.radius - RequestOptions::default().eye_radius * s.diagonal()).abs() < 1e-12);
+        assert!(eye.frustum.is_some());
+    }
+
+    #[test]
+    fn a_still_view_doubles_its_density_as_samples_arrive_up_to_the_limit() {
+        let mut r = Refinement::new(1.0, 5.0);
+        r.asked(1000);
+        assert_eq!(r.raise(1000, false), None, "nothing arrived yet");
+        assert_eq!(r.raise(101, false), None);
+        assert_eq!(r.raise(100, false), Some(2.0));
+        r.asked(2000);
+        assert_eq!(r.raise(2000, false), None);
+        // The server had nothing more to send: ask for more anyway.
+        assert_eq!(r.raise(2000, true), Some(4.0));
+        assert_eq!(r.raise(0, true), Some(5.0));
+        assert_eq!(r.raise(0, true), None, "never past the limit");
+        assert_eq!(r.density(), 5.0);
+    }
+
+    #[test]
+    fn a_refining_request_asks_for_what_the_pixels_want_beyond_what_is_held() {
+        let s = room();
+        let v = View::parse("-vtv -vp 2 1.5 1 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45").unwrap();
+        let vp = Viewport::new(v, 64, 48).unwrap();
+        let o = RequestOptions::default();
+        // The right half wants 8 rays a pixel, the left nothing; every beam
+        // already holds 10.
+        let want: Vec<f32> = (0..64 * 48).map(|i| if i % 64 >= 32 { 8.0 } else { 0.0 }).collect();
+        let r = BeamRequest::refining(std::slice::from_ref(&s), &vp, &o, 1, &want, &|_| 10);
+        let more = outstanding(&r, &|_| 10);
+        let total = 8 * 32 * 48;
+        assert!(more >= total && more <= total + r.beams.len() as u64, "{more}");
+        assert!(r.beams.iter().all(|b| b.1 >= 10));
+        // Nothing wanted: nothing more asked (but a ray a beam for rounding).
+        let none = BeamRequest::refining(std::slice::from_ref(&s), &vp, &o, 1, &vec![0.0; 64 * 48], &|_| 10);
+        assert_eq!(outstanding(&none, &|_| 10), 0);
     }
 
     #[test]

@@ -4,8 +4,11 @@
 
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::{BeamKey, RayRecord, Section};
-use holodeck_sampler::beam::{trace_sample, uniform_rays};
+use std::collections::HashMap;
+
+use holodeck_protocol::wire::SamplingMode;
+use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
+use holodeck_sampler::beam::trace_beam;
 use holodeck_sampler::{Rng, Tracer};
 use holodeck_server::schedule::BatchSchedule;
 use holodeck_server::HoloFile;
@@ -24,8 +27,57 @@ pub struct FillOptions {
     pub batch: usize,
     /// Seed of this run's random sequence.
     pub seed: u64,
-    /// Fill only these beams, weighted by view rays (beams some views see).
-    pub views: Option<Vec<(BeamKey, u32)>>,
+    /// Fill only the beams some views see, weighted by view rays.
+    pub views: Option<ViewFill>,
+}
+
+/// A fill limited to what some views see.
+#[derive(Clone, Debug, Default)]
+pub struct ViewFill {
+    /// (beam, view rays in it), over all the views.
+    pub seen: Vec<(BeamKey, u32)>,
+    /// How to choose each beam's rays: near the eye of the view that sees
+    /// the beam most (Appendix A), or uniformly.
+    pub modes: HashMap<BeamKey, SamplingMode>,
+}
+
+impl ViewFill {
+    /// The beams `views` see in `sections`, one view ray per `stride` pixels
+    /// of a 256 x 192 frame; new rays pass within `eye_radius` (a fraction
+    /// of the smallest section diagonal) of the eye that sees their beam
+    /// most, or anywhere in it for 0.
+    pub fn new(sections: &[Section], views: &[View], eye_radius: f64) -> ViewFill {
+        let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
+        let radius = eye_radius * smallest;
+        let mut fill = ViewFill::default();
+        let mut best: HashMap<BeamKey, u32> = HashMap::new();
+        for (i, v) in views.iter().enumerate() {
+            let counts = ViewBeams::select(sections, v, 256, 192, i as u64).counts;
+            if radius > 0.0 && radius.is_finite() {
+                for &(k, n) in &counts {
+                    let b = best.entry(k).or_insert(0);
+                    if n > *b {
+                        *b = n;
+                        fill.modes.insert(
+                            k,
+                            SamplingMode::NearEye {
+                                eye: v.position.to_array(),
+                                radius,
+                                frustum: v.frustum(),
+                            },
+                        );
+                    }
+                }
+            }
+            fill.seen.extend(counts);
+        }
+        fill
+    }
+
+    /// How to choose the rays of `key`.
+    pub fn mode(&self, key: BeamKey) -> SamplingMode {
+        self.modes.get(&key).copied().unwrap_or(SamplingMode::Uniform)
+    }
 }
 
 /// What a fill did.
@@ -54,7 +106,7 @@ pub fn fill(
     let obstructions = file.settings().obstructions;
     let stored = |k| file.beam_len(k).unwrap_or(0);
     let mut schedule = match &o.views {
-        Some(seen) => BatchSchedule::for_views(&sections, seen, stored),
+        Some(v) => BatchSchedule::for_views(&sections, &v.seen, stored),
         None => BatchSchedule::new(&sections, stored)?,
     };
     let start = Instant::now();
@@ -82,7 +134,15 @@ pub fn fill(
             budget -= u64::from(keep);
         }
         batch.retain(|b| b.1 > 0);
-        let traced = trace_batch(tracer, &sections, obstructions, &batch, o.seed ^ round.rotate_left(32));
+        let mode = |k: BeamKey| o.views.as_ref().map_or(SamplingMode::Uniform, |v| v.mode(k));
+        let traced = trace_batch(
+            tracer,
+            &sections,
+            obstructions,
+            &batch,
+            &mode,
+            o.seed ^ round.rotate_left(32),
+        );
         let store = Instant::now();
         for (key, records) in &traced {
             file.append(*key, records)?;
@@ -102,27 +162,45 @@ pub fn fill(
     Ok(report)
 }
 
-/// Traces a batch of (beam, rays) with all cores of the current rayon pool:
-/// uniform beam rays, one random sequence per beam.
+/// Rays traced as one task: beams asked for many rays are cut into pieces
+/// of this size, so that every core stays busy when a few beams get most of
+/// the rays (a display's requests go where its pixels need them).
+const TASK_RAYS: u32 = 256;
+
+/// Traces a batch of (beam, rays) with all cores of the current rayon pool,
+/// choosing each beam's rays as `mode` says, one random sequence per piece.
+/// Beams come back in the batch's order, each with all its rays.
 pub fn trace_batch(
     tracer: &Tracer,
     sections: &[Section],
     obstructions: bool,
     batch: &[(BeamKey, u32)],
+    mode: &(dyn Fn(BeamKey) -> SamplingMode + Sync),
     seed: u64,
 ) -> Vec<(BeamKey, Vec<RayRecord>)> {
-    batch
+    let mut tasks = Vec::with_capacity(batch.len());
+    for (i, &(key, n)) in batch.iter().enumerate() {
+        let mut left = n;
+        while left > 0 {
+            let take = left.min(TASK_RAYS);
+            tasks.push((i, key, take));
+            left -= take;
+        }
+    }
+    let traced: Vec<(usize, Vec<RayRecord>)> = tasks
         .par_iter()
         .enumerate()
-        .map(|(i, &(key, n))| {
-            let mut rng = Rng::new(seed, i as u64);
+        .map(|(t, &(i, key, n))| {
+            let mut rng = Rng::new(seed, t as u64);
             let section = &sections[key.section as usize];
-            let samples = uniform_rays(section, key.beam, n as usize, &mut rng).unwrap_or_default();
-            let records = samples
-                .iter()
-                .map(|s| trace_sample(tracer, section, obstructions, s, &mut rng))
-                .collect();
-            (key, records)
+            let records = trace_beam(tracer, section, obstructions, key.beam, n as usize, mode(key), &mut rng)
+                .unwrap_or_default();
+            (i, records)
         })
-        .collect()
+        .collect();
+    let mut out: Vec<(BeamKey, Vec<RayRecord>)> = batch.iter().map(|&(k, _)| (k, Vec::new())).collect();
+    for (i, records) in traced {
+        out[i].1.extend(records);
+    }
+    out
 }

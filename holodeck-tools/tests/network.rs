@@ -74,13 +74,20 @@ impl Client {
     fn recv(&mut self) -> Frame {
         self.link.read().unwrap().expect("server closed the connection")
     }
-    /// Asks for beams (replacing earlier requests) and collects what arrives
-    /// up to the server's Delivered mark: (beam, rays) per Beam frame.
+    /// Asks for beams (replacing earlier requests) and collects every
+    /// stored ray that arrives up to the server's Delivered mark: (beam,
+    /// rays) per Beam frame.
     fn request(&mut self, beams: &[(BeamKey, u32)], eye: Option<EyePoint>) -> Vec<(BeamKey, usize)> {
+        self.request_with(beams, eye, true)
+    }
+    /// [`Client::request`] that, without `resend`, gets only rays this
+    /// connection was not sent before.
+    fn request_with(&mut self, beams: &[(BeamKey, u32)], eye: Option<EyePoint>, resend: bool) -> Vec<(BeamKey, usize)> {
         self.send(&Frame::Message(Message::BeamRequest {
             beams: beams.to_vec(),
             eye,
             replace: true,
+            resend,
         }));
         let mut got = Vec::new();
         loop {
@@ -519,6 +526,7 @@ fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
     let eye_point = EyePoint {
         position: eye.to_array(),
         radius,
+        frustum: None,
     };
 
     // Near-eye requests first; every beam must reach 60 rays, traced for us and streamed.
@@ -786,10 +794,23 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
     let k = BeamKey::new(0, 4242);
     let got = display.request(&[(k, 5), (k, 9), (k, 7)], None);
     assert!(got.len() <= 1 && got.iter().all(|g| g.0 == k), "{got:?}");
+    // What a display was sent is not sent again unless it asks to resend
+    // (it keeps its estimates across views); beams it was never sent come whole.
+    let seen: Vec<(BeamKey, u32)> = (0..40).map(|b| (BeamKey::new(0, b * 211), 1)).collect();
+    let first: usize = display.request(&seen, None).iter().map(|g| g.1).sum();
+    assert!(first > 0);
+    let again: usize = display.request_with(&seen, None, false).iter().map(|g| g.1).sum();
+    assert_eq!(again, 0, "a file with no samplers has nothing new");
+    let more: Vec<(BeamKey, u32)> = (0..40).map(|b| (BeamKey::new(0, b * 211 + 5), 1)).collect();
+    let fresh: usize = display.request_with(&more, None, false).iter().map(|g| g.1).sum();
+    assert!(fresh > 0, "beams never sent come whole");
+    let resent: usize = display.request_with(&seen, None, true).iter().map(|g| g.1).sum();
+    assert_eq!(resent, first);
     display.send(&Frame::Message(Message::BeamRequest {
         beams: vec![(k, 1); 200_000],
         eye: None,
         replace: true,
+        resend: false,
     }));
     match display.recv() {
         Frame::Message(Message::Error { message }) => assert!(message.contains("beams requested"), "{message}"),
@@ -806,6 +827,74 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
     match c.recv() {
         Frame::Message(Message::Refused { reason }) => assert!(reason.contains("65536 allowed"), "{reason}"),
         other => panic!("{other:?}"),
+    }
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, "t");
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    assert!(server.wait().unwrap().success());
+}
+
+/// The samples each frame line of `holodeck view` reports as new.
+fn new_samples(out: &str) -> Vec<u64> {
+    out.lines()
+        .filter_map(|l| {
+            l.split(" new samples")
+                .next()?
+                .rsplit(' ')
+                .next()?
+                .replace(',', "")
+                .parse()
+                .ok()
+        })
+        .collect()
+}
+
+#[test]
+fn still_views_keep_converging_while_samplers_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (mut server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", "t");
+    let _samplers: Vec<Server> = (0..2).map(|_| Server(sampler(&addr, "t", &["builtin:room"]))).collect();
+    // Two displays at once, each on its own still view for 6 s, two frames.
+    let mut displays = Vec::new();
+    for (i, spec) in [
+        "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56",
+        "-vtv -vp 3 1 1.5 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let views = dir.path().join(format!("v{i}.vf"));
+        std::fs::write(&views, format!("{spec}\n")).unwrap();
+        let child = bin()
+            .args(["view", "--connect", &addr, "--token", "t", "--headless"])
+            .arg("--views")
+            .arg(&views)
+            .arg("-o")
+            .arg(dir.path().join(format!("frames{i}")))
+            .args([
+                "-x", "32", "-y", "24", "--wait", "6s", "--steps", "2", "--format", "hdr",
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        displays.push(Server(child));
+    }
+    for mut d in displays {
+        let mut out = String::new();
+        d.stdout.take().unwrap().read_to_string(&mut out).unwrap();
+        let status = d.wait().unwrap();
+        assert!(status.success(), "{out}");
+        let n = new_samples(&out);
+        assert_eq!(n.len(), 3, "{out}");
+        // The first density (one sample a pixel) is met early; the display
+        // asks for more and samples keep coming in the second half.
+        assert!(n[2] > 0, "nothing arrived in the second half: {out}");
+        let total: u64 = n.iter().sum();
+        assert!(
+            total > 4 * 32 * 24,
+            "the view asked for more than one sample a pixel: {out}"
+        );
     }
     let (mut admin, _) = Client::connect(&addr, Role::Admin, "t");
     admin.send(&Frame::Message(Message::Control(Control::Quit)));

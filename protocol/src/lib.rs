@@ -27,4 +27,4 @@ pub use section::{
     MAX_BEAMS_PER_SECTION, MAX_GRID,
 };
 pub use select::ViewBeams;
-pub use view::{View, ViewError, ViewProjector, ViewRays, ViewType};
+pub use view::{Frustum, View, ViewError, ViewProjector, ViewRays, ViewType};

@@ -16,7 +16,7 @@ use crate::section::Section;
 use crate::view::View;
 
 /// Beams seen by a view, with the number of view rays that fell in each.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ViewBeams {
     /// (beam, view rays in it), sorted by beam.
     pub counts: Vec<(BeamKey, u32)>,
@@ -24,6 +24,9 @@ pub struct ViewBeams {
     pub rays: u32,
     /// View rays whose line crossed no section.
     pub missed: u32,
+    /// For each beam of `counts`, the summed weight of its view rays when
+    /// selected with [`ViewBeams::select_weighted`] (empty otherwise).
+    pub weights: Vec<f64>,
 }
 
 /// A small deterministic generator (SplitMix64): jitter must repeat for a
@@ -45,9 +48,25 @@ impl ViewBeams {
     /// Shoots `columns` x `rows` jittered view rays (one per cell of a grid
     /// over the image) and counts the beams of `sections` their lines fall in.
     pub fn select(sections: &[Section], view: &View, columns: u32, rows: u32, seed: u64) -> ViewBeams {
+        let mut vb = ViewBeams::select_weighted(sections, view, columns, rows, seed, |_, _| 1.0);
+        vb.weights.clear();
+        vb
+    }
+
+    /// [`ViewBeams::select`] with each view ray weighted by `weight` at its
+    /// image point (x, y): how much the pixels there need samples, so that
+    /// beams over noisy pixels get more.
+    pub fn select_weighted(
+        sections: &[Section],
+        view: &View,
+        columns: u32,
+        rows: u32,
+        seed: u64,
+        weight: impl Fn(f64, f64) -> f64,
+    ) -> ViewBeams {
         let mut jitter = Jitter(seed ^ 0x5eed_f00d);
         let rays_of = view.rays();
-        let mut hits: Vec<BeamKey> = Vec::new();
+        let mut hits: Vec<(BeamKey, f64)> = Vec::new();
         let (mut rays, mut missed) = (0u32, 0u32);
         for row in 0..rows {
             for col in 0..columns {
@@ -58,9 +77,11 @@ impl ViewBeams {
                 };
                 rays += 1;
                 let before = hits.len();
+                let w = weight(x, y);
+                let w = if w.is_finite() && w > 0.0 { w } else { 0.0 };
                 for (si, s) in sections.iter().enumerate() {
                     if let Some(at) = s.locate(origin, dir) {
-                        hits.push(BeamKey::new(si as u32, at.beam));
+                        hits.push((BeamKey::new(si as u32, at.beam), w));
                     }
                 }
                 if hits.len() == before {
@@ -68,29 +89,50 @@ impl ViewBeams {
                 }
             }
         }
-        hits.sort_unstable();
+        hits.sort_unstable_by_key(|h| h.0);
         let mut counts: Vec<(BeamKey, u32)> = Vec::new();
-        for k in hits {
+        let mut weights: Vec<f64> = Vec::new();
+        for (k, w) in hits {
             match counts.last_mut() {
-                Some((last, n)) if *last == k => *n += 1,
-                _ => counts.push((k, 1)),
+                Some((last, n)) if *last == k => {
+                    *n += 1;
+                    if let Some(s) = weights.last_mut() {
+                        *s += w;
+                    }
+                }
+                _ => {
+                    counts.push((k, 1));
+                    weights.push(w);
+                }
             }
         }
-        ViewBeams { counts, rays, missed }
+        ViewBeams {
+            counts,
+            rays,
+            missed,
+            weights,
+        }
     }
 
     /// Desired samples per beam for `samples` samples over the whole view
     /// (typically the pixel count times a density): each beam gets its share
-    /// of the view rays, rounded up, so every beam seen gets at least one.
+    /// of the view rays (or of their weights, when weighted), rounded up, so
+    /// every beam seen gets at least one.
     pub fn desired(&self, samples: u64) -> Vec<(BeamKey, u32)> {
-        let per_ray = samples as f64 / f64::from(self.rays.max(1));
+        let weighted = self.weights.len() == self.counts.len() && self.weights.iter().sum::<f64>() > 0.0;
+        let total = if weighted {
+            self.weights.iter().sum::<f64>() * f64::from(self.rays.max(1))
+                / f64::from(self.counts.iter().map(|c| c.1).sum::<u32>().max(1))
+        } else {
+            f64::from(self.rays.max(1))
+        };
+        let per = samples as f64 / total;
         self.counts
             .iter()
-            .map(|&(k, n)| {
-                (
-                    k,
-                    (f64::from(n) * per_ray).ceil().clamp(1.0, f64::from(u32::MAX)) as u32,
-                )
+            .enumerate()
+            .map(|(i, &(k, n))| {
+                let share = if weighted { self.weights[i] } else { f64::from(n) };
+                (k, (share * per).ceil().clamp(1.0, f64::from(u32::MAX)) as u32)
             })
             .collect()
     }
@@ -185,12 +227,51 @@ mod tests {
             counts: vec![(BeamKey::new(0, 1), 3), (BeamKey::new(0, 2), 1)],
             rays: 4,
             missed: 0,
+            weights: Vec::new(),
         };
         assert_eq!(
             vb.desired(400),
             vec![(BeamKey::new(0, 1), 300), (BeamKey::new(0, 2), 100)]
         );
         assert_eq!(vb.desired(1), vec![(BeamKey::new(0, 1), 1), (BeamKey::new(0, 2), 1)]);
+    }
+
+    #[test]
+    fn weighted_selection_shares_the_samples_by_need() {
+        let s = room();
+        let v = view("-vtv -vp 2 1.5 1 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45");
+        let plain = ViewBeams::select(std::slice::from_ref(&s), &v, 32, 24, 5);
+        // Even weights change nothing.
+        let even = ViewBeams::select_weighted(std::slice::from_ref(&s), &v, 32, 24, 5, |_, _| 3.0);
+        assert_eq!(even.counts, plain.counts);
+        assert_eq!(even.desired(10_000), plain.desired(10_000));
+        // The right half needs nine times more: its beams get about nine times the left's.
+        let needy =
+            ViewBeams::select_weighted(
+                std::slice::from_ref(&s),
+                &v,
+                32,
+                24,
+                5,
+                |x, _| if x > 0.5 { 9.0 } else { 1.0 },
+            );
+        let want = needy.desired(100_000);
+        let total: u64 = want.iter().map(|w| u64::from(w.1)).sum();
+        assert!((100_000..100_000 + want.len() as u64).contains(&total), "{total}");
+        let right: u64 = want
+            .iter()
+            .zip(&needy.weights)
+            .zip(&needy.counts)
+            .filter(|((_, w), c)| **w >= 9.0 * f64::from(c.1) - 1e-9)
+            .map(|((d, _), _)| u64::from(d.1))
+            .sum();
+        assert!(right as f64 > 0.85 * total as f64, "{right} of {total}");
+        assert!(
+            ViewBeams::select_weighted(std::slice::from_ref(&s), &v, 4, 3, 5, |_, _| f64::NAN)
+                .desired(100)
+                .iter()
+                .all(|d| d.1 >= 1)
+        );
     }
 
     #[test]

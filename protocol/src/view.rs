@@ -317,6 +317,28 @@ impl View {
         }
     }
 
+    /// The directions a perspective view shows (see [`Frustum`]); `None` for
+    /// the other view types, whose frames are not bounded by four planes.
+    pub fn frustum(&self) -> Option<Frustum> {
+        if self.kind != ViewType::Perspective {
+            return None;
+        }
+        let corners = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)].map(|(x, y)| self.ray(x, y).map(|r| r.1));
+        let [Some(a), Some(b), Some(c), Some(d)] = corners else {
+            return None;
+        };
+        let center = self.ray(0.5, 0.5)?.1;
+        let mut out = [[0.0f32; 3]; 4];
+        for (i, (p, q)) in [(a, b), (b, c), (c, d), (d, a)].into_iter().enumerate() {
+            let mut n = p.cross(q).normalize_or_zero();
+            if n.dot(center) < 0.0 {
+                n = -n;
+            }
+            out[i] = n.as_vec3().to_array();
+        }
+        Some(Frustum(out))
+    }
+
     /// Where a world point appears: image (x, y) and its distance along the
     /// view (depth), or `None` if it is behind a perspective eye or outside a fisheye.
     pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
@@ -350,6 +372,29 @@ impl View {
             shift: self.shift,
             lift: self.lift,
         }
+    }
+}
+
+/// The directions a perspective view shows: four planes through the eye,
+/// each given by its inward unit normal (a direction `d` is in the frame when
+/// `n · d >= 0` for all four). Samplers restrict rays traced near an eye to
+/// them, so that a display's rays land in its frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Frustum(pub [[f32; 3]; 4]);
+
+impl Frustum {
+    /// True when direction `d` (any length) is in the frame, or within
+    /// `slack` (a sine) of it.
+    pub fn contains(&self, d: DVec3, slack: f64) -> bool {
+        let d = d.normalize_or_zero();
+        self.0
+            .iter()
+            .all(|n| DVec3::new(f64::from(n[0]), f64::from(n[1]), f64::from(n[2])).dot(d) >= -slack)
+    }
+
+    /// True when every number is finite.
+    pub fn is_finite(&self) -> bool {
+        self.0.iter().flatten().all(|v| v.is_finite())
     }
 }
 
@@ -496,6 +541,21 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_frustum_holds_the_frame_and_nothing_else() {
+        let v = View::parse("-vtv -vp 1 2 1.5 -vd 1 0.2 -0.1 -vu 0 0 1 -vh 75 -vv 56 -vs 0.1").unwrap();
+        let f = v.frustum().unwrap();
+        for (x, y) in [(0.01, 0.01), (0.5, 0.5), (0.99, 0.3), (0.2, 0.99)] {
+            assert!(f.contains(v.ray(x, y).unwrap().1, 0.0), "({x}, {y})");
+        }
+        for (x, y) in [(-0.05, 0.5), (1.05, 0.5), (0.5, -0.05), (0.5, 1.05)] {
+            let (_, d) = v.rays().ray(x, y).unwrap();
+            assert!(!f.contains(d, 0.0), "({x}, {y})");
+        }
+        assert!(!f.contains(-v.direction, 0.0));
+        assert!(View::parse("-vta -vh 180 -vv 180").unwrap().frustum().is_none());
     }
 
     #[test]

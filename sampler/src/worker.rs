@@ -6,13 +6,10 @@
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
-use holodeck_protocol::wire::{
-    Frame, FrameLink, Hello, LinkError, Message, Role, SamplingMode, MAX_PACKET_RAYS, PROTOCOL_VERSION,
-};
-use holodeck_protocol::{RayRecord, Section, SectionError};
+use holodeck_protocol::wire::{Frame, FrameLink, Hello, LinkError, Message, Role, MAX_PACKET_RAYS, PROTOCOL_VERSION};
+use holodeck_protocol::{Section, SectionError};
 
-use crate::beam::{proximity_rays, trace_sample, uniform_rays};
+use crate::beam::trace_beam;
 use crate::shade::{Rng, Tracer};
 
 /// Why a worker stopped.
@@ -111,16 +108,15 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
         let mut rng = Rng::new(seed, n);
         n += 1;
         let count = packet.rays.min(MAX_PACKET_RAYS) as usize;
-        let samples = match packet.mode {
-            SamplingMode::Uniform => uniform_rays(section, packet.key.beam, count, &mut rng)?,
-            SamplingMode::NearEye { eye, radius } => {
-                proximity_rays(section, packet.key.beam, count, DVec3::from(eye), radius, &mut rng)?.0
-            }
-        };
-        let records: Vec<RayRecord> = samples
-            .iter()
-            .map(|s| trace_sample(tracer, section, obstructions, s, &mut rng))
-            .collect();
+        let records = trace_beam(
+            tracer,
+            section,
+            obstructions,
+            packet.key.beam,
+            count,
+            packet.mode,
+            &mut rng,
+        )?;
         let rays = records.len() as u64;
         let sent = link
             .write(&Frame::Finished {

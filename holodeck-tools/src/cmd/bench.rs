@@ -29,6 +29,8 @@ Example:
   holodeck bench tracer --triangles 1M --triangles 10M
   holodeck bench display --samples 1M --rays 4M
   holodeck bench network --seconds 8
+  holodeck bench accuracy                                  (one view and a 10-view walk, room)
+  holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0
 
 Files are written under --dir and removed afterwards unless --keep is given.")]
 pub struct Args {
@@ -65,6 +67,38 @@ pub struct Args {
     /// Seconds per fill measurement for `network`.
     #[arg(long, default_value_t = 8.0)]
     seconds: f64,
+    /// Paths per budget for `accuracy` (repeat for several).
+    #[arg(long, value_parser = parse_count, default_values = ["62.5K", "250K", "1M", "4M"])]
+    paths: Vec<u64>,
+    /// Scene for `accuracy`.
+    #[arg(long, default_value = "builtin:room")]
+    scene: String,
+    /// View for `accuracy` (the walk starts there).
+    #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true)]
+    view: String,
+    /// Frame width for `accuracy`.
+    #[arg(short = 'x', long, default_value_t = 128)]
+    width: u32,
+    /// Frame height for `accuracy`.
+    #[arg(short = 'y', long, default_value_t = 96)]
+    height: u32,
+    /// Samples per pixel of the references for `accuracy` (rendered once, kept in --dir).
+    #[arg(long, default_value_t = 1024)]
+    reference_spp: u32,
+    /// Independent runs averaged per budget for `accuracy`.
+    #[arg(long, default_value_t = 1)]
+    repeats: u32,
+    /// Views in the walkthrough of `accuracy` (0: none).
+    #[arg(long, default_value_t = 10)]
+    walk_views: usize,
+    /// Relative RMSE every walkthrough view must reach.
+    #[arg(long, default_value_t = 0.2)]
+    target: f64,
+    /// Eye radius of the holodeck's fills for `accuracy` (fraction of the section diagonal).
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius)]
+    eye_radius: f64,
+    #[command(flatten)]
+    estimator: super::args::EstimatorArgs,
     /// File to stream (internal, for `stream`).
     #[arg(long, hide = true)]
     file: Option<PathBuf>,
@@ -87,6 +121,8 @@ enum Target {
     Display,
     /// The server over loopback: fill overhead, recall to displays, many peers.
     Network,
+    /// Holodeck pictures against direct renders at equal compute: one view, a walkthrough.
+    Accuracy,
 }
 
 /// The section of Radiance's reference fill: grid 13 x 10 x 4 gives 154,728 beams.
@@ -367,6 +403,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         Target::Network => {
             super::bench_network::run(&a.dir, a.seconds, a.keep)?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::Accuracy => {
+            super::bench_accuracy::AccuracyBench {
+                scene: a.scene.clone(),
+                view: holodeck_protocol::View::parse(&a.view).context("--view")?,
+                width: a.width,
+                height: a.height,
+                paths: a.paths.clone(),
+                reference_spp: a.reference_spp,
+                repeats: a.repeats.max(1),
+                walk_views: a.walk_views,
+                target: a.target,
+                estimator: a.estimator.options()?,
+                eye_radius: a.eye_radius,
+                dir: a.dir.clone(),
+                keep: a.keep,
+            }
+            .run()?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Storage => {}

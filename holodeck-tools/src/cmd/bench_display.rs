@@ -19,7 +19,7 @@ use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
 
 use super::render::ROOM_VIEW;
-use crate::fill::{fill, FillOptions};
+use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
 
 /// Samples through random pixels of `view`, traced from points within
@@ -71,7 +71,12 @@ fn time_driver(name: &str, viewport: &Viewport, samples: &[Sample], batch: usize
         std::hint::black_box(p);
     }
     let after = d.stats();
-    Ok((add, best, after.kept, after.multidepth - before.multidepth))
+    Ok((
+        add,
+        best,
+        after.kept,
+        (after.discarded + after.replaced) - (before.discarded + before.replaced),
+    ))
 }
 
 fn row(what: &str, result: String, baseline: String, ratio: f64) {
@@ -126,7 +131,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     let path = dir.join("pict-bench.hdk");
     let _ = std::fs::remove_file(&path);
     let (_, mut file) = super::fill::prepare("builtin:room", &path, None)?;
-    let seen = holodeck_protocol::ViewBeams::select(file.sections(), &view, 256, 192, 0).counts;
+    let seen = ViewFill::new(file.sections(), std::slice::from_ref(&view), 0.0);
     eprintln!("filling {} rays for one view...", count(rays));
     let o = FillOptions {
         rays: Some(rays),
@@ -142,8 +147,8 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     for driver in ["quadtree", "splat"] {
         let mut file = HoloFile::open(&path, &OpenOptions::read_only())?;
         // Warm: the first call reads the file into the cache.
-        super::pict::draw(&mut file, vp.clone(), driver, 2, 0)?;
-        let (_, _, st) = super::pict::draw(&mut file, vp.clone(), driver, 2, 0)?;
+        super::pict::draw(&mut file, vp.clone(), driver, Default::default(), 2, 0)?;
+        let (_, _, st) = super::pict::draw(&mut file, vp.clone(), driver, Default::default(), 2, 0)?;
         let drawn = st.samples as f64 / st.recall.as_secs_f64();
         // The same beams read and decoded, not drawn.
         let request = holodeck_display::request::BeamRequest::for_viewport(

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, SamplingMode, PROTOCOL_VERSION};
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::schedule::BatchSchedule;
@@ -49,7 +49,7 @@ fn tracer_rate(threads: usize, seconds: f64) -> Result<f64> {
     let (mut rays, mut round) = (0u64, 0u64);
     while start.elapsed().as_secs_f64() < seconds {
         let batch = schedule.next(1024, 4);
-        let traced = pool.install(|| trace_batch(&tracer, &sections, true, &batch, round));
+        let traced = pool.install(|| trace_batch(&tracer, &sections, true, &batch, &|_| SamplingMode::Uniform, round));
         rays += traced.iter().map(|t| t.1.len() as u64).sum::<u64>();
         round += 1;
     }
@@ -110,6 +110,8 @@ impl Peer {
             beams: beams.to_vec(),
             eye: None,
             replace: true,
+            // Every stored ray each time: this measures recall.
+            resend: true,
         }))?;
         let mut rays = 0u64;
         loop {

@@ -4,13 +4,13 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
-use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
+use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
 use holodeck_server::settings::{parse_duration, Settings};
 use holodeck_server::{HoloFile, OpenOptions};
 
-use crate::fill::{fill, FillOptions};
+use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::{bytes, count, parse_count};
 
 /// Arguments of `holodeck fill`.
@@ -55,6 +55,10 @@ pub struct Args {
     /// Fill only the beams these views see (a file of Radiance views, one per line).
     #[arg(long)]
     views: Option<PathBuf>,
+    /// With --views: new rays pass this near the eye of the view that sees their beam
+    /// most, as a fraction of the section diagonal (0: anywhere in the beam).
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views")]
+    eye_radius: f64,
 }
 
 /// Loads a scene and opens its holodeck file for writing, creating the file
@@ -85,19 +89,20 @@ pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>) -> Result<
     Ok((scene, file))
 }
 
-/// The beams the views in `path` see, with the view rays in each (the
-/// weights of a fill limited to those views).
-pub(crate) fn seen_by_views(path: &Path, sections: &[Section]) -> Result<Vec<(BeamKey, u32)>> {
+/// The views in the file at `path`, one per line.
+pub(crate) fn read_views(path: &Path) -> Result<Vec<View>> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
     if views.is_empty() {
         bail!("{} holds no views", path.display());
     }
-    let mut seen = Vec::new();
-    for (i, v) in views.iter().enumerate() {
-        seen.extend(ViewBeams::select(sections, v, 256, 192, i as u64).counts);
-    }
-    Ok(seen)
+    Ok(views)
+}
+
+/// The beams the views in `path` see, with the view rays in each (the
+/// weights of a fill limited to those views).
+pub(crate) fn seen_by_views(path: &Path, sections: &[Section]) -> Result<Vec<(BeamKey, u32)>> {
+    Ok(ViewFill::new(sections, &read_views(path)?, 0.0).seen)
 }
 
 /// Runs the command.
@@ -127,7 +132,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         batch: 4096,
         seed: a.seed,
         views: match &a.views {
-            Some(path) => Some(seen_by_views(path, file.sections())?),
+            Some(path) => Some(ViewFill::new(file.sections(), &read_views(path)?, a.eye_radius)),
             None => None,
         },
     };

@@ -2,6 +2,7 @@
 
 pub mod args;
 pub mod bench;
+pub mod bench_accuracy;
 pub mod bench_display;
 pub mod bench_network;
 pub mod bench_tracer;

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
-use holodeck_display::{new_driver, output, DriverStats, Sample, SampleDecoder, Viewport};
+use holodeck_display::{new_driver_with, output, DriverStats, EstimatorOptions, Sample, SampleDecoder, Viewport};
 use holodeck_protocol::{BeamKey, RayRecord, View};
 use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
@@ -79,6 +79,7 @@ pub fn draw(
     file: &mut HoloFile,
     viewport: Viewport,
     driver: &str,
+    estimator: EstimatorOptions,
     stride: u32,
     seed: u64,
 ) -> Result<(holodeck_protocol::Picture, Histogram, FrameStats)> {
@@ -91,7 +92,7 @@ pub fn draw(
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
     let decoder = SampleDecoder::new(sections);
-    let mut d = new_driver(driver, viewport).map_err(anyhow::Error::msg)?;
+    let mut d = new_driver_with(driver, viewport, estimator).map_err(anyhow::Error::msg)?;
     let mut samples = 0u64;
     let start = Instant::now();
     // Beams are gathered into chunks and decoded in parallel; while the
@@ -204,6 +205,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         None => vec![View::parse(&a.view).context("--view")?],
     };
+    let estimator = a.frame.estimator.options()?;
     let mut file =
         HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;
     for (i, view) in views.into_iter().enumerate() {
@@ -213,12 +215,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
             a.output.clone()
         };
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
-        let (picture, hist, s) = draw(&mut file, viewport, &a.frame.driver, a.stride, i as u64)?;
+        let (picture, hist, s) = draw(&mut file, viewport, &a.frame.driver, estimator, a.stride, i as u64)?;
         let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
         output::save(&picture, &hist, mode, &out)?;
         let secs = s.recall.as_secs_f64();
         println!(
-            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms; {} kept, {} multidepth",
+            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms; {} pixel estimates, {} rays behind a nearer surface",
             out.display(),
             count(s.samples),
             count(s.beams as u64),
@@ -226,7 +228,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             count((s.samples as f64 / secs.max(1e-9)) as u64),
             s.render.as_secs_f64() * 1e3,
             count(s.driver.kept),
-            count(s.driver.multidepth),
+            count(s.driver.discarded + s.driver.replaced),
         );
     }
     Ok(ExitCode::SUCCESS)

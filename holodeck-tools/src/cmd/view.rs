@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use holodeck_display::client::DisplaySession;
-use holodeck_display::request::{BeamRequest, RequestOptions};
+use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use holodeck_display::tonemap::Histogram;
-use holodeck_display::{new_driver, output, Sample, Viewport};
+use holodeck_display::{new_driver_with, output, Sample, Viewport};
 use holodeck_protocol::View;
 use holodeck_server::settings::parse_duration;
 
@@ -20,8 +20,11 @@ use crate::human::count;
 #[derive(clap::Args)]
 #[command(after_help = "\
 Connects to a holodeck server as a display. For every view in --views it requests the beams
-the view sees (new samples are traced near the eye), draws the frame as soon as the stored
-samples are in, then keeps drawing as traced samples arrive for --wait, in --steps frames.
+the view sees (new samples are traced near the eye, in the frame), draws the frame as soon as
+the stored samples are in, then keeps drawing as traced samples arrive for --wait, in --steps
+frames. While a view stays, the samples it asks for per pixel double each time most of them
+have arrived (up to --max-density), so the picture keeps converging. Moving to the next view
+keeps every pixel's estimate (reprojected), and the server sends only rays not sent before.
 Frames go to DIR as view0001_00.png, view0001_01.png, ... (or .hdr with --format hdr).
 Against a server with no samplers this replays the holodeck file.
 
@@ -56,16 +59,25 @@ pub struct Args {
     /// Frames drawn while waiting (after the first).
     #[arg(long, default_value_t = 1)]
     steps: u32,
-    /// Samples wanted per pixel.
+    /// Samples wanted per pixel at first; doubled as they arrive while a view stays.
     #[arg(long, default_value_t = 1.0)]
     density: f64,
+    /// Most samples per pixel a still view asks for.
+    #[arg(long, default_value_t = 1024.0)]
+    max_density: f64,
     /// New samples pass this near the eye, as a fraction of the section diagonal.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = RequestOptions::default().eye_radius)]
     eye_radius: f64,
     /// Connect read-only (cannot clobber, kill samplers or quit the server).
     #[arg(long)]
     read_only: bool,
 }
+
+/// Time between checks for a still view's refinement.
+const TICK: Duration = Duration::from_millis(100);
+
+/// A still view that got nothing for this long asks for more at once.
+const QUIET: Duration = Duration::from_secs(1);
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
@@ -74,6 +86,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     if a.format != "png" && a.format != "hdr" {
         bail!("--format must be png or hdr, not {:?}", a.format);
+    }
+    if !(a.density.is_finite() && a.density > 0.0 && a.max_density.is_finite()) {
+        bail!("--density and --max-density must be positive numbers");
     }
     let token = a.token.token()?;
     let wait = parse_duration(&a.wait, 1.0)
@@ -87,64 +102,106 @@ pub fn run(a: Args) -> Result<ExitCode> {
     std::fs::create_dir_all(&a.output).with_context(|| format!("creating {}", a.output.display()))?;
     let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
-    let options = RequestOptions {
-        density: a.density,
-        eye_radius: a.eye_radius,
-        ..RequestOptions::default()
-    };
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
-    let mut driver = new_driver(&a.frame.driver, first).map_err(anyhow::Error::msg)?;
+    let mut driver =
+        new_driver_with(&a.frame.driver, first, a.frame.estimator.options()?).map_err(anyhow::Error::msg)?;
     let mut hist = Histogram::new();
+    let save = |driver: &mut dyn holodeck_display::Driver,
+                hist: &Histogram,
+                name: String,
+                new: u64,
+                total: u64,
+                took: Duration|
+     -> Result<()> {
+        let start = Instant::now();
+        let picture = driver.render();
+        let render = start.elapsed();
+        let path = a.output.join(name);
+        let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        output::save(&picture, hist, mode, &path)?;
+        println!(
+            "{}: {} new samples in {:.0} ms ({} in all, {} pixel estimates), drawn in {:.1} ms",
+            path.display(),
+            count(new),
+            took.as_secs_f64() * 1e3,
+            count(total),
+            count(driver.stats().kept),
+            render.as_secs_f64() * 1e3
+        );
+        Ok(())
+    };
     for (i, view) in views.into_iter().enumerate() {
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
+        // The driver keeps its estimates across small moves (reprojected); after
+        // a large turn it drops them, and the server must send everything again.
+        let drops = driver.stats().cache_drops;
         driver.set_view(viewport.clone());
-        let request = BeamRequest::for_viewport(session.sections(), &viewport, &options, i as u64);
+        let resend = i == 0 || driver.stats().cache_drops > drops;
+        let mut refinement = Refinement::new(a.density, a.max_density);
+        let options = RequestOptions {
+            eye_radius: a.eye_radius,
+            ..RequestOptions::default()
+        };
+        // Each pixel asks for its share of the density, by how much its rays
+        // disagree, less what it holds (reprojected from earlier views too).
+        let refining = |driver: &dyn holodeck_display::Driver, session: &DisplaySession, density: f64| {
+            let want = driver.needs(density as f32);
+            BeamRequest::refining(session.sections(), &viewport, &options, i as u64, &want, &|k| {
+                session.received(k)
+            })
+        };
+        let mut request = if resend {
+            BeamRequest::for_viewport(
+                session.sections(),
+                &viewport,
+                &RequestOptions {
+                    density: a.density,
+                    ..options
+                },
+                i as u64,
+            )
+        } else {
+            refining(driver.as_ref(), &session, a.density)
+        };
         let mut sink = |s: &[Sample]| {
             hist.add_many(s.iter().map(|x| x.color));
             driver.add(s);
         };
-        let t = session.request(&request, &mut sink)?;
+        refinement.asked(outstanding(&request, &|k| if resend { 0 } else { session.received(k) }));
+        let t = session.request(&request, resend, &mut sink)?;
         let mut received = t.samples;
-        let mut step = 0u32;
-        let save = |driver: &mut dyn holodeck_display::Driver,
-                    hist: &Histogram,
-                    step: u32,
-                    new: u64,
-                    total: u64,
-                    took: Duration|
-         -> Result<()> {
-            let start = Instant::now();
-            let picture = driver.render();
-            let render = start.elapsed();
-            let path = a.output.join(format!("view{:04}_{step:02}.{}", i + 1, a.format));
-            let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
-            output::save(&picture, hist, mode, &path)?;
-            println!(
-                "{}: {} new samples in {:.0} ms ({} in all, {} kept), drawn in {:.1} ms",
-                path.display(),
-                count(new),
-                took.as_secs_f64() * 1e3,
-                count(total),
-                count(driver.stats().kept),
-                render.as_secs_f64() * 1e3
-            );
-            Ok(())
-        };
-        save(driver.as_mut(), &hist, step, t.samples, received, t.elapsed)?;
+        let name = |step: u32| format!("view{:04}_{step:02}.{}", i + 1, a.format);
+        save(driver.as_mut(), &hist, name(0), t.samples, received, t.elapsed)?;
+        if wait.is_zero() {
+            continue;
+        }
         let steps = a.steps.max(1);
-        if !wait.is_zero() {
-            for _ in 0..steps {
-                step += 1;
-                let start = Instant::now();
-                let deadline = start + wait / steps;
+        let mut last = Instant::now();
+        for step in 1..=steps {
+            let start = Instant::now();
+            let deadline = start + wait / steps;
+            let mut new = 0u64;
+            while Instant::now() < deadline {
                 let mut sink = |s: &[Sample]| {
                     hist.add_many(s.iter().map(|x| x.color));
                     driver.add(s);
                 };
-                let n = session.refine(deadline, &mut sink)?;
-                received += n;
-                save(driver.as_mut(), &hist, step, n, received, start.elapsed())?;
+                let n = session.refine((Instant::now() + TICK).min(deadline), &mut sink)?;
+                new += n;
+                if n > 0 {
+                    last = Instant::now();
+                }
+                let missing = outstanding(&request, &|k| session.received(k));
+                if let Some(density) = refinement.raise(missing, last.elapsed() >= QUIET) {
+                    last = Instant::now();
+                    request = refining(driver.as_ref(), &session, density);
+                    refinement.asked(outstanding(&request, &|k| session.received(k)));
+                    tracing::info!("view {}: asking for {density} samples per pixel", i + 1);
+                    session.raise(&request)?;
+                }
             }
+            received += new;
+            save(driver.as_mut(), &hist, name(step), new, received, start.elapsed())?;
         }
     }
     Ok(ExitCode::SUCCESS)

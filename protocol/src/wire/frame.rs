@@ -284,8 +284,10 @@ mod tests {
                 eye: Some(EyePoint {
                     position: [1.0, 2.0, 3.0],
                     radius: 0.25,
+                    frustum: crate::View::parse("-vtv -vd 1 0 0").unwrap().frustum(),
                 }),
                 replace: true,
+                resend: false,
             }),
             Frame::Message(Message::Delivered { beams: 3, rays: 1234 }),
             Frame::Message(Message::Trace(TracePacket {
@@ -295,6 +297,7 @@ mod tests {
                 mode: SamplingMode::NearEye {
                     eye: [1.0, 2.0, 1.5],
                     radius: 0.2,
+                    frustum: None,
                 },
             })),
             Frame::Message(Message::Progress(Progress {
@@ -368,6 +371,7 @@ mod tests {
             mode: SamplingMode::NearEye {
                 eye: [f64::NAN, 0.0, 0.0],
                 radius: 1.0,
+                frustum: None,
             },
         }));
         let mut out = Vec::new();

@@ -4,6 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::beam::BeamKey;
 use crate::section::SectionSpec;
+use crate::view::Frustum;
 
 /// What a peer is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -42,6 +43,9 @@ pub enum SamplingMode {
         eye: [f64; 3],
         /// How near, world units.
         radius: f64,
+        /// The directions the eye's frame shows, if known: rays are chosen
+        /// in it, so that they land where the display looks.
+        frustum: Option<Frustum>,
     },
 }
 
@@ -52,6 +56,8 @@ pub struct EyePoint {
     pub position: [f64; 3],
     /// How near new rays should pass, world units (0: uniform sampling).
     pub radius: f64,
+    /// The directions the display's frame shows, if bounded by four planes.
+    pub frustum: Option<Frustum>,
 }
 
 /// Work for a sampler: trace `rays` rays of one beam.
@@ -124,8 +130,12 @@ pub enum Message {
         /// Where the display's eye is: new rays are traced near it (Appendix A).
         eye: Option<EyePoint>,
         /// True: these beams replace the display's earlier requests (a new
-        /// view); false: they are added to them.
+        /// view); false: they are added to them (or raise their counts).
         replace: bool,
+        /// True: send every stored ray of these beams, also those sent to this
+        /// display before (it forgot them); false: only rays it was not sent
+        /// yet (it keeps what it was sent, reprojected into the new view).
+        resend: bool,
     },
     /// The server has sent every stored ray of a display's last request (the
     /// end of the paper's "immediate transfer").
@@ -167,11 +177,14 @@ impl Message {
                 Ok(())
             }
             Message::Trace(TracePacket {
-                mode: SamplingMode::NearEye { eye, radius },
+                mode: SamplingMode::NearEye { eye, radius, frustum },
                 ..
             }) => {
                 for v in eye {
                     finite("eye coordinate", *v)?;
+                }
+                if frustum.is_some_and(|f| !f.is_finite()) {
+                    return Err("the frustum is not finite".into());
                 }
                 finite("radius", *radius)?;
                 if *radius < 0.0 {
@@ -183,6 +196,9 @@ impl Message {
             Message::BeamRequest { eye: Some(e), .. } => {
                 for v in e.position {
                     finite("eye coordinate", v)?;
+                }
+                if e.frustum.is_some_and(|f| !f.is_finite()) {
+                    return Err("the frustum is not finite".into());
                 }
                 finite("eye radius", e.radius)?;
                 if e.radius < 0.0 {

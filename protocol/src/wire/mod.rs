@@ -15,4 +15,4 @@ pub use message::{Control, EyePoint, Hello, Message, Progress, Role, SamplingMod
 pub const MAX_PACKET_RAYS: u32 = 1 << 16;
 
 /// Version of the protocol; peers with another version are refused.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;

@@ -10,6 +10,7 @@ mod proximity;
 pub use proximity::{proximity_rays, ProximityStats};
 
 use glam::DVec3;
+use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamIndex, BeamRay, DepthCode, RayRecord, Rgbe, Section, SectionError, SectionKind};
 
 use crate::shade::{Rng, Tracer};
@@ -74,6 +75,29 @@ pub fn trace_sample(
         DepthCode::INFINITE
     };
     RayRecord::new(s.entry, s.exit, Rgbe::from_rgb(sample.radiance.to_array()), depth)
+}
+
+/// Chooses `n` rays of `beam` as `mode` says (uniformly, or near an eye)
+/// and traces them into records: a sampler's whole job for one packet.
+pub fn trace_beam(
+    tracer: &Tracer,
+    section: &Section,
+    obstructions: bool,
+    beam: BeamIndex,
+    n: usize,
+    mode: SamplingMode,
+    rng: &mut Rng,
+) -> Result<Vec<RayRecord>, SectionError> {
+    let samples = match mode {
+        SamplingMode::Uniform => uniform_rays(section, beam, n, rng)?,
+        SamplingMode::NearEye { eye, radius, frustum } => {
+            proximity_rays(section, beam, n, DVec3::from(eye), radius, frustum.as_ref(), rng)?.0
+        }
+    };
+    Ok(samples
+        .iter()
+        .map(|s| trace_sample(tracer, section, obstructions, s, rng))
+        .collect())
 }
 
 #[cfg(test)]

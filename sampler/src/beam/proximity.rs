@@ -1,24 +1,20 @@
 //! Viewpoint-proximity sampling (holodeck paper, Appendix A): rays of a beam
 //! chosen to pass near the eye, so that an interactive view converges faster.
 //!
-//! The paper's steps:
-//! 1. Cut the cone from one exit-cell corner around the eye sphere with the
-//!    entry wall, and take the cut's extents within the entry cell.
-//! 2. Do the same for the opposite corner, and grow the region to hold both.
-//! 3. If the region is empty, sample the whole beam uniformly.
-//! 4. For each ray, pick an entry point in the region, cut the cone from it
-//!    around the eye sphere with the exit wall, and pick the exit point within
-//!    that cut's extents inside the exit cell.
-//! 5. When a cut misses the exit cell, try again; the whole packet may retry
-//!    as many times as it has rays plus two, after which rays fall back to
-//!    uniform sampling.
-//!
-//! The extents of a cut are found from 32 of the cone's generator lines. A cone
-//! that reaches the wall on both nappes, or runs parallel to it, cuts an
-//! unbounded region, and then the whole cell is allowed.
+//! The paper bounds, on the entry wall, the region of lines from the exit
+//! cell's corners that pass within the eye radius, picks entry points there
+//! and exit points in the cone back through the eye sphere. Where the walls
+//! are not parallel the corners' image is skewed and its box misses part of
+//! the beam, and with a small radius the box goes flat: whole beams then fell
+//! back to uniform rays, which land far from the pixels that asked for them
+//! (holes in the picture, measured in `docs/DISPLAY.md`). We sample the lines
+//! themselves: a point on whichever of the two cells looks smaller from the
+//! eye, a point in the eye's sphere, and the line through both, kept if it
+//! crosses the other cell (and, given a frustum, if it runs where the
+//! display looks). A ray no try finds is traced uniformly.
 
 use glam::DVec3;
-use holodeck_protocol::{BeamIndex, Section, SectionError, Wall, WallCell};
+use holodeck_protocol::{BeamIndex, Frustum, Section, SectionError, Wall, WallCell};
 
 use super::BeamSample;
 use crate::shade::Rng;
@@ -32,55 +28,9 @@ pub struct ProximityStats {
     pub uniform: usize,
 }
 
-/// A rectangle in a wall's grid coordinates (cell units along the wall's two axes).
-#[derive(Clone, Copy, Debug)]
-struct Rect {
-    lo: [f64; 2],
-    hi: [f64; 2],
-}
-
-impl Rect {
-    const ALL: Rect = Rect {
-        lo: [f64::NEG_INFINITY; 2],
-        hi: [f64::INFINITY; 2],
-    };
-
-    fn clip(&self, o: &Rect) -> Option<Rect> {
-        let r = Rect {
-            lo: [self.lo[0].max(o.lo[0]), self.lo[1].max(o.lo[1])],
-            hi: [self.hi[0].min(o.hi[0]), self.hi[1].min(o.hi[1])],
-        };
-        (r.lo[0] < r.hi[0] && r.lo[1] < r.hi[1]).then_some(r)
-    }
-
-    fn union(&self, o: &Rect) -> Rect {
-        Rect {
-            lo: [self.lo[0].min(o.lo[0]), self.lo[1].min(o.lo[1])],
-            hi: [self.hi[0].max(o.hi[0]), self.hi[1].max(o.hi[1])],
-        }
-    }
-}
-
-const GENERATORS: usize = 32;
-
-/// The cell of a wall as a rectangle in that wall's grid coordinates.
-fn cell_rect(c: &WallCell) -> Rect {
-    let (u, v) = (f64::from(c.cell[0]), f64::from(c.cell[1]));
-    Rect {
-        lo: [u, v],
-        hi: [u + 1.0, v + 1.0],
-    }
-}
-
-/// A world point on `wall` in that wall's grid coordinates.
-fn grid_coords(section: &Section, wall: Wall, p: DVec3) -> [f64; 2] {
-    let unit = section.world_to_unit(p);
-    let [u, v] = wall.cell_axes();
-    [
-        unit[u] * f64::from(section.grid()[u]),
-        unit[v] * f64::from(section.grid()[v]),
-    ]
-}
+/// Lines tried per ray before it falls back to a uniform ray (or, when all
+/// that missed was the frustum, to the last line near the eye).
+const TRIES: u32 = 64;
 
 /// The world point on `wall` at grid coordinates `g`.
 fn world_point(section: &Section, wall: Wall, g: [f64; 2]) -> DVec3 {
@@ -92,61 +42,40 @@ fn world_point(section: &Section, wall: Wall, g: [f64; 2]) -> DVec3 {
     section.unit_to_world(unit)
 }
 
-/// Extents (grid coordinates of `wall`) of the lines through `apex` that pass
-/// within `radius` of `eye`, where they meet the wall's plane.
-fn cone_cut(section: &Section, apex: DVec3, eye: DVec3, radius: f64, wall: Wall) -> Rect {
-    let to_eye = eye - apex;
-    let dist = to_eye.length();
-    if dist <= radius {
-        return Rect::ALL;
-    }
-    let axis = to_eye / dist;
-    let sin = radius / dist;
-    let cos = (1.0 - sin * sin).sqrt();
-    let (b1, b2) = axis.any_orthonormal_pair();
-    let [u, v] = wall.cell_axes();
+/// How large cell `c` looks from `eye`: its area over the squared distance,
+/// times the cosine at its center.
+fn apparent_size(section: &Section, c: &WallCell, eye: DVec3) -> f64 {
+    let [u, v] = c.wall.cell_axes();
     let axes = section.axes();
-    let normal = axes[u].cross(axes[v]);
-    let plane = section.origin() + axes[wall.axis()] * f64::from(wall.side());
-    let mut r = Rect {
-        lo: [f64::INFINITY; 2],
-        hi: [f64::NEG_INFINITY; 2],
-    };
-    let mut side = 0.0f64;
-    for k in 0..GENERATORS {
-        let phi = std::f64::consts::TAU * k as f64 / GENERATORS as f64;
-        let d = axis * cos + (b1 * phi.cos() + b2 * phi.sin()) * sin;
-        let denom = d.dot(normal);
-        if denom.abs() < 1e-12 * normal.length() {
-            return Rect::ALL;
-        }
-        let t = (plane - apex).dot(normal) / denom;
-        if side != 0.0 && t.signum() != side {
-            // The wall meets both nappes: the cut is unbounded.
-            return Rect::ALL;
-        }
-        side = t.signum();
-        let g = grid_coords(section, wall, apex + d * t);
-        for (i, gi) in g.iter().enumerate() {
-            r.lo[i] = r.lo[i].min(*gi);
-            r.hi[i] = r.hi[i].max(*gi);
-        }
-    }
-    // The generators make an inscribed polygon: widen by a little to cover the ellipse.
-    for i in 0..2 {
-        let pad = 0.02 * (r.hi[i] - r.lo[i]);
-        r.lo[i] -= pad;
-        r.hi[i] += pad;
-    }
-    r
+    let area = (axes[u] / f64::from(section.grid()[u])).cross(axes[v] / f64::from(section.grid()[v]));
+    let center = world_point(
+        section,
+        c.wall,
+        [f64::from(c.cell[0]) + 0.5, f64::from(c.cell[1]) + 0.5],
+    );
+    let d = center - eye;
+    let d2 = d.length_squared().max(1e-300);
+    area.dot(d).abs() / (d2 * d2.sqrt())
 }
 
-fn pick(r: &Rect, rng: &mut Rng) -> [f64; 2] {
-    let (a, b) = rng.f32x2();
-    [
-        r.lo[0] + (r.hi[0] - r.lo[0]) * f64::from(a),
-        r.lo[1] + (r.hi[1] - r.lo[1]) * f64::from(b),
-    ]
+/// Grid coordinates where the line through world points `p` and `q` meets
+/// the plane of `wall`, if it does.
+fn meet(section: &Section, wall: Wall, p: DVec3, q: DVec3) -> Option<[f64; 2]> {
+    let (a, b) = (section.world_to_unit(p), section.world_to_unit(q));
+    let axis = wall.axis();
+    let denom = b[axis] - a[axis];
+    if denom.abs() < 1e-12 {
+        return None;
+    }
+    let x = a + (b - a) * ((f64::from(wall.side()) - a[axis]) / denom);
+    let [u, v] = wall.cell_axes();
+    let g = [x[u] * f64::from(section.grid()[u]), x[v] * f64::from(section.grid()[v])];
+    g.iter().all(|c| c.is_finite()).then_some(g)
+}
+
+/// True when grid coordinates `g` lie in cell `c`.
+fn inside(c: &WallCell, g: [f64; 2]) -> bool {
+    (0..2).all(|i| (f64::from(c.cell[i])..f64::from(c.cell[i]) + 1.0).contains(&g[i]))
 }
 
 /// Sub-cell bytes of grid point `g` inside cell `c`.
@@ -154,52 +83,76 @@ fn sub_bytes(c: &WallCell, g: [f64; 2]) -> [u8; 2] {
     std::array::from_fn(|i| ((g[i] - f64::from(c.cell[i])) * 256.0).clamp(0.0, 255.0) as u8)
 }
 
+/// A point uniformly in the ball of `radius` around `center`.
+fn in_ball(center: DVec3, radius: f64, rng: &mut Rng) -> DVec3 {
+    loop {
+        let (a, b) = rng.f32x2();
+        let p = DVec3::new(f64::from(a), f64::from(b), f64::from(rng.f32())) * 2.0 - DVec3::ONE;
+        if p.length_squared() <= 1.0 {
+            return center + p * radius;
+        }
+    }
+}
+
 /// `n` rays of `beam` passing near `eye` (within about `radius`), with
-/// uniform rays wherever the paper's algorithm gives up.
+/// uniform rays where no such line is found. With a `frustum`, rays are
+/// chosen among those whose direction is in it (those a display looking
+/// from the eye shows), as long as a few tries find one.
 pub fn proximity_rays(
     section: &Section,
     beam: BeamIndex,
     n: usize,
     eye: DVec3,
     radius: f64,
+    frustum: Option<&Frustum>,
     rng: &mut Rng,
 ) -> Result<(Vec<BeamSample>, ProximityStats), SectionError> {
     let cells = section.beam_cells(beam)?;
-    let (entry_cell, exit_cell) = (cell_rect(&cells.entry), cell_rect(&cells.exit));
     let mut stats = ProximityStats::default();
-    let uniform = |rng: &mut Rng, stats: &mut ProximityStats| -> Result<BeamSample, SectionError> {
-        stats.uniform += 1;
-        Ok(super::uniform_rays(section, beam, 1, rng)?.remove(0))
+    // Points go on the cell that looks smaller: lines from it through the
+    // eye then mostly cross the larger one.
+    let exit_first = apparent_size(section, &cells.exit, eye) <= apparent_size(section, &cells.entry, eye);
+    let (from, to) = if exit_first {
+        (cells.exit, cells.entry)
+    } else {
+        (cells.entry, cells.exit)
     };
-    // Steps 1-3: the entry region from two opposite exit-cell corners.
-    let corners = [exit_cell.lo, exit_cell.hi].map(|g| world_point(section, cells.exit.wall, g));
-    let region = corners
-        .iter()
-        .filter_map(|&c| cone_cut(section, c, eye, radius, cells.entry.wall).clip(&entry_cell))
-        .reduce(|a, b| a.union(&b));
-    let Some(region) = region else {
-        let rays = (0..n).map(|_| uniform(rng, &mut stats)).collect::<Result<_, _>>()?;
-        return Ok((rays, stats));
-    };
-    // Steps 4-5.
-    let mut retries = n + 2;
     let mut rays = Vec::with_capacity(n);
-    while rays.len() < n {
-        let a = pick(&region, rng);
-        let apex = world_point(section, cells.entry.wall, a);
-        match cone_cut(section, apex, eye, radius, cells.exit.wall).clip(&exit_cell) {
-            Some(exit_region) => {
-                let b = pick(&exit_region, rng);
-                let (entry, exit) = (sub_bytes(&cells.entry, a), sub_bytes(&cells.exit, b));
-                rays.push(BeamSample {
-                    entry,
-                    exit,
-                    ray: section.beam_ray(beam, entry, exit)?,
-                });
-                stats.near += 1;
+    for _ in 0..n {
+        let (mut chosen, mut near_only) = (None, None);
+        for _ in 0..TRIES {
+            let (a, b) = rng.f32x2();
+            let g = [
+                f64::from(from.cell[0]) + f64::from(a),
+                f64::from(from.cell[1]) + f64::from(b),
+            ];
+            let p = world_point(section, from.wall, g);
+            let Some(h) = meet(section, to.wall, p, in_ball(eye, radius, rng)) else {
+                continue;
+            };
+            if !inside(&to, h) {
+                continue;
             }
-            None if retries > 0 => retries -= 1,
-            None => rays.push(uniform(rng, &mut stats)?),
+            let (entry_g, exit_g) = if exit_first { (h, g) } else { (g, h) };
+            let (entry, exit) = (sub_bytes(&cells.entry, entry_g), sub_bytes(&cells.exit, exit_g));
+            let ray = section.beam_ray(beam, entry, exit)?;
+            let sample = BeamSample { entry, exit, ray };
+            if frustum.is_some_and(|f| !f.contains(ray.direction, 0.0)) {
+                near_only = Some(sample);
+                continue;
+            }
+            chosen = Some(sample);
+            break;
+        }
+        match chosen.or(near_only) {
+            Some(s) => {
+                stats.near += 1;
+                rays.push(s);
+            }
+            None => {
+                stats.uniform += 1;
+                rays.push(super::uniform_rays(section, beam, 1, rng)?.remove(0));
+            }
         }
     }
     Ok((rays, stats))
@@ -242,7 +195,7 @@ mod tests {
             }
         }
         for &beam in &beams {
-            let (rays, stats) = proximity_rays(&s, beam, 8, eye, radius, &mut rng).unwrap();
+            let (rays, stats) = proximity_rays(&s, beam, 8, eye, radius, None, &mut rng).unwrap();
             assert_eq!(rays.len(), 8);
             near_rays += stats.near;
             for r in &rays {
@@ -276,11 +229,36 @@ mod tests {
         let mut rng = Rng::new(5, 0);
         // A beam between two cells of the floor and ceiling at one corner, an eye at the other.
         let beam = s.locate(DVec3::new(0.3, 0.3, -1.0), DVec3::Z).unwrap().beam;
-        let (rays, stats) = proximity_rays(&s, beam, 6, DVec3::new(5.7, 3.7, 1.2), 0.1, &mut rng).unwrap();
+        let (rays, stats) = proximity_rays(&s, beam, 6, DVec3::new(5.7, 3.7, 1.2), 0.1, None, &mut rng).unwrap();
         assert_eq!(rays.len(), 6);
         assert_eq!(stats.uniform, 6, "{stats:?}");
         for r in rays {
             assert_eq!(s.locate(r.ray.origin, r.ray.direction).unwrap().beam, beam);
+        }
+    }
+
+    #[test]
+    fn a_frustum_keeps_rays_in_the_frame_of_the_eye() {
+        let s = room();
+        let view =
+            holodeck_protocol::View::parse("-vtv -vp 2.2 1.7 1.1 -vd 1 0.1 -0.3 -vu 0 0 1 -vh 40 -vv 30").unwrap();
+        let frustum = view.frustum().unwrap();
+        let eye = view.position;
+        // A beam straddling the frame's edge: seen through a ray at the edge.
+        let (_, edge) = view.ray(0.0, 0.5).unwrap();
+        let beam = s.locate(eye, edge).unwrap().beam;
+        let mut rng = Rng::new(9, 0);
+        let (free, _) = proximity_rays(&s, beam, 400, eye, 0.05, None, &mut rng).unwrap();
+        let (kept, _) = proximity_rays(&s, beam, 400, eye, 0.05, Some(&frustum), &mut rng).unwrap();
+        let inside = |rays: &[BeamSample]| rays.iter().filter(|r| frustum.contains(r.ray.direction, 0.0)).count();
+        let (a, b) = (inside(&free), inside(&kept));
+        assert!(
+            a < 360 && b >= 396,
+            "without the frustum {a} of 400 in the frame, with it {b}"
+        );
+        for r in &kept {
+            assert_eq!(s.locate(r.ray.origin, r.ray.direction).unwrap().beam, beam);
+            assert!(distance_to_line(eye, r.ray.origin, r.ray.direction) < 0.2);
         }
     }
 }

@@ -10,6 +10,7 @@ use glam::Vec3;
 use holodeck_protocol::View;
 use rayon::prelude::*;
 
+use crate::geom::Ray;
 use crate::shade::{Rng, Tracer};
 
 /// What to render.
@@ -70,4 +71,41 @@ pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn F
         height: h,
         pixels: rows.into_iter().flatten().collect(),
     }
+}
+
+/// Pixels of a `width` x `height` frame of `view` that straddle a silhouette:
+/// the first hits of a 4 x 4 grid of rays through the pixel differ in depth
+/// by more than `ratio` (nearest to farthest), or some hit and some escape.
+/// The band where reconstructions from reprojected rays are hardest, so image
+/// errors are reported there separately.
+pub fn silhouettes(tracer: &Tracer, view: &View, width: u32, height: u32, ratio: f32) -> Vec<bool> {
+    const N: u32 = 4;
+    let (w, h) = (width.max(1) as usize, height.max(1) as usize);
+    let rays = view.rays();
+    let (scene, tree) = (tracer.scene(), tracer.tree());
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (col, row) = ((i % w) as f64, (i / w) as f64);
+            let (mut near, mut far, mut escaped, mut hit) = (f32::INFINITY, 0.0f32, false, false);
+            for k in 0..N * N {
+                let (sx, sy) = (
+                    (f64::from(k % N) + 0.5) / f64::from(N),
+                    (f64::from(k / N) + 0.5) / f64::from(N),
+                );
+                let Some((origin, dir)) = rays.ray((col + sx) / w as f64, 1.0 - (row + sy) / h as f64) else {
+                    continue;
+                };
+                match tree.intersect(scene, &Ray::new(origin.as_vec3(), dir.as_vec3())) {
+                    Some(x) => {
+                        hit = true;
+                        near = near.min(x.t);
+                        far = far.max(x.t);
+                    }
+                    None => escaped = true,
+                }
+            }
+            hit && (escaped || far > near * ratio)
+        })
+        .collect()
 }

@@ -1,7 +1,10 @@
 //! Serving one display (or admin): beam requests are answered at once with
-//! every stored ray (read in file order; the paper's "immediate transfer"),
+//! every stored ray the display was not sent yet (read in file order; the
+//! paper's "immediate transfer"; all of them when it asks to `resend`),
 //! closed by a `Delivered` message; the request then joins the merged request
-//! list, and rays traced for it later are streamed as they land.
+//! list, and rays traced for it later are streamed as they land. A display
+//! keeps what it was sent across views (it reprojects), so a new view costs
+//! only the rays it has not seen, and a raised count costs nothing at once.
 //!
 //! Rays that land while a request is being read are found by epoch and
 //! sent on the next wake, so none fall between the read and the request.
@@ -167,7 +170,12 @@ async fn display_loop(
         };
         let Some(frame) = frame else { return Ok(()) };
         match frame {
-            Frame::Message(Message::BeamRequest { beams, eye, replace }) => {
+            Frame::Message(Message::BeamRequest {
+                beams,
+                eye,
+                replace,
+                resend,
+            }) => {
                 // Each beam once (the last count asked for wins), and never
                 // more beams than the holodeck has.
                 let all: usize = shared.sections.iter().map(|s| s.beam_count() as usize).sum();
@@ -201,30 +209,35 @@ async fn display_loop(
                     beams: Vec::new(),
                     eye,
                     replace,
+                    resend,
                 })
                 .validate()
                 {
                     conn.write(&Frame::Message(Message::Error { message })).await?;
                     continue;
                 }
-                if replace {
-                    sent.clear();
-                }
                 // Rays that land while the beams are read are caught below
                 // (and the watch ends on every path out of here).
                 let watch = Watch::new(shared);
-                // Every stored ray of the requested beams, at once.
-                let wanted: Vec<(BeamKey, u64)> = beams.iter().map(|&(k, _)| (k, 0)).collect();
-                let (got, rays) = match send_beams(&mut conn, shared, wanted).await? {
+                // Every stored ray of the requested beams this display does
+                // not hold yet, at once.
+                let wanted: Vec<(BeamKey, u64)> = beams
+                    .iter()
+                    .map(|&(k, _)| (k, if resend { 0 } else { sent.get(&k).copied().unwrap_or(0) }))
+                    .collect();
+                let (got, rays) = match send_beams(&mut conn, shared, wanted.clone()).await? {
                     Ok(x) => x,
                     Err(message) => {
                         conn.write(&Frame::Message(Message::Error { message })).await?;
                         continue;
                     }
                 };
-                let stored: HashMap<BeamKey, u64> = got.iter().copied().collect();
-                for &(k, _) in &beams {
-                    sent.insert(k, stored.get(&k).copied().unwrap_or(0));
+                let read: HashMap<BeamKey, u64> = got.iter().fold(HashMap::new(), |mut m, &(k, n)| {
+                    *m.entry(k).or_default() += n;
+                    m
+                });
+                for (k, from) in wanted {
+                    sent.insert(k, from + read.get(&k).copied().unwrap_or(0));
                 }
                 conn.write(&Frame::Message(Message::Delivered {
                     beams: got.len() as u32,

@@ -10,8 +10,9 @@
 //! rays back or crediting rays traced for a display costs O(log n).
 
 use std::cmp::{Ordering, Reverse};
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, HashMap};
 
+use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_protocol::{BeamKey, Section, SectionError};
 
 /// One entry of the request list.
@@ -141,13 +142,22 @@ impl BatchSchedule {
         self.ratios.get_mut(key.section as usize)?.get_mut(key.beam as usize)
     }
 
-    /// The next `count` beams to trace, in priority order: `rays` rays each,
-    /// but a single ray for a beam that holds none yet.
+    /// The next `count` packets' worth of work (`count` x `rays` rays), at
+    /// most one packet per beam: rays go, a packet of `rays` (a single ray
+    /// for a beam that holds none yet) at a time, to the beam of lowest
+    /// ratio, so that beams fill in proportion to their weights however few
+    /// they are; a beam's turns in one call are merged into one packet of
+    /// at most [`MAX_PACKET_RAYS`] rays. Packets come in the order their
+    /// beams were first served.
     pub fn next(&mut self, count: usize, rays: u32) -> Vec<(BeamKey, u32)> {
-        // Each beam at most once per call.
-        let count = count.min(self.beams);
-        let mut out = Vec::with_capacity(count);
-        while out.len() < count {
+        let rays = rays.max(1);
+        let budget = count as u64 * u64::from(rays);
+        let mut out: Vec<(BeamKey, u32)> = Vec::new();
+        let mut at: HashMap<BeamKey, usize> = HashMap::new();
+        // Live entries of beams whose packet is full, put back at the end.
+        let mut full = Vec::new();
+        let mut handed = 0u64;
+        while handed < budget {
             let Some(Reverse(e)) = self.heap.pop() else { break };
             let (s, b) = (e.key.section as usize, e.key.beam as usize);
             if self.seqs[s][b] != e.seq {
@@ -156,15 +166,22 @@ impl BatchSchedule {
             // An empty beam gets one ray first: every beam then holds rays
             // after as few rays as there are beams.
             let n = if e.ratio == 0.0 { 1 } else { rays };
-            out.push((e.key, n, e.weight));
+            let i = *at.entry(e.key).or_insert_with(|| {
+                out.push((e.key, 0));
+                out.len() - 1
+            });
+            if out[i].1 + n > MAX_PACKET_RAYS {
+                full.push(Reverse(e));
+                continue;
+            }
+            out[i].1 += n;
+            handed += u64::from(n);
+            self.ratios[s][b] += f64::from(n) / e.weight;
+            self.push(e.key, e.weight);
         }
-        out.into_iter()
-            .map(|(key, n, weight)| {
-                self.ratios[key.section as usize][key.beam as usize] += f64::from(n) / weight;
-                self.push(key, weight);
-                (key, n)
-            })
-            .collect()
+        self.heap.extend(full);
+        out.retain(|o| o.1 > 0);
+        out
     }
 
     /// Returns rays that were handed out but never came back (a sampler that
@@ -327,6 +344,29 @@ mod tests {
         assert_eq!(got.len(), 2);
         assert_eq!(got[&BeamKey::new(0, 3)], 300);
         assert_eq!(got[&BeamKey::new(0, 9)], 100);
+    }
+
+    #[test]
+    fn a_few_beams_fill_in_proportion_even_when_every_call_covers_them_all() {
+        let s = section();
+        let seen = vec![(BeamKey::new(0, 3), 900), (BeamKey::new(0, 9), 100)];
+        let mut sched = BatchSchedule::for_views(std::slice::from_ref(&s), &seen, |_| 0);
+        let mut got: HashMap<BeamKey, u64> = HashMap::new();
+        for _ in 0..50 {
+            let round = sched.next(4096, 4);
+            assert_eq!(round.len(), 2, "one packet per beam per call");
+            for (k, r) in round {
+                *got.entry(k).or_default() += u64::from(r);
+            }
+        }
+        let (a, b) = (got[&BeamKey::new(0, 3)], got[&BeamKey::new(0, 9)]);
+        // Each call hands out its budget, overshooting by less than a packet.
+        let budget = 50 * 4096 * 4;
+        assert!(a + b >= budget && a + b < budget + 50 * 4, "{}", a + b);
+        assert!((a as f64 / (a + b) as f64 - 0.9).abs() < 0.001, "{a} vs {b}");
+        // A single beam asked for more than a packet holds gets a full packet.
+        let mut one = BatchSchedule::for_views(std::slice::from_ref(&s), &seen[..1], |_| 0);
+        assert_eq!(one.next(1 << 20, 4), vec![(BeamKey::new(0, 3), MAX_PACKET_RAYS - 3)]);
     }
 
     #[test]

@@ -112,6 +112,7 @@ impl Scheduler {
                     Some(e) => SamplingMode::NearEye {
                         eye: e.position,
                         radius: e.radius,
+                        frustum: e.frustum,
                     },
                     None => SamplingMode::Uniform,
                 },
@@ -208,6 +209,7 @@ mod tests {
         let eye = EyePoint {
             position: [1.0, 1.0, 1.0],
             radius: 0.05,
+            frustum: None,
         };
         sched
             .requests()

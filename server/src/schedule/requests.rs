@@ -293,6 +293,7 @@ mod tests {
         let eye = EyePoint {
             position: [1.0, 2.0, 3.0],
             radius: 0.1,
+            frustum: None,
         };
         list.request(1, &[(k(1), 10, 0), (k(2), 10, 0)], Some(eye), true);
         let out = list.next(20, 10);

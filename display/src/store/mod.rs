@@ -1,0 +1,603 @@
+//! The sample store every driver shares: one running [`Estimate`] per pixel
+//! of the current view, built from every ray that lands there, and kept
+//! across view changes by reprojecting the estimates themselves.
+//!
+//! Invariants:
+//! * Memory is bounded by the frame, not by the rays: at most one estimate
+//!   per pixel, plus at most [`Store::park_limit`] estimates parked off the
+//!   frame, plus fixed scratch for one batch.
+//! * A ray joins the estimate of the pixel it reprojects to only if it hit
+//!   the estimate's surface (see [`estimate`]); counters account for every
+//!   ray received: `received = kept + merged + replaced + discarded + outside
+//!   + rejected_nonfinite` until the first view change or clear.
+//! * A view change turns each estimate into a world point (the centroid of
+//!   its rays within the pixel, at their mean depth) carrying its sums,
+//!   reprojects it, and merges estimates that meet on one pixel by the same
+//!   depth rule. Nothing of the rays themselves is kept, and nothing snaps to
+//!   pixel centers, so a long motion in small steps does not drift.
+//! * Drivers only read: the index maps a pixel to a slot of [`Store::entries`],
+//!   and [`Store::colors`] gives each slot's value.
+//!
+//! Speed comes from memory order: a batch is projected (on every core when
+//! large), sorted by pixel key in the index's order, and inserted, so that
+//! the rays of one pixel arrive together and consecutive pixels share the
+//! index's cached path.
+
+pub mod estimate;
+pub mod index;
+mod radix;
+#[cfg(test)]
+mod tests;
+
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+
+pub use estimate::{luminance, Estimate, EstimatorOptions, Fit};
+pub use index::{PixelIndex, Spot};
+use radix::radix_sort;
+
+use crate::driver::{DriverStats, Viewport};
+use crate::project::Projector;
+use crate::sample::Sample;
+
+/// A view change that turns the view direction by more than this many degrees
+/// drops the stored estimates: the paper's drivers "ignore their locally
+/// cached samples and use only new ones" after such a rotation (section 3),
+/// because samples taken for a very different direction are poor stand-ins
+/// for the view-dependent shading of the new one.
+pub const CACHE_DROP_DEGREES: f64 = 20.0;
+
+/// Fewest off-frame estimates kept for a return to earlier views, so that
+/// tiny frames still remember a useful surrounding.
+const MIN_PARKED: usize = 1 << 16;
+
+/// Rays projected and sorted together: large enough that sorting pays, small
+/// enough that the scratch buffers stay a few megabytes.
+const CHUNK: usize = 1 << 18;
+
+/// Batches smaller than this are inserted in arrival order: sorting them
+/// costs more than it saves.
+const SORT_MIN: usize = 256;
+
+/// Batches at least this large are projected on every core.
+const PARALLEL_MIN: usize = 1 << 14;
+
+/// The part of a view's rays spread evenly over its pixels; the rest goes
+/// where rays disagree (see [`Store::needs`]).
+const EVEN_SHARE: f32 = 0.3;
+
+/// Estimates sampled to find the frame's typical luminance (the firefly floor).
+const FLOOR_SAMPLES: usize = 1 << 14;
+
+/// One pixel's estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Entry {
+    /// Its pixel, in the pixel index's own numbering ([`PixelIndex::key`]).
+    pub key: u64,
+    /// What the rays there say.
+    pub estimate: Estimate,
+}
+
+/// An estimate off its pixel: its world point (or, for rays that escaped,
+/// its direction), for reprojection and for parking off the frame.
+#[derive(Clone, Copy, Debug)]
+struct Aggregate {
+    point: DVec3,
+    escaped: bool,
+    estimate: Estimate,
+}
+
+/// A projected ray waiting in a batch: everything insertion needs, so that
+/// inserting in index order never reads the rays out of order.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pending {
+    key: u64,
+    color: [f32; 3],
+    weight: f32,
+    depth: f32,
+    /// Where in the pixel, in 65536ths.
+    at: [u16; 2],
+}
+
+impl Pending {
+    #[inline]
+    fn at(&self) -> [f32; 2] {
+        [
+            (f32::from(self.at[0]) + 0.5) / 65536.0,
+            (f32::from(self.at[1]) + 0.5) / 65536.0,
+        ]
+    }
+}
+
+/// Where a ray of a batch lands.
+#[derive(Clone, Copy, Debug)]
+enum Projected {
+    On(Pending),
+    Off,
+    NonFinite,
+}
+
+/// The estimates of a driver, the index that finds them, the estimates parked
+/// off the frame, the counters and the view.
+#[derive(Clone, Debug)]
+pub struct Store<I> {
+    viewport: Viewport,
+    /// The viewport at sub-pixel resolution: what the index and the
+    /// projector work in.
+    grid: Viewport,
+    projector: Projector,
+    options: EstimatorOptions,
+    index: I,
+    entries: Vec<Entry>,
+    /// Estimates that a view change moved off the frame: kept (up to
+    /// [`Store::park_limit`]) so that turning back brings them back, the
+    /// paper's "movement outside the current view".
+    parked: Vec<Aggregate>,
+    park: bool,
+    stats: DriverStats,
+    /// Scratch for batches.
+    pending: Vec<Pending>,
+    projected: Vec<Projected>,
+    spare: Vec<Pending>,
+}
+
+impl<I: PixelIndex + Sync> Store<I> {
+    /// An empty store; `park` keeps estimates a view change moves off-frame.
+    pub fn new(viewport: Viewport, mut index: I, park: bool, mut options: EstimatorOptions) -> Store<I> {
+        options.subpixels = options.subpixels.clamp(1, 4).next_power_of_two();
+        let grid = sub_grid(&viewport, options.subpixels);
+        index.reset(grid.width, grid.height);
+        Store {
+            projector: Projector::new(&grid),
+            grid,
+            viewport,
+            options,
+            index,
+            entries: Vec::new(),
+            parked: Vec::new(),
+            park,
+            stats: DriverStats::default(),
+            pending: Vec::new(),
+            projected: Vec::new(),
+            spare: Vec::new(),
+        }
+    }
+
+    /// The current viewport.
+    pub fn viewport(&self) -> &Viewport {
+        &self.viewport
+    }
+
+    /// Sub-pixels per pixel along each axis: the index and the estimates
+    /// are at this finer resolution.
+    pub fn subpixels(&self) -> u32 {
+        self.options.subpixels
+    }
+
+    /// The pixel index (at sub-pixel resolution).
+    pub fn index(&self) -> &I {
+        &self.index
+    }
+
+    /// The estimates, by slot.
+    pub fn entries(&self) -> &[Entry] {
+        &self.entries
+    }
+
+    /// How rays combine.
+    pub fn options(&self) -> &EstimatorOptions {
+        &self.options
+    }
+
+    /// Counters, with `kept` as of now.
+    pub fn stats(&self) -> DriverStats {
+        DriverStats {
+            kept: self.entries.len() as u64,
+            ..self.stats
+        }
+    }
+
+    /// Estimates held for reprojection: on the frame and parked off it.
+    pub fn cached(&self) -> usize {
+        self.entries.len() + self.parked.len()
+    }
+
+    /// Heap bytes held (estimates, index, scratch): bounded by the frame
+    /// size whatever the number of rays received.
+    pub fn heap_bytes(&self) -> usize {
+        self.entries.capacity() * std::mem::size_of::<Entry>()
+            + self.parked.capacity() * std::mem::size_of::<Aggregate>()
+            + (self.pending.capacity() + self.spare.capacity()) * std::mem::size_of::<Pending>()
+            + self.projected.capacity() * std::mem::size_of::<Projected>()
+            + self.index.heap_bytes()
+    }
+
+    /// Adds rays: the body of [`crate::Driver::add`].
+    pub fn add(&mut self, samples: &[Sample]) {
+        self.stats.received += samples.len() as u64;
+        for chunk in samples.chunks(CHUNK) {
+            self.insert_rays(chunk);
+        }
+    }
+
+    /// Projects a batch of rays, sorts it into index order and inserts it.
+    fn insert_rays(&mut self, samples: &[Sample]) {
+        let eye = self.viewport.view.position;
+        let (projector, index, options) = (&self.projector, &self.index, &self.options);
+        let project = |s: &Sample| -> Projected {
+            if !s.is_finite() {
+                return Projected::NonFinite;
+            }
+            let target = s.target(eye);
+            let Some((col, row, at, depth)) = projector.locate(target) else {
+                return Projected::Off;
+            };
+            let (weight, depth) = match s.hit {
+                Some(h) => (options.weight(s.direction.dot(projector.look(h, depth))), depth as f32),
+                // Parallel rays see the same point of the sky from anywhere.
+                None => (1.0, f32::INFINITY),
+            };
+            Projected::On(Pending {
+                key: index.key(col, row),
+                color: s.color,
+                weight,
+                depth,
+                at: at.map(|a| (a * 65536.0).min(65535.0) as u16),
+            })
+        };
+        let mut projected = std::mem::take(&mut self.projected);
+        projected.clear();
+        if samples.len() >= PARALLEL_MIN {
+            projected.par_extend(samples.par_iter().map(project));
+        } else {
+            projected.extend(samples.iter().map(project));
+        }
+        let mut pending = std::mem::take(&mut self.pending);
+        pending.clear();
+        for p in &projected {
+            match p {
+                Projected::On(p) => pending.push(*p),
+                Projected::NonFinite => self.stats.rejected_nonfinite += 1,
+                Projected::Off => self.stats.outside += 1,
+            }
+        }
+        self.projected = projected;
+        if pending.len() >= SORT_MIN {
+            radix_sort(&mut pending, &mut self.spare, self.index.key_bits(), |p| p.key);
+        }
+        self.entries.reserve(pending.len().min(self.pixel_count()));
+        // Rays of one pixel are adjacent after the sort: after the first, the
+        // rest go straight to its slot instead of down the index again.
+        let mut last: Option<(u64, u32)> = None;
+        for p in &pending {
+            let slot = match last {
+                Some((key, slot)) if key == p.key => {
+                    self.offer(slot, p);
+                    slot
+                }
+                _ => match self.index.find(&self.entries, p.key) {
+                    Spot::Free(at) => {
+                        let slot = self.entries.len() as u32;
+                        self.entries.push(Entry {
+                            key: p.key,
+                            estimate: Estimate::of_ray(p.color, p.weight, p.depth, p.at()),
+                        });
+                        self.index.fill(at, slot);
+                        slot
+                    }
+                    Spot::Taken(slot) => {
+                        self.offer(slot, p);
+                        slot
+                    }
+                },
+            };
+            last = Some((p.key, slot));
+        }
+        self.pending = pending;
+    }
+
+    /// A ray lands on the pixel whose estimate is `slot`.
+    #[inline]
+    fn offer(&mut self, slot: u32, p: &Pending) {
+        let e = &mut self.entries[slot as usize].estimate;
+        match e.fit(p.depth, p.depth, self.options.depth_tolerance) {
+            Fit::Joins => {
+                e.add_ray(p.color, p.weight, p.depth, p.at());
+                self.stats.merged += 1;
+            }
+            Fit::Nearer => {
+                *e = Estimate::of_ray(p.color, p.weight, p.depth, p.at());
+                self.stats.replaced += 1;
+            }
+            Fit::Behind => self.stats.discarded += 1,
+        }
+    }
+
+    /// Sub-pixels in the frame.
+    fn pixel_count(&self) -> usize {
+        self.grid.width as usize * self.grid.height as usize
+    }
+
+    /// How many off-frame estimates to remember (if parking at all): about
+    /// a frame's worth.
+    pub fn park_limit(&self) -> usize {
+        if self.park {
+            self.pixel_count().max(MIN_PARKED)
+        } else {
+            0
+        }
+    }
+
+    /// Changes the view: the body of [`crate::Driver::set_view`].
+    ///
+    /// The turn is measured from the view the estimates were last
+    /// reprojected for (the current one), so a long motion in small steps
+    /// keeps them, as a continuous drag in the paper's drivers does.
+    /// Estimates that meet on one pixel merge by the depth rule; those that
+    /// leave the frame are parked. The rays were weighed for the old eye:
+    /// each estimate's weight is scaled by the weight of the angle between
+    /// the old and the new eye seen from it, so that new rays, traced near
+    /// the new eye, soon count for more on glossy surfaces.
+    pub fn set_view(&mut self, viewport: Viewport) {
+        if viewport == self.viewport {
+            return;
+        }
+        let (a, b) = (
+            self.viewport.view.direction.normalize_or_zero(),
+            viewport.view.direction.normalize_or_zero(),
+        );
+        let turn = a.cross(b).length().atan2(a.dot(b)).to_degrees();
+        let grid = sub_grid(&viewport, self.options.subpixels);
+        let old = std::mem::replace(&mut self.projector, Projector::new(&grid));
+        // Visible estimates first, so the most recently seen are parked
+        // first when the limit bites.
+        let (index, entries, ratio) = (&self.index, &self.entries, self.options.firefly_ratio);
+        let aggregate = |e: &Entry| -> Option<Aggregate> {
+            let (col, row) = index.pixel(e.key);
+            let (origin, dir) = old.ray(col, row, e.estimate.centroid())?;
+            let depth = e.estimate.depth();
+            // What the old view's rays say becomes history for the new one.
+            let mut estimate = e.estimate;
+            estimate.settle(ratio);
+            Some(if depth.is_finite() {
+                Aggregate {
+                    point: origin + dir * f64::from(depth),
+                    escaped: false,
+                    estimate,
+                }
+            } else {
+                Aggregate {
+                    point: dir,
+                    escaped: true,
+                    estimate,
+                }
+            })
+        };
+        let mut moving: Vec<Aggregate> = if entries.len() >= PARALLEL_MIN {
+            entries.par_iter().filter_map(aggregate).collect()
+        } else {
+            entries.iter().filter_map(aggregate).collect()
+        };
+        moving.append(&mut self.parked);
+        self.viewport = viewport;
+        self.index.reset(grid.width, grid.height);
+        self.grid = grid;
+        self.entries.clear();
+        if turn > CACHE_DROP_DEGREES {
+            if !moving.is_empty() {
+                self.stats.cache_drops += 1;
+            }
+            return;
+        }
+        self.insert_aggregates(moving, &old);
+    }
+
+    /// Reprojects estimates (made for the view of `old`) into the current view.
+    fn insert_aggregates(&mut self, mut moving: Vec<Aggregate>, old: &Projector) {
+        let eye = self.viewport.view.position;
+        let (projector, index, options) = (&self.projector, &self.index, &self.options);
+        // Each estimate's new key (u64::MAX: off the frame), reweighed and
+        // moved to its new depth.
+        let place = |a: &mut Aggregate| -> u64 {
+            let target = if a.escaped { eye + a.point * 1e9 } else { a.point };
+            let Some((col, row, at, depth)) = projector.locate(target) else {
+                return u64::MAX;
+            };
+            a.estimate.move_to(at);
+            if !a.escaped {
+                let cos = old.look_at(a.point).dot(projector.look_at(a.point));
+                a.estimate.scale_weight(options.weight(cos));
+                a.estimate.move_to_depth(depth as f32);
+            }
+            index.key(col, row)
+        };
+        let keys: Vec<u64> = if moving.len() >= PARALLEL_MIN {
+            moving.par_iter_mut().map(place).collect()
+        } else {
+            moving.iter_mut().map(place).collect()
+        };
+        let limit = self.park_limit();
+        let mut order: Vec<(u64, u32)> = Vec::with_capacity(moving.len());
+        for (i, &key) in keys.iter().enumerate() {
+            if key != u64::MAX {
+                order.push((key, i as u32));
+            } else if self.parked.len() < limit {
+                self.parked.push(moving[i]);
+            }
+        }
+        radix_sort(&mut order, &mut Vec::new(), self.index.key_bits(), |p| p.0);
+        let tolerance = self.options.depth_tolerance;
+        for (key, i) in order {
+            let incoming = moving[i as usize].estimate;
+            match self.index.find(&self.entries, key) {
+                Spot::Free(at) => {
+                    let slot = self.entries.len() as u32;
+                    self.entries.push(Entry {
+                        key,
+                        estimate: incoming,
+                    });
+                    self.index.fill(at, slot);
+                }
+                Spot::Taken(slot) => {
+                    let e = &mut self.entries[slot as usize].estimate;
+                    let (near, far) = incoming.depth_range();
+                    match e.fit(near, far, tolerance) {
+                        Fit::Joins => e.merge(&incoming),
+                        Fit::Nearer => *e = incoming,
+                        Fit::Behind => {}
+                    }
+                }
+            }
+        }
+    }
+
+    /// Forgets every estimate; the counters of what was seen stay.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+        self.parked.clear();
+        self.index.reset(self.grid.width, self.grid.height);
+    }
+
+    /// The typical luminance of the frame: the median of the estimates'
+    /// mean luminance (over a fixed-size subset), the least any ray is
+    /// judged against, so that a rare bright ray on a dark surface is not
+    /// taken for a firefly.
+    fn typical_luminance(&self) -> f32 {
+        let step = self.entries.len().div_ceil(FLOOR_SAMPLES).max(1);
+        let mut l: Vec<f32> = self
+            .entries
+            .iter()
+            .step_by(step)
+            .filter_map(|e| e.estimate.body_luminance())
+            .collect();
+        if l.is_empty() {
+            return 0.0;
+        }
+        let mid = l.len() / 2;
+        *l.select_nth_unstable_by(mid, f32::total_cmp).1
+    }
+
+    /// Each pixel's neighborhood luminance: the mean over the 3 x 3 pixels
+    /// around it of the rays in the estimates' sums (the brightest apart),
+    /// what a pixel's brightest rays are judged against beside its own
+    /// mean. Estimates of few rays (sub-pixels, early frames) are judged too.
+    fn neighborhood_luminance(&self) -> Vec<f32> {
+        let (w, h) = (self.viewport.width as usize, self.viewport.height as usize);
+        let sub = self.options.subpixels;
+        let mut lum = vec![0.0f32; w * h];
+        let mut weight = vec![0.0f32; w * h];
+        for e in &self.entries {
+            let (col, row) = self.index.pixel(e.key);
+            let at = (row / sub) as usize * w + (col / sub) as usize;
+            let (sum, wt) = e.estimate.body_sums();
+            lum[at] += luminance(sum);
+            weight[at] += wt;
+        }
+        // Separable 3 x 3 box sums of both.
+        let blur = |v: &[f32]| -> Vec<f32> {
+            let mut across = vec![0.0f32; w * h];
+            for row in 0..h {
+                for col in 0..w {
+                    let (a, b) = (col.saturating_sub(1), (col + 1).min(w - 1));
+                    across[row * w + col] = v[row * w + a..=row * w + b].iter().sum();
+                }
+            }
+            let mut out = vec![0.0f32; w * h];
+            for row in 0..h {
+                for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
+                    for col in 0..w {
+                        out[row * w + col] += across[r * w + col];
+                    }
+                }
+            }
+            out
+        };
+        let (lum, weight) = (blur(&lum), blur(&weight));
+        lum.iter()
+            .zip(&weight)
+            .map(|(l, w)| if *w > 0.0 { l / w } else { 0.0 })
+            .collect()
+    }
+
+    /// How many more rays each pixel wants for `density` rays per pixel on
+    /// average, spent where they reduce the error most, less the rays it
+    /// holds. Most of a pixel's share is in proportion to how much its rays
+    /// disagree (their standard deviation: Neyman's allocation, which
+    /// minimizes the summed variance for a number of rays); a fixed part is
+    /// spread evenly, so that dark, quiet regions still converge on screen.
+    /// Pixels without two rays count as typical. Row-major, top row first.
+    pub fn needs(&self, density: f32) -> Vec<f32> {
+        let (w, h) = (self.viewport.width as usize, self.viewport.height as usize);
+        let sub = self.options.subpixels;
+        // Per pixel: weight, luminance sum, squared sum, rays.
+        let mut acc = vec![(0.0f32, 0.0f32, 0.0f32, 0u32); w * h];
+        for e in &self.entries {
+            let (col, row) = self.index.pixel(e.key);
+            let a = &mut acc[(row / sub) as usize * w + (col / sub) as usize];
+            let (wt, l, lsq, n) = e.estimate.noise();
+            *a = (a.0 + wt, a.1 + l, a.2 + lsq, a.3 + n);
+        }
+        let spread: Vec<Option<f32>> = acc
+            .iter()
+            .map(|&(wt, l, lsq, n)| {
+                (n >= 2 && wt > 0.0).then(|| {
+                    let mean = l / wt;
+                    (lsq / wt - mean * mean).max(0.0).sqrt()
+                })
+            })
+            .collect();
+        let known: Vec<f32> = spread.iter().flatten().copied().collect();
+        let typical = if known.is_empty() {
+            1.0
+        } else {
+            known.iter().sum::<f32>() / known.len() as f32
+        };
+        let typical = if typical > 0.0 { typical } else { 1.0 };
+        acc.iter()
+            .zip(&spread)
+            .map(|(a, s)| {
+                let s = s.unwrap_or(typical);
+                let share = EVEN_SHARE + (1.0 - EVEN_SHARE) * s / typical;
+                (density * share - a.3 as f32).max(0.0)
+            })
+            .collect()
+    }
+
+    /// The value of every estimate, by slot, with fireflies cut; counts the
+    /// estimates whose brightest ray was cut.
+    pub fn colors(&mut self) -> Vec<Vec3> {
+        let ratio = self.options.firefly_ratio;
+        if !ratio.is_finite() {
+            self.stats.fireflies = 0;
+            return self
+                .entries
+                .iter()
+                .map(|e| Vec3::from_array(e.estimate.mean()))
+                .collect();
+        }
+        let floor = self.typical_luminance();
+        let near = self.neighborhood_luminance();
+        let (w, sub, index) = (self.viewport.width, self.options.subpixels, &self.index);
+        let value = |e: &Entry| {
+            let (col, row) = index.pixel(e.key);
+            let local = near[((row / sub) * w + col / sub) as usize];
+            e.estimate.value(ratio, local.max(floor))
+        };
+        let values: Vec<([f32; 3], bool)> = if self.entries.len() >= PARALLEL_MIN {
+            self.entries.par_iter().map(value).collect()
+        } else {
+            self.entries.iter().map(value).collect()
+        };
+        self.stats.fireflies = values.iter().filter(|v| v.1).count() as u64;
+        values.into_iter().map(|v| Vec3::from_array(v.0)).collect()
+    }
+}
+
+/// `viewport` with `s` x `s` sub-pixels per pixel.
+fn sub_grid(viewport: &Viewport, s: u32) -> Viewport {
+    Viewport {
+        view: viewport.view.clone(),
+        width: viewport.width * s,
+        height: viewport.height * s,
+    }
+}

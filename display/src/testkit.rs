@@ -1,0 +1,169 @@
+//! Synthetic scenes and helpers shared by the driver and store tests.
+
+use glam::DVec3;
+use holodeck_protocol::{Picture, View};
+
+use crate::driver::{Driver, Viewport};
+use crate::sample::Sample;
+
+/// The perspective view of the tests: looking along +y, z up.
+pub(crate) const EYE_VIEW: &str = "-vtv -vp 0 0 0 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45";
+
+/// A viewport from a view spec.
+pub(crate) fn viewport(spec: &str, width: u32, height: u32) -> Viewport {
+    Viewport::new(View::parse(spec).unwrap(), width, height).unwrap()
+}
+
+/// A tiny deterministic generator (xorshift64*), so tests need no rand.
+pub(crate) struct Rng(pub(crate) u64);
+
+impl Rng {
+    /// Uniform in [0, 1).
+    pub(crate) fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The scene: the plane y - 0.3 x = 4, in front of the test eye.
+pub(crate) fn hit_plane(origin: DVec3, dir: DVec3) -> Option<DVec3> {
+    let n = DVec3::new(-0.3, 1.0, 0.0);
+    let denom = n.dot(dir);
+    if denom <= 1e-9 {
+        return None;
+    }
+    let t = (4.0 - n.dot(origin)) / denom;
+    (t > 0.0).then(|| origin + dir * t)
+}
+
+/// The plane's radiance: smooth, strictly positive.
+pub(crate) fn plane_color(p: DVec3) -> [f32; 3] {
+    [
+        (0.5 + 0.4 * (2.0 * p.x).sin()) as f32,
+        (0.5 + 0.4 * (1.5 * p.z).cos()) as f32,
+        (0.3 + 0.2 * (p.x + p.z).sin()) as f32,
+    ]
+}
+
+/// A sample of the plane seen through image point (x, y) of `view`, whose
+/// ray starts `offset` away from the eye (sideways) and passes through the
+/// same hit point: it reprojects to that image point and misses the eye
+/// by about `offset`.
+pub(crate) fn plane_sample(view: &View, x: f64, y: f64, offset: DVec3) -> Option<Sample> {
+    let (eye, dir) = view.ray(x, y)?;
+    let hit = hit_plane(eye, dir)?;
+    let origin = eye + offset + dir;
+    Some(Sample {
+        origin,
+        direction: (hit - origin).normalize(),
+        hit: Some(hit),
+        color: plane_color(hit),
+    })
+}
+
+/// `n` samples of the plane at random image points with random small
+/// origin offsets (so miss distances differ).
+pub(crate) fn random_plane_samples(view: &View, n: usize, seed: u64) -> Vec<Sample> {
+    let mut rng = Rng(seed | 1);
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let (x, y) = (rng.next(), rng.next());
+        let offset = DVec3::new(rng.next() - 0.5, 0.0, rng.next() - 0.5) * 0.2;
+        if let Some(s) = plane_sample(view, x, y, offset) {
+            out.push(s);
+        }
+    }
+    out
+}
+
+/// The analytic picture: the plane's color through each pixel center.
+pub(crate) fn analytic(vp: &Viewport) -> Picture {
+    let (w, h) = (vp.width as usize, vp.height as usize);
+    let mut pixels = Vec::with_capacity(w * h);
+    for row in 0..h {
+        for col in 0..w {
+            let (x, y) = ((col as f64 + 0.5) / w as f64, 1.0 - (row as f64 + 0.5) / h as f64);
+            let c = vp
+                .view
+                .ray(x, y)
+                .and_then(|(o, d)| hit_plane(o, d))
+                .map_or([0.0; 3], plane_color);
+            pixels.push(glam::Vec3::from_array(c));
+        }
+    }
+    Picture {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+/// A sample on the exact image grid of a parallel view "-vtl -vp 0 0 0
+/// -vd 0 1 0 -vu 0 0 1 -vh W -vv H" drawn on W x H pixels: pixel column c
+/// starts at world x = c - W/2 and row r at world z = H/2 - r, so
+/// (`px`, `py`) in pixel units lands exactly where asked.
+pub(crate) fn grid_sample(w: u32, h: u32, px: f64, py: f64, depth: f64, miss: f64, color: [f32; 3]) -> Sample {
+    let hit = DVec3::new(px - f64::from(w) / 2.0, depth, f64::from(h) / 2.0 - py);
+    Sample {
+        origin: DVec3::new(miss, 0.0, 0.0),
+        direction: DVec3::Y,
+        hit: Some(hit),
+        color,
+    }
+}
+
+/// The parallel view that [`grid_sample`] is exact for.
+pub(crate) fn grid_viewport(w: u32, h: u32) -> Viewport {
+    viewport(&format!("-vtl -vp 0 0 0 -vd 0 1 0 -vu 0 0 1 -vh {w} -vv {h}"), w, h)
+}
+
+/// Times a driver on 1M plane samples at 1024x768: one batch, batches of
+/// 10,000, rendering (best of three) and a 5-degree turn; prints the
+/// numbers and the RMSE against the analytic image.
+pub(crate) fn time_driver(make: impl Fn(Viewport) -> Box<dyn Driver>) {
+    use std::time::Instant;
+    let vp = viewport(EYE_VIEW, 1024, 768);
+    let samples = random_plane_samples(&vp.view, 1_000_000, 42);
+    let truth = analytic(&vp);
+    let n = samples.len() as f64;
+    for round in 0..3 {
+        let mut d = make(vp.clone());
+        let t = Instant::now();
+        d.add(&samples);
+        let one = t.elapsed().as_secs_f64();
+        let mut d = make(vp.clone());
+        let t = Instant::now();
+        for batch in samples.chunks(10_000) {
+            d.add(batch);
+        }
+        let many = t.elapsed().as_secs_f64();
+        let mut render = f64::INFINITY;
+        let mut pic = None;
+        for _ in 0..3 {
+            let t = Instant::now();
+            pic = Some(d.render());
+            render = render.min(t.elapsed().as_secs_f64());
+        }
+        let kept = d.stats().kept;
+        let t = Instant::now();
+        d.set_view(viewport(&format!("{EYE_VIEW} -vd 0.0875 1 0"), 1024, 768));
+        let turn = t.elapsed().as_secs_f64();
+        println!(
+            "{} round {round}: add {:.2} M/s in one batch, {:.2} M/s in batches of 10k; \
+             render {:.1} ms; {kept} kept; 5-degree reprojection {:.1} ms; RMSE {:.4}",
+            d.name(),
+            1e-6 * n / one,
+            1e-6 * n / many,
+            render * 1e3,
+            turn * 1e3,
+            pic.map_or(f64::NAN, |p| rmse(&p, &truth)),
+        );
+    }
+}
+
+/// Root-mean-square difference per channel.
+pub(crate) fn rmse(a: &Picture, b: &Picture) -> f64 {
+    a.mse(b).unwrap().sqrt()
+}

@@ -1,0 +1,566 @@
+//! `holodeck bench accuracy`: is a holodeck picture worth its rays? Error
+//! against a converged reference of the same view, for the holodeck and for
+//! a direct render given the same compute:
+//!
+//! 1. one view: error against paths traced, holodeck picture (a fill for the
+//!    view, then `pict`) against a direct render with the same number of
+//!    paths, on the same cores, over the whole frame and in the band around
+//!    silhouettes;
+//! 2. a walkthrough: the time until every view of a path is within a target
+//!    error, the holodeck (fill for the first view, then more rays only where
+//!    a view needs them, reusing every ray and every pixel estimate so far)
+//!    against rendering each view from scratch.
+//!
+//! References are rendered once and kept under `--dir` (they take minutes).
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use holodeck_display::compare::{relative_rmse, relative_rmse_masked};
+use holodeck_display::image_io::{read_picture, write_hdr};
+use holodeck_display::request::{BeamRequest, RequestOptions};
+use holodeck_display::{new_driver_with, Driver, EstimatorOptions, SampleDecoder, Viewport};
+use holodeck_protocol::wire::SamplingMode;
+use holodeck_protocol::{BeamKey, Picture, View};
+use holodeck_sampler::render::{render, silhouettes, RenderOptions};
+use holodeck_sampler::{TraceOptions, Tracer};
+use holodeck_server::HoloFile;
+
+use crate::fill::{fill, trace_batch, FillOptions, ViewFill};
+use crate::human::count;
+
+/// What to measure.
+pub struct AccuracyBench {
+    /// Scene (file or builtin:NAME).
+    pub scene: String,
+    /// The single view.
+    pub view: View,
+    /// Frame size.
+    pub width: u32,
+    /// Frame height.
+    pub height: u32,
+    /// Paths per budget of the single-view comparison.
+    pub paths: Vec<u64>,
+    /// Samples per pixel of the references.
+    pub reference_spp: u32,
+    /// Independent runs averaged per budget.
+    pub repeats: u32,
+    /// Views in the walkthrough (0: skip it).
+    pub walk_views: usize,
+    /// Relative RMSE every view of the walk must reach.
+    pub target: f64,
+    /// How the display combines rays.
+    pub estimator: EstimatorOptions,
+    /// Eye radius of the fill (fraction of the smallest section diagonal).
+    pub eye_radius: f64,
+    /// Where references and holodeck files go.
+    pub dir: PathBuf,
+    /// Keep the holodeck files.
+    pub keep: bool,
+}
+
+/// Error of a picture over the frame and in the silhouette band.
+#[derive(Clone, Copy, Debug, Default)]
+struct Error {
+    all: f64,
+    band: f64,
+}
+
+/// A view's converged reference and its silhouette band.
+struct Truth {
+    picture: Picture,
+    band: Vec<bool>,
+}
+
+impl Truth {
+    fn error(&self, p: &Picture) -> Result<Error> {
+        Ok(Error {
+            all: relative_rmse(p, &self.picture)?,
+            band: relative_rmse_masked(p, &self.picture, &self.band)?,
+        })
+    }
+}
+
+/// Pixels within one pixel of a silhouette.
+fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
+    let mut out = vec![false; mask.len()];
+    for row in 0..h {
+        for col in 0..w {
+            if !mask[row * w + col] {
+                continue;
+            }
+            for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
+                for c in col.saturating_sub(1)..=(col + 1).min(w - 1) {
+                    out[r * w + c] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+impl AccuracyBench {
+    fn truth(&self, tracer: &Tracer, view: &View, name: &str) -> Result<Truth> {
+        let key = blake3::hash(
+            format!(
+                "{} {} {}x{} {}",
+                self.scene,
+                view.to_spec(),
+                self.width,
+                self.height,
+                self.reference_spp
+            )
+            .as_bytes(),
+        )
+        .to_hex();
+        let path = self.dir.join(format!("reference-{}.hdr", &key[..16]));
+        let picture = match read_picture(&path) {
+            Ok(p) => p,
+            Err(_) => {
+                eprintln!(
+                    "rendering the reference of {name} ({} spp, kept as {})...",
+                    self.reference_spp,
+                    path.display()
+                );
+                let o = RenderOptions {
+                    width: self.width,
+                    height: self.height,
+                    spp: self.reference_spp,
+                    seed: 0x005e_ed0f_7e57,
+                };
+                let p = render(tracer, view, &o, &|_, _| {});
+                write_hdr(&p, &path).with_context(|| format!("writing {}", path.display()))?;
+                p
+            }
+        };
+        let edges = silhouettes(tracer, view, self.width, self.height, 1.1);
+        Ok(Truth {
+            picture,
+            band: dilate(&edges, self.width as usize, self.height as usize),
+        })
+    }
+
+    fn viewport(&self, view: &View) -> Result<Viewport> {
+        Ok(Viewport::new(view.clone(), self.width, self.height)?)
+    }
+
+    /// A direct render of `paths` paths (rounded to whole samples per pixel).
+    fn direct(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> (Picture, f64, u64) {
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        let spp = (paths as f64 / pixels as f64).round().max(1.0) as u32;
+        let o = RenderOptions {
+            width: self.width,
+            height: self.height,
+            spp,
+            seed,
+        };
+        let start = Instant::now();
+        let p = render(tracer, view, &o, &|_, _| {});
+        (p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels)
+    }
+
+    /// A fresh holodeck filled with `paths` rays for `view`, then its picture.
+    fn holodeck(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64)> {
+        let path = self.dir.join(format!("accuracy-{seed}.hdk"));
+        let _ = std::fs::remove_file(&path);
+        let (_, mut file) = super::fill::prepare(&self.scene, &path, None)?;
+        let start = Instant::now();
+        let o = FillOptions {
+            rays: Some(paths),
+            time: None,
+            packet: 16,
+            batch: 4096,
+            seed,
+            views: Some(ViewFill::new(
+                file.sections(),
+                std::slice::from_ref(view),
+                self.eye_radius,
+            )),
+        };
+        fill(tracer, &mut file, &o, &|_| {})?;
+        let (picture, _, _) = super::pict::draw(&mut file, self.viewport(view)?, "quadtree", self.estimator, 2, seed)?;
+        let secs = start.elapsed().as_secs_f64();
+        file.close()?;
+        if !self.keep {
+            let _ = std::fs::remove_file(&path);
+        }
+        Ok((picture, secs))
+    }
+
+    /// A display session on a fresh holodeck: the view's rays requested
+    /// where its pixels need them, 4 rays per pixel at a time, until
+    /// `paths` rays are traced. Returns the picture, the seconds and the
+    /// rays traced.
+    fn session(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
+        let path = self.dir.join(format!("accuracy-session-{seed}.hdk"));
+        let _ = std::fs::remove_file(&path);
+        let (_, file) = super::fill::prepare(&self.scene, &path, None)?;
+        let start = Instant::now();
+        let mut walker = Walker::new(file, self.viewport(view)?, self.estimator)?;
+        let (mut rays, mut density, mut step) = (0u64, 0.0f32, 0u64);
+        while rays < paths {
+            density += 4.0;
+            let got = walker.refine(tracer, density, self.eye_radius, seed << 20 | step)?;
+            rays += got;
+            step += 1;
+            if got == 0 && step > 1000 {
+                break;
+            }
+        }
+        let picture = walker.driver.render();
+        let secs = start.elapsed().as_secs_f64();
+        walker.file.close()?;
+        if !self.keep {
+            let _ = std::fs::remove_file(&path);
+        }
+        Ok((picture, secs, rays))
+    }
+
+    /// Part 1: one view, error against paths traced.
+    fn one_view(&self, tracer: &Tracer) -> Result<()> {
+        let truth = self.truth(tracer, &self.view, "the view")?;
+        println!(
+            "\nOne view ({}x{}, {}), relative RMSE against a {}-spp reference, over the frame and in the \
+             band around silhouettes; mean of {} run(s). Holodeck: `fill --views` then `pict` (fill), and a \
+             display session that asks for rays where its pixels need them (session):\n",
+            self.width,
+            self.height,
+            self.view.to_spec(),
+            self.reference_spp,
+            self.repeats
+        );
+        println!("| paths | direct | fill | session | session / direct | direct band | fill band | session band | direct s | fill s | session s |");
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
+        for &paths in &self.paths {
+            let (mut d, mut f, mut h) = (Error::default(), Error::default(), Error::default());
+            let (mut dt, mut ft, mut ht, mut traced, mut session_rays) = (0.0, 0.0, 0.0, 0, 0);
+            let add = |acc: &mut Error, e: Error| {
+                acc.all += e.all;
+                acc.band += e.band;
+            };
+            for r in 0..self.repeats {
+                let seed = 1 + u64::from(r);
+                let (p, secs, n) = self.direct(tracer, &self.view, paths, seed);
+                add(&mut d, truth.error(&p)?);
+                (dt, traced) = (dt + secs, n);
+                let (p, secs) = self.holodeck(tracer, &self.view, paths, seed)?;
+                add(&mut f, truth.error(&p)?);
+                ft += secs;
+                let (p, secs, rays) = self.session(tracer, &self.view, paths, seed)?;
+                add(&mut h, truth.error(&p)?);
+                (ht, session_rays) = (ht + secs, session_rays + rays);
+            }
+            let n = f64::from(self.repeats.max(1));
+            println!(
+                "| {} | {:.4} | {:.4} | {:.4} | {:.2} | {:.4} | {:.4} | {:.4} | {:.2} | {:.2} | {:.2} |",
+                count(paths),
+                d.all / n,
+                f.all / n,
+                h.all / n,
+                h.all / d.all,
+                d.band / n,
+                f.band / n,
+                h.band / n,
+                dt / n,
+                ft / n,
+                ht / n
+            );
+            eprintln!(
+                "  (paths traced: direct {} in whole samples per pixel, session {} on average)",
+                count(traced),
+                count(session_rays / u64::from(self.repeats.max(1)))
+            );
+        }
+        Ok(())
+    }
+
+    /// The walk: `n` views from the single view's eye, 10 cm a step
+    /// along its direction, turning 1.5 degrees a step.
+    fn walk(&self, n: usize) -> Vec<View> {
+        let v = &self.view;
+        let flat = glam::DVec3::new(v.direction.x, v.direction.y, 0.0).normalize_or_zero();
+        (0..n)
+            .map(|i| {
+                let a = (1.5 * i as f64).to_radians();
+                let (s, c) = a.sin_cos();
+                let d = glam::DVec3::new(
+                    v.direction.x * c - v.direction.y * s,
+                    v.direction.x * s + v.direction.y * c,
+                    v.direction.z,
+                );
+                View {
+                    position: v.position + flat * (0.1 * i as f64),
+                    direction: d.normalize(),
+                    ..v.clone()
+                }
+            })
+            .collect()
+    }
+
+    /// Part 2: the walkthrough, time to the target error per view, over
+    /// `repeats` runs with other random sequences.
+    fn walkthrough(&self, tracer: &Tracer) -> Result<()> {
+        let views = self.walk(self.walk_views);
+        let truths: Vec<Truth> = views
+            .iter()
+            .enumerate()
+            .map(|(i, v)| self.truth(tracer, v, &format!("walk view {}", i + 1)))
+            .collect::<Result<_>>()?;
+        println!(
+            "\nWalkthrough of {} views (10 cm and 1.5 degrees a step), time until each is within relative RMSE {}:\n",
+            views.len(),
+            self.target
+        );
+        println!("| view | direct: paths | direct: s | holodeck: new rays | holodeck: s | error direct / holodeck |");
+        println!("|---|---|---|---|---|---|");
+        let (mut direct, mut holodeck) = (0.0, 0.0);
+        for run in 0..self.repeats.max(1) {
+            let (d, h) = self.walk_once(tracer, &views, &truths, u64::from(run), run == 0)?;
+            direct += d;
+            holodeck += h;
+        }
+        println!(
+            "\nAll runs: direct {direct:.2} s, holodeck {holodeck:.2} s: the holodeck {:.2}x faster.",
+            direct / holodeck.max(1e-9)
+        );
+        Ok(())
+    }
+
+    /// One walk; returns the seconds of the direct renders and of the
+    /// holodeck, printing each view's row when `rows`.
+    fn walk_once(&self, tracer: &Tracer, views: &[View], truths: &[Truth], run: u64, rows: bool) -> Result<(f64, f64)> {
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        // Both methods add work in steps of 4 paths per pixel.
+        let step_spp = 4u32;
+        let max_steps = 64u32;
+        let path = self.dir.join("accuracy-walk.hdk");
+        let _ = std::fs::remove_file(&path);
+        let (_, file) = super::fill::prepare(&self.scene, &path, None)?;
+        let mut walker = Walker::new(file, self.viewport(&views[0])?, self.estimator)?;
+        let (mut direct_total, mut holo_total) = (0.0, 0.0);
+        let (mut direct_paths, mut holo_rays) = (0u64, 0u64);
+        for (i, (view, truth)) in views.iter().zip(truths).enumerate() {
+            let seed = (run << 40) | ((i as u64) << 20);
+            // Direct: passes of `step_spp` until the target is met.
+            let o = RenderOptions {
+                width: self.width,
+                height: self.height,
+                spp: step_spp,
+                seed: 0,
+            };
+            let (mut sum, mut secs, mut passes, mut d_err) = (None::<Picture>, 0.0, 0u32, f64::INFINITY);
+            while passes < max_steps {
+                let start = Instant::now();
+                let p = render(
+                    tracer,
+                    view,
+                    &RenderOptions {
+                        seed: seed | u64::from(passes),
+                        ..o.clone()
+                    },
+                    &|_, _| {},
+                );
+                let acc = match sum.take() {
+                    None => p,
+                    Some(mut s) => {
+                        for (a, b) in s.pixels.iter_mut().zip(&p.pixels) {
+                            *a += *b;
+                        }
+                        s
+                    }
+                };
+                passes += 1;
+                let mean = Picture {
+                    pixels: acc.pixels.iter().map(|c| *c / passes as f32).collect(),
+                    ..acc.clone()
+                };
+                secs += start.elapsed().as_secs_f64();
+                sum = Some(acc);
+                d_err = truth.error(&mean)?.all;
+                if d_err <= self.target {
+                    break;
+                }
+            }
+            let d_paths = u64::from(passes * step_spp) * pixels;
+            // Holodeck: what is there already, then more rays where this
+            // view's pixels need them.
+            let start = Instant::now();
+            walker.set_view(self.viewport(view)?)?;
+            let mut h_secs = start.elapsed().as_secs_f64();
+            let (mut rays, mut h_err, mut density) = (0u64, f64::INFINITY, 0.0f32);
+            for step in 0..=max_steps {
+                let start = Instant::now();
+                let p = walker.driver.render();
+                h_secs += start.elapsed().as_secs_f64();
+                h_err = truth.error(&p)?.all;
+                if h_err <= self.target || step == max_steps {
+                    if self.keep && rows {
+                        write_hdr(&p, &self.dir.join(format!("walk-{:02}-holodeck.hdr", i + 1)))?;
+                        write_hdr(
+                            &truth.picture,
+                            &self.dir.join(format!("walk-{:02}-reference.hdr", i + 1)),
+                        )?;
+                    }
+                    break;
+                }
+                let start = Instant::now();
+                density += step_spp as f32;
+                rays += walker.refine(tracer, density, self.eye_radius, seed | u64::from(step))?;
+                h_secs += start.elapsed().as_secs_f64();
+            }
+            if rows {
+                println!(
+                    "| {} | {} | {:.2} | {} | {:.2} | {:.3} / {:.3} |",
+                    i + 1,
+                    count(d_paths),
+                    secs,
+                    count(rays),
+                    h_secs,
+                    d_err,
+                    h_err
+                );
+            }
+            direct_total += secs;
+            holo_total += h_secs;
+            direct_paths += d_paths;
+            holo_rays += rays;
+        }
+        println!(
+            "| all (run {}) | {} | {:.2} | {} | {:.2} | holodeck {:.2}x faster |",
+            run + 1,
+            count(direct_paths),
+            direct_total,
+            count(holo_rays),
+            holo_total,
+            direct_total / holo_total.max(1e-9)
+        );
+        walker.file.close()?;
+        if !self.keep {
+            let _ = std::fs::remove_file(&path);
+        }
+        Ok((direct_total, holo_total))
+    }
+
+    /// Runs both parts.
+    pub fn run(&self) -> Result<()> {
+        std::fs::create_dir_all(&self.dir).with_context(|| format!("creating {}", self.dir.display()))?;
+        let scene = super::render::load(&self.scene, None)?;
+        let tracer = Tracer::new(scene, TraceOptions::default());
+        if !self.paths.is_empty() {
+            self.one_view(&tracer)?;
+        }
+        if self.walk_views > 0 {
+            self.walkthrough(&tracer)?;
+        }
+        Ok(())
+    }
+}
+
+/// A display walking through views with a holodeck beside it, as an
+/// interactive session does: its driver keeps every pixel estimate across
+/// views, and it is given each stored ray once.
+struct Walker {
+    file: HoloFile,
+    decoder: SampleDecoder,
+    driver: Box<dyn Driver>,
+    /// Rays of each beam given to the driver so far.
+    fed: HashMap<BeamKey, usize>,
+}
+
+impl Walker {
+    fn new(file: HoloFile, viewport: Viewport, estimator: EstimatorOptions) -> Result<Walker> {
+        Ok(Walker {
+            decoder: SampleDecoder::new(file.sections().to_vec()),
+            driver: new_driver_with("quadtree", viewport, estimator).map_err(anyhow::Error::msg)?,
+            file,
+            fed: HashMap::new(),
+        })
+    }
+
+    /// Moves to a view and takes the stored rays of its beams not taken yet.
+    fn set_view(&mut self, viewport: Viewport) -> Result<()> {
+        let drops = self.driver.stats().cache_drops;
+        self.driver.set_view(viewport);
+        if self.driver.stats().cache_drops > drops {
+            self.fed.clear();
+        }
+        self.feed()
+    }
+
+    fn feed(&mut self) -> Result<()> {
+        let request = BeamRequest::for_viewport(
+            self.decoder.sections(),
+            self.driver.viewport(),
+            &RequestOptions {
+                stride: 2,
+                ..RequestOptions::default()
+            },
+            0,
+        );
+        let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+        keys.sort_unstable();
+        let (decoder, driver, fed) = (&self.decoder, &mut self.driver, &mut self.fed);
+        let mut samples = Vec::new();
+        self.file.read_beams(&keys, |k, rays| {
+            let done = fed.entry(k).or_insert(0);
+            if rays.len() > *done {
+                decoder.decode(k.section, k.beam, &rays[*done..], &mut samples);
+                *done = rays.len();
+            }
+        })?;
+        driver.add(&samples);
+        Ok(())
+    }
+
+    /// Asks for rays as a display refining its view does (each pixel wants
+    /// its share of `density` rays per pixel, by how much its rays
+    /// disagree, less what it holds), traces what the holodeck lacks near
+    /// the eye, stores it and takes it. Returns the rays traced.
+    fn refine(&mut self, tracer: &Tracer, density: f32, eye_radius: f64, seed: u64) -> Result<u64> {
+        let sections = self.decoder.sections().to_vec();
+        let viewport = self.driver.viewport().clone();
+        let want = self.driver.needs(density);
+        let o = RequestOptions {
+            stride: 2,
+            eye_radius,
+            ..RequestOptions::default()
+        };
+        let fed = &self.fed;
+        let request = BeamRequest::refining(&sections, &viewport, &o, seed, &want, &|k| {
+            fed.get(&k).copied().unwrap_or(0) as u64
+        });
+        let mut batch = Vec::new();
+        for &(k, desired) in &request.beams {
+            let stored = self.file.beam_len(k)?;
+            if u64::from(desired) > stored {
+                batch.push((k, (u64::from(desired) - stored) as u32));
+            }
+        }
+        let mode = match request.eye {
+            Some(e) => SamplingMode::NearEye {
+                eye: e.position,
+                radius: e.radius,
+                frustum: e.frustum,
+            },
+            None => SamplingMode::Uniform,
+        };
+        let obstructions = self.file.settings().obstructions;
+        let traced = trace_batch(tracer, &sections, obstructions, &batch, &|_| mode, seed);
+        let mut rays = 0u64;
+        let mut samples = Vec::new();
+        for (k, records) in &traced {
+            // Rays of a beam not taken yet would come before these in the
+            // file: take them in order, then the new ones straight away.
+            if self.fed.get(k).copied().unwrap_or(0) as u64 == self.file.beam_len(*k)? {
+                self.decoder.decode(k.section, k.beam, records, &mut samples);
+                *self.fed.entry(*k).or_insert(0) += records.len();
+            }
+            self.file.append(*k, records)?;
+            rays += records.len() as u64;
+        }
+        self.driver.add(&samples);
+        Ok(rays)
+    }
+}
