@@ -109,6 +109,7 @@ impl Driver for SplatDriver {
     }
 
     fn render(&mut self) -> Picture {
+        self.store.update_colors();
         let colors = self.store.colors();
         let (w, h) = (
             self.store.viewport().width as usize,

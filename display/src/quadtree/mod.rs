@@ -10,13 +10,15 @@
 mod tests;
 mod tree;
 
+pub use tree::Tree;
+
 use glam::Vec3;
 use holodeck_protocol::Picture;
 
 use crate::driver::{Driver, DriverStats, Viewport};
 use crate::sample::Sample;
 use crate::store::{EstimatorOptions, Store};
-use tree::{Node, Tree};
+use tree::Node;
 
 /// The CPU quadtree display driver of the paper's section 2.4.3.
 ///
@@ -108,6 +110,7 @@ impl Driver for QuadtreeDriver {
     }
 
     fn render(&mut self) -> Picture {
+        self.store.update_colors();
         let colors = self.store.colors();
         let (w, h) = (self.store.viewport().width, self.store.viewport().height);
         // The tree is over sub-pixels; the picture is drawn at pixel size.

@@ -50,10 +50,12 @@ pub struct EstimatorOptions {
     pub angle_scale: f32,
     /// The brightest rays count at most this many times the mean of the rest.
     pub firefly_ratio: f32,
-    /// Estimates per pixel along each axis (1, 2 or 4): rays are clustered by
-    /// depth on this finer grid, so that at a silhouette the surfaces in
-    /// front and behind each keep their part of the pixel (pixels are then
-    /// the mean of their sub-pixels).
+    /// Estimates per pixel along each axis (1, 2 or 4; 0 picks by frame
+    /// size: 2 up to 512 x 512 pixels, 1 above, so that a frame holds at
+    /// most about a million estimates): rays are clustered by depth on this
+    /// finer grid, so that at a silhouette the surfaces in front and behind
+    /// each keep their part of the pixel (pixels are then the mean of their
+    /// sub-pixels).
     pub subpixels: u32,
 }
 
@@ -61,9 +63,9 @@ impl Default for EstimatorOptions {
     fn default() -> Self {
         EstimatorOptions {
             depth_tolerance: 0.02,
-            angle_scale: 0.1,
+            angle_scale: 1f32.to_radians(),
             firefly_ratio: 10.0,
-            subpixels: 2,
+            subpixels: 0,
         }
     }
 }
@@ -142,14 +144,6 @@ impl Sums {
         self.weight += o.weight;
         self.lsq += o.lsq;
         self.count += o.count;
-    }
-
-    fn scale(&mut self, f: f32) {
-        for s in self.sum.iter_mut() {
-            *s *= f;
-        }
-        self.weight *= f;
-        self.lsq *= f;
     }
 
     /// Mean luminance and the variance of the rays' luminance.
@@ -398,16 +392,6 @@ impl Estimate {
         b.moments().map(|m| m.1.sqrt())
     }
 
-    /// Scales every weight by `f` (reprojection: the rays were weighed for
-    /// another eye).
-    pub fn scale_weight(&mut self, f: f32) {
-        self.fresh.scale(f);
-        self.history.scale(f);
-        for t in self.tops.iter_mut() {
-            t.weight *= f;
-        }
-    }
-
     /// Moves the surface to mean depth `depth` (reprojection into another
     /// view), keeping the depth range's proportions.
     pub fn move_to_depth(&mut self, depth: f32) {
@@ -568,9 +552,7 @@ mod tests {
         let mut e = Estimate::of_ray([1.0; 3], 3.0, 1.0, C);
         e.add_ray([5.0; 3], 1.0, 1.0, C);
         assert!(close(e.mean(), [2.0; 3], 1e-6));
-        e.scale_weight(0.5);
-        assert!(close(e.mean(), [2.0; 3], 1e-6));
-        assert!((e.weight() - 2.0).abs() < 1e-6);
+        assert!((e.weight() - 4.0).abs() < 1e-6);
     }
 
     #[test]

@@ -127,6 +127,8 @@ pub struct Store<I> {
     grid: Viewport,
     projector: Projector,
     options: EstimatorOptions,
+    /// Sub-pixels follow the frame size (see [`EstimatorOptions::subpixels`]).
+    auto_subpixels: bool,
     index: I,
     entries: Vec<Entry>,
     /// Estimates that a view change moved off the frame: kept (up to
@@ -139,12 +141,27 @@ pub struct Store<I> {
     pending: Vec<Pending>,
     projected: Vec<Projected>,
     spare: Vec<Pending>,
+    /// Per-frame buffers, kept so that drawing allocates nothing.
+    frame: FrameScratch,
+}
+
+/// What [`Store::update_colors`] works in: kept between frames.
+#[derive(Clone, Debug, Default)]
+struct FrameScratch {
+    /// The value of each estimate, by slot.
+    colors: Vec<Vec3>,
+    /// Per estimate: its pixel, and its body's luminance sum and weight.
+    bodies: Vec<(u32, f32, f32)>,
+    /// Per pixel: luminance sum and weight, then their 3 x 3 box sums.
+    sums: Vec<[f32; 2]>,
+    across: Vec<[f32; 2]>,
 }
 
 impl<I: PixelIndex + Sync> Store<I> {
     /// An empty store; `park` keeps estimates a view change moves off-frame.
     pub fn new(viewport: Viewport, mut index: I, park: bool, mut options: EstimatorOptions) -> Store<I> {
-        options.subpixels = options.subpixels.clamp(1, 4).next_power_of_two();
+        let auto_subpixels = options.subpixels == 0;
+        options.subpixels = subpixels_for(&viewport, options.subpixels);
         let grid = sub_grid(&viewport, options.subpixels);
         index.reset(grid.width, grid.height);
         Store {
@@ -152,6 +169,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             grid,
             viewport,
             options,
+            auto_subpixels,
             index,
             entries: Vec::new(),
             parked: Vec::new(),
@@ -160,6 +178,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             pending: Vec::new(),
             projected: Vec::new(),
             spare: Vec::new(),
+            frame: FrameScratch::default(),
         }
     }
 
@@ -210,6 +229,9 @@ impl<I: PixelIndex + Sync> Store<I> {
             + (self.pending.capacity() + self.spare.capacity()) * std::mem::size_of::<Pending>()
             + self.projected.capacity() * std::mem::size_of::<Projected>()
             + self.index.heap_bytes()
+            + self.frame.colors.capacity() * std::mem::size_of::<Vec3>()
+            + self.frame.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
+            + (self.frame.sums.capacity() + self.frame.across.capacity()) * std::mem::size_of::<[f32; 2]>()
     }
 
     /// Adds rays: the body of [`crate::Driver::add`].
@@ -318,11 +340,11 @@ impl<I: PixelIndex + Sync> Store<I> {
         self.grid.width as usize * self.grid.height as usize
     }
 
-    /// How many off-frame estimates to remember (if parking at all): about
-    /// a frame's worth.
+    /// How many off-frame estimates to remember (if parking at all): one
+    /// per pixel of the frame.
     pub fn park_limit(&self) -> usize {
         if self.park {
-            self.pixel_count().max(MIN_PARKED)
+            (self.viewport.width as usize * self.viewport.height as usize).max(MIN_PARKED)
         } else {
             0
         }
@@ -334,10 +356,10 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// reprojected for (the current one), so a long motion in small steps
     /// keeps them, as a continuous drag in the paper's drivers does.
     /// Estimates that meet on one pixel merge by the depth rule; those that
-    /// leave the frame are parked. The rays were weighed for the old eye:
-    /// each estimate's weight is scaled by the weight of the angle between
-    /// the old and the new eye seen from it, so that new rays, traced near
-    /// the new eye, soon count for more on glossy surfaces.
+    /// leave the frame are parked. Their rays become history, which the new
+    /// view's rays overrule where they disagree (a surface that looks
+    /// different from the new eye), so they are not weighed down for the move:
+    /// on a diffuse surface they are as good as new.
     pub fn set_view(&mut self, viewport: Viewport) {
         if viewport == self.viewport {
             return;
@@ -347,6 +369,9 @@ impl<I: PixelIndex + Sync> Store<I> {
             viewport.view.direction.normalize_or_zero(),
         );
         let turn = a.cross(b).length().atan2(a.dot(b)).to_degrees();
+        if self.auto_subpixels {
+            self.options.subpixels = subpixels_for(&viewport, 0);
+        }
         let grid = sub_grid(&viewport, self.options.subpixels);
         let old = std::mem::replace(&mut self.projector, Projector::new(&grid));
         // Visible estimates first, so the most recently seen are parked
@@ -389,15 +414,15 @@ impl<I: PixelIndex + Sync> Store<I> {
             }
             return;
         }
-        self.insert_aggregates(moving, &old);
+        self.insert_aggregates(moving);
     }
 
-    /// Reprojects estimates (made for the view of `old`) into the current view.
-    fn insert_aggregates(&mut self, mut moving: Vec<Aggregate>, old: &Projector) {
+    /// Reprojects estimates into the current view.
+    fn insert_aggregates(&mut self, mut moving: Vec<Aggregate>) {
         let eye = self.viewport.view.position;
-        let (projector, index, options) = (&self.projector, &self.index, &self.options);
-        // Each estimate's new key (u64::MAX: off the frame), reweighed and
-        // moved to its new depth.
+        let (projector, index) = (&self.projector, &self.index);
+        // Each estimate's new key (u64::MAX: off the frame), moved to its
+        // new place in the pixel and its new depth.
         let place = |a: &mut Aggregate| -> u64 {
             let target = if a.escaped { eye + a.point * 1e9 } else { a.point };
             let Some((col, row, at, depth)) = projector.locate(target) else {
@@ -405,8 +430,6 @@ impl<I: PixelIndex + Sync> Store<I> {
             };
             a.estimate.move_to(at);
             if !a.escaped {
-                let cos = old.look_at(a.point).dot(projector.look_at(a.point));
-                a.estimate.scale_weight(options.weight(cos));
                 a.estimate.move_to_depth(depth as f32);
             }
             index.key(col, row)
@@ -477,46 +500,64 @@ impl<I: PixelIndex + Sync> Store<I> {
         *l.select_nth_unstable_by(mid, f32::total_cmp).1
     }
 
-    /// Each pixel's neighborhood luminance: the mean over the 3 x 3 pixels
-    /// around it of the rays in the estimates' sums (the brightest apart),
-    /// what a pixel's brightest rays are judged against beside its own
-    /// mean. Estimates of few rays (sub-pixels, early frames) are judged too.
-    fn neighborhood_luminance(&self) -> Vec<f32> {
+    /// Each pixel's neighborhood luminance, into `frame.sums` (as [mean,
+    /// weight]): the mean over the 3 x 3 pixels around it of the rays in
+    /// the estimates' bodies (the brightest apart), what a pixel's brightest
+    /// rays are judged against beside its own mean. Estimates of few rays
+    /// (sub-pixels, early frames) are judged too.
+    fn neighborhood_luminance(&mut self) {
         let (w, h) = (self.viewport.width as usize, self.viewport.height as usize);
-        let sub = self.options.subpixels;
-        let mut lum = vec![0.0f32; w * h];
-        let mut weight = vec![0.0f32; w * h];
-        for e in &self.entries {
-            let (col, row) = self.index.pixel(e.key);
-            let at = (row / sub) as usize * w + (col / sub) as usize;
-            let (sum, wt) = e.estimate.body_sums();
-            lum[at] += luminance(sum);
-            weight[at] += wt;
+        let (sub, index) = (self.options.subpixels, &self.index);
+        let f = &mut self.frame;
+        f.sums.clear();
+        if w == 0 || h == 0 {
+            return;
         }
-        // Separable 3 x 3 box sums of both.
-        let blur = |v: &[f32]| -> Vec<f32> {
-            let mut across = vec![0.0f32; w * h];
-            for row in 0..h {
-                for col in 0..w {
-                    let (a, b) = (col.saturating_sub(1), (col + 1).min(w - 1));
-                    across[row * w + col] = v[row * w + a..=row * w + b].iter().sum();
-                }
-            }
-            let mut out = vec![0.0f32; w * h];
-            for row in 0..h {
-                for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
-                    for col in 0..w {
-                        out[row * w + col] += across[r * w + col];
-                    }
-                }
-            }
-            out
+        let body = |e: &Entry| {
+            let (col, row) = index.pixel(e.key);
+            let (sum, wt) = e.estimate.body_sums();
+            ((row / sub) * w as u32 + col / sub, luminance(sum), wt)
         };
-        let (lum, weight) = (blur(&lum), blur(&weight));
-        lum.iter()
-            .zip(&weight)
-            .map(|(l, w)| if *w > 0.0 { l / w } else { 0.0 })
-            .collect()
+        f.bodies.clear();
+        if self.entries.len() >= PARALLEL_MIN {
+            f.bodies.par_extend(self.entries.par_iter().map(body));
+        } else {
+            f.bodies.extend(self.entries.iter().map(body));
+        }
+        f.sums.resize(w * h, [0.0; 2]);
+        for &(at, l, wt) in &f.bodies {
+            let s = &mut f.sums[at as usize];
+            s[0] += l;
+            s[1] += wt;
+        }
+        // Separable 3 x 3 box sums, rows in parallel.
+        f.across.clear();
+        f.across.resize(w * h, [0.0; 2]);
+        let sums = &f.sums;
+        f.across.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
+            let line = &sums[row * w..(row + 1) * w];
+            for (col, o) in out.iter_mut().enumerate() {
+                for s in &line[col.saturating_sub(1)..=(col + 1).min(w - 1)] {
+                    o[0] += s[0];
+                    o[1] += s[1];
+                }
+            }
+        });
+        let across = &f.across;
+        f.sums.par_chunks_mut(w).enumerate().for_each(|(row, out)| {
+            for o in out.iter_mut() {
+                *o = [0.0; 2];
+            }
+            for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
+                for (o, s) in out.iter_mut().zip(&across[r * w..(r + 1) * w]) {
+                    o[0] += s[0];
+                    o[1] += s[1];
+                }
+            }
+            for o in out.iter_mut() {
+                o[0] = if o[1] > 0.0 { o[0] / o[1] } else { 0.0 };
+            }
+        });
     }
 
     /// How many more rays each pixel wants for `density` rays per pixel on
@@ -563,33 +604,63 @@ impl<I: PixelIndex + Sync> Store<I> {
             .collect()
     }
 
-    /// The value of every estimate, by slot, with fireflies cut; counts the
-    /// estimates whose brightest ray was cut.
-    pub fn colors(&mut self) -> Vec<Vec3> {
+    /// Computes the value of every estimate (see [`Store::colors`]), with
+    /// fireflies cut; counts the estimates whose brightest ray was cut.
+    pub fn update_colors(&mut self) {
         let ratio = self.options.firefly_ratio;
-        if !ratio.is_finite() {
-            self.stats.fireflies = 0;
-            return self
-                .entries
-                .iter()
-                .map(|e| Vec3::from_array(e.estimate.mean()))
-                .collect();
+        let mut colors = std::mem::take(&mut self.frame.colors);
+        colors.clear();
+        colors.resize(self.entries.len(), Vec3::ZERO);
+        let reference: Option<f32> = ratio.is_finite().then(|| self.typical_luminance());
+        if reference.is_some() {
+            self.neighborhood_luminance();
         }
-        let floor = self.typical_luminance();
-        let near = self.neighborhood_luminance();
-        let (w, sub, index) = (self.viewport.width, self.options.subpixels, &self.index);
-        let value = |e: &Entry| {
-            let (col, row) = index.pixel(e.key);
-            let local = near[((row / sub) * w + col / sub) as usize];
-            e.estimate.value(ratio, local.max(floor))
+        let (near, bodies) = (&self.frame.sums, &self.frame.bodies);
+        // The pixel of each estimate was found with its body.
+        let value = |((c, e), i): ((&mut Vec3, &Entry), usize)| -> u64 {
+            let (v, cut) = match reference {
+                Some(floor) => e.estimate.value(ratio, near[bodies[i].0 as usize][0].max(floor)),
+                None => e.estimate.value(f32::INFINITY, 0.0),
+            };
+            *c = Vec3::from_array(v);
+            u64::from(cut)
         };
-        let values: Vec<([f32; 3], bool)> = if self.entries.len() >= PARALLEL_MIN {
-            self.entries.par_iter().map(value).collect()
+        self.stats.fireflies = if self.entries.len() >= PARALLEL_MIN {
+            colors
+                .par_iter_mut()
+                .zip(self.entries.par_iter())
+                .zip(0..self.entries.len())
+                .map(value)
+                .sum()
         } else {
-            self.entries.iter().map(value).collect()
+            colors.iter_mut().zip(self.entries.iter()).zip(0..).map(value).sum()
         };
-        self.stats.fireflies = values.iter().filter(|v| v.1).count() as u64;
-        values.into_iter().map(|v| Vec3::from_array(v.0)).collect()
+        self.frame.colors = colors;
+    }
+
+    /// The values [`Store::update_colors`] computed last, by slot.
+    pub fn colors(&self) -> &[Vec3] {
+        &self.frame.colors
+    }
+}
+
+/// Estimates a frame may hold with automatic sub-pixels (about 100 MB).
+const AUTO_ESTIMATES: u64 = 1 << 20;
+
+/// Sub-pixels per pixel along each axis: `asked` (1, 2 or 4), or for 0
+/// two when the frame then stays within [`AUTO_ESTIMATES`], else one. Four
+/// is never chosen alone: with a sixteenth of a pixel's rays each, a
+/// sub-pixel near a silhouette may get only rays hidden from the eye (from
+/// origins far from it) and show what is behind.
+fn subpixels_for(viewport: &Viewport, asked: u32) -> u32 {
+    if asked > 0 {
+        return asked.clamp(1, 4).next_power_of_two();
+    }
+    let pixels = u64::from(viewport.width) * u64::from(viewport.height);
+    if pixels * 4 <= AUTO_ESTIMATES {
+        2
+    } else {
+        1
     }
 }
 

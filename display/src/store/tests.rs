@@ -296,3 +296,27 @@ fn reprojection_keeps_the_estimates() {
         "{err_before} -> {err_after} (one ray a pixel: {err_one})"
     );
 }
+
+#[test]
+fn sub_pixels_follow_the_frame_size_unless_asked() {
+    let store = |w: u32, h: u32, asked: u32| {
+        Store::new(
+            viewport(EYE_VIEW, w, h),
+            crate::quadtree::Tree::default(),
+            true,
+            EstimatorOptions {
+                subpixels: asked,
+                ..EstimatorOptions::default()
+            },
+        )
+        .subpixels()
+    };
+    assert_eq!((store(128, 96, 0), store(512, 512, 0), store(1024, 768, 0)), (2, 2, 1));
+    assert_eq!((store(1024, 768, 4), store(16, 16, 1), store(16, 16, 3)), (4, 1, 4));
+    // A view change to a larger frame drops to one sub-pixel a pixel.
+    let mut d = QuadtreeDriver::new(viewport(EYE_VIEW, 64, 48));
+    d.add(&random_plane_samples(&View::parse(EYE_VIEW).unwrap(), 1000, 1));
+    d.set_view(viewport(EYE_VIEW, 1024, 768));
+    assert_eq!(d.store().subpixels(), 1);
+    assert_eq!(d.stats().kept, d.store().entries().len() as u64);
+}

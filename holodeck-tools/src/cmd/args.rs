@@ -63,7 +63,8 @@ pub struct EstimatorArgs {
     /// (fireflies); 0 turns the cut off.
     #[arg(long, default_value_t = EstimatorOptions::default().firefly_ratio)]
     pub firefly_ratio: f32,
-    /// Estimates per pixel along each axis (1, 2 or 4): finer keeps silhouettes exact.
+    /// Estimates per pixel along each axis (1, 2 or 4; 0: 2 up to 512 x 512 pixels, else 1):
+    /// finer keeps silhouettes sharper, given enough rays per pixel.
     #[arg(long, default_value_t = EstimatorOptions::default().subpixels)]
     pub subpixels: u32,
 }
@@ -81,8 +82,11 @@ impl EstimatorArgs {
         let tolerance = finite(self.depth_tolerance, "depth-tolerance")?;
         let angle = finite(self.angle_scale, "angle-scale")?;
         let ratio = finite(self.firefly_ratio, "firefly-ratio")?;
-        if ![1, 2, 4].contains(&self.subpixels) {
-            bail!("--subpixels must be 1, 2 or 4, not {}", self.subpixels);
+        if ![0, 1, 2, 4].contains(&self.subpixels) {
+            bail!(
+                "--subpixels must be 0 (by frame size), 1, 2 or 4, not {}",
+                self.subpixels
+            );
         }
         Ok(EstimatorOptions {
             depth_tolerance: tolerance,

@@ -242,14 +242,23 @@ impl AccuracyBench {
             };
             for r in 0..self.repeats {
                 let seed = 1 + u64::from(r);
+                let keep = |p: &Picture, what: &str| -> Result<()> {
+                    if self.keep && r == 0 {
+                        write_hdr(p, &self.dir.join(format!("one-view-{paths}-{what}.hdr")))?;
+                    }
+                    Ok(())
+                };
                 let (p, secs, n) = self.direct(tracer, &self.view, paths, seed);
                 add(&mut d, truth.error(&p)?);
+                keep(&p, "direct")?;
                 (dt, traced) = (dt + secs, n);
                 let (p, secs) = self.holodeck(tracer, &self.view, paths, seed)?;
                 add(&mut f, truth.error(&p)?);
+                keep(&p, "fill")?;
                 ft += secs;
                 let (p, secs, rays) = self.session(tracer, &self.view, paths, seed)?;
                 add(&mut h, truth.error(&p)?);
+                keep(&p, "session")?;
                 (ht, session_rays) = (ht + secs, session_rays + rays);
             }
             let n = f64::from(self.repeats.max(1));
