@@ -13,6 +13,9 @@ use crate::driver::Viewport;
 #[derive(Clone, Debug)]
 pub struct Projector {
     view: ViewProjector,
+    /// The angle one pixel spans at the frame's center, radians (for a
+    /// parallel view: its width in world units).
+    pixel_angle: f64,
     /// Eye and direction, for the direction an eye looks at a point along.
     eye: DVec3,
     direction: DVec3,
@@ -25,7 +28,15 @@ pub struct Projector {
 impl Projector {
     /// Precomputes the constants of `viewport`.
     pub fn new(viewport: &Viewport) -> Projector {
+        let v = &viewport.view;
+        let across = match v.kind {
+            ViewType::Perspective => 2.0 * (v.horizontal.to_radians() / 2.0).tan(),
+            ViewType::Angular => v.horizontal.to_radians(),
+            ViewType::Hemispherical => 2.0 * (v.horizontal.to_radians() / 2.0).sin(),
+            ViewType::Parallel => v.horizontal,
+        };
         Projector {
+            pixel_angle: across / f64::from(viewport.width.max(1)),
             view: viewport.view.projector(),
             eye: viewport.view.position,
             direction: viewport.view.direction.normalize(),
@@ -71,6 +82,18 @@ impl Projector {
             self.direction
         } else {
             (p - self.eye) / depth
+        }
+    }
+
+    /// The angle a pixel spans seen from a point at `depth`: what a ray must
+    /// pass the eye within for its hit point to be trusted to the pixel
+    /// (a hidden point shows at most that far from the edge hiding it).
+    #[inline]
+    pub fn pixel_angle(&self, depth: f64) -> f64 {
+        if self.parallel {
+            self.pixel_angle / depth.max(1e-300)
+        } else {
+            self.pixel_angle
         }
     }
 

@@ -65,6 +65,19 @@ impl PixelIndex for Grid {
     fn heap_bytes(&self) -> usize {
         self.slots.capacity() * std::mem::size_of::<u32>()
     }
+
+    #[inline]
+    fn block(&self, key: u64, shift: u32) -> usize {
+        let w = u64::from(self.width.max(1));
+        let (col, row) = (key % w, key / w);
+        ((row >> shift) * (w >> shift).max(1) + (col >> shift)) as usize
+    }
+
+    fn blocks(&self, shift: u32) -> usize {
+        let w = self.width.max(1) as usize;
+        let h = self.slots.len() / w;
+        (w >> shift).max(1) * (h >> shift).max(1)
+    }
 }
 
 /// The point-splat baseline driver: each pixel shows the estimate of the

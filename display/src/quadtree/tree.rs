@@ -129,6 +129,15 @@ impl PixelIndex for Tree {
     fn heap_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<Node>()
     }
+
+    #[inline]
+    fn block(&self, key: u64, shift: u32) -> usize {
+        (key >> (2 * shift)) as usize
+    }
+
+    fn blocks(&self, shift: u32) -> usize {
+        1 << (2 * self.levels.saturating_sub(shift))
+    }
 }
 
 #[cfg(test)]

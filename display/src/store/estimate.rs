@@ -51,11 +51,14 @@ pub struct EstimatorOptions {
     /// The brightest rays count at most this many times the mean of the rest.
     pub firefly_ratio: f32,
     /// Estimates per pixel along each axis (1, 2 or 4; 0 picks by frame
-    /// size: 2 up to 512 x 512 pixels, 1 above, so that a frame holds at
-    /// most about a million estimates): rays are clustered by depth on this
+    /// size: 4 up to 256 x 256 pixels, 2 up to 512 x 512, 1 above, so that
+    /// a frame holds at most about a million estimates): rays that passed
+    /// within a sub-pixel's angle of the eye are clustered by depth on this
     /// finer grid, so that at a silhouette the surfaces in front and behind
     /// each keep their part of the pixel (pixels are then the mean of their
-    /// sub-pixels).
+    /// sub-pixels). Rays from farther may hit points the eye does not see
+    /// beside an edge, so they must also not be behind their pixel's
+    /// nearest surface.
     pub subpixels: u32,
 }
 

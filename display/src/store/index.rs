@@ -30,4 +30,11 @@ pub trait PixelIndex {
     fn fill(&mut self, at: usize, slot: u32);
     /// Heap bytes the index holds.
     fn heap_bytes(&self) -> usize;
+    /// A number for the block of `2^shift` x `2^shift` cells (a pixel of
+    /// sub-pixels) that holds the cell of `key`: below [`PixelIndex::blocks`],
+    /// and in the same order as the keys, so that a sorted batch visits its
+    /// blocks in order.
+    fn block(&self, key: u64, shift: u32) -> usize;
+    /// How many block numbers there are for `shift`.
+    fn blocks(&self, shift: u32) -> usize;
 }

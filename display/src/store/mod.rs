@@ -93,6 +93,8 @@ struct Aggregate {
 struct Pending {
     key: u64,
     color: [f32; 3],
+    /// The ray's weight; negative when it passed too far from the eye for
+    /// its hit point to be trusted to its sub-pixel (see [`Store::add`]).
     weight: f32,
     depth: f32,
     /// Where in the pixel, in 65536ths.
@@ -100,6 +102,11 @@ struct Pending {
 }
 
 impl Pending {
+    #[inline]
+    fn trusted(&self) -> bool {
+        self.weight > 0.0
+    }
+
     #[inline]
     fn at(&self) -> [f32; 2] {
         [
@@ -143,6 +150,9 @@ pub struct Store<I> {
     spare: Vec<Pending>,
     /// Per-frame buffers, kept so that drawing allocates nothing.
     frame: FrameScratch,
+    /// The nearest depth of any estimate or ray in each pixel, by the
+    /// index's block numbers ([`PixelIndex::block`]).
+    near: Vec<f32>,
 }
 
 /// What [`Store::update_colors`] works in: kept between frames.
@@ -164,6 +174,7 @@ impl<I: PixelIndex + Sync> Store<I> {
         options.subpixels = subpixels_for(&viewport, options.subpixels);
         let grid = sub_grid(&viewport, options.subpixels);
         index.reset(grid.width, grid.height);
+        let near = vec![f32::INFINITY; index.blocks(options.subpixels.trailing_zeros())];
         Store {
             projector: Projector::new(&grid),
             grid,
@@ -179,6 +190,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             projected: Vec::new(),
             spare: Vec::new(),
             frame: FrameScratch::default(),
+            near,
         }
     }
 
@@ -232,6 +244,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             + self.frame.colors.capacity() * std::mem::size_of::<Vec3>()
             + self.frame.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
             + (self.frame.sums.capacity() + self.frame.across.capacity()) * std::mem::size_of::<[f32; 2]>()
+            + self.near.capacity() * std::mem::size_of::<f32>()
     }
 
     /// Adds rays: the body of [`crate::Driver::add`].
@@ -255,7 +268,14 @@ impl<I: PixelIndex + Sync> Store<I> {
                 return Projected::Off;
             };
             let (weight, depth) = match s.hit {
-                Some(h) => (options.weight(s.direction.dot(projector.look(h, depth))), depth as f32),
+                Some(h) => {
+                    let cos = s.direction.dot(projector.look(h, depth));
+                    let w = options.weight(cos);
+                    // 2 (1 - cos θ) is θ², as in the weight.
+                    let angle = projector.pixel_angle(depth);
+                    let trusted = 2.0 * (1.0 - cos.clamp(-1.0, 1.0)) <= angle * angle;
+                    (if trusted { w } else { -w }, depth as f32)
+                }
                 // Parallel rays see the same point of the sky from anywhere.
                 None => (1.0, f32::INFINITY),
             };
@@ -288,10 +308,27 @@ impl<I: PixelIndex + Sync> Store<I> {
             radix_sort(&mut pending, &mut self.spare, self.index.key_bits(), |p| p.key);
         }
         self.entries.reserve(pending.len().min(self.pixel_count()));
+        // With sub-pixels, a ray that passed far from the eye may hit a point
+        // the eye does not see though no ray of its own sub-pixel shows what
+        // hides it: it must not be behind the nearest surface of its whole
+        // pixel. The batch's own rays count first.
+        let sub = self.options.subpixels;
+        let shift = sub.trailing_zeros();
+        if sub > 1 {
+            for p in &pending {
+                let at = self.index.block(p.key, shift);
+                self.near[at] = self.near[at].min(p.depth);
+            }
+        }
+        let tolerance = 1.0 + self.options.depth_tolerance;
         // Rays of one pixel are adjacent after the sort: after the first, the
         // rest go straight to its slot instead of down the index again.
         let mut last: Option<(u64, u32)> = None;
         for p in &pending {
+            if sub > 1 && !p.trusted() && p.depth > self.near[self.index.block(p.key, shift)] * tolerance {
+                self.stats.discarded += 1;
+                continue;
+            }
             let slot = match last {
                 Some((key, slot)) if key == p.key => {
                     self.offer(slot, p);
@@ -302,7 +339,7 @@ impl<I: PixelIndex + Sync> Store<I> {
                         let slot = self.entries.len() as u32;
                         self.entries.push(Entry {
                             key: p.key,
-                            estimate: Estimate::of_ray(p.color, p.weight, p.depth, p.at()),
+                            estimate: Estimate::of_ray(p.color, p.weight.abs(), p.depth, p.at()),
                         });
                         self.index.fill(at, slot);
                         slot
@@ -324,14 +361,25 @@ impl<I: PixelIndex + Sync> Store<I> {
         let e = &mut self.entries[slot as usize].estimate;
         match e.fit(p.depth, p.depth, self.options.depth_tolerance) {
             Fit::Joins => {
-                e.add_ray(p.color, p.weight, p.depth, p.at());
+                e.add_ray(p.color, p.weight.abs(), p.depth, p.at());
                 self.stats.merged += 1;
             }
             Fit::Nearer => {
-                *e = Estimate::of_ray(p.color, p.weight, p.depth, p.at());
+                *e = Estimate::of_ray(p.color, p.weight.abs(), p.depth, p.at());
                 self.stats.replaced += 1;
             }
             Fit::Behind => self.stats.discarded += 1,
+        }
+    }
+
+    /// Rebuilds the nearest depth of every pixel from the estimates.
+    fn rebuild_near(&mut self) {
+        let shift = self.options.subpixels.trailing_zeros();
+        self.near.clear();
+        self.near.resize(self.index.blocks(shift), f32::INFINITY);
+        for e in &self.entries {
+            let at = self.index.block(e.key, shift);
+            self.near[at] = self.near[at].min(e.estimate.depth_range().0);
         }
     }
 
@@ -412,9 +460,10 @@ impl<I: PixelIndex + Sync> Store<I> {
             if !moving.is_empty() {
                 self.stats.cache_drops += 1;
             }
-            return;
+        } else {
+            self.insert_aggregates(moving);
         }
-        self.insert_aggregates(moving);
+        self.rebuild_near();
     }
 
     /// Reprojects estimates into the current view.
@@ -479,6 +528,7 @@ impl<I: PixelIndex + Sync> Store<I> {
         self.entries.clear();
         self.parked.clear();
         self.index.reset(self.grid.width, self.grid.height);
+        self.rebuild_near();
     }
 
     /// The typical luminance of the frame: the median of the estimates'
@@ -647,21 +697,17 @@ impl<I: PixelIndex + Sync> Store<I> {
 /// Estimates a frame may hold with automatic sub-pixels (about 100 MB).
 const AUTO_ESTIMATES: u64 = 1 << 20;
 
-/// Sub-pixels per pixel along each axis: `asked` (1, 2 or 4), or for 0
-/// two when the frame then stays within [`AUTO_ESTIMATES`], else one. Four
-/// is never chosen alone: with a sixteenth of a pixel's rays each, a
-/// sub-pixel near a silhouette may get only rays hidden from the eye (from
-/// origins far from it) and show what is behind.
+/// Sub-pixels per pixel along each axis: `asked` (1, 2 or 4), or for 0 the
+/// most of 4, 2 and 1 that keep the frame within [`AUTO_ESTIMATES`].
 fn subpixels_for(viewport: &Viewport, asked: u32) -> u32 {
     if asked > 0 {
         return asked.clamp(1, 4).next_power_of_two();
     }
     let pixels = u64::from(viewport.width) * u64::from(viewport.height);
-    if pixels * 4 <= AUTO_ESTIMATES {
-        2
-    } else {
-        1
-    }
+    [4u32, 2]
+        .into_iter()
+        .find(|&s| pixels * u64::from(s * s) <= AUTO_ESTIMATES)
+        .unwrap_or(1)
 }
 
 /// `viewport` with `s` x `s` sub-pixels per pixel.

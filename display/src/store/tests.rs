@@ -68,7 +68,11 @@ fn one_lucky_ray_does_not_paint_a_white_pixel() {
         .map(|i| grid_sample(4, 4, 1.2 + 0.006 * f64::from(i), 2.5, 5.0, 0.0, [0.4, 0.5, 0.6]))
         .collect();
     rays.insert(37, grid_sample(4, 4, 1.5, 2.5, 5.0, 0.0, [1e5; 3]));
-    let mut d = SplatDriver::new(vp.clone());
+    let one = EstimatorOptions {
+        subpixels: 1,
+        ..EstimatorOptions::default()
+    };
+    let mut d = SplatDriver::with_options(vp.clone(), one);
     d.add(&rays);
     let pic = d.render();
     let v = pic.pixels[2 * 4 + 1];
@@ -81,7 +85,7 @@ fn one_lucky_ray_does_not_paint_a_white_pixel() {
         vp,
         EstimatorOptions {
             firefly_ratio: f32::INFINITY,
-            ..EstimatorOptions::default()
+            ..one
         },
     );
     plain.add(&rays);
@@ -264,7 +268,7 @@ fn memory_stays_bounded_for_a_hundred_million_rays() {
     assert_eq!(d.heap_bytes(), after_one, "memory grew with the rays");
     // Estimates, index and one batch's scratch: a few megabytes.
     assert!(after_one < 48 << 20, "{after_one} bytes");
-    assert!(st.kept <= 64 * 48 * 4);
+    assert!(st.kept <= 64 * 48 * 16);
     // All of it counted in the estimates (one plane: no ray is behind another).
     let rays: u64 = d.store().entries().iter().map(|e| u64::from(e.estimate.count())).sum();
     assert_eq!((st.replaced, st.discarded), (0, 0));
@@ -311,7 +315,7 @@ fn sub_pixels_follow_the_frame_size_unless_asked() {
         )
         .subpixels()
     };
-    assert_eq!((store(128, 96, 0), store(512, 512, 0), store(1024, 768, 0)), (2, 2, 1));
+    assert_eq!((store(128, 96, 0), store(512, 512, 0), store(1024, 768, 0)), (4, 2, 1));
     assert_eq!((store(1024, 768, 4), store(16, 16, 1), store(16, 16, 3)), (4, 1, 4));
     // A view change to a larger frame drops to one sub-pixel a pixel.
     let mut d = QuadtreeDriver::new(viewport(EYE_VIEW, 64, 48));

@@ -63,8 +63,8 @@ pub struct EstimatorArgs {
     /// (fireflies); 0 turns the cut off.
     #[arg(long, default_value_t = EstimatorOptions::default().firefly_ratio)]
     pub firefly_ratio: f32,
-    /// Estimates per pixel along each axis (1, 2 or 4; 0: 2 up to 512 x 512 pixels, else 1):
-    /// finer keeps silhouettes sharper, given enough rays per pixel.
+    /// Estimates per pixel along each axis (1, 2 or 4; 0: 4 up to 256 x 256 pixels, 2 up to
+    /// 512 x 512, else 1): finer keeps silhouettes sharper.
     #[arg(long, default_value_t = EstimatorOptions::default().subpixels)]
     pub subpixels: u32,
 }
