@@ -101,7 +101,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     println!("| measurement | result | baseline (same run) | ratio |");
     println!("|---|---|---|---|");
     for batch in [10_000, s.len()] {
-        let (q_add, q_frame, kept, multidepth) = time_driver("quadtree", &viewport, &s, batch)?;
+        let (q_add, q_frame, kept, behind) = time_driver("quadtree", &viewport, &s, batch)?;
         let (s_add, s_frame, _, _) = time_driver("splat", &viewport, &s, batch)?;
         let what = format!(
             "insert {} samples in batches of {}",
@@ -116,9 +116,9 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
         );
         row(
             &format!(
-                "quadtree: frame at 1024x768 after that ({} kept, {} multidepth)",
+                "quadtree: frame at 1024x768 after that ({} pixel estimates, {} rays behind a nearer surface)",
                 count(kept),
-                count(multidepth)
+                count(behind)
             ),
             format!("{q_frame:.1} ms"),
             format!("point splatting {s_frame:.1} ms"),
