@@ -97,16 +97,6 @@ impl Projector {
         }
     }
 
-    /// [`Projector::look`] for a point whose depth is not at hand.
-    #[inline]
-    pub fn look_at(&self, p: DVec3) -> DVec3 {
-        if self.parallel {
-            self.direction
-        } else {
-            (p - self.eye).normalize_or_zero()
-        }
-    }
-
     /// The ray through point `at` (0..1 across, down) of pixel (`col`,
     /// `row`): origin and unit direction, or `None` outside a fisheye's
     /// circle. A point at depth `d` (as [`Projector::pixel`] measures it)

@@ -385,16 +385,6 @@ impl Estimate {
         (b.weight, luminance(b.sum), b.lsq, b.count + self.top_count())
     }
 
-    /// The standard deviation of the luminance of the rays in the body
-    /// (how much this pixel's rays disagree), `None` before there are two.
-    pub fn spread(&self) -> Option<f32> {
-        let b = self.body();
-        if b.count < 2 {
-            return None;
-        }
-        b.moments().map(|m| m.1.sqrt())
-    }
-
     /// Moves the surface to mean depth `depth` (reprojection into another
     /// view), keeping the depth range's proportions.
     pub fn move_to_depth(&mut self, depth: f32) {
