@@ -114,8 +114,48 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("holodeck: error: {e:#}");
+            eprintln!("holodeck: error: {}", describe(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// An error and its causes on one line, each said once: many errors already
+/// name their cause in their own message, so a cause whose text is already
+/// there is not repeated.
+fn describe(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::describe;
+
+    #[test]
+    fn causes_already_in_a_message_are_said_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+        let storage = holodeck_server::StorageError::Io {
+            path: "room.hdk".into(),
+            op: "opening",
+            source: io,
+        };
+        let e = anyhow::Error::new(storage).context("cannot check room.hdk");
+        assert_eq!(
+            describe(&e),
+            "cannot check room.hdk: room.hdk: opening: No such file or directory"
+        );
+        let plain = anyhow::anyhow!("inner").context("outer");
+        assert_eq!(describe(&plain), "outer: inner");
     }
 }

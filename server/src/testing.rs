@@ -73,3 +73,85 @@ pub fn assert_pattern_contents(path: &std::path::Path, expected: &std::collectio
     assert!(report.corrupt.is_empty());
     assert_eq!(seen, keys.len());
 }
+
+/// One copy of a piece of metadata in a file, for tests that damage files.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MetaBlock {
+    /// What it is ("prefix copy 1", "root copy 2", ...).
+    pub what: String,
+    /// Where it lies.
+    pub extent: crate::storage::format::Extent,
+    /// For a directory block: (section, first beam, beams) it describes.
+    pub beams: Option<(u32, u32, u32)>,
+}
+
+/// Every copy of every piece of metadata of the newest commit of the
+/// (undamaged) file at `path`: both header copies' prefix, slots and settings
+/// text, and both copies of the root and of every directory block. Panics on
+/// a damaged file: for tests.
+pub fn metadata_map(path: &std::path::Path) -> Vec<MetaBlock> {
+    use crate::storage::format::{self, Extent};
+    let bytes = std::fs::read(path).expect("read the file");
+    let text_len = format::decode_prefix(&bytes, 0).expect("prefix").text_len;
+    let text_at = format::text_offset(text_len, 0) as usize;
+    let text = format::decode_text(&bytes[text_at..text_at + text_len as usize + 4], text_at as u64).expect("text");
+    let settings = Settings::from_text(&text).expect("settings");
+    let beams: Vec<u32> = settings.sections.iter().map(|s| s.beam_count()).collect();
+    let mut out = Vec::new();
+    let mut push = |what: String, offset: u64, len: u64, beams: Option<(u32, u32, u32)>| {
+        out.push(MetaBlock {
+            what,
+            extent: Extent { offset, len },
+            beams,
+        })
+    };
+    let mut newest: Option<format::Slot> = None;
+    for copy in 0..2 {
+        let span = format::header_span(text_len) * copy as u64;
+        push(format!("prefix copy {}", copy + 1), span, format::PREFIX_LEN, None);
+        for side in 0..2 {
+            let at = format::slot_offset(text_len, copy, side);
+            push(format!("slot {side} copy {}", copy + 1), at, format::SLOT_LEN, None);
+            let slot = format::decode_slot(&bytes[at as usize..at as usize + 64], at).expect("slot");
+            if let Some(s) = slot {
+                if newest.is_none_or(|n| s.generation > n.generation) {
+                    newest = Some(s);
+                }
+            }
+        }
+        push(
+            format!("settings text copy {}", copy + 1),
+            format::text_offset(text_len, copy),
+            u64::from(text_len) + 4,
+            None,
+        );
+    }
+    let slot = newest.expect("a commit");
+    let root = slot.root_copies()[0];
+    let chunks = format::decode_root(
+        &bytes[root.offset as usize..root.end() as usize],
+        root.offset,
+        slot.generation,
+        &beams,
+    )
+    .expect("root");
+    for (copy, e) in slot.root_copies().iter().enumerate() {
+        push(format!("root copy {}", copy + 1), e.offset, e.len, None);
+    }
+    for c in &chunks {
+        for (copy, e) in c.extents().iter().enumerate() {
+            push(
+                format!(
+                    "directory of section {} beams {}.. copy {}",
+                    c.section,
+                    c.first,
+                    copy + 1
+                ),
+                e.offset,
+                e.len,
+                Some((c.section, c.first, c.beams)),
+            );
+        }
+    }
+    out
+}

@@ -26,6 +26,7 @@ fn writable(cache: u64) -> OpenOptions {
         writable: true,
         cache_bytes: Some(cache),
         flush_interval: None,
+        accept_loss: false,
     }
 }
 
@@ -136,6 +137,10 @@ fn flip_byte(path: &Path, at: u64) {
     f.write_all_at(&[b[0] ^ 0x5a], at).unwrap();
 }
 
+fn text_len() -> u32 {
+    settings().to_text().len() as u32
+}
+
 #[test]
 fn a_torn_last_commit_falls_back_to_the_previous_one() {
     let dir = tempfile::tempdir().unwrap();
@@ -144,14 +149,27 @@ fn a_torn_last_commit_falls_back_to_the_previous_one() {
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
     f.append(a, &rays(a, 0, 4)).unwrap();
     f.flush().unwrap();
+    // Copy 2 of the slot the next commit goes to, as it is before that commit.
+    let side = 1 - f.open_info().slot;
+    let copy2 = format::slot_offset(text_len(), 1, side);
+    let old = fs::read(&path).unwrap()[copy2 as usize..copy2 as usize + 64].to_vec();
     f.append(b, &rays(b, 0, 6)).unwrap();
     f.flush().unwrap();
-    let newest_slot = f.open_info().slot;
+    assert_eq!(f.open_info().slot, side);
     f.close().unwrap();
-    // Tear the newest slot, as a crash during its write would.
-    flip_byte(&path, format::SLOT_OFFSETS[newest_slot] + 20);
+    // A crash tearing copy 1 of the new slot leaves copy 2 as it was.
+    let file = fs::OpenOptions::new().write(true).open(&path).unwrap();
+    file.write_all_at(&old, copy2).unwrap();
+    drop(file);
+    flip_byte(&path, format::slot_offset(text_len(), 0, side) + 20);
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
-    assert_eq!(f.open_info().skipped.len(), 1, "{:?}", f.open_info());
+    let info = f.open_info();
+    assert!(
+        info.damage.is_none(),
+        "a torn commit loses nothing that completed: {info:?}"
+    );
+    assert_eq!(info.repaired.len(), 1, "{info:?}");
+    assert!(info.repaired[0].contains("cut short by a crash"), "{info:?}");
     assert_eq!(f.read_beam(a).unwrap().len(), 4);
     assert_eq!(f.beam_len(b).unwrap(), 0);
     // Writing goes on from the surviving commit, and the next commit wins.
@@ -161,11 +179,52 @@ fn a_torn_last_commit_falls_back_to_the_previous_one() {
     expected.insert(a, 4);
     expected.insert(b, 2);
     assert_contents(&path, &expected);
-    assert!(HoloFile::open(&path, &OpenOptions::read_only())
+    let f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    assert!(f.open_info().skipped.is_empty(), "{:?}", f.open_info());
+    assert!(f.open_info().repaired.is_empty(), "{:?}", f.open_info());
+}
+
+#[test]
+fn a_damaged_slot_copy_is_not_taken_for_a_torn_commit() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let (a, b) = (BeamKey::new(0, 1), BeamKey::new(0, 2));
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    f.append(a, &rays(a, 0, 4)).unwrap();
+    f.flush().unwrap();
+    f.append(b, &rays(b, 0, 6)).unwrap();
+    f.close().unwrap();
+    let side = HoloFile::open(&path, &OpenOptions::read_only())
         .unwrap()
         .open_info()
-        .skipped
-        .is_empty());
+        .slot;
+    let mut expected = std::collections::HashMap::new();
+    expected.insert(a, 4);
+    expected.insert(b, 6);
+    // One copy of the newest slot damaged: its twin holds the commit, nothing is lost.
+    flip_byte(&path, format::slot_offset(text_len(), 0, side) + 20);
+    let f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    assert!(f.open_info().skipped.is_empty(), "{:?}", f.open_info());
+    assert_eq!(f.open_info().repaired.len(), 1, "{:?}", f.open_info());
+    drop(f);
+    assert_contents(&path, &expected);
+    // Both copies damaged: the newest commit may be lost, so writing is refused.
+    flip_byte(&path, format::slot_offset(text_len(), 1, side) + 20);
+    let e = HoloFile::open(&path, &writable(1 << 20)).err().unwrap();
+    assert!(matches!(&e, StorageError::Damaged { .. }), "{e}");
+    assert!(e.to_string().contains("both copies of commit slot"), "{e}");
+    let report = storage::check(&path, |_, _| {}).unwrap();
+    assert!(report.loses_rays());
+    // The older commit still holds beam a, and only it.
+    assert_eq!(report.rays_ok, 4);
+    let accepted = OpenOptions {
+        accept_loss: true,
+        ..writable(1 << 20)
+    };
+    HoloFile::open(&path, &accepted).unwrap().close().unwrap();
+    expected.insert(b, 0);
+    assert_contents(&path, &expected);
+    assert!(storage::check(&path, |_, _| {}).unwrap().is_clean());
 }
 
 #[test]
@@ -230,8 +289,8 @@ fn damaged_files_give_errors_that_say_what_and_where() {
         f.close().unwrap();
     }
     let good = fs::read(&path).unwrap();
+    let p = dir.path().join("bad.hdk");
     let open = |bytes: &[u8]| {
-        let p = dir.path().join("bad.hdk");
         fs::write(&p, bytes).unwrap();
         HoloFile::open(&p, &OpenOptions::read_only())
             .err()
@@ -243,87 +302,94 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     assert!(open(&good[..40]).contains("truncated"));
     assert!(open(&good[..300]).contains("truncated"), "{}", open(&good[..300]));
     let mut future = good.clone();
-    future[8] = 2;
-    assert!(open(&future).contains("version 2 is newer"));
-    let mut text = good.clone();
-    text[format::TEXT_OFFSET as usize + 5] ^= 1;
-    assert!(open(&text).contains("settings text"));
-    // Cut off the end: the newest commit's root is gone, the one before is intact.
-    let cut = dir.path().join("cut.hdk");
-    fs::write(&cut, &good[..good.len() - 30]).unwrap();
-    let f = HoloFile::open(&cut, &OpenOptions::read_only()).unwrap();
+    future[8] = 3;
+    assert!(open(&future).contains("version 3 is newer"));
+    // One copy of the settings text damaged: the other is read, and reported.
+    let text = format::text_offset(text_len(), 0) as usize + 5;
+    let mut one = good.clone();
+    one[text] ^= 1;
+    assert_eq!(open(&one), "");
+    let f = HoloFile::open(&p, &OpenOptions::read_only()).unwrap();
     assert!(
-        f.open_info().skipped.iter().any(|p| p.contains("truncated")),
+        f.open_info().repaired[0].contains("settings text copy 1"),
         "{:?}",
         f.open_info()
     );
-    assert_eq!(f.summary().rays(), 0);
     drop(f);
+    let mut both = one.clone();
+    both[format::text_offset(text_len(), 1) as usize + 5] ^= 1;
+    assert!(open(&both).contains("settings text"), "{}", open(&both));
+    // A writable open restores the damaged copy from the other.
+    fs::write(&p, &one).unwrap();
+    HoloFile::open(&p, &writable(1 << 20)).unwrap().close().unwrap();
+    assert!(storage::check(&p, |_, _| {}).unwrap().is_clean());
     // A directory whose checksum is fine but which points outside the file.
     let lying = dir.path().join("lying.hdk");
     fs::write(&lying, &good).unwrap();
     point_a_beam_outside_the_file(&lying);
-    let e = HoloFile::open(&lying, &OpenOptions::read_only())
-        .err()
-        .unwrap()
-        .to_string();
+    let f = HoloFile::open(&lying, &OpenOptions::read_only()).unwrap();
+    let damage = f.open_info().damage.clone().expect("the newest commit is damaged");
+    assert_eq!((damage.claimed_rays, damage.readable_rays), (Some(100), 0));
     assert!(
-        e.contains("beam 3 says its 100 rays lie at byte") && e.contains("outside the data area"),
-        "{e}"
+        damage.describe().contains("1 beams (100 rays) lie past the end"),
+        "{}",
+        damage.describe()
     );
-    // Zero both slots.
+    drop(f);
+    let e = HoloFile::open(&lying, &writable(1 << 20)).err().unwrap();
+    assert!(matches!(e, StorageError::Damaged { .. }), "{e}");
+    // Zero every slot.
     let mut noslots = good.clone();
-    noslots[64..192].fill(0);
+    for copy in 0..2 {
+        let at = format::slot_offset(text_len(), copy, 0) as usize;
+        noslots[at..at + 128].fill(0);
+    }
     assert!(open(&noslots).contains("neither commit slot"));
 }
 
 /// Rewrites the newest commit so that beam 3 of section 0 points past the end
-/// of the file, with every checksum valid, and makes the other slot unusable.
+/// of the file, with every checksum valid, and blanks the other slot.
 fn point_a_beam_outside_the_file(path: &Path) {
     let f = fs::OpenOptions::new().read(true).write(true).open(path).unwrap();
     let len = f.metadata().unwrap().len();
-    let slots: Vec<_> = format::SLOT_OFFSETS
-        .iter()
-        .map(|&at| {
-            let mut b = [0u8; 64];
-            f.read_exact_at(&mut b, at).unwrap();
-            format::decode_slot(&b, at).unwrap()
+    let n = text_len();
+    let read = |at: u64, len: u64| {
+        let mut b = vec![0u8; len as usize];
+        f.read_exact_at(&mut b, at).unwrap();
+        b
+    };
+    let (side, slot) = (0..2)
+        .filter_map(|side| {
+            let at = format::slot_offset(n, 0, side);
+            format::decode_slot(&read(at, 64), at).unwrap().map(|s| (side, s))
         })
-        .collect();
-    let (newest, slot) = slots
-        .iter()
-        .enumerate()
-        .filter_map(|(i, s)| s.map(|s| (i, s)))
         .max_by_key(|(_, s)| s.generation)
         .unwrap();
-    let mut root = vec![0u8; slot.root.len as usize];
-    f.read_exact_at(&mut root, slot.root.offset).unwrap();
-    let mut refs = format::decode_root(&root, slot.root.offset, slot.generation, 2).unwrap();
-    let mut block = vec![0u8; refs[0].block.len as usize];
-    f.read_exact_at(&mut block, refs[0].block.offset).unwrap();
-    let beams = settings().sections[0].beam_count();
-    let mut dir = format::decode_directory(&block, refs[0].block.offset, 0, beams, 0, u64::MAX).unwrap();
+    let beams: Vec<u32> = settings().sections.iter().map(|s| s.beam_count()).collect();
+    let root_at = slot.roots[0];
+    let mut chunks = format::decode_root(&read(root_at, slot.root_len), root_at, slot.generation, &beams).unwrap();
+    let c = chunks[0];
+    let mut dir = format::decode_directory(&read(c.copies[0], c.len), c.copies[0], 0, 0, c.beams, 0).unwrap();
     dir[3].offset = len + 4096;
-    let block = format::encode_directory(0, &dir);
-    refs[0].block = format::Extent {
-        offset: len,
-        len: block.len() as u64,
-    };
+    let block = format::encode_directory(0, 0, &dir);
+    chunks[0].copies = [len, len];
+    chunks[0].len = block.len() as u64;
     f.write_all_at(&block, len).unwrap();
-    let root = format::encode_root(slot.generation, &refs);
+    let root = format::encode_root(slot.generation, &chunks);
     let root_at = len + block.len() as u64;
     f.write_all_at(&root, root_at).unwrap();
     let new_slot = format::Slot {
-        root: format::Extent {
-            offset: root_at,
-            len: root.len() as u64,
-        },
+        roots: [root_at, root_at],
+        root_len: root.len() as u64,
         root_crc: crc32c(&root),
         ..slot
     };
-    f.write_all_at(&format::encode_slot(&new_slot), format::SLOT_OFFSETS[newest])
-        .unwrap();
-    f.write_all_at(&[0xffu8; 64], format::SLOT_OFFSETS[1 - newest]).unwrap();
+    for copy in 0..2 {
+        f.write_all_at(&format::encode_slot(&new_slot), format::slot_offset(n, copy, side))
+            .unwrap();
+        f.write_all_at(&[0u8; 64], format::slot_offset(n, copy, 1 - side))
+            .unwrap();
+    }
 }
 
 fn crc32c(bytes: &[u8]) -> u32 {
@@ -367,8 +433,10 @@ fn optimize_collates_beams_and_removes_fragments() {
     let after = f.summary();
     assert_eq!((after.free_bytes, after.fragments), (0, 0));
     assert!(r.bytes_after < r.bytes_before);
-    // Nothing but header, rays and one compact directory: one byte per empty
-    // beam, at most seven per filled one, and the root.
+    // Nothing but the two header copies, rays and two copies of one compact
+    // directory per section (one chunk each here): one byte per empty beam,
+    // six per filled one, 20 bytes of framing and the first run's absolute
+    // offset per block; and two copies of the root (20 + 44 per chunk + 4).
     let header = format::data_start(settings().to_text().len() as u32);
     assert_eq!(after.file_bytes, header + after.ray_bytes + after.metadata_bytes);
     let (beams, filled): (u64, u64) = after
@@ -377,7 +445,7 @@ fn optimize_collates_beams_and_removes_fragments() {
         .map(|s| (u64::from(s.0), u64::from(s.1)))
         .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     assert!(
-        after.metadata_bytes <= beams + 6 * filled + 2 * 16 + 80,
+        after.metadata_bytes <= 2 * (beams + 6 * filled + 2 * (20 + 8)) + 2 * format::root_len(2),
         "{} metadata bytes",
         after.metadata_bytes
     );
@@ -484,6 +552,7 @@ fn flush_if_due_makes_rays_durable_after_a_quiet_spell() {
             writable: true,
             cache_bytes: Some(1 << 20),
             flush_interval: hour,
+            accept_loss: false,
         },
     )
     .unwrap();

@@ -40,6 +40,7 @@ fn child_writer() {
         writable: true,
         cache_bytes: Some(6 << 10),
         flush_interval: None,
+        accept_loss: false,
     };
     let mut f = HoloFile::open(path, &options).unwrap();
     let sections: Vec<u32> = f.sections().iter().map(|s| s.beam_count()).collect();

@@ -1,18 +1,26 @@
-//! `holodeck check`: verify every checksum; `--repair` salvages into a new file.
+//! `holodeck check`: verify every copy of the metadata and every beam's
+//! checksum, and say what is damaged, what it costs and what `--repair`
+//! saves; `--repair` salvages into a new file.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Result;
-use holodeck_server::storage;
+use anyhow::{Context, Result};
+use holodeck_server::storage::{self, CheckReport, StorageError};
 
 use crate::human::count;
 
 /// Arguments of `holodeck check`.
 #[derive(clap::Args)]
 #[command(after_help = "\
-Exit status: 0 when every beam verifies (or --repair salvaged what did), 1 on errors,
-2 when damage was found and not repaired.
+Every piece of a holodeck file's metadata is stored twice, so most damage costs
+nothing; check still reports it, and any writing command (or --repair) rewrites
+the damaged copy. When the newest commit cannot be read in full, check says what
+is lost and what --repair can save, and writing commands refuse the file unless
+given --accept-loss.
+
+Exit status: 0 when everything verifies (or --repair salvaged what did), 1 when the
+file cannot be read at all (missing, unreadable, in use), 2 when damage was found.
 
 Examples:
   holodeck check room.hdk
@@ -25,21 +33,27 @@ pub struct Args {
     repair: Option<PathBuf>,
 }
 
+/// True for errors that say the file holds no readable holodeck (damage),
+/// rather than that it could not be read at all.
+fn is_damage(e: &StorageError) -> bool {
+    matches!(
+        e,
+        StorageError::Format { .. } | StorageError::Settings { .. } | StorageError::NoValidCommit { .. }
+    )
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    let name = a.file.display().to_string();
     if let Some(dest) = &a.repair {
-        let r = storage::repair(&a.file, dest)?;
+        let r = storage::repair(&a.file, dest).with_context(|| format!("salvaging {name}"))?;
+        print_findings(&name, &r.check);
         println!(
-            "salvaged {} beams ({} rays) into {}; {} beams lost{}",
+            "salvaged {} beams ({} rays) into {}; {} beams fail their checksum and were left behind",
             count(r.beams),
             count(r.rays),
             dest.display(),
             count(r.beams_lost),
-            if r.sections_lost.is_empty() {
-                String::new()
-            } else {
-                format!("; sections with no readable directory: {:?}", r.sections_lost)
-            }
         );
         return Ok(ExitCode::SUCCESS);
     }
@@ -51,17 +65,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     bar.finish_and_clear();
     let report = match report {
         Ok(r) => r,
-        Err(e) => {
-            println!("{}: damaged: {e}", a.file.display());
+        Err(e) if is_damage(&e) => {
+            println!("{name}: damaged, nothing can be read: {e}");
             return Ok(ExitCode::from(2));
         }
+        Err(e) => return Err(anyhow::Error::new(e).context(format!("cannot check {name}"))),
     };
-    for s in &report.skipped {
-        println!("note: passed over a damaged newer commit: {s}");
-    }
+    print_findings(&name, &report);
     println!(
-        "{}: commit {}, {} beams and {} rays verified",
-        a.file.display(),
+        "{name}: commit {}, {} beams and {} rays verified",
         report.generation,
         count(report.beams_ok),
         count(report.rays_ok)
@@ -70,16 +82,40 @@ pub fn run(a: Args) -> Result<ExitCode> {
         println!("all checksums verify");
         return Ok(ExitCode::SUCCESS);
     }
-    println!("{} beams fail their checksum:", count(report.corrupt.len() as u64));
-    for k in report.corrupt.iter().take(20) {
-        println!("  section {} beam {}", k.section, k.beam);
+    if report.loses_rays() {
+        println!(
+            "`holodeck check {name} --repair NEW_FILE` saves those {} beams ({} rays): every beam whose rays verify",
+            count(report.beams_ok),
+            count(report.rays_ok)
+        );
+    } else {
+        println!("nothing is lost: the next write to the file (or --repair) rewrites the damaged copies");
     }
-    if report.corrupt.len() > 20 {
-        println!("  ...");
-    }
-    println!(
-        "run `holodeck check {} --repair NEW_FILE` to salvage the rest",
-        a.file.display()
-    );
     Ok(ExitCode::from(2))
+}
+
+/// Prints what is damaged, most serious first.
+fn print_findings(name: &str, r: &CheckReport) {
+    if let Some(d) = &r.damage {
+        println!("{name}: DAMAGED: {}", d.describe());
+    }
+    if !r.corrupt.is_empty() {
+        println!(
+            "{} beams ({} rays) fail their checksum:",
+            count(r.corrupt.len() as u64),
+            count(r.corrupt_rays)
+        );
+        for k in r.corrupt.iter().take(20) {
+            println!("  section {} beam {}", k.section, k.beam);
+        }
+        if r.corrupt.len() > 20 {
+            println!("  ...");
+        }
+    }
+    for s in &r.repaired {
+        println!("damaged copy (its twin verifies, nothing lost): {s}");
+    }
+    for s in &r.skipped {
+        println!("note: {s}");
+    }
 }

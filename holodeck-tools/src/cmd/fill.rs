@@ -8,7 +8,7 @@ use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
 use holodeck_server::settings::{parse_duration, Settings};
-use holodeck_server::{HoloFile, OpenOptions};
+use holodeck_server::{HoloFile, OpenOptions, StorageError};
 
 use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::{bytes, count, parse_count};
@@ -59,12 +59,18 @@ pub struct Args {
     /// most, as a fraction of the section diagonal (0: anywhere in the beam).
     #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views")]
     eye_radius: f64,
+    /// Write on top of a file whose newest commit is damaged, keeping what can
+    /// still be read and losing the rest for good (see `holodeck check`).
+    #[arg(long)]
+    accept_loss: bool,
 }
 
 /// Loads a scene and opens its holodeck file for writing, creating the file
 /// from the scene's sections if it does not exist; refuses a file made for
-/// another scene.
-pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>) -> Result<(Scene, HoloFile)> {
+/// another scene, and one whose newest commit is damaged unless `accept_loss`.
+/// Of two processes creating the same file at once, one creates it and the
+/// other opens it (or is told it is in use).
+pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>, accept_loss: bool) -> Result<(Scene, HoloFile)> {
     let scene = super::render::load(scene_spec, triangles)?;
     let hash = content_hash(&scene);
     if !path.exists() {
@@ -76,9 +82,17 @@ pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>) -> Result<
             scene: Some(hash.clone()),
             ..Settings::default()
         };
-        HoloFile::create(path, &settings)?;
+        match HoloFile::create(path, &settings) {
+            // Another process created it first: open what it made.
+            Ok(()) | Err(StorageError::Exists { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
     }
-    let file = HoloFile::open(path, &OpenOptions::default())?;
+    let options = OpenOptions {
+        accept_loss,
+        ..OpenOptions::default()
+    };
+    let file = HoloFile::open(path, &options)?;
     match &file.settings().scene {
         Some(h) if *h != hash => bail!(
             "{} holds rays of another scene ({h}); this scene is {hash}. Use a new file.",
@@ -116,7 +130,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|t| parse_duration(t, 1.0))
         .transpose()
         .map_err(anyhow::Error::msg)?;
-    let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles)?;
+    let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles, a.accept_loss)?;
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,

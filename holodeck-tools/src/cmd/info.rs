@@ -11,7 +11,12 @@ use crate::human::{bytes, count};
 
 /// Arguments of `holodeck info`.
 #[derive(clap::Args)]
-#[command(after_help = "Example:\n  holodeck info room.hdk")]
+#[command(after_help = "\
+Shows what can be read. Exit status: 0, or 2 when the newest commit is damaged
+(then it also says what is lost; `holodeck check` tells more).
+
+Example:
+  holodeck info room.hdk")]
 pub struct Args {
     /// The holodeck file.
     file: PathBuf,
@@ -22,8 +27,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let f = HoloFile::open(&a.file, &OpenOptions::read_only())?;
     let s = f.summary();
     println!("{}: holodeck, commit {}", a.file.display(), s.generation);
-    for skipped in &f.open_info().skipped {
-        println!("  note: passed over a damaged newer commit: {skipped}");
+    let info = f.open_info();
+    if let Some(d) = &info.damage {
+        println!("  DAMAGED: {}", d.describe().replace('\n', "\n  "));
+    }
+    for r in &info.repaired {
+        println!("  note: damaged copy (its twin verifies, nothing lost): {r}");
+    }
+    for skipped in &info.skipped {
+        println!("  note: {skipped}");
     }
     for (i, (section, (beams, filled, rays))) in f.sections().iter().zip(&s.sections).enumerate() {
         let g = section.grid();
@@ -40,12 +52,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
             *rays as f64 / f64::from((*filled).max(1))
         );
     }
-    println!(
-        "file: {}, {} rays, {:.3} bytes per ray",
-        bytes(s.file_bytes),
-        count(s.rays()),
-        s.bytes_per_ray()
-    );
+    if s.rays() == 0 {
+        println!("file: {}, no rays", bytes(s.file_bytes));
+    } else {
+        println!(
+            "file: {}, {} rays, {:.3} bytes per ray",
+            bytes(s.file_bytes),
+            count(s.rays()),
+            s.bytes_per_ray()
+        );
+    }
     println!(
         "space: {} rays, {} directories, {} free in {} fragments ({:.1}% of the file)",
         bytes(s.ray_bytes),
@@ -69,5 +85,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         st.report,
         st.scene.as_ref().map(|h| format!(" SCENE={h}")).unwrap_or_default()
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(if info.damage.is_some() {
+        ExitCode::from(2)
+    } else {
+        ExitCode::SUCCESS
+    })
 }

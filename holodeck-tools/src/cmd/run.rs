@@ -63,6 +63,10 @@ pub struct Args {
     /// Path samples averaged per ray (less noise per ray, fewer rays).
     #[arg(long, default_value_t = 1)]
     samples: u32,
+    /// Write on top of a file whose newest commit is damaged, keeping what can
+    /// still be read and losing the rest for good (see `holodeck check`).
+    #[arg(long)]
+    accept_loss: bool,
 }
 
 fn me() -> Result<Command> {
@@ -136,7 +140,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map_err(anyhow::Error::msg)
         .context("--time")?;
     let (before, default_view) = {
-        let (_, file) = super::fill::prepare(&a.scene, &a.file, None)?;
+        let (_, file) = super::fill::prepare(&a.scene, &a.file, None, a.accept_loss)?;
         let view = if a.scene == "builtin:room" {
             super::render::ROOM_VIEW.to_string()
         } else {
@@ -163,6 +167,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_string();
     let mut server = me()?
         .args(["serve", &file, "--listen", "127.0.0.1:0"])
+        .args(a.accept_loss.then_some("--accept-loss"))
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()

@@ -68,6 +68,10 @@ pub struct Args {
     /// Print progress this often (e.g. 1m); default: the file's REPORT setting (0: never).
     #[arg(long)]
     report: Option<String>,
+    /// Write on top of a file whose newest commit is damaged, keeping what can
+    /// still be read and losing the rest for good (see `holodeck check`).
+    #[arg(long)]
+    accept_loss: bool,
 }
 
 fn token_path(file: &Path) -> PathBuf {
@@ -111,6 +115,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         &a.file,
         &OpenOptions {
             cache_bytes,
+            accept_loss: a.accept_loss,
             ..OpenOptions::default()
         },
     )?;

@@ -1,8 +1,10 @@
-//! Writing a complete holodeck file front to back: header, beam runs in the
-//! order given, directories, root, one commit. Used to create files and by the
-//! optimizer and the repair tool. The file is built under a temporary name and
-//! renamed into place only when complete and synced, so a crash never leaves a
-//! half-written file under the real name.
+//! Writing a complete holodeck file front to back: both header copies, beam
+//! runs in the order given, directories, root, one commit. Used to create files
+//! and by the optimizer and the repair tool. The file is built under a
+//! temporary name of its own and put in place only when complete and synced,
+//! so a crash never leaves a half-written file under the real name. A new file
+//! is linked into place, which fails if the name exists: of two processes
+//! creating the same file at once, exactly one wins.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -11,8 +13,9 @@ use std::path::{Path, PathBuf};
 use holodeck_protocol::{BeamKey, RayRecord};
 
 use super::error::{Result, StorageError};
-use super::format::{self, BeamEntry, DirRef, Extent, Slot, SLOT_OFFSETS};
+use super::format::{self, BeamEntry, ChunkRef, Slot, COPIES};
 use super::io;
+use super::store::chunks_of;
 use crate::settings::Settings;
 
 /// Builds a holodeck file sequentially.
@@ -22,19 +25,36 @@ pub struct SequentialWriter {
     dest: PathBuf,
     pos: u64,
     dirs: Vec<Vec<BeamEntry>>,
+    sections: Vec<holodeck_protocol::Section>,
+    text_len: u32,
+    replace: bool,
     finished: bool,
 }
 
-/// The temporary name a file is built under: beside the destination.
+/// A temporary name to build a file under: beside the destination, and of
+/// this process and call alone, so that two builders never share one.
 pub fn temp_path(dest: &Path, purpose: &str) -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let mut name = dest.file_name().unwrap_or_default().to_os_string();
-    name.push(format!(".{purpose}.tmp"));
+    name.push(format!(".{purpose}.{}.{n}.tmp", std::process::id()));
     dest.with_file_name(name)
 }
 
 impl SequentialWriter {
-    /// Starts a file that will appear at `dest` on [`SequentialWriter::finish`].
+    /// Starts a new file that will appear at `dest` on
+    /// [`SequentialWriter::finish`], which fails with
+    /// [`StorageError::Exists`] if something took the name meanwhile.
     pub fn create(dest: &Path, settings: &Settings) -> Result<SequentialWriter> {
+        Self::start(dest, settings, false)
+    }
+
+    /// Starts a file that replaces `dest` atomically on [`SequentialWriter::finish`].
+    pub fn replacing(dest: &Path, settings: &Settings) -> Result<SequentialWriter> {
+        Self::start(dest, settings, true)
+    }
+
+    fn start(dest: &Path, settings: &Settings, replace: bool) -> Result<SequentialWriter> {
         settings.validate().map_err(|source| StorageError::Settings {
             path: dest.to_path_buf(),
             source,
@@ -55,11 +75,15 @@ impl SequentialWriter {
                 }
             })?;
         let tmp = temp_path(dest, "building");
-        let file = File::create(&tmp).map_err(|source| StorageError::Io {
-            path: tmp.clone(),
-            op: "creating",
-            source,
-        })?;
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(|source| StorageError::Io {
+                path: tmp.clone(),
+                op: "creating",
+                source,
+            })?;
         let mut w = SequentialWriter {
             out: Some(BufWriter::with_capacity(4 << 20, file)),
             tmp,
@@ -70,11 +94,19 @@ impl SequentialWriter {
                 .iter()
                 .map(|s| vec![BeamEntry::default(); s.beam_count() as usize])
                 .collect(),
+            sections: settings.sections.clone(),
+            text_len,
+            replace,
             finished: false,
         };
-        w.write(&format::encode_prefix(text_len))?;
-        w.write(&[0u8; 2 * format::SLOT_LEN as usize])?;
-        w.write(&format::encode_text(&text))?;
+        let span = format::header_span(text_len);
+        for _ in 0..COPIES {
+            let start = w.pos;
+            w.write(&format::encode_prefix(text_len))?;
+            w.write(&[0u8; 2 * format::SLOT_LEN as usize])?;
+            w.write(&format::encode_text(&text))?;
+            w.write(&vec![0u8; (start + span - w.pos) as usize])?;
+        }
         debug_assert_eq!(w.pos, format::data_start(text_len));
         Ok(w)
     }
@@ -126,28 +158,45 @@ impl SequentialWriter {
         Ok(())
     }
 
-    /// Writes directories, root and the first commit, syncs, and renames into place.
+    /// Writes directories, root and the first commit, syncs, and puts the
+    /// file in place.
     pub fn finish(mut self) -> Result<()> {
-        let mut refs = Vec::with_capacity(self.dirs.len());
         let dirs = std::mem::take(&mut self.dirs);
-        for (s, d) in dirs.iter().enumerate() {
-            let bytes = format::encode_directory(s as u32, d);
-            refs.push(DirRef {
-                block: Extent {
-                    offset: self.pos,
-                    len: bytes.len() as u64,
-                },
-                beams: d.len() as u32,
+        let chunks = chunks_of(&self.sections);
+        let mut refs = Vec::with_capacity(chunks.len());
+        // Both copies of every block follow the runs, one after the other: a
+        // collated file keeps its metadata together at the end.
+        let blocks: Vec<Vec<u8>> = chunks
+            .iter()
+            .map(|c| {
+                let d = &dirs[c.section as usize][c.first as usize..(c.first + c.beams) as usize];
+                format::encode_directory(c.section, c.first, d)
+            })
+            .collect();
+        let mut offsets = vec![[0u64; COPIES]; chunks.len()];
+        for copy in 0..COPIES {
+            for (at, bytes) in offsets.iter_mut().zip(&blocks) {
+                at[copy] = self.pos;
+                self.write(bytes)?;
+            }
+        }
+        for ((c, bytes), copies) in chunks.iter().zip(&blocks).zip(offsets) {
+            let d = &dirs[c.section as usize][c.first as usize..(c.first + c.beams) as usize];
+            refs.push(ChunkRef {
+                section: c.section,
+                first: c.first,
+                beams: c.beams,
                 rays: d.iter().map(|e| u64::from(e.count)).sum(),
+                copies,
+                len: bytes.len() as u64,
             });
-            self.write(&bytes)?;
         }
         let root_bytes = format::encode_root(1, &refs);
-        let root = Extent {
-            offset: self.pos,
-            len: root_bytes.len() as u64,
-        };
-        self.write(&root_bytes)?;
+        let mut roots = [0u64; COPIES];
+        for r in roots.iter_mut() {
+            *r = self.pos;
+            self.write(&root_bytes)?;
+        }
         let writer = self.out.take().ok_or_else(|| StorageError::Io {
             path: self.tmp.clone(),
             op: "writing",
@@ -160,17 +209,25 @@ impl SequentialWriter {
         })?;
         let slot = Slot {
             generation: 1,
-            root,
+            roots,
+            root_len: root_bytes.len() as u64,
             root_crc: crc32c::crc32c(&root_bytes),
         };
-        io::write_at(&file, &self.tmp, SLOT_OFFSETS[0], &format::encode_slot(&slot))?;
+        for copy in 0..COPIES {
+            let at = format::slot_offset(self.text_len, copy, 0);
+            io::write_at(&file, &self.tmp, at, &format::encode_slot(&slot))?;
+        }
         file.sync_all().map_err(|source| StorageError::Io {
             path: self.tmp.clone(),
             op: "syncing",
             source,
         })?;
         drop(file);
-        io::durable_rename(&self.tmp, &self.dest)?;
+        if self.replace {
+            io::durable_rename(&self.tmp, &self.dest)?;
+        } else {
+            io::durable_link_new(&self.tmp, &self.dest)?;
+        }
         self.finished = true;
         Ok(())
     }

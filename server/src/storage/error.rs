@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use holodeck_protocol::{BeamKey, SectionError};
 
 use super::format::FormatError;
+use super::survey::CommitDamage;
 use crate::settings::SettingsError;
 
 /// Anything that can go wrong reading or writing a holodeck file.
@@ -47,6 +48,19 @@ pub enum StorageError {
         path: PathBuf,
         /// Why each candidate failed, one per line.
         problems: String,
+    },
+    /// The newest commit is damaged: writing on top of it would make its loss
+    /// permanent, so a writable open refuses unless told to accept the loss.
+    #[error(
+        "{path}: {}\n`holodeck check {}` tells more and `holodeck check --repair NEW_FILE` copies every beam that verifies; \
+         --accept-loss writes on top of what can be read",
+        damage.describe(), path.display()
+    )]
+    Damaged {
+        /// The file.
+        path: PathBuf,
+        /// What is damaged and lost.
+        damage: Box<CommitDamage>,
     },
     /// A beam's records fail their checksum.
     #[error("{path}: beam {} of section {} (bytes {start}..{end}) fails its checksum; `holodeck check --repair` salvages the other beams", key.beam, key.section)]

@@ -145,6 +145,83 @@ impl Extents {
         Some(off)
     }
 
+    /// Like [`Extents::allocate_below`], but the lowest hole that fits rather
+    /// than the smallest: where a second copy of metadata goes, so that it
+    /// tends to lie far from the first and a truncated file keeps it.
+    pub fn allocate_low_below(&mut self, len: u64, limit: u64) -> Option<u64> {
+        if len == 0 {
+            return Some(self.end);
+        }
+        let fits = |off: u64| off.checked_add(len).is_some_and(|end| end <= limit);
+        let hole = self
+            .free
+            .iter()
+            .find(|&(&off, &hole)| hole >= len && fits(off))
+            .map(|(&off, &hole)| (off, hole));
+        if let Some((off, hole)) = hole {
+            self.remove(off, hole);
+            if hole > len {
+                self.free.insert(off + len, hole - len);
+                self.by_size.insert((hole - len, off + len));
+            }
+            return Some(off);
+        }
+        self.allocate_below(len, limit)
+    }
+
+    /// Claims every free byte of `e` (and the end, if `e` passes it): keeps
+    /// bytes that something may still read from being allocated. Returns the
+    /// pieces claimed, for releasing later.
+    pub fn claim_free_within(&mut self, e: Extent) -> Vec<Extent> {
+        let mut claimed = Vec::new();
+        if e.len == 0 {
+            return claimed;
+        }
+        let holes: Vec<(u64, u64)> = self
+            .free
+            .range(..e.end())
+            .filter(|&(&off, &len)| off + len > e.offset)
+            .map(|(&off, &len)| (off, len))
+            .collect();
+        for (off, len) in holes {
+            self.remove(off, len);
+            let (lo, hi) = (off.max(e.offset), (off + len).min(e.end()));
+            if off < lo {
+                self.free.insert(off, lo - off);
+                self.by_size.insert((lo - off, off));
+            }
+            if hi < off + len {
+                self.free.insert(hi, off + len - hi);
+                self.by_size.insert((off + len - hi, hi));
+            }
+            claimed.push(Extent {
+                offset: lo,
+                len: hi - lo,
+            });
+        }
+        if e.end() > self.end {
+            let lo = e.offset.max(self.end);
+            if lo > self.end {
+                self.insert_free_raw(Extent {
+                    offset: self.end,
+                    len: lo - self.end,
+                });
+            }
+            claimed.push(Extent {
+                offset: lo,
+                len: e.end() - lo,
+            });
+            self.end = e.end();
+        }
+        claimed
+    }
+
+    /// Records a hole below the end without coalescing or trimming.
+    fn insert_free_raw(&mut self, e: Extent) {
+        self.free.insert(e.offset, e.len);
+        self.by_size.insert((e.len, e.offset));
+    }
+
     /// Claims exactly `[at, at + len)` if it is free (or at the end): used to
     /// grow a run in place.
     pub fn try_claim(&mut self, at: u64, len: u64) -> bool {
@@ -248,6 +325,26 @@ mod tests {
         assert_eq!(x.allocate_below(10, 15), None, "the hole 10..20 ends past 15");
         assert_eq!(x.allocate_below(10, 20), Some(10));
         assert_eq!(x.allocate_below(0, 0), Some(85), "empty allocations need no room");
+    }
+
+    #[test]
+    fn low_allocations_take_the_first_hole_and_claims_skip_used_bytes() {
+        let mut x = Extents::from_used(0, vec![ext(0, 10), ext(30, 10), ext(45, 10)]).unwrap();
+        // Holes: 10..30 (20 bytes) and 40..45 (5); end 55.
+        assert_eq!(x.allocate_below(5, 100), Some(40), "best fit: the smallest hole");
+        x.release_now(ext(40, 5));
+        assert_eq!(x.allocate_low_below(5, 100), Some(10), "first fit: the lowest hole");
+        assert_eq!(x.allocate_low_below(30, 100), Some(55), "no hole fits: the end");
+        let mut x = Extents::from_used(0, vec![ext(0, 10), ext(30, 10)]).unwrap();
+        let claimed = x.claim_free_within(ext(5, 45));
+        assert_eq!(claimed, vec![ext(10, 20), ext(40, 10)]);
+        assert_eq!(x.end(), 50);
+        assert_eq!(x.free_bytes(), 0);
+        for c in claimed {
+            x.release_now(c);
+        }
+        assert_eq!(x.end(), 40);
+        assert_eq!(x.free_bytes(), 20);
     }
 
     proptest! {

@@ -35,6 +35,11 @@ pub struct OpenOptions {
     pub cache_bytes: Option<u64>,
     /// Flush automatically when this much time has passed since the last flush.
     pub flush_interval: Option<Duration>,
+    /// Open for writing even when the newest commit is damaged, making what
+    /// can still be read the new state (the rest is lost for good). Without
+    /// it, such a file is refused with [`StorageError::Damaged`]. Reading
+    /// never needs it: a read-only open shows what can be read.
+    pub accept_loss: bool,
 }
 
 impl Default for OpenOptions {
@@ -43,6 +48,7 @@ impl Default for OpenOptions {
             writable: true,
             cache_bytes: None,
             flush_interval: Some(DEFAULT_FLUSH_INTERVAL),
+            accept_loss: false,
         }
     }
 }
@@ -127,7 +133,7 @@ impl HoloFile {
     /// Opens an existing file. A file opened for writing is limited to its
     /// DISKSPACE setting, if it has one (see [`HoloFile::set_size_limit`]).
     pub fn open(path: &Path, options: &OpenOptions) -> Result<HoloFile> {
-        let (store, settings) = Store::open(path, options.writable)?;
+        let (store, settings) = Store::open(path, options.writable, options.accept_loss)?;
         let budget = options.cache_bytes.unwrap_or(settings.cache_bytes);
         let limit = (options.writable && settings.diskspace_bytes > 0).then_some(settings.diskspace_bytes);
         let mut file = HoloFile {
@@ -154,22 +160,18 @@ impl HoloFile {
     pub fn set_size_limit(&mut self, limit: Option<u64>) {
         self.store.set_limit(limit);
         self.space = limit.map(|limit| {
-            let beams: Vec<u32> = self.store.dirs.iter().map(|d| d.len() as u32).collect();
-            let mut filled: Vec<u64> = self
-                .store
-                .dirs
-                .iter()
-                .map(|d| d.iter().filter(|e| e.count > 0).count() as u64)
-                .collect();
-            let mut touched: Vec<bool> = (0..beams.len()).map(|s| self.store.section_changed(s)).collect();
+            let fill = self.store.chunk_fill();
+            let beams: Vec<u32> = fill.iter().map(|f| f.0).collect();
+            let mut filled: Vec<u64> = fill.iter().map(|f| f.1).collect();
+            let mut touched: Vec<bool> = (0..beams.len()).map(|c| self.store.chunk_changed(c)).collect();
             let mut writes = 0u64;
             for key in self.cache.dirty_keys() {
-                let s = key.section as usize;
+                let c = self.store.chunk_index(key);
                 let total = self.beam_len(key).unwrap_or(0);
                 if self.entry(key).count == 0 {
-                    filled[s] += 1;
+                    filled[c] += 1;
                 }
-                touched[s] = true;
+                touched[c] = true;
                 writes = writes.saturating_add(self.store.write_growth_bound(key, total));
             }
             SpaceBound::new(limit, self.store.data_end(), writes, beams, filled, touched)
@@ -201,7 +203,7 @@ impl HoloFile {
             0
         };
         let after = self.store.write_growth_bound(key, len + n);
-        Charge::new(key.section as usize, len == 0, after.saturating_sub(before))
+        Charge::new(self.store.chunk_index(key), len == 0, after.saturating_sub(before))
     }
 
     /// Makes sure the file has room for `n` more rays in `key`, flushing first

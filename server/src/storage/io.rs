@@ -117,7 +117,41 @@ pub fn lock(file: &File, path: &Path, exclusive: bool) -> Result<()> {
 /// Renames `from` over `to` and makes the rename durable.
 pub fn durable_rename(from: &Path, to: &Path) -> Result<()> {
     std::fs::rename(from, to).map_err(io_err(to, "renaming into place"))?;
-    let dir = to
+    sync_dir(to);
+    Ok(())
+}
+
+/// Puts the finished file `from` in place at `to`, which must not exist:
+/// hard-links it (which fails if `to` exists, so of two creators exactly one
+/// wins), removes `from`, and makes both durable. Where the file system has no
+/// hard links, falls back to a rename after checking that `to` is free.
+pub fn durable_link_new(from: &Path, to: &Path) -> Result<()> {
+    let linked = std::fs::hard_link(from, to);
+    let result = match linked {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(StorageError::Exists { path: to.to_path_buf() }),
+        Err(e)
+            if matches!(
+                e.raw_os_error(),
+                Some(libc::EPERM) | Some(libc::EOPNOTSUPP) | Some(libc::EXDEV)
+            ) =>
+        {
+            if to.exists() {
+                Err(StorageError::Exists { path: to.to_path_buf() })
+            } else {
+                return durable_rename(from, to);
+            }
+        }
+        Err(e) => Err(io_err(to, "linking into place")(e)),
+    };
+    let _ = std::fs::remove_file(from);
+    result?;
+    sync_dir(to);
+    Ok(())
+}
+
+fn sync_dir(path: &Path) {
+    let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
@@ -125,7 +159,6 @@ pub fn durable_rename(from: &Path, to: &Path) -> Result<()> {
         // Directory fsync is best effort: some filesystems refuse it.
         let _ = d.sync_all();
     }
-    Ok(())
 }
 
 /// Tells the kernel these bytes will be read soon, so it can fetch many runs

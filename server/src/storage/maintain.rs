@@ -9,30 +9,39 @@ use holodeck_protocol::BeamKey;
 
 use super::bulk::SequentialWriter;
 use super::error::{Result, StorageError};
-use super::format::{self, Slot};
 use super::holofile::{HoloFile, OpenOptions};
-use super::io;
-use super::store;
+use super::survey::CommitDamage;
 
 /// Outcome of verifying a file.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct CheckReport {
-    /// Generation of the commit in use.
+    /// Generation of the newest commit.
     pub generation: u64,
-    /// Newer commits passed over, with reasons (a torn last commit shows here).
+    /// Commits a crash interrupted, passed over as it should be.
     pub skipped: Vec<String>,
-    /// Beams whose records verified.
+    /// Damaged copies of metadata whose other copy verified: nothing is lost.
+    pub repaired: Vec<String>,
+    /// Set when the newest commit cannot be read in full.
+    pub damage: Option<CommitDamage>,
+    /// Beams whose records verified: what `repair` saves.
     pub beams_ok: u64,
     /// Rays in those beams.
     pub rays_ok: u64,
     /// Beams that failed their checksum.
     pub corrupt: Vec<BeamKey>,
+    /// Rays the directory gives those beams.
+    pub corrupt_rays: u64,
 }
 
 impl CheckReport {
-    /// True when every beam verified.
+    /// True when nothing is damaged: every copy of the metadata and every beam verified.
     pub fn is_clean(&self) -> bool {
-        self.corrupt.is_empty()
+        self.corrupt.is_empty() && self.damage.is_none() && self.repaired.is_empty()
+    }
+
+    /// True when rays are lost: beams that fail, or a newest commit that cannot be read in full.
+    pub fn loses_rays(&self) -> bool {
+        !self.corrupt.is_empty() || self.damage.is_some()
     }
 }
 
@@ -51,31 +60,54 @@ fn all_keys(file: &HoloFile) -> Vec<BeamKey> {
     keys
 }
 
-/// Verifies header, commits, directories and every beam's checksum. `progress`
-/// receives bytes verified so far and the total.
-pub fn check(path: &Path, mut progress: impl FnMut(u64, u64)) -> Result<CheckReport> {
+/// Verifies every copy of the header and metadata and every beam's checksum.
+/// `progress` receives bytes verified so far and the total.
+pub fn check(path: &Path, progress: impl FnMut(u64, u64)) -> Result<CheckReport> {
+    salvage(path, progress, |_, _| Ok(()))
+}
+
+/// Opens `path` for reading what can be read, and hands every beam that
+/// verifies to `keep`; reports the rest.
+fn salvage(
+    path: &Path,
+    mut progress: impl FnMut(u64, u64),
+    mut keep: impl FnMut(BeamKey, &[holodeck_protocol::RayRecord]) -> Result<()>,
+) -> Result<CheckReport> {
     let mut file = HoloFile::open(path, &OpenOptions::read_only())?;
+    let info = file.open_info().clone();
     let mut report = CheckReport {
-        generation: file.open_info().generation,
-        skipped: file.open_info().skipped.clone(),
+        generation: info.generation,
+        skipped: info.skipped,
+        repaired: info.repaired,
+        damage: info.damage,
         ..CheckReport::default()
     };
     let total = file.summary().ray_bytes;
     let mut done = 0u64;
     let mut keys = all_keys(&file);
+    let mut corrupt = Vec::new();
     file.scan_disk(&mut keys, |r| {
         match r {
-            Ok((_, rays)) => {
+            Ok((key, rays)) => {
                 report.beams_ok += 1;
                 report.rays_ok += rays.len() as u64;
                 done += rays.len() as u64 * 10;
+                keep(key, rays)?;
             }
-            Err(key) => report.corrupt.push(key),
+            Err(key) => corrupt.push(key),
         }
         progress(done, total);
         Ok(())
     })?;
-    report.corrupt.sort();
+    corrupt.sort();
+    report.corrupt_rays = corrupt
+        .iter()
+        .map(|k| {
+            file.directory(k.section)
+                .map_or(0, |d| u64::from(d[k.beam as usize].count))
+        })
+        .sum();
+    report.corrupt = corrupt;
     Ok(report)
 }
 
@@ -86,103 +118,44 @@ pub struct RepairReport {
     pub beams: u64,
     /// Rays copied.
     pub rays: u64,
-    /// Beams left behind because their records or directory failed to verify.
+    /// Beams left behind because their records failed to verify.
     pub beams_lost: u64,
-    /// Sections whose directory could not be read from any commit (their beams are all lost).
-    pub sections_lost: Vec<u32>,
+    /// What the check of the source found.
+    pub check: CheckReport,
 }
 
 /// Copies every beam that verifies from `src` into a new file `dest`, reading
-/// `src` only. Works even when no commit of `src` is fully consistent: each
-/// section's directory is taken from the newest commit where it verifies.
+/// `src` only. Works when the newest commit is damaged: each directory chunk
+/// is read from whichever copy verifies, and a chunk lost in the newest commit
+/// from the commit before, where it verifies there.
 pub fn repair(src: &Path, dest: &Path) -> Result<RepairReport> {
     if dest.exists() {
         return Err(StorageError::Exists {
             path: dest.to_path_buf(),
         });
     }
-    let file = std::fs::File::open(src).map_err(|source| StorageError::Io {
-        path: src.to_path_buf(),
-        op: "opening",
-        source,
-    })?;
-    io::lock(&file, src, false)?;
-    let file_len = io::file_len(&file, src)?;
-    let (settings, data_start) = store::read_header(&file, src, file_len)?;
-    let slots = store::read_slots(&file, src)?.slots;
+    let settings = HoloFile::open(src, &OpenOptions::read_only())?.settings().clone();
     let mut out = SequentialWriter::create(dest, &settings)?;
-    let mut report = RepairReport::default();
-    let mut buf = Vec::new();
-    for (s, section) in settings.sections.iter().enumerate() {
-        let Some(dir) = newest_directory(&file, src, &slots, s, section.beam_count(), data_start, file_len) else {
-            report.sections_lost.push(s as u32);
-            continue;
-        };
-        for (b, e) in dir.iter().enumerate() {
-            if e.count == 0 {
-                continue;
-            }
-            let ok = e.extent().end() <= file_len
-                && io::read_at(&file, src, e.offset, e.extent().len as usize, &mut buf).is_ok()
-                && crc32c::crc32c(&buf) == e.crc;
-            if !ok {
-                report.beams_lost += 1;
-                continue;
-            }
-            let rays = holodeck_protocol::RayRecord::slice_from_bytes(&buf).unwrap_or(&[]);
-            out.push_beam(BeamKey::new(s as u32, b as u32), rays)?;
-            report.beams += 1;
-            report.rays += rays.len() as u64;
-        }
+    let mut beams = Vec::new();
+    let check = salvage(
+        src,
+        |_, _| {},
+        |key, rays| {
+            beams.push((key, rays.to_vec()));
+            Ok(())
+        },
+    )?;
+    beams.sort_by_key(|(k, _)| *k);
+    for (key, rays) in &beams {
+        out.push_beam(*key, rays)?;
     }
     out.finish()?;
-    Ok(report)
-}
-
-fn newest_directory(
-    file: &std::fs::File,
-    path: &Path,
-    slots: &[(usize, Slot)],
-    section: usize,
-    beams: u32,
-    data_start: u64,
-    file_len: u64,
-) -> Option<Vec<format::BeamEntry>> {
-    let mut buf = Vec::new();
-    for (_, slot) in slots {
-        if slot.root.end() > file_len
-            || io::read_at(file, path, slot.root.offset, slot.root.len as usize, &mut buf).is_err()
-        {
-            continue;
-        }
-        let Ok(refs) = format::decode_root(&buf, slot.root.offset, slot.generation, usize::MAX)
-            .or_else(|_| decode_root_any(&buf, slot))
-        else {
-            continue;
-        };
-        let Some(r) = refs.get(section) else { continue };
-        let mut dbuf = Vec::new();
-        if r.block.end() > file_len
-            || r.block.len > format::max_directory_len(beams)
-            || io::read_at(file, path, r.block.offset, r.block.len as usize, &mut dbuf).is_err()
-        {
-            continue;
-        }
-        // Beams outside the file are caught one by one when copying.
-        if let Ok(d) = format::decode_directory(&dbuf, r.block.offset, section as u32, beams, data_start, u64::MAX) {
-            return Some(d);
-        }
-    }
-    None
-}
-
-/// Decodes a root without knowing how many sections it should list.
-fn decode_root_any(bytes: &[u8], slot: &Slot) -> std::result::Result<Vec<format::DirRef>, format::FormatError> {
-    let n = bytes
-        .get(12..16)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
-        .unwrap_or(0);
-    format::decode_root(bytes, slot.root.offset, slot.generation, n)
+    Ok(RepairReport {
+        beams: check.beams_ok,
+        rays: check.rays_ok,
+        beams_lost: check.corrupt.len() as u64,
+        check,
+    })
 }
 
 /// Outcome of optimizing.
@@ -198,18 +171,21 @@ pub struct OptimizeReport {
 
 /// Rewrites the file with beams collated in beam order and no free space, then
 /// atomically replaces the original. Fails, leaving the original untouched, if
-/// any beam fails its checksum or another process holds the file.
+/// the newest commit is damaged, any beam fails its checksum, or another
+/// process holds the file: a damaged file is never replaced by a smaller one.
 pub fn optimize(path: &Path, mut progress: impl FnMut(u64, u64)) -> Result<OptimizeReport> {
-    // Opening writable takes the exclusive lock: no server may be filling it meanwhile.
+    // Opening writable takes the exclusive lock (no server may be filling it
+    // meanwhile) and refuses a damaged newest commit.
     let options = OpenOptions {
         writable: true,
         cache_bytes: Some(0),
         flush_interval: None,
+        accept_loss: false,
     };
     let mut src = HoloFile::open(path, &options)?;
     let summary = src.summary();
     // The writer builds beside the original and renames over it only when complete.
-    let mut out = SequentialWriter::create(path, src.settings())?;
+    let mut out = SequentialWriter::replacing(path, src.settings())?;
     let mut done = 0u64;
     let mut rays_copied = 0u64;
     for s in 0..src.sections().len() as u32 {
@@ -252,6 +228,17 @@ pub fn optimize(path: &Path, mut progress: impl FnMut(u64, u64)) -> Result<Optim
             progress(done, summary.ray_bytes);
             start = end;
         }
+    }
+    if rays_copied != summary.rays() {
+        // Never replace a file with one that holds fewer rays than it claims.
+        return Err(StorageError::Format {
+            path: path.to_path_buf(),
+            source: super::format::FormatError::Invalid {
+                what: "optimized copy".into(),
+                at: 0,
+                detail: format!("{rays_copied} rays copied of the {} the file holds", summary.rays()),
+            },
+        });
     }
     out.finish()?;
     drop(src);

@@ -15,9 +15,11 @@ mod io;
 pub mod maintain;
 mod space;
 pub mod store;
+pub mod survey;
 
 pub use bulk::SequentialWriter;
 pub use error::{Result, StorageError};
 pub use holofile::{FileSummary, HoloFile, OpenOptions, ReadReport, DEFAULT_FLUSH_INTERVAL};
 pub use maintain::{check, optimize, repair, CheckReport, OptimizeReport, RepairReport};
 pub use store::{IoStats, OpenInfo};
+pub use survey::CommitDamage;

@@ -11,19 +11,20 @@
 //!   allocated space ([`Store::write_growth_bound`](super::store::Store)).
 //!   A written beam's amount stays counted until the next flush, so evictions
 //!   never make the bound smaller than what they took.
-//! * `metadata` adds, for every section touched since the last flush, the
-//!   longest directory block its commit can write, and once the root. There is
-//!   no alignment padding in the format.
+//! * `metadata` adds, for every directory chunk touched since the last flush,
+//!   the longest directory block its commit can write, and once the root; each
+//!   twice, since every block and root is stored in two copies. There is no
+//!   alignment padding in the data area.
 //!
 //! Freed space is never subtracted, so the bound only falls at a flush, where
 //! it becomes exact again.
 
-use super::format;
+use super::format::{self, COPIES};
 
 /// What one append would add to the bound.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Charge {
-    section: usize,
+    chunk: usize,
     /// The beam held no rays before this append.
     newly_filled: bool,
     /// Extra worst-case growth of the beam's next write.
@@ -31,10 +32,10 @@ pub(crate) struct Charge {
 }
 
 impl Charge {
-    /// A charge for an append to a beam of `section`.
-    pub fn new(section: usize, newly_filled: bool, write: u64) -> Charge {
+    /// A charge for an append to a beam of directory chunk `chunk`.
+    pub fn new(chunk: usize, newly_filled: bool, write: u64) -> Charge {
         Charge {
-            section,
+            chunk,
             newly_filled,
             write,
         }
@@ -48,18 +49,19 @@ pub(crate) struct SpaceBound {
     base: u64,
     writes: u64,
     metadata: u64,
-    /// Sections touched since the last flush: their directories will be rewritten.
+    /// Chunks touched since the last flush: their directories will be rewritten.
     touched: Vec<bool>,
-    /// Beams per section that hold rays, on disk or cached.
+    /// Beams per chunk that hold rays, on disk or cached.
     filled: Vec<u64>,
     beams: Vec<u32>,
     root: u64,
 }
 
 impl SpaceBound {
-    /// A bound for a file limited to `limit` bytes, whose sections have `beams`
-    /// beams of which `filled` hold rays, and whose sections in `touched` have
-    /// changes not yet committed; `base` and `writes` as in the module docs.
+    /// A bound for a file limited to `limit` bytes, whose directory chunks
+    /// have `beams` beams of which `filled` hold rays, and whose chunks in
+    /// `touched` have changes not yet committed; `base` and `writes` as in the
+    /// module docs.
     pub fn new(
         limit: u64,
         base: u64,
@@ -75,7 +77,7 @@ impl SpaceBound {
             metadata: 0,
             touched: vec![false; beams.len()],
             filled,
-            root: format::root_len(beams.len()),
+            root: COPIES as u64 * format::root_len(beams.len()),
             beams,
         };
         for (s, t) in touched.into_iter().enumerate() {
@@ -103,12 +105,12 @@ impl SpaceBound {
         self.writes > 0 || self.metadata > 0
     }
 
-    /// Most bytes of directory for one filled beam.
+    /// Most bytes of directory (both copies) for one filled beam.
     fn per_filled(&self) -> u64 {
-        format::directory_len_bound(1, 1, self.limit) - format::directory_len_bound(1, 0, self.limit)
+        COPIES as u64 * (format::directory_len_bound(1, 1, self.limit) - format::directory_len_bound(1, 0, self.limit))
     }
 
-    /// What touching section `s` (and filling one more of its beams, if
+    /// What touching chunk `s` (and filling one more of its beams, if
     /// `newly_filled`) adds to `metadata`.
     fn metadata_added(&self, s: usize, newly_filled: bool) -> u64 {
         if self.touched[s] {
@@ -117,23 +119,23 @@ impl SpaceBound {
         // Some section is touched exactly when metadata is counted: the root is in.
         let root = if self.metadata > 0 { 0 } else { self.root };
         let filled = self.filled[s] + u64::from(newly_filled);
-        root + format::directory_len_bound(self.beams[s], filled, self.limit)
+        root + COPIES as u64 * format::directory_len_bound(self.beams[s], filled, self.limit)
     }
 
     /// The bound if `c` were charged.
     pub fn with(&self, c: Charge) -> u64 {
         self.bound()
             .saturating_add(c.write)
-            .saturating_add(self.metadata_added(c.section, c.newly_filled))
+            .saturating_add(self.metadata_added(c.chunk, c.newly_filled))
     }
 
     /// Charges an append.
     pub fn charge(&mut self, c: Charge) {
-        self.metadata += self.metadata_added(c.section, c.newly_filled);
+        self.metadata += self.metadata_added(c.chunk, c.newly_filled);
         self.writes = self.writes.saturating_add(c.write);
-        self.touched[c.section] = true;
+        self.touched[c.chunk] = true;
         if c.newly_filled {
-            self.filled[c.section] += 1;
+            self.filled[c.chunk] += 1;
         }
     }
 
@@ -151,29 +153,33 @@ mod tests {
     use super::*;
 
     #[test]
-    fn charges_count_each_directory_and_the_root_once() {
+    fn charges_count_each_directory_and_the_root_once_per_copy() {
         let limit = 300 << 10;
+        // The expectations come from the format's own sizes: a directory
+        // block of 100 beams with one filled is 20 bytes of framing, one byte
+        // per empty beam and at most 2 + 3 + 4 more for the filled one (the
+        // rest of a 3-byte count of at most 30,720 rays, a 3-byte offset delta
+        // below 2^21 and a CRC); a root of two chunks is 20 + 2 * 44 + 4 bytes.
+        let per = 2 + 3 + 4;
+        let dir0 = 20 + 100 + per;
+        let root = 20 + 2 * 44 + 4;
+        assert_eq!(format::directory_len_bound(100, 1, limit), dir0);
+        assert_eq!(format::root_len(2), root);
         let mut b = SpaceBound::new(limit, 1000, 0, vec![100, 10], vec![0, 0], vec![false, false]);
         assert_eq!(b.bound(), 1000);
         assert!(!b.has_pending());
         let first = Charge::new(0, true, 50);
-        let dir0 = format::directory_len_bound(100, 1, limit);
-        assert_eq!(b.with(first), 1000 + 50 + dir0 + format::root_len(2));
+        assert_eq!(b.with(first), 1000 + 50 + 2 * (dir0 + root));
         b.charge(first);
-        assert_eq!(b.bound(), 1000 + 50 + dir0 + format::root_len(2));
-        // Another beam of the same section: its directory entry only.
-        let per = format::directory_len_bound(100, 2, limit) - dir0;
-        assert_eq!(b.with(Charge::new(0, true, 0)), b.bound() + per);
-        // The other section: its whole directory, no second root.
-        let dir1 = format::directory_len_bound(10, 0, limit);
-        assert_eq!(b.with(Charge::new(1, false, 7)), b.bound() + 7 + dir1);
+        assert_eq!(b.bound(), 1000 + 50 + 2 * (dir0 + root));
+        // Another beam of the same chunk: its directory entry only, twice.
+        assert_eq!(b.with(Charge::new(0, true, 0)), b.bound() + 2 * per);
+        // The other chunk: its whole directory twice, no second root.
+        assert_eq!(b.with(Charge::new(1, false, 7)), b.bound() + 7 + 2 * (20 + 10));
         b.flushed(2000);
         assert_eq!(b.bound(), 2000);
         assert!(!b.has_pending());
         // Filled beams are remembered across flushes.
-        assert_eq!(
-            b.with(Charge::new(0, false, 0)),
-            2000 + format::directory_len_bound(100, 1, limit) + format::root_len(2)
-        );
+        assert_eq!(b.with(Charge::new(0, false, 0)), 2000 + 2 * (dir0 + root));
     }
 }

@@ -4,10 +4,13 @@
 //! Crash safety rests on three rules. (1) Bytes the durable commit refers to are
 //! never overwritten: new runs go to free space, and space released by a change
 //! becomes free only after the commit that drops it is durable. (2) A commit
-//! writes its directory blocks and root to free space, syncs, then writes the
-//! slot that is *not* the one the current state was loaded from, and syncs
-//! again. (3) Opening takes the highest-generation slot whose checksums, root
-//! and directories all verify; a torn last commit falls back to the one before.
+//! writes its directory blocks and root, two copies of each, to free space,
+//! syncs, then writes copy 1 of the slot that is *not* the one the current
+//! state was loaded from, syncs, writes copy 2, and syncs again. (3) Opening
+//! takes the highest-generation slot copy that verifies (see
+//! [`survey`](super::survey)): a torn last commit falls back to the one
+//! before, and damage to a durable commit is reported as damage, never taken
+//! for a crash.
 
 use std::collections::HashSet;
 use std::fs::File;
@@ -17,19 +20,27 @@ use holodeck_protocol::{BeamKey, RayRecord, Section};
 
 use super::error::{Result, StorageError};
 use super::extents::Extents;
-use super::format::{self, BeamEntry, DirRef, Extent, Slot, SLOT_LEN, SLOT_OFFSETS};
+use super::format::{self, BeamEntry, ChunkRef, Extent, Slot, COPIES, DIR_CHUNK_BEAMS};
 use super::io::{self, WriteBatch};
+use super::survey::{self, CommitDamage};
 use crate::settings::Settings;
 
 /// How the current state was found on open.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct OpenInfo {
-    /// Generation of the commit in use.
+    /// Generation of the newest commit: the one in use, or the damaged one
+    /// whose readable part is in use.
     pub generation: u64,
-    /// Slot (0 or 1) it was read from.
+    /// Slot side (0: A, 1: B) it was read from.
     pub slot: usize,
-    /// Why newer commits were passed over (a torn or corrupt last commit), if any.
+    /// Commits a crash interrupted between their two slot copies: the newer
+    /// copy is used and nothing is lost.
     pub skipped: Vec<String>,
+    /// Damaged copies of metadata whose other copy verified: nothing was lost.
+    /// A writable open rewrites them at once.
+    pub repaired: Vec<String>,
+    /// Set when the newest commit cannot be read in full: what is lost.
+    pub damage: Option<CommitDamage>,
 }
 
 /// Counters of engine work since open.
@@ -45,12 +56,31 @@ pub struct IoStats {
     pub commits: u64,
 }
 
-/// One loaded commit: directories and where they and the root live.
-pub(crate) struct Loaded {
-    pub dirs: Vec<Vec<BeamEntry>>,
-    pub blocks: Vec<Extent>,
-    pub root: Extent,
-    pub extents: Extents,
+/// A range of one section's beams that one directory block describes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Chunk {
+    pub section: u32,
+    pub first: u32,
+    pub beams: u32,
+}
+
+/// The chunks a file with these sections is cut into: [`DIR_CHUNK_BEAMS`] beams each.
+pub(crate) fn chunks_of(sections: &[Section]) -> Vec<Chunk> {
+    let mut out = Vec::new();
+    for (s, section) in sections.iter().enumerate() {
+        let n = section.beam_count();
+        let mut first = 0;
+        while first < n {
+            let beams = DIR_CHUNK_BEAMS.min(n - first);
+            out.push(Chunk {
+                section: s as u32,
+                first,
+                beams,
+            });
+            first += beams;
+        }
+    }
+    out
 }
 
 /// The file and its in-memory directories.
@@ -62,11 +92,24 @@ pub struct Store {
     /// Records each beam's run has room for (its count plus an in-memory growth
     /// reserve). No commit refers to the reserve, so reopening frees it.
     capacity: Vec<Vec<u32>>,
-    dir_dirty: Vec<bool>,
-    blocks: Vec<Extent>,
-    root: Extent,
+    chunks: Vec<Chunk>,
+    /// Index of each section's first chunk.
+    chunk_start: Vec<usize>,
+    /// Chunks whose directory must be written at the next commit.
+    chunk_dirty: Vec<bool>,
+    /// The two copies of each chunk's block in the durable commit (`None`:
+    /// not in it, so the chunk is dirty).
+    blocks: Vec<Option<[Extent; COPIES]>>,
+    /// The two copies of the durable commit's root, if it is this store's own.
+    root: Option<[Extent; COPIES]>,
+    /// The next commit must be made even with no chunk dirty (to restore a
+    /// damaged copy).
+    root_dirty: bool,
+    /// Metadata a damaged commit was read from: kept until the next commit.
+    stale: Vec<Extent>,
+    text_len: u32,
     generation: u64,
-    next_slot: usize,
+    next_side: usize,
     pub(crate) extents: Extents,
     writes: WriteBatch,
     /// Offsets of runs written since the last commit: no commit refers to them,
@@ -84,172 +127,23 @@ pub struct Store {
 
 const RECORD: u64 = holodeck_protocol::RAY_RECORD_BYTES as u64;
 
+fn same_range(r: &ChunkRef, c: &Chunk) -> bool {
+    (r.section, r.first, r.beams) == (c.section, c.first, c.beams)
+}
+
 /// Room given to a run that must move: a quarter again its size, so that a beam
 /// growing by small appends moves O(log n) times instead of O(n).
 fn grow(count: u32) -> u32 {
     count.saturating_add(count / 4).max(count.saturating_add(4))
 }
 
-fn format_err(path: &Path) -> impl Fn(format::FormatError) -> StorageError + '_ {
-    move |source| StorageError::Format {
-        path: path.to_path_buf(),
-        source,
-    }
-}
-
-/// Reads the prefix and settings text; returns them with the data start offset.
-pub(crate) fn read_header(file: &File, path: &Path, file_len: u64) -> Result<(Settings, u64)> {
-    let mut buf = Vec::new();
-    io::read_at(file, path, 0, file_len.min(format::PREFIX_LEN) as usize, &mut buf)?;
-    let text_len = format::decode_prefix(&buf).map_err(format_err(path))?;
-    let data_start = format::data_start(text_len);
-    if file_len < data_start {
-        return Err(StorageError::Format {
-            path: path.to_path_buf(),
-            source: format::FormatError::Truncated {
-                what: "file header".into(),
-                start: 0,
-                end: data_start,
-                have: file_len,
-            },
-        });
-    }
-    io::read_at(file, path, format::TEXT_OFFSET, text_len as usize + 4, &mut buf)?;
-    let text = format::decode_text(&buf).map_err(format_err(path))?;
-    let settings = Settings::from_text(&text).map_err(|source| StorageError::Settings {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    Ok((settings, data_start))
-}
-
-/// The slots that decode, as (slot index, slot), newest first, and why the others did not.
-pub(crate) struct SlotScan {
-    pub slots: Vec<(usize, Slot)>,
-    pub problems: Vec<String>,
-}
-
-/// Reads both commit slots.
-pub(crate) fn read_slots(file: &File, path: &Path) -> Result<SlotScan> {
-    let mut buf = Vec::new();
-    io::read_at(file, path, SLOT_OFFSETS[0], 2 * SLOT_LEN as usize, &mut buf)?;
-    let (mut slots, mut problems) = (Vec::new(), Vec::new());
-    for (i, &at) in SLOT_OFFSETS.iter().enumerate() {
-        let bytes = &buf[(at - SLOT_OFFSETS[0]) as usize..][..SLOT_LEN as usize];
-        match format::decode_slot(bytes, at) {
-            Ok(Some(s)) => slots.push((i, s)),
-            Ok(None) => {}
-            Err(e) => problems.push(e.to_string()),
-        }
-    }
-    slots.sort_by_key(|(_, s)| std::cmp::Reverse(s.generation));
-    Ok(SlotScan { slots, problems })
-}
-
-fn read_extent(file: &File, path: &Path, e: Extent, file_len: u64, what: &str) -> Result<Vec<u8>> {
-    if e.end() > file_len {
-        return Err(StorageError::Format {
-            path: path.to_path_buf(),
-            source: format::FormatError::Truncated {
-                what: what.into(),
-                start: e.offset,
-                end: e.end(),
-                have: file_len.saturating_sub(e.offset),
-            },
-        });
-    }
-    let mut buf = Vec::new();
-    io::read_at(file, path, e.offset, e.len as usize, &mut buf)?;
-    Ok(buf)
-}
-
-/// Loads and fully validates the commit a slot points to.
-pub(crate) fn load_commit(
-    file: &File,
-    path: &Path,
-    slot: &Slot,
-    sections: &[Section],
-    data_start: u64,
-    file_len: u64,
-) -> Result<Loaded> {
-    let invalid = |what: String, at: u64, detail: String| StorageError::Format {
-        path: path.to_path_buf(),
-        source: format::FormatError::Invalid { what, at, detail },
-    };
-    if slot.root.len != format::root_len(sections.len()) {
-        let detail = format!(
-            "root length {} is not {} for {} sections",
-            slot.root.len,
-            format::root_len(sections.len()),
-            sections.len()
-        );
-        return Err(invalid(format!("commit {}", slot.generation), slot.root.offset, detail));
-    }
-    let root_bytes = read_extent(file, path, slot.root, file_len, "commit root")?;
-    if crc32c::crc32c(&root_bytes) != slot.root_crc {
-        return Err(StorageError::Format {
-            path: path.to_path_buf(),
-            source: format::FormatError::Checksum {
-                what: format!("root of commit {}", slot.generation),
-                start: slot.root.offset,
-                end: slot.root.end(),
-                stored: slot.root_crc,
-                computed: crc32c::crc32c(&root_bytes),
-            },
-        });
-    }
-    let refs = format::decode_root(&root_bytes, slot.root.offset, slot.generation, sections.len())
-        .map_err(format_err(path))?;
-    let mut dirs = Vec::with_capacity(sections.len());
-    let mut used = vec![slot.root];
-    for (s, (r, section)) in refs.iter().zip(sections).enumerate() {
-        if r.block.len > format::max_directory_len(section.beam_count()) {
-            let detail = format!(
-                "directory block of {} bytes is too long for {} beams",
-                r.block.len,
-                section.beam_count()
-            );
-            return Err(invalid(format!("directory of section {s}"), r.block.offset, detail));
-        }
-        let bytes = read_extent(file, path, r.block, file_len, &format!("directory of section {s}"))?;
-        let d = format::decode_directory(
-            &bytes,
-            r.block.offset,
-            s as u32,
-            section.beam_count(),
-            data_start,
-            file_len,
-        )
-        .map_err(format_err(path))?;
-        used.push(r.block);
-        used.extend(d.iter().map(|e| e.extent()));
-        dirs.push(d);
-    }
-    let extents = Extents::from_used(data_start, used).map_err(|o| StorageError::Format {
-        path: path.to_path_buf(),
-        source: format::FormatError::Invalid {
-            what: format!("commit {}", slot.generation),
-            at: o.second.offset,
-            detail: format!(
-                "bytes {}..{} are claimed twice (also by {}..{})",
-                o.second.offset,
-                o.second.end(),
-                o.first.offset,
-                o.first.end()
-            ),
-        },
-    })?;
-    Ok(Loaded {
-        dirs,
-        blocks: refs.iter().map(|r| r.block).collect(),
-        root: slot.root,
-        extents,
-    })
-}
-
 impl Store {
-    /// Opens the file's current commit. Returns the settings too.
-    pub fn open(path: &Path, writable: bool) -> Result<(Store, Settings)> {
+    /// Opens the file's newest commit. Returns the settings too. A writable
+    /// open refuses a file whose newest commit is damaged, unless
+    /// `accept_loss`: then what can be read is committed at once as the new
+    /// state. A writable open also rewrites at once any damaged copy whose
+    /// twin verified, so the file is whole again.
+    pub fn open(path: &Path, writable: bool, accept_loss: bool) -> Result<(Store, Settings)> {
         let file = std::fs::OpenOptions::new()
             .read(true)
             .write(writable)
@@ -260,53 +154,159 @@ impl Store {
                 source,
             })?;
         io::lock(&file, path, writable)?;
-        let file_len = io::file_len(&file, path)?;
-        let (settings, data_start) = read_header(&file, path, file_len)?;
-        let SlotScan { slots, mut problems } = read_slots(&file, path)?;
-        let newest = slots.first().map(|(_, s)| s.generation).unwrap_or(0);
-        for (slot_index, slot) in &slots {
-            match load_commit(&file, path, slot, &settings.sections, data_start, file_len) {
-                Ok(l) => {
-                    if !problems.is_empty() {
-                        tracing::warn!(path = %path.display(), "using commit {}: {}", slot.generation, problems.join("; "));
-                    }
-                    let n = settings.sections.len();
-                    let store = Store {
-                        path: path.to_path_buf(),
-                        file,
-                        writable,
-                        capacity: l.dirs.iter().map(|d| d.iter().map(|e| e.count).collect()).collect(),
-                        dirs: l.dirs,
-                        dir_dirty: vec![false; n],
-                        blocks: l.blocks,
-                        root: l.root,
-                        generation: newest,
-                        next_slot: 1 - slot_index,
-                        extents: l.extents,
-                        writes: WriteBatch::default(),
-                        fresh: HashSet::new(),
-                        file_len,
-                        stats: IoStats::default(),
-                        info: OpenInfo {
-                            generation: slot.generation,
-                            slot: *slot_index,
-                            skipped: problems,
-                        },
-                        poisoned: false,
-                        limit: u64::MAX,
-                    };
-                    return Ok((store, settings));
-                }
-                Err(e) => problems.push(format!("commit {} (slot {slot_index}): {e}", slot.generation)),
+        let sv = survey::survey(&file, path)?;
+        if let Some(damage) = &sv.damage {
+            if writable && !accept_loss {
+                return Err(StorageError::Damaged {
+                    path: path.to_path_buf(),
+                    damage: Box::new(damage.clone()),
+                });
+            }
+            tracing::warn!(path = %path.display(), "{}", damage.describe());
+        }
+        for note in sv.torn.iter().chain(&sv.repaired) {
+            tracing::warn!(path = %path.display(), "{note}");
+        }
+        let chunks = chunks_of(&sv.settings.sections);
+        let mut chunk_start = Vec::with_capacity(sv.settings.sections.len());
+        for (i, c) in chunks.iter().enumerate() {
+            if c.first == 0 {
+                chunk_start.push(i);
             }
         }
-        if slots.is_empty() {
-            problems.push("neither commit slot holds a commit".into());
+        let mut blocks = vec![None; chunks.len()];
+        let mut root = None;
+        let mut stale = Vec::new();
+        match &sv.clean {
+            Some((slot, refs))
+                if refs.len() == chunks.len() && refs.iter().zip(&chunks).all(|(r, c)| same_range(r, c)) =>
+            {
+                for (b, r) in blocks.iter_mut().zip(refs) {
+                    *b = Some(r.extents());
+                }
+                root = Some(slot.root_copies());
+            }
+            _ => stale.clone_from(&sv.metadata),
         }
-        Err(StorageError::NoValidCommit {
+        let mut used: Vec<Extent> = sv.dirs.iter().flatten().map(|e| e.extent()).collect();
+        if root.is_some() {
+            used.extend(sv.metadata.iter().copied());
+        }
+        let mut extents = Extents::from_used(sv.data_start, used).map_err(|o| StorageError::Format {
             path: path.to_path_buf(),
-            problems: problems.join("\n"),
-        })
+            source: format::FormatError::Invalid {
+                what: format!("commit {}", sv.generation),
+                at: o.second.offset,
+                detail: format!(
+                    "bytes {}..{} are claimed twice (also by {}..{})",
+                    o.second.offset,
+                    o.second.end(),
+                    o.first.offset,
+                    o.first.end()
+                ),
+            },
+        })?;
+        // What a damaged commit was read from stays untouched until the commit that replaces it.
+        let stale: Vec<Extent> = stale.into_iter().flat_map(|e| extents.claim_free_within(e)).collect();
+        let chunk_dirty: Vec<bool> = blocks
+            .iter()
+            .zip(&chunks)
+            .map(|(b, c)| b.is_none() || sv.weak_chunks.contains(&(c.section, c.first)))
+            .collect();
+        let repaired = !sv.repaired.is_empty() || !sv.torn.is_empty() || sv.uneven_slots.iter().any(|&u| u);
+        let newest_uneven = sv.uneven_slots[sv.side];
+        let store = Store {
+            path: path.to_path_buf(),
+            file,
+            writable,
+            capacity: sv.dirs.iter().map(|d| d.iter().map(|e| e.count).collect()).collect(),
+            dirs: sv.dirs,
+            chunks,
+            chunk_start,
+            chunk_dirty,
+            blocks,
+            root,
+            root_dirty: repaired,
+            stale,
+            text_len: sv.text_len,
+            generation: sv.generation,
+            next_side: 1 - sv.side,
+            extents,
+            writes: WriteBatch::default(),
+            fresh: HashSet::new(),
+            file_len: sv.file_len,
+            stats: IoStats::default(),
+            info: OpenInfo {
+                generation: sv.generation,
+                slot: sv.side,
+                skipped: sv.torn,
+                repaired: sv.repaired,
+                damage: sv.damage,
+            },
+            poisoned: false,
+            limit: u64::MAX,
+        };
+        let mut store = store;
+        if writable {
+            store.restore_headers(&sv.settings, sv.bad_header)?;
+            if store.has_changes() {
+                // Make what was read (or the restored copies) the durable state before anything else.
+                store.commit()?;
+            }
+            if newest_uneven {
+                // The first commit went to the other side; this one rewrites the damaged slot.
+                store.root_dirty = true;
+                store.commit()?;
+            }
+        }
+        Ok((store, sv.settings))
+    }
+
+    /// Rewrites a damaged header copy (prefix and settings text) from the settings.
+    fn restore_headers(&mut self, settings: &Settings, bad: [bool; COPIES]) -> Result<()> {
+        if !bad.iter().any(|&b| b) {
+            return Ok(());
+        }
+        let text = settings.to_text();
+        if text.len() != self.text_len as usize {
+            // The settings would not read back to the same text: leave the copies alone.
+            return Ok(());
+        }
+        for (copy, _) in bad.iter().enumerate().filter(|(_, &b)| b) {
+            let base = copy as u64 * format::header_span(self.text_len);
+            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(self.text_len)).and_then(|()| {
+                io::write_at(
+                    &self.file,
+                    &self.path,
+                    format::text_offset(self.text_len, copy),
+                    &format::encode_text(&text),
+                )
+            });
+            self.poison_on_error(r)?;
+            tracing::warn!(path = %self.path.display(), "rewrote header copy {}", copy + 1);
+        }
+        self.sync()
+    }
+
+    /// The chunk holding a beam.
+    fn chunk_of(&self, key: BeamKey) -> usize {
+        self.chunk_start[key.section as usize] + (key.beam / DIR_CHUNK_BEAMS) as usize
+    }
+
+    /// Beams in each chunk, and how many of them hold rays on disk.
+    pub(crate) fn chunk_fill(&self) -> Vec<(u32, u64)> {
+        self.chunks
+            .iter()
+            .map(|c| {
+                let d = &self.dirs[c.section as usize][c.first as usize..(c.first + c.beams) as usize];
+                (c.beams, d.iter().filter(|e| e.count > 0).count() as u64)
+            })
+            .collect()
+    }
+
+    /// The chunk index of a beam, for the space bound.
+    pub(crate) fn chunk_index(&self, key: BeamKey) -> usize {
+        self.chunk_of(key)
     }
 
     fn push_write(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {
@@ -374,9 +374,9 @@ impl Store {
         self.file_len.max(self.extents.end())
     }
 
-    /// True when section `s` has runs written since the last commit.
-    pub(crate) fn section_changed(&self, s: usize) -> bool {
-        self.dir_dirty[s]
+    /// True when chunk `c` must be written at the next commit.
+    pub(crate) fn chunk_changed(&self, c: usize) -> bool {
+        self.chunk_dirty[c]
     }
 
     /// Most bytes by which writing a beam's unwritten rays, so that it then
@@ -512,7 +512,8 @@ impl Store {
             BeamEntry { offset, count, crc }
         };
         self.dirs[s][b] = new;
-        self.dir_dirty[s] = true;
+        let c = self.chunk_of(key);
+        self.chunk_dirty[c] = true;
         self.stats.rays_written += tail.len() as u64;
         self.stats.runs_written += 1;
         Ok(())
@@ -545,8 +546,8 @@ impl Store {
                 self.dirs[s][b] = BeamEntry::default();
                 self.capacity[s][b] = 0;
             }
-            self.dir_dirty[s] = true;
         }
+        self.chunk_dirty.iter_mut().for_each(|d| *d = true);
         Ok(())
     }
 
@@ -566,7 +567,7 @@ impl Store {
 
     /// True when something was written since the last commit.
     pub fn has_changes(&self) -> bool {
-        self.dir_dirty.iter().any(|&d| d)
+        self.root_dirty || self.chunk_dirty.iter().any(|&d| d)
     }
 
     /// Makes everything written so far durable as a new commit.
@@ -579,7 +580,7 @@ impl Store {
         let mut blocks = self.blocks.clone();
         let mut claimed = Vec::new();
         let written = self.write_metadata(generation, &mut blocks, &mut claimed);
-        let (root, root_crc) = match written {
+        let slot = match written {
             Ok(r) => r,
             Err(e) => {
                 // No commit refers to the new blocks: give their space back, in
@@ -591,38 +592,38 @@ impl Store {
                 return Err(e);
             }
         };
-        for s in 0..self.dirs.len() {
-            if self.dir_dirty[s] {
-                self.extents.release(self.blocks[s]);
+        for (c, old) in self.blocks.iter().enumerate() {
+            if let (true, Some(old)) = (self.chunk_dirty[c], old) {
+                old.iter().for_each(|e| self.extents.release(*e));
             }
+        }
+        for e in std::mem::take(&mut self.stale) {
+            self.extents.release(e);
         }
         self.blocks = blocks;
         self.flush_writes()?;
         self.sync()?;
-        let slot = Slot {
-            generation,
-            root,
-            root_crc,
-        };
         // From here on a failure leaves it unknown which commit is durable: poison.
-        let r = io::write_at(
-            &self.file,
-            &self.path,
-            SLOT_OFFSETS[self.next_slot],
-            &format::encode_slot(&slot),
-        );
-        self.poison_on_error(r)?;
-        self.sync()?;
+        // Copy 1 is synced before copy 2 is written, so a crash tears at most one.
+        let bytes = format::encode_slot(&slot);
+        for copy in 0..COPIES {
+            let at = format::slot_offset(self.text_len, copy, self.next_side);
+            let r = io::write_at(&self.file, &self.path, at, &bytes);
+            self.poison_on_error(r)?;
+            self.sync()?;
+        }
         // The new commit is durable: the old root and everything released may be reused.
-        self.extents.release(self.root);
-        self.root = root;
+        if let Some(old) = self.root.replace(slot.root_copies()) {
+            old.iter().for_each(|e| self.extents.release(*e));
+        }
         self.extents.commit_done();
         self.fresh.clear();
         self.generation = generation;
         self.info.generation = generation;
-        self.info.slot = self.next_slot;
-        self.next_slot = 1 - self.next_slot;
-        self.dir_dirty.iter_mut().for_each(|d| *d = false);
+        self.info.slot = self.next_side;
+        self.next_side = 1 - self.next_side;
+        self.chunk_dirty.iter_mut().for_each(|d| *d = false);
+        self.root_dirty = false;
         self.stats.commits += 1;
         if self.file_len > self.extents.end() {
             // Space past the end is referenced by no commit: give it back.
@@ -638,46 +639,66 @@ impl Store {
         Ok(())
     }
 
-    /// Writes the changed sections' directory blocks and a root listing
-    /// `blocks` (updated) to free space; returns the root and its CRC. Every
-    /// extent allocated is pushed to `claimed` first, for undoing on failure.
+    /// Allocates two copies of `len` bytes: the first where it fits best, the
+    /// second as low in the file as it fits. Both are pushed to `claimed`.
+    fn allocate_copies(&mut self, len: u64, claimed: &mut Vec<Extent>) -> Result<[Extent; COPIES]> {
+        let first = Extent {
+            offset: self.allocate(len)?,
+            len,
+        };
+        claimed.push(first);
+        let second = match self.extents.allocate_low_below(len, self.limit) {
+            Some(offset) => Extent { offset, len },
+            None => return Err(self.no_space(self.extents.end().saturating_add(len))),
+        };
+        claimed.push(second);
+        Ok([first, second])
+    }
+
+    /// Writes the dirty chunks' directory blocks and a root listing `blocks`
+    /// (updated), two copies of each, to free space; returns the slot that
+    /// will point at them. Every extent allocated is pushed to `claimed` first,
+    /// for undoing on failure.
     fn write_metadata(
         &mut self,
         generation: u64,
-        blocks: &mut [Extent],
+        blocks: &mut [Option<[Extent; COPIES]>],
         claimed: &mut Vec<Extent>,
-    ) -> Result<(Extent, u32)> {
-        for (s, dir_block) in blocks.iter_mut().enumerate() {
-            if !self.dir_dirty[s] {
-                continue;
+    ) -> Result<Slot> {
+        let mut refs = Vec::with_capacity(self.chunks.len());
+        for (c, block) in blocks.iter_mut().enumerate() {
+            let Chunk { section, first, beams } = self.chunks[c];
+            let entries = &self.dirs[section as usize][first as usize..(first + beams) as usize];
+            let rays = entries.iter().map(|e| u64::from(e.count)).sum();
+            if self.chunk_dirty[c] || block.is_none() {
+                let bytes = format::encode_directory(section, first, entries);
+                let copies = self.allocate_copies(bytes.len() as u64, claimed)?;
+                for e in copies {
+                    self.push_write(e.offset, &bytes)?;
+                }
+                *block = Some(copies);
             }
-            let bytes = format::encode_directory(s as u32, &self.dirs[s]);
-            let block = Extent {
-                offset: self.allocate(bytes.len() as u64)?,
-                len: bytes.len() as u64,
-            };
-            claimed.push(block);
-            self.push_write(block.offset, &bytes)?;
-            *dir_block = block;
+            let copies = block.unwrap_or_default();
+            refs.push(ChunkRef {
+                section,
+                first,
+                beams,
+                rays,
+                copies: copies.map(|e| e.offset),
+                len: copies[0].len,
+            });
         }
-        let refs: Vec<DirRef> = self
-            .dirs
-            .iter()
-            .zip(blocks.iter())
-            .map(|(d, b)| DirRef {
-                block: *b,
-                beams: d.len() as u32,
-                rays: d.iter().map(|e| u64::from(e.count)).sum(),
-            })
-            .collect();
         let root_bytes = format::encode_root(generation, &refs);
-        let root = Extent {
-            offset: self.allocate(root_bytes.len() as u64)?,
-            len: root_bytes.len() as u64,
-        };
-        claimed.push(root);
-        self.push_write(root.offset, &root_bytes)?;
-        Ok((root, crc32c::crc32c(&root_bytes)))
+        let roots = self.allocate_copies(root_bytes.len() as u64, claimed)?;
+        for e in roots {
+            self.push_write(e.offset, &root_bytes)?;
+        }
+        Ok(Slot {
+            generation,
+            roots: roots.map(|e| e.offset),
+            root_len: root_bytes.len() as u64,
+            root_crc: crc32c::crc32c(&root_bytes),
+        })
     }
 
     /// Current length of the file in bytes.
@@ -685,9 +706,10 @@ impl Store {
         self.file_len
     }
 
-    /// Bytes taken by the directory blocks and root of the current commit.
+    /// Bytes taken by the directory blocks and root of the current commit, both copies.
     pub fn metadata_bytes(&self) -> u64 {
-        self.blocks.iter().map(|b| b.len).sum::<u64>() + self.root.len
+        let blocks: u64 = self.blocks.iter().flatten().flatten().map(|e| e.len).sum();
+        blocks + self.root.iter().flatten().map(|e| e.len).sum::<u64>()
     }
 }
 
@@ -701,7 +723,7 @@ mod tests {
     fn committed_file(dir: &Path, beams: u32, n: u64) -> (PathBuf, Store) {
         let path = dir.join("t.hdk");
         HoloFile::create(&path, &two_sections([4, 3, 2], [2, 2, 2], 1 << 20)).unwrap();
-        let (mut store, _) = Store::open(&path, true).unwrap();
+        let (mut store, _) = Store::open(&path, true, false).unwrap();
         for b in 0..beams {
             let key = BeamKey::new(0, b);
             store.write_tail(key, None, &pattern_rays(key, 0, n)).unwrap();
@@ -743,9 +765,18 @@ mod tests {
         fill_holes(&mut store);
         let end = store.extents.end();
         let free = store.extents.free_bytes();
-        let dir_len = format::encode_directory(0, &store.dirs[0]).len() as u64;
-        let root_len = format::root_len(store.dirs.len());
-        // First no room for the directory, then room for it but not the root.
+        // Every chunk of section 0 changed; each is written twice.
+        let dir_len: u64 = store
+            .chunks
+            .iter()
+            .filter(|c| c.section == 0)
+            .map(|c| {
+                let d = &store.dirs[0][c.first as usize..(c.first + c.beams) as usize];
+                2 * format::encode_directory(0, c.first, d).len() as u64
+            })
+            .sum();
+        let root_len = 2 * format::root_len(store.chunks.len());
+        // First no room for the directories, then room for them but not the root.
         for limit in [end + dir_len - 1, end + dir_len + root_len - 1] {
             store.set_limit(Some(limit));
             let e = store.commit().unwrap_err();

@@ -1,0 +1,657 @@
+//! Finding the state of a file on open: every copy of the header, the commit
+//! slots, the roots and the directory blocks is read and checked, damage is
+//! told apart from a commit a crash interrupted, and a directory is planned
+//! from what verifies. It never writes.
+//!
+//! The rules that tell damage from a torn commit follow from how a commit is
+//! written (see [`store`](super::store)): its root and directory blocks are
+//! synced before either copy of its slot is written, copy 1 of the slot is
+//! written and synced before copy 2, and the commit counts only once both are.
+//! So:
+//! * a slot copy that verifies points at a root and blocks that were synced:
+//!   if they do not verify, that is damage, never a crash;
+//! * a crash tears at most one slot copy, and only copy 1 while copy 2 still
+//!   holds an older commit, or copy 2 while copy 1 already holds the new one:
+//!   either way no completed commit is lost, so a failing copy is reported
+//!   (it may be damage) but costs nothing while its twin verifies;
+//! * both copies of a slot failing is damage, and may hide the newest commit.
+//!
+//! When the newest commit cannot be read in full, the plan keeps every beam of
+//! it that can be, takes each chunk whose directory is lost from the commit
+//! before (its runs may have been overwritten since: their checksums tell),
+//! and drops beams whose runs lie past the end of the file or overlap others.
+
+use std::fs::File;
+use std::path::Path;
+
+use super::error::{Result, StorageError};
+use super::format::{self, BeamEntry, ChunkRef, Extent, FormatError, Slot, COPIES, HEADER_ALIGN, MAX_TEXT_LEN};
+use super::io;
+use crate::settings::Settings;
+
+/// How a commit's newest state was damaged, and what reading it loses.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CommitDamage {
+    /// The damaged commit: the newest one the file's slots hold.
+    pub generation: u64,
+    /// What is damaged, one line each.
+    pub problems: Vec<String>,
+    /// Rays that commit holds, when its root could still be read.
+    pub claimed_rays: Option<u64>,
+    /// Rays the planned directory holds (before their checksums are verified).
+    pub readable_rays: u64,
+    /// The older commit some chunks were taken from, if any.
+    pub fallback: Option<u64>,
+}
+
+impl CommitDamage {
+    /// Rays of the damaged commit that reading what verifies loses, if known.
+    pub fn rays_lost(&self) -> Option<u64> {
+        self.claimed_rays.map(|c| c.saturating_sub(self.readable_rays))
+    }
+
+    /// One paragraph for messages: which commit, what is damaged, what is lost.
+    pub fn describe(&self) -> String {
+        let mut s = format!("commit {} (the newest) is damaged:", self.generation);
+        for p in &self.problems {
+            s.push_str("\n  ");
+            s.push_str(p);
+        }
+        let from = match self.fallback {
+            Some(g) => format!(", taking lost directories from commit {g}"),
+            None => String::new(),
+        };
+        match self.rays_lost() {
+            Some(lost) => s.push_str(&format!(
+                "\nreading what can be read{from} keeps {} of its {} rays and loses {lost}",
+                self.readable_rays,
+                self.claimed_rays.unwrap_or(0)
+            )),
+            None => s.push_str(&format!(
+                "\nits ray count is unreadable; reading what can be read{from} keeps {} rays",
+                self.readable_rays
+            )),
+        }
+        s
+    }
+}
+
+/// What a survey found.
+pub(crate) struct Survey {
+    pub settings: Settings,
+    pub text_len: u32,
+    pub data_start: u64,
+    pub file_len: u64,
+    /// Damaged copies whose twin verified: nothing is lost.
+    pub repaired: Vec<String>,
+    /// Commits a crash interrupted between their two slot copies (nothing is lost).
+    pub torn: Vec<String>,
+    /// Header copies that failed (rewritable from the other).
+    pub bad_header: [bool; COPIES],
+    /// The newest commit, when it can be read in full; else why not.
+    pub damage: Option<CommitDamage>,
+    /// Generation of the newest commit the slots hold.
+    pub generation: u64,
+    /// The side (0: A, 1: B) its slot is on.
+    pub side: usize,
+    /// The directory to use, per section.
+    pub dirs: Vec<Vec<BeamEntry>>,
+    /// The newest commit's root and chunks, when it was read in full.
+    pub clean: Option<(Slot, Vec<ChunkRef>)>,
+    /// Metadata extents that must not be overwritten until the next commit
+    /// (every root and block copy the plan was read from).
+    pub metadata: Vec<Extent>,
+    /// Chunks (section, first beam) of the newest commit with a damaged copy.
+    pub weak_chunks: Vec<(u32, u32)>,
+    /// Slot sides whose two copies differ: the next commit to each rewrites them.
+    pub uneven_slots: [bool; 2],
+}
+
+/// A slot copy as found.
+#[derive(Clone, Debug)]
+enum SlotCopy {
+    Good(Slot),
+    Empty,
+    Bad(String),
+}
+
+fn format_err(path: &Path, source: FormatError) -> StorageError {
+    StorageError::Format {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Reads `len` bytes at `offset`, or says how the file ends before them.
+fn read_part(
+    file: &File,
+    path: &Path,
+    offset: u64,
+    len: u64,
+    file_len: u64,
+    what: &str,
+) -> Result<std::result::Result<Vec<u8>, FormatError>> {
+    if offset.checked_add(len).is_none_or(|end| end > file_len) {
+        return Ok(Err(FormatError::Truncated {
+            what: what.into(),
+            start: offset,
+            end: offset.saturating_add(len),
+            have: file_len.saturating_sub(offset),
+        }));
+    }
+    let mut buf = Vec::new();
+    io::read_at(file, path, offset, len as usize, &mut buf)?;
+    Ok(Ok(buf))
+}
+
+/// Finds the settings-text length: from the first prefix, else from a second
+/// header copy at a page boundary that agrees with its own prefix.
+fn find_prefix(
+    file: &File,
+    path: &Path,
+    file_len: u64,
+    bad: &mut [bool; COPIES],
+    repaired: &mut Vec<String>,
+) -> Result<u32> {
+    let first = read_part(file, path, 0, format::PREFIX_LEN.min(file_len), file_len, "file prefix")?;
+    let first = match first {
+        Ok(bytes) => format::decode_prefix(&bytes, 0),
+        Err(e) => Err(e),
+    };
+    // A damaged first copy (even one whose version field reads as another
+    // format's) is passed over if the second copy verifies.
+    let err = match first {
+        Ok(p) => return Ok(p.text_len),
+        Err(e) => e,
+    };
+    // The first copy is damaged: look for the second one where it can be.
+    let last = format::header_span(MAX_TEXT_LEN).min(file_len);
+    let mut at = HEADER_ALIGN;
+    let mut buf = Vec::new();
+    while at + format::PREFIX_LEN <= last {
+        io::read_at(file, path, at, format::PREFIX_LEN as usize, &mut buf)?;
+        if let Ok(p) = format::decode_prefix(&buf, at) {
+            if format::header_span(p.text_len) == at {
+                bad[0] = true;
+                repaired.push(format!("header copy 1: {err}; copy 2 at byte {at} verifies"));
+                return Ok(p.text_len);
+            }
+        }
+        at += HEADER_ALIGN;
+    }
+    Err(format_err(path, err))
+}
+
+/// Reads both header copies: the settings and the text length.
+fn read_header(file: &File, path: &Path, file_len: u64, s: &mut Findings) -> Result<(Settings, u32)> {
+    let text_len = find_prefix(file, path, file_len, &mut s.bad_header, &mut s.repaired)?;
+    let span = format::header_span(text_len);
+    if !s.bad_header[0] {
+        let second = read_part(file, path, span, format::PREFIX_LEN, file_len, "file prefix")?;
+        let ok = second.and_then(|b| format::decode_prefix(&b, span)).map(|p| p.text_len);
+        match ok {
+            Ok(n) if n == text_len => {}
+            Ok(n) => {
+                s.bad_header[1] = true;
+                s.repaired.push(format!(
+                    "header copy 2 at byte {span} says the settings text is {n} bytes, copy 1 says {text_len}"
+                ));
+            }
+            Err(e) => {
+                s.bad_header[1] = true;
+                s.repaired.push(format!("header copy 2: {e}; copy 1 verifies"));
+            }
+        }
+    }
+    let mut text = None;
+    let mut errors = Vec::new();
+    for copy in 0..COPIES {
+        let at = format::text_offset(text_len, copy);
+        let got = read_part(file, path, at, u64::from(text_len) + 4, file_len, "settings text")?
+            .and_then(|b| format::decode_text(&b, at));
+        match got {
+            Ok(t) if text.is_none() => text = Some(t),
+            Ok(_) => {}
+            Err(e) => {
+                s.bad_header[copy] = true;
+                errors.push(format!("copy {}: {e}", copy + 1));
+            }
+        }
+    }
+    let Some(text) = text else {
+        let source = FormatError::Invalid {
+            what: "settings text".into(),
+            at: format::text_offset(text_len, 0),
+            detail: format!("no copy verifies ({})", errors.join("; ")),
+        };
+        return Err(format_err(path, source));
+    };
+    for e in errors {
+        s.repaired.push(format!("settings text {e}; the other copy verifies"));
+    }
+    let settings = Settings::from_text(&text).map_err(|source| StorageError::Settings {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok((settings, text_len))
+}
+
+/// Notes gathered while surveying.
+#[derive(Default)]
+struct Findings {
+    repaired: Vec<String>,
+    torn: Vec<String>,
+    problems: Vec<String>,
+    bad_header: [bool; COPIES],
+    uneven_slots: [bool; 2],
+}
+
+const SIDE: [&str; 2] = ["A", "B"];
+
+/// Reads the four slot copies and classifies them; returns the good slots,
+/// newest first, as (side, slot).
+fn read_slots(file: &File, path: &Path, text_len: u32, file_len: u64, s: &mut Findings) -> Result<Vec<(usize, Slot)>> {
+    let mut copies = [[SlotCopy::Empty, SlotCopy::Empty], [SlotCopy::Empty, SlotCopy::Empty]];
+    for (copy, row) in copies.iter_mut().enumerate() {
+        for (side, cell) in row.iter_mut().enumerate() {
+            let at = format::slot_offset(text_len, copy, side);
+            let what = format!("commit slot at byte {at}");
+            *cell = match read_part(file, path, at, format::SLOT_LEN, file_len, &what)?
+                .and_then(|b| format::decode_slot(&b, at))
+            {
+                Ok(Some(slot)) => SlotCopy::Good(slot),
+                Ok(None) => SlotCopy::Empty,
+                Err(e) => SlotCopy::Bad(e.to_string()),
+            };
+        }
+    }
+    let newest = copies
+        .iter()
+        .flatten()
+        .filter_map(|c| match c {
+            SlotCopy::Good(s) => Some(s.generation),
+            _ => None,
+        })
+        .max()
+        .unwrap_or(0);
+    for side in 0..2 {
+        let (one, two) = (&copies[0][side], &copies[1][side]);
+        let name = SIDE[side];
+        s.uneven_slots[side] = match (one, two) {
+            (SlotCopy::Good(a), SlotCopy::Good(b)) => a != b,
+            (SlotCopy::Empty, SlotCopy::Empty) => false,
+            _ => true,
+        };
+        match (one, two) {
+            (SlotCopy::Bad(e1), SlotCopy::Bad(e2)) => s.problems.push(format!(
+                "both copies of commit slot {name} are damaged, so a commit newer than {newest} may be lost ({e1}; {e2})"
+            )),
+            (SlotCopy::Bad(e), SlotCopy::Good(g)) if g.generation == newest => s
+                .repaired
+                .push(format!("copy 1 of commit slot {name}: {e}; copy 2 holds commit {newest}")),
+            // Copy 1 is written first: failing while copy 2 is older, it is
+            // damage or a commit a crash cut short. Either way no completed
+            // commit is lost.
+            (SlotCopy::Bad(e), _) => s.repaired.push(format!(
+                "copy 1 of commit slot {name}: {e} (damage, or a commit cut short by a crash); \
+                 no completed commit is lost"
+            )),
+            (SlotCopy::Good(g), SlotCopy::Bad(e)) => s.repaired.push(format!(
+                "copy 2 of commit slot {name}: {e}; copy 1 holds commit {}",
+                g.generation
+            )),
+            (SlotCopy::Empty, SlotCopy::Bad(e)) => s
+                .repaired
+                .push(format!("copy 2 of commit slot {name}: {e}; the slot was never used")),
+            (SlotCopy::Empty, SlotCopy::Good(g)) => s.repaired.push(format!(
+                "copy 1 of commit slot {name} is blank; copy 2 holds commit {}",
+                g.generation
+            )),
+            (SlotCopy::Good(a), SlotCopy::Good(b)) if a != b && a.generation > b.generation => s.torn.push(format!(
+                "a crash interrupted commit {} between its two slot copies; copy 1 holds it, nothing is lost",
+                a.generation
+            )),
+            (SlotCopy::Good(a), SlotCopy::Empty) => s.torn.push(format!(
+                "a crash interrupted commit {} between its two slot copies; copy 1 holds it, nothing is lost",
+                a.generation
+            )),
+            (SlotCopy::Good(a), SlotCopy::Good(b)) if a != b => s.repaired.push(format!(
+                "copy 1 of commit slot {name} holds commit {}, copy 2 commit {}",
+                a.generation, b.generation
+            )),
+            _ => {}
+        }
+    }
+    let mut good: Vec<(usize, Slot)> = Vec::new();
+    for row in &copies {
+        for (side, c) in row.iter().enumerate() {
+            if let SlotCopy::Good(slot) = c {
+                if !good.iter().any(|(_, g)| g == slot) {
+                    good.push((side, *slot));
+                }
+            }
+        }
+    }
+    good.sort_by_key(|(_, s)| std::cmp::Reverse(s.generation));
+    Ok(good)
+}
+
+/// The root of `slot`, from whichever copy verifies; records damaged copies.
+fn read_root(
+    file: &File,
+    path: &Path,
+    slot: &Slot,
+    beams: &[u32],
+    file_len: u64,
+    notes: &mut Vec<String>,
+) -> Result<std::result::Result<Vec<ChunkRef>, String>> {
+    let mut errors = Vec::new();
+    let mut found = None;
+    for (copy, e) in slot.root_copies().iter().enumerate() {
+        let what = format!("root of commit {} copy {}", slot.generation, copy + 1);
+        let got = read_part(file, path, e.offset, e.len, file_len, &what)?.and_then(|b| {
+            let crc = crc32c::crc32c(&b);
+            if crc != slot.root_crc {
+                return Err(FormatError::Checksum {
+                    what: what.clone(),
+                    start: e.offset,
+                    end: e.end(),
+                    stored: slot.root_crc,
+                    computed: crc,
+                });
+            }
+            format::decode_root(&b, e.offset, slot.generation, beams)
+        });
+        match got {
+            Ok(c) if found.is_none() => found = Some(c),
+            Ok(_) => {}
+            Err(e) => errors.push(format!("copy {}: {e}", copy + 1)),
+        }
+    }
+    match found {
+        Some(chunks) => {
+            notes.extend(
+                errors
+                    .into_iter()
+                    .map(|e| format!("root of commit {}, {e}; the other copy verifies", slot.generation)),
+            );
+            Ok(Ok(chunks))
+        }
+        None => Ok(Err(format!(
+            "root of commit {}: no copy verifies ({})",
+            slot.generation,
+            errors.join("; ")
+        ))),
+    }
+}
+
+/// The entries of one chunk, from whichever copy of its block verifies.
+fn read_chunk(
+    file: &File,
+    path: &Path,
+    c: &ChunkRef,
+    data_start: u64,
+    file_len: u64,
+    notes: &mut Vec<String>,
+) -> Result<std::result::Result<Vec<BeamEntry>, String>> {
+    let mut errors = Vec::new();
+    let mut found = None;
+    let too_long = c.len > format::max_directory_len(c.beams);
+    for (copy, e) in c.extents().iter().enumerate() {
+        let what = format!(
+            "directory of section {} beams {}..{}",
+            c.section,
+            c.first,
+            c.first + c.beams
+        );
+        let got = if too_long {
+            Err(FormatError::Invalid {
+                what,
+                at: e.offset,
+                detail: format!("a block of {} bytes is too long for {} beams", c.len, c.beams),
+            })
+        } else {
+            read_part(file, path, e.offset, e.len, file_len, &what)?
+                .and_then(|b| format::decode_directory(&b, e.offset, c.section, c.first, c.beams, data_start))
+        };
+        match got {
+            Ok(d) if found.is_none() => found = Some(d),
+            Ok(_) => {}
+            Err(e) => errors.push(format!("copy {}: {e}", copy + 1)),
+        }
+    }
+    let range = format!("section {} beams {}..{}", c.section, c.first, c.first + c.beams);
+    match found {
+        Some(d) => {
+            notes.extend(
+                errors
+                    .into_iter()
+                    .map(|e| format!("directory of {range}, {e}; the other copy verifies")),
+            );
+            Ok(Ok(d))
+        }
+        None => Ok(Err(format!(
+            "directory of {range} ({} rays): no copy verifies ({})",
+            c.rays,
+            errors.join("; ")
+        ))),
+    }
+}
+
+/// Who claims some bytes, in the order that wins an overlap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Claim {
+    NewestMeta,
+    NewestBeam(u32, u32),
+    OlderMeta,
+    OlderBeam(u32, u32),
+}
+
+/// Surveys the file. Fails only when nothing can be read: no settings, or no
+/// commit slot that verifies.
+pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
+    let file_len = io::file_len(file, path)?;
+    let mut f = Findings::default();
+    let (settings, text_len) = read_header(file, path, file_len, &mut f)?;
+    let data_start = format::data_start(text_len);
+    let beams: Vec<u32> = settings.sections.iter().map(|s| s.beam_count()).collect();
+    let slots = read_slots(file, path, text_len, file_len, &mut f)?;
+    let Some(&(side, newest)) = slots.first() else {
+        let mut problems = std::mem::take(&mut f.problems);
+        problems.extend(f.torn);
+        if problems.is_empty() {
+            problems.push("neither commit slot holds a commit".into());
+        }
+        return Err(StorageError::NoValidCommit {
+            path: path.to_path_buf(),
+            problems: problems.join("\n"),
+        });
+    };
+    let mut dirs: Vec<Vec<BeamEntry>> = beams.iter().map(|&n| vec![BeamEntry::default(); n as usize]).collect();
+    let mut claims: Vec<(Extent, Claim)> = Vec::new();
+    // Chunks of the newest commit whose directory is lost: (section, first, beams, rays).
+    let mut lost: Vec<ChunkRef> = Vec::new();
+    let mut claimed_rays = None;
+    let mut clean_chunks = None;
+    let mut weak_chunks = Vec::new();
+    claims.extend(newest.root_copies().iter().map(|e| (*e, Claim::NewestMeta)));
+    match read_root(file, path, &newest, &beams, file_len, &mut f.repaired)? {
+        Ok(chunks) => {
+            claimed_rays = Some(chunks.iter().map(|c| c.rays).sum::<u64>());
+            let mut all = true;
+            for c in &chunks {
+                claims.extend(c.extents().iter().map(|e| (*e, Claim::NewestMeta)));
+                let notes = f.repaired.len();
+                let read = read_chunk(file, path, c, data_start, file_len, &mut f.repaired)?;
+                if f.repaired.len() > notes {
+                    weak_chunks.push((c.section, c.first));
+                }
+                match read {
+                    Ok(entries) => {
+                        let dir = &mut dirs[c.section as usize];
+                        for (i, e) in entries.into_iter().enumerate() {
+                            let b = c.first + i as u32;
+                            dir[b as usize] = e;
+                            if e.count > 0 {
+                                claims.push((e.extent(), Claim::NewestBeam(c.section, b)));
+                            }
+                        }
+                    }
+                    Err(p) => {
+                        f.problems.push(p);
+                        lost.push(*c);
+                        all = false;
+                    }
+                }
+            }
+            if all {
+                clean_chunks = Some(chunks);
+            }
+        }
+        Err(p) => {
+            f.problems.push(p);
+            lost.extend(whole_sections(&beams));
+        }
+    }
+    // Lost directories: take them from the commit before, where it verifies.
+    let mut fallback = None;
+    if !lost.is_empty() {
+        if let Some(&(_, older)) = slots.iter().find(|(_, s)| s.generation < newest.generation) {
+            let mut ignored = Vec::new();
+            if let Ok(chunks) = read_root(file, path, &older, &beams, file_len, &mut ignored)? {
+                claims.extend(older.root_copies().iter().map(|e| (*e, Claim::OlderMeta)));
+                for c in chunks.iter().filter(|c| lost.iter().any(|l| overlaps(l, c))) {
+                    let Ok(entries) = read_chunk(file, path, c, data_start, file_len, &mut ignored)? else {
+                        continue;
+                    };
+                    fallback = Some(older.generation);
+                    claims.extend(c.extents().iter().map(|e| (*e, Claim::OlderMeta)));
+                    let dir = &mut dirs[c.section as usize];
+                    for (i, e) in entries.into_iter().enumerate() {
+                        let b = c.first + i as u32;
+                        let inside = lost
+                            .iter()
+                            .any(|l| l.section == c.section && (l.first..l.first + l.beams).contains(&b));
+                        if inside && e.count > 0 {
+                            dir[b as usize] = e;
+                            claims.push((e.extent(), Claim::OlderBeam(c.section, b)));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let metadata = plan_claims(&mut dirs, claims, data_start, file_len, &mut f.problems);
+    let damage = (!f.problems.is_empty()).then(|| CommitDamage {
+        generation: newest.generation,
+        problems: std::mem::take(&mut f.problems),
+        claimed_rays,
+        readable_rays: dirs.iter().flatten().map(|e| u64::from(e.count)).sum(),
+        fallback,
+    });
+    Ok(Survey {
+        settings,
+        text_len,
+        data_start,
+        file_len,
+        repaired: f.repaired,
+        torn: f.torn,
+        bad_header: f.bad_header,
+        clean: if damage.is_none() {
+            clean_chunks.map(|c| (newest, c))
+        } else {
+            None
+        },
+        damage,
+        generation: newest.generation,
+        side,
+        dirs,
+        metadata,
+        weak_chunks,
+        uneven_slots: f.uneven_slots,
+    })
+}
+
+fn whole_sections(beams: &[u32]) -> Vec<ChunkRef> {
+    beams
+        .iter()
+        .enumerate()
+        .map(|(s, &n)| ChunkRef {
+            section: s as u32,
+            first: 0,
+            beams: n,
+            ..ChunkRef::default()
+        })
+        .collect()
+}
+
+fn overlaps(a: &ChunkRef, b: &ChunkRef) -> bool {
+    a.section == b.section && a.first < b.first + b.beams && b.first < a.first + a.beams
+}
+
+/// Drops beams whose runs lie past the end of the file or below the data
+/// area, then settles overlaps: the higher claim keeps the bytes. Returns the
+/// metadata extents kept; problems are recorded for every beam dropped from
+/// the newest commit.
+fn plan_claims(
+    dirs: &mut [Vec<BeamEntry>],
+    mut claims: Vec<(Extent, Claim)>,
+    data_start: u64,
+    file_len: u64,
+    problems: &mut Vec<String>,
+) -> Vec<Extent> {
+    let (mut past_end, mut past_end_rays) = (0u64, 0u64);
+    claims.retain(|(e, claim)| {
+        let inside = e.offset >= data_start && e.end() <= file_len;
+        if !inside {
+            if let Claim::NewestBeam(s, b) | Claim::OlderBeam(s, b) = *claim {
+                let entry = &mut dirs[s as usize][b as usize];
+                if matches!(claim, Claim::NewestBeam(..)) {
+                    past_end += 1;
+                    past_end_rays += u64::from(entry.count);
+                }
+                *entry = BeamEntry::default();
+            }
+        }
+        inside && e.len > 0
+    });
+    if past_end > 0 {
+        problems.push(format!(
+            "{past_end} beams ({past_end_rays} rays) lie past the end of the file at byte {file_len}: the file is truncated"
+        ));
+    }
+    claims.sort_by_key(|(e, c)| (e.offset, *c));
+    let mut kept: Vec<(Extent, Claim)> = Vec::with_capacity(claims.len());
+    let mut clashes = 0u64;
+    for (e, c) in claims {
+        // Only the last kept claim can reach past `e.offset`: kept claims never overlap.
+        let clash = kept.last().filter(|(k, _)| k.end() > e.offset).copied();
+        let Some((k, kc)) = clash else {
+            kept.push((e, c));
+            continue;
+        };
+        if k == e && kc == c {
+            continue; // the same block listed twice (two chunks can't, but be safe)
+        }
+        let (loser, winner_replaced) = if c < kc { (kc, true) } else { (c, false) };
+        if winner_replaced {
+            kept.pop();
+            kept.push((e, c));
+        }
+        if let Claim::NewestBeam(s, b) | Claim::OlderBeam(s, b) = loser {
+            dirs[s as usize][b as usize] = BeamEntry::default();
+        }
+        if matches!(loser, Claim::NewestBeam(..) | Claim::NewestMeta) {
+            clashes += 1;
+        }
+    }
+    if clashes > 0 {
+        problems.push(format!(
+            "{clashes} runs or blocks of the newest commit claim bytes that others claim too"
+        ));
+    }
+    kept.into_iter()
+        .filter(|(_, c)| matches!(c, Claim::NewestMeta | Claim::OlderMeta))
+        .map(|(e, _)| e)
+        .collect()
+}
