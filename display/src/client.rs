@@ -42,17 +42,25 @@ pub enum ClientError {
 /// Both directions of a socket, splittable into a reader and a writer.
 trait Duplex: Read + Write + Send {
     fn split(&self) -> std::io::Result<Box<dyn Duplex>>;
+    /// Closes both directions, for every handle of the socket.
+    fn close(&self);
 }
 
 impl Duplex for std::net::TcpStream {
     fn split(&self) -> std::io::Result<Box<dyn Duplex>> {
         Ok(Box::new(self.try_clone()?))
     }
+    fn close(&self) {
+        let _ = self.shutdown(std::net::Shutdown::Both);
+    }
 }
 
 impl Duplex for std::os::unix::net::UnixStream {
     fn split(&self) -> std::io::Result<Box<dyn Duplex>> {
         Ok(Box::new(self.try_clone()?))
+    }
+    fn close(&self) {
+        let _ = self.shutdown(std::net::Shutdown::Both);
     }
 }
 
@@ -87,6 +95,14 @@ pub struct DisplaySession {
     scratch: Vec<Sample>,
     /// Rays received per beam (since the last request that asked to resend).
     received: HashMap<BeamKey, u64>,
+}
+
+impl Drop for DisplaySession {
+    fn drop(&mut self) {
+        // The reader thread holds its own handle of the socket: shut it down,
+        // so the server sees this display leave now, not at its next frame.
+        self.writer.stream().close();
+    }
 }
 
 impl DisplaySession {

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod cmd;
 mod fill;
 mod human;
+mod parent;
 mod progress;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
@@ -20,6 +21,9 @@ struct Cli {
     /// Only errors.
     #[arg(short, long, global = true)]
     quiet: bool,
+    /// Stop when the parent process ends (set by `holodeck run` for its children).
+    #[arg(long, global = true, hide = true)]
+    exit_with_parent: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -94,6 +98,9 @@ fn init_logging(verbose: u8, quiet: bool) {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.verbose, cli.quiet);
+    if cli.exit_with_parent {
+        parent::exit_with_parent();
+    }
     let result = match cli.command {
         Command::Create(a) => cmd::create::run(a),
         Command::Info(a) => cmd::info::run(a),

@@ -4,7 +4,7 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::{Child, Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -20,7 +20,10 @@ use crate::human::count;
 #[command(after_help = "\
 Starts `holodeck serve` on a free local port and WORKERS `holodeck sample` processes
 (one tracing thread each), lets them fill FILE for --time, then asks the server to quit
-(it flushes) and waits for everything to end. Ctrl-C stops early, also cleanly. With
+(it flushes) and waits for everything to end. Ctrl-C stops early, also cleanly. The
+children stop with `run` however it ends (even killed), the server flushing its file.
+If the server, a sampler or the display dies by a signal or fails, `run` says which and
+how, stops the rest, and exits with status 1. With
 -o DRIVER, a headless display (`holodeck view`) also walks --views, sharing --time among
 them; the samplers trace what it asks for first, and its frames go to --frames.
 For workers on other hosts, start `holodeck serve` and `holodeck sample` yourself.
@@ -70,9 +73,91 @@ pub struct Args {
 }
 
 fn me() -> Result<Command> {
-    Ok(Command::new(
-        std::env::current_exe().context("finding the holodeck executable")?,
-    ))
+    let mut cmd = Command::new(std::env::current_exe().context("finding the holodeck executable")?);
+    // The child watches its standard input: when this process ends, it stops too.
+    cmd.arg("--exit-with-parent").stdin(Stdio::piped());
+    Ok(cmd)
+}
+
+/// A process `run` started, named for messages. Dropping it kills the
+/// process if it still runs, so an error in `run` leaves nothing behind.
+struct Child {
+    name: String,
+    process: std::process::Child,
+    /// Set once its exit has been reported (or was expected).
+    done: bool,
+}
+
+impl Child {
+    fn spawn(name: impl Into<String>, mut cmd: Command) -> Result<Child> {
+        let name = name.into();
+        let process = cmd.spawn().with_context(|| format!("starting the {name}"))?;
+        Ok(Child {
+            name,
+            process,
+            done: false,
+        })
+    }
+
+    /// The exit status, if it has exited.
+    fn exited(&mut self) -> Result<Option<ExitStatus>> {
+        self.process
+            .try_wait()
+            .with_context(|| format!("waiting for the {}", self.name))
+    }
+
+    /// Waits up to `limit` for it to exit; kills it after that. Returns what
+    /// went wrong, if anything: a failure or signal, or having to be killed.
+    fn finish(&mut self, limit: Duration) -> Option<String> {
+        let start = Instant::now();
+        loop {
+            match self.process.try_wait() {
+                Ok(Some(status)) => {
+                    self.done = true;
+                    return (!status.success()).then(|| format!("the {} {}", self.name, how(status)));
+                }
+                Ok(None) if start.elapsed() < limit => std::thread::sleep(Duration::from_millis(50)),
+                _ => {
+                    let _ = self.process.kill();
+                    let _ = self.process.wait();
+                    self.done = true;
+                    return Some(format!(
+                        "the {} did not stop within {limit:?} and was killed",
+                        self.name
+                    ));
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Child {
+    fn drop(&mut self) {
+        if !self.done && matches!(self.process.try_wait(), Ok(None)) {
+            let _ = self.process.kill();
+            let _ = self.process.wait();
+        }
+    }
+}
+
+/// How a process ended, in words.
+fn how(status: ExitStatus) -> String {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (_, Some(sig)) => {
+            let name = match sig {
+                libc::SIGKILL => " (SIGKILL)",
+                libc::SIGTERM => " (SIGTERM)",
+                libc::SIGINT => " (SIGINT)",
+                libc::SIGSEGV => " (SIGSEGV)",
+                libc::SIGABRT => " (SIGABRT)",
+                _ => "",
+            };
+            format!("was killed by signal {sig}{name}")
+        }
+        (Some(code), None) => format!("failed with exit status {code}"),
+        (None, None) => "ended for an unknown reason".into(),
+    }
 }
 
 /// Asks the server at `addr` to flush and quit.
@@ -96,19 +181,6 @@ pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
     // The server closes the connection once it has the command.
     let _ = link.read();
     Ok(())
-}
-
-fn wait_all(children: &mut [Child], limit: Duration) {
-    let start = Instant::now();
-    for c in children.iter_mut() {
-        while c.try_wait().ok().flatten().is_none() && start.elapsed() < limit {
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        if c.try_wait().ok().flatten().is_none() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
 }
 
 /// A view from the middle of `section` along its first axis, level, 75 x 56 degrees.
@@ -165,18 +237,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_str()
         .context("the file name must be valid UTF-8")?
         .to_string();
-    let mut server = me()?
+    let mut server = me()?;
+    server
         .args(["serve", &file, "--listen", "127.0.0.1:0"])
         .args(a.accept_loss.then_some("--accept-loss"))
         .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .context("starting the server")?;
+        .stderr(Stdio::inherit());
+    let mut server = Child::spawn("server", server)?;
     let mut line = String::new();
-    BufReader::new(server.stdout.as_mut().context("server output")?).read_line(&mut line)?;
+    BufReader::new(server.process.stdout.as_mut().context("server output")?).read_line(&mut line)?;
     let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
-        let _ = server.kill();
-        bail!("the server did not start: {line:?}");
+        let why = server.finish(Duration::from_secs(5)).unwrap_or_default();
+        bail!("the server did not start: {why}");
     };
     let token_file = format!("{file}.token");
     let token = std::fs::read_to_string(&token_file)
@@ -187,31 +259,30 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let samples = a.samples.to_string();
     let mut workers: Vec<Child> = (0..a.workers.max(1))
         .map(|i| {
-            me()?
-                .args([
-                    "sample",
-                    &a.scene,
-                    "--connect",
-                    &addr,
-                    "--token-file",
-                    &token_file,
-                    "-j",
-                    "1",
-                ])
-                .args([
-                    "--bounces",
-                    &bounces,
-                    "--samples",
-                    &samples,
-                    "--retry-for",
-                    "0s",
-                    "--seed",
-                    &(i as u64 + 1).to_string(),
-                ])
-                .stdout(Stdio::null())
-                .stderr(Stdio::inherit())
-                .spawn()
-                .context("starting a sampler")
+            let mut cmd = me()?;
+            cmd.args([
+                "sample",
+                &a.scene,
+                "--connect",
+                &addr,
+                "--token-file",
+                &token_file,
+                "-j",
+                "1",
+            ])
+            .args([
+                "--bounces",
+                &bounces,
+                "--samples",
+                &samples,
+                "--retry-for",
+                "0s",
+                "--seed",
+                &(i as u64 + 1).to_string(),
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit());
+            Child::spawn(format!("sampler {}", i + 1), cmd)
         })
         .collect::<Result<_>>()?;
     println!(
@@ -230,42 +301,72 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .count()
                 .max(1);
             let wait = format!("{}s", time.as_secs_f64() / count as f64);
-            Some(
-                me()?
-                    .args(["view", "--connect", &addr, "--token-file", &token_file, "--headless"])
-                    .arg("--views")
-                    .arg(views)
-                    .arg("-o")
-                    .arg(&a.frames)
-                    .args(["--driver", driver, "--wait", &wait, "--steps", "2"])
-                    .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
-                    .stderr(Stdio::inherit())
-                    .spawn()
-                    .context("starting the display")?,
-            )
+            let mut cmd = me()?;
+            cmd.args(["view", "--connect", &addr, "--token-file", &token_file, "--headless"])
+                .arg("--views")
+                .arg(views)
+                .arg("-o")
+                .arg(&a.frames)
+                .args(["--driver", driver, "--wait", &wait, "--steps", "2"])
+                .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
+                .stderr(Stdio::inherit());
+            Some(Child::spawn("display", cmd)?)
         }
         None => None,
     };
+    let mut failures: Vec<String> = Vec::new();
     let bar = indicatif::ProgressBar::new(time.as_secs().max(1));
-    while start.elapsed() < time && server.try_wait()?.is_none() {
+    let mut server_stopped = false;
+    while start.elapsed() < time {
+        if let Some(status) = server.exited()? {
+            // A server stops on its own at TIME or a full DISKSPACE; anything else is a failure.
+            server.done = true;
+            server_stopped = true;
+            if !status.success() {
+                failures.push(format!("the server {}", how(status)));
+            }
+            break;
+        }
         if let Some(v) = &mut viewer {
-            if v.try_wait()?.is_some() {
+            if let Some(status) = v.exited()? {
+                v.done = true;
+                if !status.success() {
+                    failures.push(format!("the display {}", how(status)));
+                }
                 break;
+            }
+        }
+        for w in workers.iter_mut().filter(|w| !w.done) {
+            if let Some(status) = w.exited()? {
+                w.done = true;
+                if !status.success() {
+                    let failure = format!("{} {}", w.name, how(status));
+                    bar.suspend(|| eprintln!("holodeck run: {failure}"));
+                    failures.push(failure);
+                }
             }
         }
         std::thread::sleep(Duration::from_millis(200));
         bar.set_position(start.elapsed().as_secs());
     }
     bar.finish_and_clear();
-    if let Some(v) = &mut viewer {
-        wait_all(std::slice::from_mut(v), Duration::from_secs(30));
+    if let Some(v) = viewer.as_mut().filter(|v| !v.done) {
+        failures.extend(v.finish(Duration::from_secs(30)));
     }
     let secs = start.elapsed().as_secs_f64();
-    if server.try_wait()?.is_none() {
-        quit(&addr, &token).context("asking the server to quit")?;
+    if !server_stopped {
+        if let Err(e) = quit(&addr, &token) {
+            failures.push(format!("asking the server to quit: {e:#}"));
+        }
+        failures.extend(server.finish(Duration::from_secs(60)));
     }
-    wait_all(std::slice::from_mut(&mut server), Duration::from_secs(60));
-    wait_all(&mut workers, Duration::from_secs(10));
+    for w in workers.iter_mut().filter(|w| !w.done) {
+        // Samplers of a server that failed fail too; that is not news.
+        let failure = w.finish(Duration::from_secs(10));
+        if failures.is_empty() {
+            failures.extend(failure);
+        }
+    }
     let after = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     let added = after.rays().saturating_sub(before);
     println!(
@@ -277,5 +378,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         count(after.sections.iter().map(|s| u64::from(s.1)).sum()),
         count(after.sections.iter().map(|s| u64::from(s.0)).sum())
     );
+    if !failures.is_empty() {
+        bail!("{}", failures.join("; "));
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -80,33 +80,33 @@ fn token_path(file: &Path) -> PathBuf {
     file.with_file_name(name)
 }
 
+/// Writes the token readable by the owner only, to a temporary name first so
+/// that a failed write leaves no empty or partial token file behind.
 fn write_token(path: &Path, token: &str) -> Result<()> {
     use std::os::unix::fs::OpenOptionsExt;
-    let mut f = std::fs::OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .mode(0o600)
-        .open(path)
-        .with_context(|| format!("writing the token to {}", path.display()))?;
-    writeln!(f, "{token}")?;
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.tmp", std::process::id()));
+    let tmp = path.with_file_name(name);
+    let written = (|| -> std::io::Result<()> {
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .mode(0o600)
+            .open(&tmp)?;
+        writeln!(f, "{token}")?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e).with_context(|| format!("writing the access token to {}", path.display()));
+    }
     Ok(())
 }
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let token = match a.token {
-        Some(t) => t,
-        None => {
-            let t: String = (0..32)
-                .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
-                .collect();
-            let path = token_path(&a.file);
-            write_token(&path, &t)?;
-            eprintln!("access token written to {}", path.display());
-            t
-        }
-    };
     let cache_bytes = match &a.cache {
         Some(c) => Some(parse_size(c).map_err(anyhow::Error::msg).context("--cache")?),
         None => None,
@@ -119,6 +119,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ..OpenOptions::default()
         },
     )?;
+    // The token is written once the file is open: a file that cannot be served keeps its old token.
+    let token = match a.token {
+        Some(t) => t,
+        None => {
+            let t: String = (0..32)
+                .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
+                .collect();
+            let path = token_path(&a.file);
+            write_token(&path, &t)?;
+            eprintln!("access token written to {}", path.display());
+            t
+        }
+    };
     if let Some(d) = &a.diskspace {
         let bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
         file.set_size_limit((bytes > 0).then_some(bytes));
@@ -171,6 +184,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .await
             .with_context(|| format!("serving {}", a.file.display()))
     })?;
-    println!("{}: flushed and closed", a.file.display());
+    // Whoever started us may be gone (its end of our output with it): that is no failure.
+    let _ = writeln!(std::io::stdout(), "{}: flushed and closed", a.file.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -57,7 +57,7 @@ pub struct ServerConfig {
     pub time: Option<Duration>,
     /// Print a progress line this often (the REPORT setting).
     pub report: Option<Duration>,
-    /// Stop once the file refuses rays (DISKSPACE reached) and no display is connected.
+    /// Stop once the file refuses rays (DISKSPACE reached, or a write failed) and no display is connected.
     pub stop_when_full: bool,
     /// A sampler that returns nothing for this long while it holds work is
     /// dropped and its work given back.
@@ -286,7 +286,8 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
             }
             _ = full_check.tick() => {
                 if shared.config.stop_when_full && store.refusing() && shared.lock_displays().is_empty() {
-                    tracing::warn!("the file refuses more rays (DISKSPACE reached): stopping");
+                    let why = store.refusal().unwrap_or_else(|| "it refuses them".into());
+                    tracing::warn!("no more rays can be stored ({why}): stopping");
                     break;
                 }
             }

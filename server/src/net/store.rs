@@ -3,7 +3,7 @@
 //! the network executor.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use holodeck_protocol::{BeamKey, RayRecord};
@@ -32,6 +32,8 @@ const QUEUE: usize = 4096;
 pub struct Store {
     tx: mpsc::Sender<Request>,
     refusing: Arc<AtomicBool>,
+    /// Why the file first refused rays.
+    refusal: Arc<Mutex<Option<String>>>,
 }
 
 /// The storage thread itself; joining it closes the file after a final flush.
@@ -45,6 +47,8 @@ impl Store {
         let (tx, mut rx) = mpsc::channel::<Request>(QUEUE);
         let refusing = Arc::new(AtomicBool::new(false));
         let refused = Arc::clone(&refusing);
+        let refusal = Arc::new(Mutex::new(None));
+        let reason = Arc::clone(&refusal);
         let handle = std::thread::spawn(move || -> Result<()> {
             while let Some(req) = rx.blocking_recv() {
                 match req {
@@ -53,6 +57,15 @@ impl Store {
                             // Log the first refusal only: every later packet meets the same wall.
                             if !refused.swap(true, Ordering::SeqCst) {
                                 tracing::error!("storing rays of {key:?}: {e}");
+                                let why = match e {
+                                    StorageError::DiskSpace { limit, .. } => {
+                                        format!("its DISKSPACE limit of {limit} bytes is reached")
+                                    }
+                                    e => e.to_string(),
+                                };
+                                if let Ok(mut r) = reason.lock() {
+                                    *r = Some(why);
+                                }
                             }
                         }
                     }
@@ -72,6 +85,9 @@ impl Store {
                         let r = file.clobber();
                         if r.is_ok() {
                             refused.store(false, Ordering::SeqCst);
+                            if let Ok(mut r) = reason.lock() {
+                                *r = None;
+                            }
                         }
                         let _ = reply.send(r);
                     }
@@ -101,7 +117,7 @@ impl Store {
             }
             file.close()
         });
-        (Store { tx, refusing }, StoreThread { handle })
+        (Store { tx, refusing, refusal }, StoreThread { handle })
     }
 
     fn gone() -> StorageError {
@@ -116,6 +132,12 @@ impl Store {
     /// failed): tracing more is wasted.
     pub fn refusing(&self) -> bool {
         self.refusing.load(Ordering::SeqCst)
+    }
+
+    /// Why the file refuses rays, once it does: its DISKSPACE limit, or the
+    /// error that stopped writing (a full disk, a failed write or sync).
+    pub fn refusal(&self) -> Option<String> {
+        self.refusal.lock().ok().and_then(|r| r.clone())
     }
 
     /// Queues rays for a beam.

@@ -308,6 +308,9 @@ impl HoloFile {
                 path: self.store.path.clone(),
             });
         }
+        // After a failed write nothing more can become durable: refuse at once
+        // rather than caching rays that can never be written.
+        self.store.check_usable()?;
         if self.beam_len(key)? + rays.len() as u64 > u64::from(u32::MAX) {
             return Err(StorageError::BeamFull { key });
         }
@@ -382,6 +385,7 @@ impl HoloFile {
 
     /// Writes every unwritten ray and commits, so that all appended rays survive a crash.
     pub fn flush(&mut self) -> Result<()> {
+        self.store.check_usable()?;
         let mut keys = self.cache.dirty_keys();
         keys.sort_by_key(|k| self.entry(*k).offset);
         for key in keys {

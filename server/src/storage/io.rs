@@ -58,6 +58,8 @@ fn io_err<'a>(path: &'a Path, op: &'static str) -> impl FnOnce(std::io::Error) -
 
 /// Writes all of `bytes` at `offset`.
 pub fn write_at(file: &File, path: &Path, offset: u64, bytes: &[u8]) -> Result<()> {
+    #[cfg(feature = "fault-injection")]
+    super::faults::check(path, super::faults::Op::Write).map_err(io_err(path, "writing"))?;
     file.write_all_at(bytes, offset).map_err(io_err(path, "writing"))
 }
 
@@ -74,6 +76,8 @@ pub fn read_exact_at(file: &File, path: &Path, offset: u64, buf: &mut [u8]) -> R
 
 /// Flushes file data (and the size needed to read it) to stable storage.
 pub fn sync(file: &File, path: &Path) -> Result<()> {
+    #[cfg(feature = "fault-injection")]
+    super::faults::check(path, super::faults::Op::Sync).map_err(io_err(path, "syncing"))?;
     file.sync_data().map_err(io_err(path, "syncing"))
 }
 

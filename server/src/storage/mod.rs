@@ -9,6 +9,8 @@ pub mod bulk;
 pub mod cache;
 pub mod error;
 pub mod extents;
+#[cfg(feature = "fault-injection")]
+pub mod faults;
 pub mod format;
 pub mod holofile;
 mod io;

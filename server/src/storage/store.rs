@@ -326,7 +326,7 @@ impl Store {
         r
     }
 
-    fn check_usable(&self) -> Result<()> {
+    pub(crate) fn check_usable(&self) -> Result<()> {
         if self.poisoned {
             return Err(StorageError::Poisoned {
                 path: self.path.clone(),
@@ -402,7 +402,11 @@ impl Store {
     /// made so far. `buf` only ever grows (no zero-filling per read); bytes past
     /// `len` are stale.
     pub(crate) fn read_into(&mut self, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
-        self.flush_writes()?;
+        // After a failed write the batch can never be written: read what the
+        // disk holds (runs that were only in the batch then fail their checksum).
+        if !self.poisoned {
+            self.flush_writes()?;
+        }
         if buf.len() < len {
             buf.resize(len, 0);
         }

@@ -1,0 +1,71 @@
+//! Fault injection for tests of the storage path: writes or syncs of one
+//! file fail with EIO from a chosen call on, as a failing disk's would. Built
+//! only with the `fault-injection` feature, which no product build enables.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+
+/// Which operation a plan makes fail.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Op {
+    /// Positioned writes of the file's bytes.
+    Write,
+    /// `fdatasync` of the file.
+    Sync,
+}
+
+struct Plan {
+    path: PathBuf,
+    op: Op,
+    /// Calls of `op` that still succeed.
+    left: u64,
+}
+
+static ARMED: AtomicBool = AtomicBool::new(false);
+static PLAN: Mutex<Option<Plan>> = Mutex::new(None);
+
+/// From now on, the `after + 1`-th `op` on the file at `path` and every one
+/// after it fail with EIO.
+pub fn arm(path: &Path, op: Op, after: u64) {
+    if let Ok(mut p) = PLAN.lock() {
+        *p = Some(Plan {
+            path: path.to_path_buf(),
+            op,
+            left: after,
+        });
+        ARMED.store(true, Ordering::SeqCst);
+    }
+}
+
+/// Ends the failures.
+pub fn disarm() {
+    ARMED.store(false, Ordering::SeqCst);
+    if let Ok(mut p) = PLAN.lock() {
+        *p = None;
+    }
+}
+
+/// True once the armed plan has made a call fail.
+pub fn tripped() -> bool {
+    PLAN.lock()
+        .is_ok_and(|p| p.as_ref().is_some_and(|p| p.left == 0) && ARMED.load(Ordering::SeqCst))
+}
+
+/// Fails the call if the plan says so.
+pub(super) fn check(path: &Path, op: Op) -> std::io::Result<()> {
+    if !ARMED.load(Ordering::Relaxed) {
+        return Ok(());
+    }
+    let Ok(mut guard) = PLAN.lock() else { return Ok(()) };
+    match guard.as_mut() {
+        Some(p) if p.op == op && p.path == path => {
+            if p.left == 0 {
+                return Err(std::io::Error::from_raw_os_error(libc::EIO));
+            }
+            p.left -= 1;
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
