@@ -14,7 +14,7 @@ use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, P
 use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::{HoloFile, OpenOptions};
 
-use crate::common::process::{Proc, DEADLINE};
+use crate::common::process::{wait_for, Proc, DEADLINE};
 
 /// The `holodeck` binary.
 pub fn bin() -> Command {
@@ -376,6 +376,16 @@ impl Client {
             }
         }
     }
+}
+
+/// Asks `display` for `beams` until they hold more than `rays` stored rays;
+/// returns how many they then hold.
+pub fn stored_above(display: &mut Client, beams: &[(BeamKey, u32)], rays: u64, what: &str) -> u64 {
+    wait_for(&format!("{what} (more than {rays} rays stored)"), DEADLINE, || {
+        // Each look reads every beam asked for: a few looks a second, not more.
+        std::thread::sleep(Duration::from_millis(100));
+        Some(display.stored(beams)).filter(|n| *n > rays)
+    })
 }
 
 /// Collects rays streamed after a request's immediate transfer until every
