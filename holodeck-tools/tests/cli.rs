@@ -134,7 +134,12 @@ fn bad_input_gets_a_clear_error_and_a_failing_exit() {
         text(&o)
     );
     let o = holodeck(&["create", f, "--section", &format!("{ROOM} grid=300,1,1")]);
-    assert!(text(&o).contains("outside 1..=255"), "{}", text(&o));
+    assert!(
+        !o.status.success() && text(&o).contains("outside 1..=255"),
+        "{}",
+        text(&o)
+    );
+    assert!(!file.exists(), "a refused create leaves no file");
 
     std::fs::write(&file, b"hello").unwrap();
     let o = holodeck(&["info", f]);
@@ -144,7 +149,16 @@ fn bad_input_gets_a_clear_error_and_a_failing_exit() {
         text(&o)
     );
     let o = holodeck(&["create", f, "--section", ROOM]);
-    assert!(text(&o).contains("already exists"), "{}", text(&o));
+    assert!(
+        !o.status.success() && text(&o).contains("already exists"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(
+        std::fs::read(&file).unwrap(),
+        b"hello",
+        "an existing file is never overwritten"
+    );
     // Without grid= or --grid, the grid aims at 150,000 beams.
     let auto = dir.path().join("auto.hdk");
     let o = holodeck(&["create", auto.to_str().unwrap(), "--section", ROOM]);

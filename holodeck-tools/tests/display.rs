@@ -92,7 +92,8 @@ fn pictures_where_the_method_fails_are_drawn_or_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let hdk = dir.path().join("room.hdk");
     let hdk = hdk.to_str().unwrap();
-    ok(&["fill", "builtin:room", hdk, "--rays", "20K", "--bounces", "0"]);
+    // One bounce: lit walls, so a drawn frame is not black.
+    ok(&["fill", "builtin:room", hdk, "--rays", "20K", "--bounces", "1"]);
     let out = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     // Outside every section, looking away: nothing to draw, a black frame, no error.
     let away = out("away.hdr");
@@ -109,6 +110,7 @@ fn pictures_where_the_method_fails_are_drawn_or_refused_clearly() {
         &away,
     ]);
     assert!(t.contains(" 0 samples from 0 beams"), "{t}");
+    assert_eq!(samples(&t), 0);
     let black = read_picture(std::path::Path::new(&away)).unwrap();
     assert!(black.pixels.iter().all(|p| *p == glam::Vec3::ZERO));
     // Outside the section looking in, and along a wall: drawn.
@@ -124,8 +126,18 @@ fn pictures_where_the_method_fails_are_drawn_or_refused_clearly() {
         "-o",
         &out("in.hdr"),
     ]);
-    assert!(!t.contains(" 0 samples"), "{t}");
-    ok(&[
+    let drawn = samples(&t);
+    assert!(drawn > 0, "{t}");
+    let inside = read_picture(std::path::Path::new(&out("in.hdr"))).unwrap();
+    assert_eq!((inside.width, inside.height), (32, 24));
+    let lit = inside.pixels.iter().filter(|p| p.max_element() > 0.0).count();
+    assert!(
+        lit > inside.pixels.len() / 2,
+        "{drawn} samples lit only {lit} pixels: {t}"
+    );
+    // Along a wall, through a one-degree window: a frame of finite,
+    // non-negative pixels, black exactly when no sample fell in it.
+    let t = ok(&[
         "pict",
         hdk,
         "--view",
@@ -137,6 +149,14 @@ fn pictures_where_the_method_fails_are_drawn_or_refused_clearly() {
         "-o",
         &out("wall.hdr"),
     ]);
+    let wall = read_picture(std::path::Path::new(&out("wall.hdr"))).unwrap();
+    assert_eq!((wall.width, wall.height), (8, 8));
+    assert!(
+        wall.pixels.iter().all(|p| p.is_finite() && p.min_element() >= 0.0),
+        "{t}"
+    );
+    let black = wall.pixels.iter().all(|p| *p == glam::Vec3::ZERO);
+    assert_eq!(black, samples(&t) == 0, "{t}");
     // One pixel works; a 16384 x 16384 frame is refused with a reason.
     ok(&["pict", hdk, "-x", "1", "-y", "1", "-o", &out("one.hdr")]);
     let o = holodeck(&["pict", hdk, "-x", "16384", "-y", "16384", "-o", &out("huge.hdr")]);
@@ -162,5 +182,18 @@ fn pictures_where_the_method_fails_are_drawn_or_refused_clearly() {
     }
     std::fs::write(&path, format!("{VIEW}\n-vp 1 two 1.5\n")).unwrap();
     let o = holodeck(&["pict", hdk, "--views", path.to_str().unwrap(), "-o", &out("w_%d.png")]);
-    assert!(text(&o).contains("walk.vf:2"), "{}", text(&o));
+    assert!(!o.status.success() && text(&o).contains("walk.vf:2"), "{}", text(&o));
+}
+
+/// The samples `holodeck pict` reports drawing: "N samples from M beams".
+fn samples(out: &str) -> u64 {
+    let count = out
+        .split(" samples from ")
+        .next()
+        .and_then(|head| head.rsplit(' ').next())
+        .unwrap_or_else(|| panic!("no sample count in {out:?}"));
+    count
+        .replace(',', "")
+        .parse()
+        .unwrap_or_else(|e| panic!("sample count {count:?} in {out:?}: {e}"))
 }

@@ -2,13 +2,13 @@
 
 use std::process::{Command, Output};
 
-/// Runs `holodeck` with `args` and waits for it.
+pub mod process;
+
+/// Runs `holodeck` with `args` to the end (within [`process::DEADLINE`]);
+/// the process is killed if the test fails first.
 #[allow(dead_code)]
 pub fn holodeck(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_holodeck"))
-        .args(args)
-        .output()
-        .unwrap()
+    process::run(Command::new(env!("CARGO_BIN_EXE_holodeck")).args(args))
 }
 
 /// Standard output and standard error together, as text.

@@ -221,8 +221,10 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
             let mut tick = tokio::time::interval(Duration::from_secs(2));
             loop {
                 tick.tick().await;
-                if let Err(e) = store.flush().await {
-                    tracing::error!("periodic flush: {e}");
+                match store.flush().await {
+                    // Says what a crash can no longer take away (tests wait on it).
+                    Ok(rays) => tracing::debug!("periodic flush: {rays} rays durable"),
+                    Err(e) => tracing::error!("periodic flush: {e}"),
                 }
             }
         })
@@ -291,8 +293,14 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
                     break;
                 }
             }
-            _ = &mut interrupted => break,
-            _ = &mut terminated => break,
+            _ = &mut interrupted => {
+                tracing::info!("SIGINT: stopping");
+                break;
+            }
+            _ = &mut terminated => {
+                tracing::info!("SIGTERM: stopping");
+                break;
+            }
         }
     }
     // Tell every connection to stop, then end those that do not: packets they
@@ -316,8 +324,9 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     let closed = tokio::task::spawn_blocking(move || thread.join())
         .await
         .unwrap_or(Ok(()));
-    flushed?;
+    let rays = flushed?;
     closed?;
+    tracing::info!("flushed and closed: {rays} rays in the file");
     Ok(())
 }
 

@@ -20,7 +20,7 @@ enum Request {
     Lens(oneshot::Sender<Vec<Vec<u64>>>),
     Clobber(oneshot::Sender<Result<()>>),
     Len(BeamKey, oneshot::Sender<u64>),
-    Flush(oneshot::Sender<Result<()>>),
+    Flush(oneshot::Sender<Result<u64>>),
     Summary(oneshot::Sender<FileSummary>),
 }
 
@@ -108,7 +108,7 @@ impl Store {
                         let _ = reply.send(file.beam_len(key).unwrap_or(0));
                     }
                     Request::Flush(reply) => {
-                        let _ = reply.send(file.flush());
+                        let _ = reply.send(file.flush().map(|()| file.summary().rays()));
                     }
                     Request::Summary(reply) => {
                         let _ = reply.send(file.summary());
@@ -189,8 +189,9 @@ impl Store {
         rx.await.ok()
     }
 
-    /// Makes everything stored so far durable.
-    pub async fn flush(&self) -> Result<()> {
+    /// Makes everything stored so far durable; returns the rays the file
+    /// then holds, every one of which survives a crash from here on.
+    pub async fn flush(&self) -> Result<u64> {
         let (tx, rx) = oneshot::channel();
         self.tx.send(Request::Flush(tx)).await.map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())?

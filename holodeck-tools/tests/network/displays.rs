@@ -1,0 +1,380 @@
+//! Displays: requests traced near the eye and streamed (over a Unix
+//! socket), a file replayed by a server with no fill, still views that keep
+//! converging, and work a stalled sampler held given to another.
+
+use std::collections::HashMap;
+
+use holodeck_protocol::wire::{EyePoint, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
+use holodeck_server::{HoloFile, OpenOptions};
+
+use crate::common::process::{Proc, DEADLINE};
+use crate::common::{holodeck, text};
+use crate::harness::*;
+
+/// The traced rays a sampler's last line says it sent (`traced N rays for ADDR`).
+fn traced(out: &str) -> u64 {
+    out.lines()
+        .find_map(|l| {
+            l.strip_prefix("traced ")?
+                .split_once(" rays for ")?
+                .0
+                .replace(',', "")
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("no count of rays traced: {out}"))
+}
+
+#[test]
+fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let initial = rays_in(&file);
+    let sock = dir.path().join("room.sock");
+    let token = "t";
+    let (mut server, _) = start_server_with(
+        file.to_str().unwrap(),
+        "127.0.0.1:0",
+        token,
+        &["--no-fill", "--unix", sock.to_str().unwrap()],
+    );
+    let unix = format!("unix:{}", sock.display());
+    let listening = format!("listening on {unix}");
+    server.wait_line(&listening, &mut 0, |l| (l == listening).then_some(()));
+    let worker = sampler(&unix, token, &["builtin:room"]);
+
+    let (mut display, welcome) = Client::connect(&unix, Role::Display, token);
+    let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
+        panic!("{welcome:?}")
+    };
+    let sections: Vec<Section> = sections.into_iter().map(|s| Section::try_from(s).unwrap()).collect();
+    let s = &sections[0];
+    let eye = s.origin() + (s.axes()[0] + s.axes()[1] + s.axes()[2]) * 0.5;
+    let view = View::parse(&format!(
+        "-vtv -vp {} {} {} -vd 1 0.2 0 -vu 0 0 1 -vh 40 -vv 30",
+        eye.x, eye.y, eye.z
+    ))
+    .unwrap();
+    let seen = ViewBeams::select(&sections, &view, 6, 4, 1);
+    let (near, far): (Vec<_>, Vec<_>) = seen
+        .counts
+        .iter()
+        .map(|c| c.0)
+        .take(24)
+        .enumerate()
+        .partition(|(i, _)| i % 2 == 0);
+    let radius = 0.004 * s.diagonal();
+    let eye_point = EyePoint {
+        position: eye.to_array(),
+        radius,
+        frustum: None,
+    };
+
+    // Near-eye requests first; every beam must reach 60 rays, traced for us and streamed.
+    let want_near: Vec<(BeamKey, u32)> = near.iter().map(|(_, k)| (*k, 60)).collect();
+    let mut have: HashMap<BeamKey, Vec<RayRecord>> = HashMap::new();
+    let base_near: HashMap<BeamKey, usize> = display.request(&want_near, Some(eye_point)).into_iter().collect();
+    let held = collect_until(&mut display, &want_near, &mut have, &base_near);
+    assert!(held.values().all(|n| *n == 60), "exactly the rays asked for: {held:?}");
+    // Then the same number of uniform rays for the other beams, on a new request.
+    let want_far: Vec<(BeamKey, u32)> = far.iter().map(|(_, k)| (*k, 60)).collect();
+    let mut have_far: HashMap<BeamKey, Vec<RayRecord>> = HashMap::new();
+    let base_far: HashMap<BeamKey, usize> = display.request(&want_far, None).into_iter().collect();
+    let held = collect_until(&mut display, &want_far, &mut have_far, &base_far);
+    assert!(held.values().all(|n| *n == 60), "exactly the rays asked for: {held:?}");
+
+    // How close do the rays pass to the eye?
+    let near_fraction = |rays: &HashMap<BeamKey, Vec<RayRecord>>| {
+        let (mut close, mut all) = (0usize, 0usize);
+        for (k, recs) in rays {
+            for r in recs {
+                let d = s.decode_record(k.beam, r).unwrap();
+                let miss = (eye - d.ray.origin).cross(d.ray.direction).length();
+                close += usize::from(miss <= radius * 1.01);
+                all += 1;
+            }
+        }
+        close as f64 / all.max(1) as f64
+    };
+    let (fn_, ff) = (near_fraction(&have), near_fraction(&have_far));
+    eprintln!("near-eye fraction: proximity {fn_:.3}, uniform {ff:.3}");
+    assert!(
+        fn_ > 0.6,
+        "proximity sampling: {fn_:.2} of the rays pass within the radius"
+    );
+    assert!(
+        fn_ > 3.0 * ff,
+        "uniform sampling passes near the eye far less often ({fn_:.2} vs {ff:.2})"
+    );
+
+    // Nothing but requests was traced: the file holds exactly what was asked for.
+    quit(&unix, token);
+    assert!(server.wait().success(), "{}", server.text());
+    assert!(!sock.exists(), "the socket file is removed");
+    let w = worker.finish();
+    assert!(w.status.success(), "{}", text(&w));
+    let keys: Vec<BeamKey> = want_near.iter().chain(&want_far).map(|w| w.0).collect();
+    assert!(beam_lens(&file, &keys).iter().all(|n| *n == 60), "{keys:?}");
+    let asked: u64 = base_near
+        .iter()
+        .chain(&base_far)
+        .map(|(_, n)| *n as u64)
+        .fold(60 * keys.len() as u64, |left, n| left - n);
+    assert_eq!(rays_in(&file), initial + asked, "no ray beyond the requests");
+    assert!(traced(&String::from_utf8_lossy(&w.stdout)) >= asked, "{}", text(&w));
+}
+
+#[test]
+fn a_display_only_server_replays_the_file_to_a_headless_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = holodeck(&[
+        "fill",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--rays",
+        "500K",
+        "--bounces",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    // What the server will send, read from the file before it is served.
+    let probe: Vec<BeamKey> = (4242..4342).map(|b| BeamKey::new(0, b)).collect();
+    let k = *probe
+        .iter()
+        .zip(beam_lens(&file, &probe))
+        .find(|(_, n)| *n > 0)
+        .expect("a beam near 4242 holds rays")
+        .0;
+    let k_len = beam_lens(&file, &[k])[0] as usize;
+    let seen: Vec<(BeamKey, u32)> = (0..40).map(|b| (BeamKey::new(0, b * 211), 1)).collect();
+    let more: Vec<(BeamKey, u32)> = (0..40).map(|b| (BeamKey::new(0, b * 211 + 5), 1)).collect();
+    let held = |beams: &[(BeamKey, u32)]| -> usize {
+        let keys: Vec<BeamKey> = beams.iter().map(|b| b.0).collect();
+        beam_lens(&file, &keys).iter().sum::<u64>() as usize
+    };
+    let (held_seen, held_more) = (held(&seen), held(&more));
+    assert!(held_seen > 0 && held_more > 0);
+
+    let (mut server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", "t", &["--no-fill"]);
+    let views = dir.path().join("v.vf");
+    std::fs::write(
+        &views,
+        "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56\n-vd 0 1 0\n",
+    )
+    .unwrap();
+    let frames = dir.path().join("frames");
+    let frames_dir = frames.to_str().unwrap();
+    let o = holodeck(&[
+        "view",
+        "--connect",
+        &addr,
+        "--token",
+        "t",
+        "--headless",
+        "--read-only",
+        "--views",
+        views.to_str().unwrap(),
+        "-o",
+        frames_dir,
+        "-x",
+        "64",
+        "-y",
+        "48",
+        "--format",
+        "hdr",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    // One frame per view, each drawn from the stored samples alone.
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    for l in &lines {
+        let n = new_samples(l).unwrap_or_else(|| panic!("no sample count in {l:?}"));
+        assert!(n > 100, "{l}");
+    }
+    let p = holodeck_display::image_io::read_picture(&frames.join("view0002_00.hdr")).unwrap();
+    assert!(p.pixels.iter().filter(|c| c.max_element() > 0.0).count() > p.pixels.len() / 2);
+    // Read-only: the server is still there for the next display.
+    assert!(server.try_wait().is_none(), "{}", server.text());
+    // A beam asked for three times is sent once; a request for more beams
+    // than the holodeck has is refused with a reason.
+    let (mut display, _) = Client::connect(&addr, Role::Display, "t");
+    let got = display.request(&[(k, 5), (k, 9), (k, 7)], None);
+    assert_eq!(got, vec![(k, k_len)], "every ray of {k:?}, once");
+    // What a display was sent is not sent again unless it asks to resend
+    // (it keeps its estimates across views); beams it was never sent come whole.
+    let sum = |got: Vec<(BeamKey, usize)>| got.iter().map(|g| g.1).sum::<usize>();
+    let first = sum(display.request(&seen, None));
+    assert_eq!(first, held_seen);
+    let again = sum(display.request_with(&seen, None, false));
+    assert_eq!(again, 0, "a file with no samplers has nothing new");
+    let fresh = sum(display.request_with(&more, None, false));
+    assert_eq!(fresh, held_more, "beams never sent come whole");
+    let resent = sum(display.request_with(&seen, None, true));
+    assert_eq!(resent, first);
+    display.send(&Frame::Message(Message::BeamRequest {
+        beams: vec![(k, 1); 200_000],
+        eye: None,
+        replace: true,
+        resend: false,
+    }));
+    match display.recv() {
+        Frame::Message(Message::Error { message }) => assert!(message.contains("beams requested"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+    // Before its Hello, a peer may not send a big frame.
+    let mut raw = Socket::connect(&addr);
+    let mut big = vec![0u8; 5 + (100 << 10)];
+    big[..4].copy_from_slice(&((100u32 << 10) + 1).to_le_bytes());
+    let _ = std::io::Write::write_all(&mut raw, &big);
+    match Client::over(raw).recv() {
+        Frame::Message(Message::Refused { reason }) => assert!(reason.contains("65536 allowed"), "{reason}"),
+        other => panic!("{other:?}"),
+    }
+    quit(&addr, "t");
+    assert!(server.wait().success(), "{}", server.text());
+}
+
+/// The samples a frame line of `holodeck view` reports as new.
+fn new_samples(line: &str) -> Option<u64> {
+    line.split_once(" new samples")?
+        .0
+        .rsplit(' ')
+        .next()?
+        .replace(',', "")
+        .parse()
+        .ok()
+}
+
+/// The samples a frame line of `holodeck view` says the view holds in all.
+fn samples_in_all(line: &str) -> Option<u64> {
+    line.split_once(" in all, ")?
+        .0
+        .rsplit_once('(')?
+        .1
+        .replace(',', "")
+        .parse()
+        .ok()
+}
+
+#[test]
+fn still_views_keep_converging_while_samplers_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (mut server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", "t");
+    let _samplers: Vec<Proc> = (0..2).map(|_| sampler(&addr, "t", &["builtin:room"])).collect();
+    let pixels = 32 * 24;
+    // Two displays at once, each on its own still view, a frame a second
+    // for as long as the test watches.
+    let mut displays = Vec::new();
+    for (i, spec) in [
+        "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56",
+        "-vtv -vp 3 1 1.5 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let views = dir.path().join(format!("v{i}.vf"));
+        std::fs::write(&views, format!("{spec}\n")).unwrap();
+        let frames = dir.path().join(format!("frames{i}"));
+        let display = Proc::start(
+            bin()
+                .args(["view", "--connect", &addr, "--token", "t", "--headless"])
+                .arg("--views")
+                .arg(&views)
+                .arg("-o")
+                .arg(&frames)
+                .args([
+                    "-x", "32", "-y", "24", "--wait", "10m", "--steps", "600", "--format", "hdr",
+                ])
+                .env("HOLODECK_LOG", "info")
+                .env("NO_COLOR", "1"),
+        );
+        displays.push((display, frames));
+    }
+    for (display, frames) in &displays {
+        // The first density (one sample a pixel) is met; the display asks
+        // for more, twice, and samples keep coming after that.
+        let mut at = 0;
+        display.wait_line("a second raise of the density", &mut at, |l| {
+            l.contains("asking for 4 samples per pixel").then_some(())
+        });
+        let (frame, total) = display.wait_line("a frame of more than four samples a pixel", &mut at, |l| {
+            let total = samples_in_all(l).filter(|t| *t > 4 * pixels)?;
+            (new_samples(l)? > 0).then(|| (l.split(':').next().unwrap_or_default().to_string(), total))
+        });
+        let p = holodeck_display::image_io::read_picture(std::path::Path::new(&frame)).unwrap();
+        assert!(frame.starts_with(frames.to_str().unwrap()), "{frame}");
+        assert_eq!((p.width, p.height), (32, 24));
+        let lit = p
+            .pixels
+            .iter()
+            .filter(|c| c.is_finite() && c.max_element() > 0.0)
+            .count();
+        assert!(
+            lit > p.pixels.len() / 2,
+            "{total} samples lit only {lit} pixels of {frame}"
+        );
+    }
+    drop(displays);
+    quit(&addr, "t");
+    assert!(server.wait().success(), "{}", server.text());
+}
+
+#[test]
+fn a_sampler_that_stops_answering_is_dropped_and_its_work_traced_by_another() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let scene = HoloFile::open(&file, &OpenOptions::read_only())
+        .unwrap()
+        .settings()
+        .scene
+        .clone()
+        .unwrap();
+    let token = "t";
+    let (mut server, addr) = start_server_with(
+        file.to_str().unwrap(),
+        "127.0.0.1:0",
+        token,
+        &["--no-fill", "--stall-timeout", "1s"],
+    );
+    // A "sampler" that takes packets and never answers (a stopped process).
+    let mut silent = Client::raw(&addr);
+    silent.send(&Frame::Message(Message::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        role: Role::Sampler,
+        scene,
+        token: token.into(),
+        read_only: true,
+    })));
+    assert!(matches!(silent.recv(), Frame::Message(Message::Welcome { .. })));
+    let (mut display, _) = Client::connect(&addr, Role::Display, token);
+    let want: Vec<(BeamKey, u32)> = (0..4).map(|b| (BeamKey::new(0, 3000 + 11 * b), 50)).collect();
+    let base: HashMap<BeamKey, usize> = display.request(&want, None).into_iter().collect();
+    assert!(
+        matches!(silent.recv(), Frame::Message(Message::Trace(_))),
+        "the work went to it"
+    );
+    // The server gives up on it: the connection ends (within the read
+    // timeout, or the test fails).
+    let start = std::time::Instant::now();
+    loop {
+        match silent.link.read() {
+            Ok(Some(_)) => assert!(start.elapsed() < DEADLINE, "the server kept the silent sampler"),
+            Ok(None) => break,
+            Err(e) if e.is_gone() => break,
+            Err(e) => panic!("the server never dropped the silent sampler: {e}"),
+        }
+    }
+    // Its packets were given back: a working sampler traces all of them.
+    let worker = sampler(&addr, token, &["builtin:room"]);
+    let mut have = HashMap::new();
+    let held = collect_until(&mut display, &want, &mut have, &base);
+    assert!(held.values().all(|n| *n == 50), "exactly the rays asked for: {held:?}");
+    quit(&addr, token);
+    assert!(server.wait().success(), "{}", server.text());
+    let w = worker.finish();
+    assert!(w.status.success(), "{}", text(&w));
+}

@@ -1,0 +1,416 @@
+//! What the network tests share: the `holodeck` processes they start (each
+//! under a [`Proc`] guard, waited on for what it prints), a raw protocol
+//! client whose reads time out, and checks of what a server leaves on disk.
+
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::{BeamKey, RayRecord};
+use holodeck_server::{HoloFile, OpenOptions};
+
+use crate::common::process::{wait_for, Proc, DEADLINE};
+
+/// The `holodeck` binary.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_holodeck"))
+}
+
+/// What a server under test logs: control commands carried out, the signal
+/// that stopped it, each periodic flush's durable ray count, the rays at close.
+const SERVER_LOG: &str = "info,holodeck_server=debug";
+
+/// A sampler worker (one thread, two bounces) that gives up as soon as the
+/// server is gone.
+pub fn sampler(addr: &str, token: &str, scene: &[&str]) -> Proc {
+    Proc::start(bin().arg("sample").args(scene).args([
+        "--connect",
+        addr,
+        "--token",
+        token,
+        "-j",
+        "1",
+        "--bounces",
+        "2",
+        "--retry-for",
+        "0s",
+    ]))
+}
+
+/// A holodeck file of the built-in room that records its scene.
+pub fn small_room(dir: &Path) -> PathBuf {
+    let file = dir.join("room.hdk");
+    let o = crate::common::holodeck(&[
+        "fill",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--rays",
+        "1K",
+        "--bounces",
+        "0",
+    ]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    file
+}
+
+/// Starts `holodeck serve` and returns it with the address it listens on.
+pub fn start_server(f: &str, addr: &str, token: &str) -> (Proc, String) {
+    start_server_with(f, addr, token, &[])
+}
+
+/// Starts `holodeck serve` with more flags; returns it once it listens, with
+/// its first (TCP) address.
+pub fn start_server_with(f: &str, addr: &str, token: &str, extra: &[&str]) -> (Proc, String) {
+    let server = Proc::start(
+        bin()
+            .args(["serve", f, "--listen", addr, "--token", token])
+            .args(extra)
+            .env("HOLODECK_LOG", SERVER_LOG)
+            .env("NO_COLOR", "1"),
+    );
+    let addr = server.wait_line("the address the server listens on", &mut 0, |l| {
+        l.strip_prefix("listening on ").map(str::to_string)
+    });
+    (server, addr)
+}
+
+/// Asks the server at `addr` to flush and quit, as an admin.
+pub fn quit(addr: &str, token: &str) {
+    let (mut admin, welcome) = Client::connect(addr, Role::Admin, token);
+    assert!(
+        matches!(welcome, Frame::Message(Message::Welcome { .. })),
+        "{welcome:?}"
+    );
+    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+}
+
+/// The rays a server's REPORT line says are stored (`progress: N rays, ...`):
+/// those written to the file, which lags the rays received by up to a flush.
+pub fn reported_rays(line: &str) -> Option<u64> {
+    line.strip_prefix("progress: ")?.split_once(" rays, ")?.0.parse().ok()
+}
+
+/// The rays a periodic flush made durable (`periodic flush: N rays durable`).
+pub fn durable_rays(line: &str) -> Option<u64> {
+    line.split_once("periodic flush: ")?
+        .1
+        .strip_suffix(" rays durable")?
+        .parse()
+        .ok()
+}
+
+/// The rays in the file when the server closed it
+/// (`flushed and closed: N rays in the file`).
+pub fn closed_rays(line: &str) -> Option<u64> {
+    line.split_once("flushed and closed: ")?
+        .1
+        .strip_suffix(" rays in the file")?
+        .parse()
+        .ok()
+}
+
+/// Every ray count a server reported, in order.
+pub fn reports(server: &Proc) -> Vec<u64> {
+    server.text().lines().filter_map(reported_rays).collect()
+}
+
+/// The ray count of the next REPORT line from line `*from` on.
+pub fn next_report(server: &Proc, from: &mut usize) -> u64 {
+    server.wait_line("a progress report", from, reported_rays)
+}
+
+/// Waits for a REPORT line, from line `*from` on, of more than `rays` rays
+/// stored; returns its count.
+pub fn reported_above(server: &Proc, from: &mut usize, rays: u64, what: &str) -> u64 {
+    let what = format!("{what} (a report of more than {rays} rays)");
+    server.wait_line(&what, from, |l| reported_rays(l).filter(|n| *n > rays))
+}
+
+/// Waits for `flushes` periodic flushes in a row (every 2 s) that found the
+/// same rays durable: nothing was stored in between. Returns that count.
+/// (REPORT lines cannot tell: they count rays written, which lags.)
+pub fn steady(server: &Proc, from: &mut usize, flushes: usize, what: &str) -> u64 {
+    let (mut last, mut run) = (None, 0);
+    server.wait_line(what, from, |l| {
+        let n = durable_rays(l)?;
+        run = if last == Some(n) { run + 1 } else { 1 };
+        last = Some(n);
+        (run >= flushes).then_some(n)
+    })
+}
+
+/// The durable ray count of the next periodic flush from line `*from` on.
+pub fn next_flush(server: &Proc, from: &mut usize) -> u64 {
+    server.wait_line("a periodic flush", from, durable_rays)
+}
+
+/// Waits for the log line saying the server carried out `control`.
+pub fn carried_out(server: &Proc, from: &mut usize, control: Control) {
+    let line = format!("control: {control:?}");
+    server.wait_line(&line, from, |l| l.ends_with(&line).then_some(()));
+}
+
+/// The rays the server said its file held when it closed it.
+pub fn rays_at_close(server: &Proc) -> u64 {
+    server.wait_line("the ray count at close", &mut 0, closed_rays)
+}
+
+/// Rays a closed holodeck file holds.
+pub fn rays_in(file: &Path) -> u64 {
+    HoloFile::open(file, &OpenOptions::read_only())
+        .unwrap()
+        .summary()
+        .rays()
+}
+
+/// Rays each of `keys` holds in a closed holodeck file.
+pub fn beam_lens(file: &Path, keys: &[BeamKey]) -> Vec<u64> {
+    let f = HoloFile::open(file, &OpenOptions::read_only()).unwrap();
+    keys.iter().map(|k| f.beam_len(*k).unwrap()).collect()
+}
+
+/// Beams of section 0 of a closed holodeck file.
+pub fn beams_of(file: &Path) -> u32 {
+    HoloFile::open(file, &OpenOptions::read_only()).unwrap().sections()[0].beam_count()
+}
+
+/// The file passes a full check; returns the rays that verified.
+pub fn assert_clean(file: &Path) -> u64 {
+    let report = holodeck_server::storage::check(file, |_, _| {}).unwrap();
+    assert!(report.is_clean(), "corrupt beams: {:?}", report.corrupt);
+    report.rays_ok
+}
+
+/// A stream to the server whose reads time out.
+pub enum Socket {
+    /// Over TCP.
+    Tcp(TcpStream),
+    /// Over a Unix socket.
+    Unix(UnixStream),
+}
+
+impl Socket {
+    /// Connects to `host:port` or `unix:PATH`; reads time out after [`DEADLINE`].
+    pub fn connect(addr: &str) -> Socket {
+        let s = match addr.strip_prefix("unix:") {
+            Some(path) => Socket::Unix(UnixStream::connect(path).unwrap()),
+            None => Socket::Tcp(TcpStream::connect(addr).unwrap()),
+        };
+        s.set_read_timeout(DEADLINE);
+        s
+    }
+
+    /// How long a read may wait before it fails.
+    pub fn set_read_timeout(&self, d: Duration) {
+        match self {
+            Socket::Tcp(s) => s.set_read_timeout(Some(d)),
+            Socket::Unix(s) => s.set_read_timeout(Some(d)),
+        }
+        .unwrap();
+    }
+}
+
+impl Read for Socket {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self {
+            Socket::Tcp(s) => s.read(buf),
+            Socket::Unix(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for Socket {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            Socket::Tcp(s) => s.write(buf),
+            Socket::Unix(s) => s.write(buf),
+        }
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            Socket::Tcp(s) => s.flush(),
+            Socket::Unix(s) => s.flush(),
+        }
+    }
+}
+
+/// A raw client: handshake as some role, then exchange frames.
+pub struct Client {
+    /// The framed connection.
+    pub link: FrameLink<Socket>,
+}
+
+impl Client {
+    /// Connects and says hello as `role`; returns the server's answer too.
+    pub fn connect(addr: &str, role: Role, token: &str) -> (Client, Frame) {
+        Client::hello(addr, role, token, PROTOCOL_VERSION, false)
+    }
+
+    /// A display that may not change the server's state.
+    pub fn read_only_display(addr: &str, token: &str) -> Client {
+        let (c, welcome) = Client::hello(addr, Role::Display, token, PROTOCOL_VERSION, true);
+        assert!(
+            matches!(welcome, Frame::Message(Message::Welcome { .. })),
+            "{welcome:?}"
+        );
+        c
+    }
+
+    /// Connects and says hello with every field chosen.
+    pub fn hello(addr: &str, role: Role, token: &str, version: u32, read_only: bool) -> (Client, Frame) {
+        let mut c = Client::raw(addr);
+        let hello = Hello {
+            version,
+            role,
+            scene: String::new(),
+            token: token.into(),
+            read_only,
+        };
+        c.send(&Frame::Message(Message::Hello(hello)));
+        let answer = c.recv();
+        (c, answer)
+    }
+
+    /// Connects without a handshake.
+    pub fn raw(addr: &str) -> Client {
+        Client::over(Socket::connect(addr))
+    }
+
+    /// A client on a connected socket.
+    pub fn over(socket: Socket) -> Client {
+        Client {
+            link: FrameLink::new(socket),
+        }
+    }
+
+    /// Sends one frame now.
+    pub fn send(&mut self, f: &Frame) {
+        self.link.write(f).unwrap();
+        self.link.flush().unwrap();
+    }
+
+    /// The next frame; fails if the server closes the connection or says
+    /// nothing for [`DEADLINE`].
+    pub fn recv(&mut self) -> Frame {
+        match self.link.read() {
+            Ok(Some(f)) => f,
+            Ok(None) => panic!("the server closed the connection"),
+            Err(e) => panic!("no frame from the server (waited up to {DEADLINE:?}): {e}"),
+        }
+    }
+
+    /// A frame already sent to us, if there is one (waits a moment only for
+    /// bytes in flight on loopback).
+    pub fn pending(&mut self) -> Option<Frame> {
+        self.link.stream().set_read_timeout(Duration::from_millis(50));
+        let got = match self.link.read() {
+            Ok(f) => f,
+            Err(holodeck_protocol::wire::LinkError::Io(e))
+                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+            {
+                None
+            }
+            Err(e) => panic!("reading from the server: {e}"),
+        };
+        self.link.stream().set_read_timeout(DEADLINE);
+        got
+    }
+
+    /// Asks for beams (replacing earlier requests) and collects every
+    /// stored ray that arrives up to the server's Delivered mark: (beam,
+    /// rays) per Beam frame.
+    pub fn request(
+        &mut self,
+        beams: &[(BeamKey, u32)],
+        eye: Option<holodeck_protocol::wire::EyePoint>,
+    ) -> Vec<(BeamKey, usize)> {
+        self.request_with(beams, eye, true)
+    }
+
+    /// [`Client::request`] that, without `resend`, gets only rays this
+    /// connection was not sent before.
+    pub fn request_with(
+        &mut self,
+        beams: &[(BeamKey, u32)],
+        eye: Option<holodeck_protocol::wire::EyePoint>,
+        resend: bool,
+    ) -> Vec<(BeamKey, usize)> {
+        self.transfer(beams, eye, resend).0
+    }
+
+    /// Rays stored in `beams` now: what the server counts in its immediate
+    /// transfer (rays streamed in as they are traced are not counted).
+    pub fn stored(&mut self, beams: &[(BeamKey, u32)]) -> u64 {
+        self.transfer(beams, None, true).1
+    }
+
+    /// Sends a request and reads up to its Delivered mark: the Beam frames
+    /// that came (beam, rays), and the rays the server counted as delivered.
+    fn transfer(
+        &mut self,
+        beams: &[(BeamKey, u32)],
+        eye: Option<holodeck_protocol::wire::EyePoint>,
+        resend: bool,
+    ) -> (Vec<(BeamKey, usize)>, u64) {
+        self.send(&Frame::Message(Message::BeamRequest {
+            beams: beams.to_vec(),
+            eye,
+            replace: true,
+            resend,
+        }));
+        let mut got = Vec::new();
+        loop {
+            match self.recv() {
+                Frame::Beam { key, records } => got.push((key, records.len())),
+                Frame::Message(Message::Delivered { beams, rays }) => {
+                    let sum: usize = got.iter().map(|g| g.1).sum();
+                    assert!(sum as u64 >= rays && got.len() >= beams as usize);
+                    return (got, rays);
+                }
+                other => panic!("expected beam data, got {other:?}"),
+            }
+        }
+    }
+}
+
+/// Asks `display` for `beams` until they hold more than `rays` stored rays;
+/// returns how many they then hold.
+pub fn stored_above(display: &mut Client, beams: &[(BeamKey, u32)], rays: u64, what: &str) -> u64 {
+    wait_for(&format!("{what} (more than {rays} rays stored)"), DEADLINE, || {
+        // Each look reads every beam asked for: a few looks a second, not more.
+        std::thread::sleep(Duration::from_millis(100));
+        Some(display.stored(beams)).filter(|n| *n > rays)
+    })
+}
+
+/// Collects rays streamed after a request's immediate transfer until every
+/// beam of `want` holds its count, counting the `base` rays it held before.
+/// Returns what each beam then holds.
+pub fn collect_until(
+    client: &mut Client,
+    want: &[(BeamKey, u32)],
+    have: &mut HashMap<BeamKey, Vec<RayRecord>>,
+    base: &HashMap<BeamKey, usize>,
+) -> HashMap<BeamKey, usize> {
+    let held = |have: &HashMap<BeamKey, Vec<_>>, k: &BeamKey| {
+        have.get(k).map_or(0, Vec::len) + base.get(k).copied().unwrap_or(0)
+    };
+    let start = Instant::now();
+    while want.iter().any(|(k, n)| held(have, k) < *n as usize) {
+        assert!(
+            start.elapsed() < DEADLINE,
+            "waited {DEADLINE:?} for the requested rays, in vain: {:?} of {want:?}",
+            want.iter().map(|(k, _)| held(have, k)).collect::<Vec<_>>()
+        );
+        match client.recv() {
+            Frame::Beam { key, records } => have.entry(key).or_default().extend(records),
+            other => panic!("expected beam data, got {other:?}"),
+        }
+    }
+    want.iter().map(|(k, _)| (*k, held(have, k))).collect()
+}
