@@ -59,7 +59,7 @@ impl Store {
                                 tracing::error!("storing rays of {key:?}: {e}");
                                 let why = match e {
                                     StorageError::DiskSpace { limit, .. } => {
-                                        format!("its DISKSPACE limit of {limit} bytes is reached")
+                                        format!("DISKSPACE reached: the limit is {limit} bytes")
                                     }
                                     e => e.to_string(),
                                 };
