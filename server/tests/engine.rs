@@ -301,9 +301,12 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     assert!(open(b"#?RADIANCE\nFORMAT=holodeck\n").contains("Radiance"));
     assert!(open(&good[..40]).contains("truncated"));
     assert!(open(&good[..300]).contains("truncated"), "{}", open(&good[..300]));
+    // A later format says so in both header copies; one copy saying so is damage.
     let mut future = good.clone();
     future[8] = 3;
-    assert!(open(&future).contains("version 3 is newer"));
+    assert_eq!(open(&future), "", "copy 2 still reads");
+    future[format::header_span(text_len()) as usize + 8] = 3;
+    assert!(open(&future).contains("version 3 is newer"), "{}", open(&future));
     // One copy of the settings text damaged: the other is read, and reported.
     let text = format::text_offset(text_len(), 0) as usize + 5;
     let mut one = good.clone();
@@ -506,6 +509,8 @@ fn random_damage_never_panics_and_never_yields_unwritten_rays() {
     let good = fs::read(&path).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(99);
     let bad = dir.path().join("damaged.hdk");
+    let total: u64 = expected.values().sum();
+    let (mut opened, mut clean, mut flagged, mut unreadable) = (0, 0, 0, 0);
     for trial in 0..300 {
         let mut bytes = good.clone();
         match trial % 3 {
@@ -525,6 +530,7 @@ fn random_damage_never_panics_and_never_yields_unwritten_rays() {
         fs::write(&bad, &bytes).unwrap();
         // Whatever opens must only ever deliver rays that were really written.
         if let Ok(mut f) = HoloFile::open(&bad, &OpenOptions::read_only()) {
+            opened += 1;
             let keys: Vec<BeamKey> = expected.keys().copied().collect();
             f.read_beams(&keys, |k, got| {
                 assert!(got.len() as u64 <= expected[&k]);
@@ -532,13 +538,28 @@ fn random_damage_never_panics_and_never_yields_unwritten_rays() {
             })
             .unwrap();
         }
-        let _ = storage::check(&bad, |_, _| {});
+        // No silent loss: a check that finds nothing wrong means every ray is there.
+        match storage::check(&bad, |_, _| {}) {
+            Ok(r) if r.is_clean() => {
+                clean += 1;
+                assert_eq!(r.rays_ok, total, "trial {trial}: check passed a file that lost rays");
+            }
+            Ok(r) => {
+                flagged += 1;
+                assert!(r.rays_ok <= total);
+            }
+            Err(_) => unreadable += 1,
+        }
         let out = dir.path().join(format!("salvage{trial}.hdk"));
         if storage::repair(&bad, &out).is_ok() {
             assert!(storage::check(&out, |_, _| {}).unwrap().is_clean());
             fs::remove_file(&out).unwrap();
         }
     }
+    // Damage lands in rays, free space and metadata alike: every outcome occurs.
+    assert!(opened >= 100, "only {opened} of 300 damaged files opened");
+    assert!(flagged >= 100, "only {flagged} of 300 damaged files were flagged");
+    assert!(clean > 0 && unreadable > 0, "clean {clean}, unreadable {unreadable}");
 }
 
 #[test]
@@ -601,4 +622,100 @@ fn reading_beams_with_unwritten_tails_through_a_tiny_cache() {
     f.close().unwrap();
     let expected = keys.iter().map(|&k| (k, 43)).collect();
     assert_contents(&path, &expected);
+}
+
+/// Writes a file in format version 1, as earlier builds did: one header, one
+/// root, one directory block per section. Returns what it holds.
+fn write_format_1(path: &Path) -> std::collections::HashMap<BeamKey, u64> {
+    let push_crc = |mut b: Vec<u8>| {
+        let crc = crc32c(&b);
+        b.extend_from_slice(&crc.to_le_bytes());
+        b
+    };
+    let text = settings().to_text();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"HOLODECK");
+    out.extend_from_slice(&1u32.to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.resize(60, 0);
+    out = push_crc(out);
+    out.resize(192, 0); // both slots, written below
+    out.extend_from_slice(&push_crc(text.as_bytes().to_vec()));
+    let mut expected = std::collections::HashMap::new();
+    let mut dirs = Vec::new();
+    for (s, section) in settings().sections.iter().enumerate() {
+        let mut entries = vec![format::BeamEntry::default(); section.beam_count() as usize];
+        for b in (0..section.beam_count()).step_by(37) {
+            let k = BeamKey::new(s as u32, b);
+            let n = 1 + u64::from(b % 5);
+            let bytes = RayRecord::slice_as_bytes(&rays(k, 0, n)).to_vec();
+            entries[b as usize] = format::BeamEntry {
+                offset: out.len() as u64,
+                count: n as u32,
+                crc: crc32c(&bytes),
+            };
+            out.extend_from_slice(&bytes);
+            expected.insert(k, n);
+        }
+        dirs.push(entries);
+    }
+    let mut refs = Vec::new();
+    for (s, entries) in dirs.iter().enumerate() {
+        // The entries are coded as in format 2; only the block's header differs.
+        let v2 = format::encode_directory(s as u32, 0, entries);
+        let mut block = b"HDKD".to_vec();
+        block.extend_from_slice(&(s as u32).to_le_bytes());
+        block.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+        block.extend_from_slice(&v2[16..v2.len() - 4]);
+        let block = push_crc(block);
+        let rays: u64 = entries.iter().map(|e| u64::from(e.count)).sum();
+        refs.push((out.len() as u64, block.len() as u64, entries.len() as u32, rays));
+        out.extend_from_slice(&block);
+    }
+    let mut root = b"HDKR".to_vec();
+    root.extend_from_slice(&1u64.to_le_bytes());
+    root.extend_from_slice(&(refs.len() as u32).to_le_bytes());
+    for (offset, len, beams, rays) in &refs {
+        root.extend_from_slice(&offset.to_le_bytes());
+        root.extend_from_slice(&len.to_le_bytes());
+        root.extend_from_slice(&beams.to_le_bytes());
+        root.extend_from_slice(&rays.to_le_bytes());
+    }
+    let root = push_crc(root);
+    let root_at = out.len() as u64;
+    out.extend_from_slice(&root);
+    let mut slot = b"HDKC".to_vec();
+    slot.extend_from_slice(&1u64.to_le_bytes());
+    slot.extend_from_slice(&root_at.to_le_bytes());
+    slot.extend_from_slice(&(root.len() as u64).to_le_bytes());
+    slot.extend_from_slice(&crc32c(&root).to_le_bytes());
+    slot.resize(60, 0);
+    let slot = push_crc(slot);
+    out[64..128].copy_from_slice(&slot);
+    fs::write(path, &out).unwrap();
+    expected
+}
+
+#[test]
+fn format_1_files_are_read_refused_for_writing_and_converted_by_optimize() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.hdk");
+    let expected = write_format_1(&path);
+    assert!(expected.len() > 50);
+    assert_contents(&path, &expected);
+    let report = storage::check(&path, |_, _| {}).unwrap();
+    assert!(report.is_clean(), "{report:?}");
+    assert_eq!(report.rays_ok, expected.values().sum::<u64>());
+    let e = HoloFile::open(&path, &writable(1 << 20)).err().unwrap();
+    assert!(e.to_string().contains("holodeck optimize"), "{e}");
+    let r = storage::optimize(&path, |_, _| {}).unwrap();
+    assert_eq!(r.rays, report.rays_ok);
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    let k = BeamKey::new(0, 1);
+    f.append(k, &rays(k, 0, 3)).unwrap();
+    f.close().unwrap();
+    let mut expected = expected;
+    expected.insert(k, 3);
+    assert_contents(&path, &expected);
+    assert!(storage::check(&path, |_, _| {}).unwrap().is_clean());
 }

@@ -6,15 +6,16 @@ use holodeck_server::storage::format;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = format::decode_prefix(data);
+    let _ = format::decode_prefix(data, 0);
     let _ = format::decode_slot(data, 64);
-    if let Ok(text) = format::decode_text(data) {
+    if let Ok(text) = format::decode_text(data, 192) {
         let _ = Settings::from_text(&text);
     }
     let _ = Settings::from_text(&String::from_utf8_lossy(data));
     let _ = Settings::from_toml(&String::from_utf8_lossy(data));
-    let sections = data.first().map_or(1, |b| usize::from(b % 4));
-    let _ = format::decode_root(data, 0, 1, sections);
-    let beams = data.get(1).map_or(30, |b| u32::from(*b) * 7);
-    let _ = format::decode_directory(data, 0, 0, beams, 192, 1 << 30);
+    let beams: Vec<u32> = data.iter().take(3).map(|b| u32::from(*b) * 7 + 1).collect();
+    let _ = format::decode_root(data, 0, 1, &beams);
+    let first = data.get(3).map_or(0, |b| u32::from(*b) * 100);
+    let count = data.get(1).map_or(30, |b| u32::from(*b) * 7);
+    let _ = format::decode_directory(data, 0, 0, first, count, 8192);
 });

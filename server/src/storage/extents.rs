@@ -58,7 +58,8 @@ impl Extents {
                 }
             }
             if e.offset > x.end {
-                x.insert_free(Extent {
+                // Gaps between sorted, disjoint extents never touch one another.
+                x.insert_free_raw(Extent {
                     offset: x.end,
                     len: e.offset - x.end,
                 });
@@ -85,6 +86,9 @@ impl Extents {
     }
 
     fn insert_free(&mut self, mut e: Extent) {
+        // Bytes past the end are not tracked (a damaged file's metadata can
+        // lie past it): freeing them frees nothing.
+        e.len = e.len.min(self.end.saturating_sub(e.offset));
         if e.len == 0 {
             return;
         }
@@ -325,6 +329,17 @@ mod tests {
         assert_eq!(x.allocate_below(10, 15), None, "the hole 10..20 ends past 15");
         assert_eq!(x.allocate_below(10, 20), Some(10));
         assert_eq!(x.allocate_below(0, 0), Some(85), "empty allocations need no room");
+    }
+
+    #[test]
+    fn freeing_past_the_end_leaves_no_hole_there() {
+        let mut x = Extents::from_used(0, vec![ext(0, 10), ext(20, 10)]).unwrap();
+        x.release_now(ext(25, 20));
+        assert_eq!(x.end(), 25);
+        x.release_now(ext(40, 10));
+        assert_eq!((x.end(), x.fragments()), (25, 1));
+        assert_eq!(x.allocate(10), 10, "the hole below the end, never one past it");
+        assert_eq!(x.allocate(10), 25);
     }
 
     #[test]

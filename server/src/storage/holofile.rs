@@ -133,7 +133,21 @@ impl HoloFile {
     /// Opens an existing file. A file opened for writing is limited to its
     /// DISKSPACE setting, if it has one (see [`HoloFile::set_size_limit`]).
     pub fn open(path: &Path, options: &OpenOptions) -> Result<HoloFile> {
-        let (store, settings) = Store::open(path, options.writable, options.accept_loss)?;
+        Self::open_with(path, options, options.writable)
+    }
+
+    /// Opens for reading under the writer's exclusive lock: for tools that
+    /// replace the file when done (no server may write to it meanwhile).
+    pub(crate) fn open_exclusive_read(path: &Path, cache_bytes: u64) -> Result<HoloFile> {
+        let options = OpenOptions {
+            cache_bytes: Some(cache_bytes),
+            ..OpenOptions::read_only()
+        };
+        Self::open_with(path, &options, true)
+    }
+
+    fn open_with(path: &Path, options: &OpenOptions, exclusive: bool) -> Result<HoloFile> {
+        let (store, settings) = Store::open_locked(path, options.writable, exclusive, options.accept_loss)?;
         let budget = options.cache_bytes.unwrap_or(settings.cache_bytes);
         let limit = (options.writable && settings.diskspace_bytes > 0).then_some(settings.diskspace_bytes);
         let mut file = HoloFile {

@@ -169,20 +169,21 @@ pub struct OptimizeReport {
     pub rays: u64,
 }
 
-/// Rewrites the file with beams collated in beam order and no free space, then
-/// atomically replaces the original. Fails, leaving the original untouched, if
+/// Rewrites the file with beams collated in beam order and no free space, in
+/// the current format (converting an older one), then atomically replaces
+/// the original. Fails, leaving the original untouched, if
 /// the newest commit is damaged, any beam fails its checksum, or another
 /// process holds the file: a damaged file is never replaced by a smaller one.
 pub fn optimize(path: &Path, mut progress: impl FnMut(u64, u64)) -> Result<OptimizeReport> {
-    // Opening writable takes the exclusive lock (no server may be filling it
-    // meanwhile) and refuses a damaged newest commit.
-    let options = OpenOptions {
-        writable: true,
-        cache_bytes: Some(0),
-        flush_interval: None,
-        accept_loss: false,
-    };
-    let mut src = HoloFile::open(path, &options)?;
+    // The exclusive lock: no server may be filling it meanwhile. A file in an
+    // older format is read and rewritten in the current one.
+    let mut src = HoloFile::open_exclusive_read(path, 0)?;
+    if let Some(damage) = &src.open_info().damage {
+        return Err(StorageError::Damaged {
+            path: path.to_path_buf(),
+            damage: Box::new(damage.clone()),
+        });
+    }
     let summary = src.summary();
     // The writer builds beside the original and renames over it only when complete.
     let mut out = SequentialWriter::replacing(path, src.settings())?;

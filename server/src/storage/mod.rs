@@ -14,6 +14,7 @@ pub mod faults;
 pub mod format;
 pub mod holofile;
 mod io;
+mod legacy;
 pub mod maintain;
 mod space;
 pub mod store;

@@ -144,6 +144,17 @@ impl Store {
     /// state. A writable open also rewrites at once any damaged copy whose
     /// twin verified, so the file is whole again.
     pub fn open(path: &Path, writable: bool, accept_loss: bool) -> Result<(Store, Settings)> {
+        Self::open_locked(path, writable, writable, accept_loss)
+    }
+
+    /// Like [`Store::open`], but `exclusive` takes the writer's lock even for
+    /// reading (for tools that replace the file when done).
+    pub(crate) fn open_locked(
+        path: &Path,
+        writable: bool,
+        exclusive: bool,
+        accept_loss: bool,
+    ) -> Result<(Store, Settings)> {
         let file = std::fs::OpenOptions::new()
             .read(true)
             .write(writable)
@@ -153,8 +164,17 @@ impl Store {
                 op: "opening",
                 source,
             })?;
-        io::lock(&file, path, writable)?;
+        io::lock(&file, path, exclusive)?;
         let sv = survey::survey(&file, path)?;
+        if let (true, Some(found)) = (writable, sv.legacy) {
+            return Err(StorageError::Format {
+                path: path.to_path_buf(),
+                source: format::FormatError::OldVersion {
+                    found,
+                    supported: format::FORMAT_VERSION,
+                },
+            });
+        }
         if let Some(damage) = &sv.damage {
             if writable && !accept_loss {
                 return Err(StorageError::Damaged {
@@ -694,6 +714,7 @@ impl Store {
         }
         let root_bytes = format::encode_root(generation, &refs);
         let roots = self.allocate_copies(root_bytes.len() as u64, claimed)?;
+
         for e in roots {
             self.push_write(e.offset, &root_bytes)?;
         }

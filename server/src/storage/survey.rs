@@ -105,6 +105,8 @@ pub(crate) struct Survey {
     pub weak_chunks: Vec<(u32, u32)>,
     /// Slot sides whose two copies differ: the next commit to each rewrites them.
     pub uneven_slots: [bool; 2],
+    /// The file is in an older format: it can be read, not written.
+    pub legacy: Option<u32>,
 }
 
 /// A slot copy as found.
@@ -123,7 +125,7 @@ fn format_err(path: &Path, source: FormatError) -> StorageError {
 }
 
 /// Reads `len` bytes at `offset`, or says how the file ends before them.
-fn read_part(
+pub(super) fn read_part(
     file: &File,
     path: &Path,
     offset: u64,
@@ -152,7 +154,7 @@ fn find_prefix(
     file_len: u64,
     bad: &mut [bool; COPIES],
     repaired: &mut Vec<String>,
-) -> Result<u32> {
+) -> Result<format::Prefix> {
     let first = read_part(file, path, 0, format::PREFIX_LEN.min(file_len), file_len, "file prefix")?;
     let first = match first {
         Ok(bytes) => format::decode_prefix(&bytes, 0),
@@ -161,7 +163,7 @@ fn find_prefix(
     // A damaged first copy (even one whose version field reads as another
     // format's) is passed over if the second copy verifies.
     let err = match first {
-        Ok(p) => return Ok(p.text_len),
+        Ok(p) => return Ok(p),
         Err(e) => e,
     };
     // The first copy is damaged: look for the second one where it can be.
@@ -171,10 +173,10 @@ fn find_prefix(
     while at + format::PREFIX_LEN <= last {
         io::read_at(file, path, at, format::PREFIX_LEN as usize, &mut buf)?;
         if let Ok(p) = format::decode_prefix(&buf, at) {
-            if format::header_span(p.text_len) == at {
+            if p.version == format::FORMAT_VERSION && format::header_span(p.text_len) == at {
                 bad[0] = true;
                 repaired.push(format!("header copy 1: {err}; copy 2 at byte {at} verifies"));
-                return Ok(p.text_len);
+                return Ok(p);
             }
         }
         at += HEADER_ALIGN;
@@ -184,7 +186,7 @@ fn find_prefix(
 
 /// Reads both header copies: the settings and the text length.
 fn read_header(file: &File, path: &Path, file_len: u64, s: &mut Findings) -> Result<(Settings, u32)> {
-    let text_len = find_prefix(file, path, file_len, &mut s.bad_header, &mut s.repaired)?;
+    let text_len = find_prefix(file, path, file_len, &mut s.bad_header, &mut s.repaired)?.text_len;
     let span = format::header_span(text_len);
     if !s.bad_header[0] {
         let second = read_part(file, path, span, format::PREFIX_LEN, file_len, "file prefix")?;
@@ -452,6 +454,10 @@ enum Claim {
 pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
     let file_len = io::file_len(file, path)?;
     let mut f = Findings::default();
+    let prefix = find_prefix(file, path, file_len, &mut [false; COPIES], &mut Vec::new())?;
+    if prefix.version < format::FORMAT_VERSION {
+        return super::legacy::survey_v1(file, path, file_len, prefix.text_len);
+    }
     let (settings, text_len) = read_header(file, path, file_len, &mut f)?;
     let data_start = format::data_start(text_len);
     let beams: Vec<u32> = settings.sections.iter().map(|s| s.beam_count()).collect();
@@ -569,6 +575,7 @@ pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
         metadata,
         weak_chunks,
         uneven_slots: f.uneven_slots,
+        legacy: None,
     })
 }
 

@@ -101,15 +101,27 @@ pub fn decode_directory(
             format!("block describes section {} beams {}..+{}", found.0, found.1, found.2),
         ));
     }
+    decode_entries(&mut r, &what, first, beams, data_start)
+}
+
+/// Decodes the `beams` entries of a block (whose first is beam `first`) that
+/// follow its header in `r`, up to its CRC.
+pub(super) fn decode_entries(
+    r: &mut Reader<'_>,
+    what: &str,
+    first: u32,
+    beams: u32,
+    data_start: u64,
+) -> Result<Vec<BeamEntry>, FormatError> {
     // Every beam takes at least one byte: never reserve more than the bytes could hold.
-    let mut out = Vec::with_capacity((beams as usize).min(bytes.len()));
+    let mut out = Vec::with_capacity((beams as usize).min(r.bytes.len()));
     let mut expected = 0u64;
     for i in 0..beams {
         let at = r.at();
         let beam = u64::from(first) + u64::from(i);
         let count = r.varint()?;
         if count > u64::from(u32::MAX) {
-            return Err(invalid(&what, at, format!("beam {beam} claims {count} rays")));
+            return Err(invalid(what, at, format!("beam {beam} claims {count} rays")));
         }
         if count == 0 {
             out.push(BeamEntry::default());
@@ -126,7 +138,7 @@ pub fn decode_directory(
             Some(end) if offset >= data_start => expected = end,
             _ => {
                 return Err(invalid(
-                    &what,
+                    what,
                     at,
                     format!("beam {beam} says its {count} rays lie at byte {offset}, outside the data area"),
                 ))
@@ -135,7 +147,7 @@ pub fn decode_directory(
         out.push(entry);
     }
     if r.pos != r.bytes.len() {
-        return Err(invalid(&what, r.at(), "unexpected bytes after the last beam"));
+        return Err(invalid(what, r.at(), "unexpected bytes after the last beam"));
     }
     Ok(out)
 }

@@ -4,6 +4,7 @@
 
 use super::{
     check_trailing_crc, invalid, push_crc, Extent, FormatError, Reader, FORMAT_VERSION, MAX_GENERATION, MAX_TEXT_LEN,
+    OLDEST_READ,
 };
 
 /// First eight bytes of every holodeck file (and of its second header copy).
@@ -93,11 +94,12 @@ pub fn decode_prefix(bytes: &[u8], base: u64) -> Result<Prefix, FormatError> {
             supported: FORMAT_VERSION,
         });
     }
-    if version < FORMAT_VERSION {
-        return Err(FormatError::OldVersion {
-            found: version,
-            supported: FORMAT_VERSION,
-        });
+    if version < OLDEST_READ {
+        return Err(invalid(
+            what,
+            base + 8,
+            format!("format version {version} does not exist"),
+        ));
     }
     let text_len = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]);
     if text_len > MAX_TEXT_LEN {

@@ -27,6 +27,7 @@
 mod directory;
 mod header;
 mod root;
+pub mod v1;
 
 pub use directory::{decode_directory, directory_len_bound, encode_directory, max_directory_len, BeamEntry};
 pub use header::{
@@ -39,6 +40,8 @@ use holodeck_protocol::RAY_RECORD_BYTES;
 
 /// The format version this code writes and reads.
 pub const FORMAT_VERSION: u32 = 2;
+/// The oldest format version this code reads (read only: see [`v1`]).
+pub const OLDEST_READ: u32 = 1;
 /// Longest settings text accepted (sections are a line each; this is generous).
 pub const MAX_TEXT_LEN: u32 = 1 << 24;
 /// How many copies of each piece of metadata a file holds.
@@ -72,10 +75,11 @@ pub enum FormatError {
         /// Version supported here.
         supported: u32,
     },
-    /// The file is written in an older format that this program no longer reads.
+    /// The file is written in an older format: either one this program does
+    /// not read at all, or one it reads but does not write.
     #[error(
-        "file format version {found} is older than this program reads (version {supported}): it was written by an \
-         earlier holodeck, whose `holodeck pict`/`check --repair` still read it"
+        "file format version {found} is older than this program writes (version {supported}): it can be read, \
+         but `holodeck optimize` must convert it before anything is written to it"
     )]
     OldVersion {
         /// Version in the file.
