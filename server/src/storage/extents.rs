@@ -134,12 +134,7 @@ impl Extents {
         let fits = |off: u64| off.checked_add(len).is_some_and(|end| end <= limit);
         let hole = self.by_size.range((len, 0)..).find(|&&(_, off)| fits(off)).copied();
         if let Some((hole, off)) = hole {
-            self.remove(off, hole);
-            if hole > len {
-                self.free.insert(off + len, hole - len);
-                self.by_size.insert((hole - len, off + len));
-            }
-            return Some(off);
+            return Some(self.take_from_hole(off, hole, len));
         }
         if !fits(self.end) {
             return None;
@@ -162,15 +157,22 @@ impl Extents {
             .iter()
             .find(|&(&off, &hole)| hole >= len && fits(off))
             .map(|(&off, &hole)| (off, hole));
-        if let Some((off, hole)) = hole {
-            self.remove(off, hole);
-            if hole > len {
-                self.free.insert(off + len, hole - len);
-                self.by_size.insert((hole - len, off + len));
-            }
-            return Some(off);
+        match hole {
+            Some((off, hole)) => Some(self.take_from_hole(off, hole, len)),
+            None => self.allocate_below(len, limit),
         }
-        self.allocate_below(len, limit)
+    }
+
+    /// Takes the first `len` bytes of the free hole of `hole` bytes at `off`.
+    fn take_from_hole(&mut self, off: u64, hole: u64, len: u64) -> u64 {
+        self.remove(off, hole);
+        if hole > len {
+            self.insert_free_raw(Extent {
+                offset: off + len,
+                len: hole - len,
+            });
+        }
+        off
     }
 
     /// Claims every free byte of `e` (and the end, if `e` passes it): keeps
@@ -235,11 +237,7 @@ impl Extents {
         }
         match self.free.get(&at) {
             Some(&hole) if hole >= len => {
-                self.remove(at, hole);
-                if hole > len {
-                    self.free.insert(at + len, hole - len);
-                    self.by_size.insert((hole - len, at + len));
-                }
+                self.take_from_hole(at, hole, len);
                 true
             }
             Some(&hole) if at + hole == self.end => {
