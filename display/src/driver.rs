@@ -21,9 +21,15 @@ pub struct Viewport {
     pub height: u32,
 }
 
-/// Why a driver cannot take a viewport.
+/// Why a driver cannot be made or cannot take a viewport.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DriverError {
+    /// No driver has this name.
+    #[error("unknown driver {0:?} (known: {known})", known = crate::DRIVERS.join(", "))]
+    Unknown(String),
+    /// A driver that needs a GPU front end, which is not built yet.
+    #[error("the {0} driver needs a GPU front end, which is not built yet")]
+    NeedsGpu(String),
     /// A zero-sized or oversized frame.
     #[error("a {width}x{height} frame is not supported (1x1 up to {max} pixels)", max = MAX_VIEWPORT_PIXELS)]
     FrameSize {
@@ -117,4 +123,25 @@ pub trait Driver: Send {
     /// average, spent where they reduce the error most (row-major, top row
     /// first); see [`crate::store::Store::needs`].
     fn needs(&self, density: f32) -> Vec<f32>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{new_driver, GPU_DRIVERS};
+
+    #[test]
+    fn drivers_are_made_by_name_and_others_refused_by_kind() {
+        let viewport = Viewport::new(View::default(), 4, 3).unwrap();
+        let d = new_driver("splat", viewport.clone()).unwrap();
+        assert_eq!((d.name(), d.viewport().width), ("splat", 4));
+        assert_eq!(
+            new_driver("voronoi", viewport.clone()).err(),
+            Some(DriverError::NeedsGpu("voronoi".into()))
+        );
+        assert!(GPU_DRIVERS.contains(&"mesh"));
+        let e = new_driver("crayon", viewport).err().unwrap();
+        assert_eq!(e, DriverError::Unknown("crayon".into()));
+        assert!(e.to_string().contains("quadtree, splat"), "{e}");
+    }
 }

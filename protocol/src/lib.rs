@@ -23,7 +23,7 @@ pub use picture::Picture;
 pub use record::{BeamDecoder, DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
 pub use rgbe::Rgbe;
 pub use section::{
-    beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind, Wall,
+    beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionField, SectionKind, Wall,
     MAX_BEAMS_PER_SECTION, MAX_GRID,
 };
 pub use select::ViewBeams;

@@ -70,6 +70,58 @@ pub enum SectionError {
     BadGridLength(f64),
 }
 
+/// The part of a section description a [`SectionError`] is about, so that
+/// callers can name it as their users wrote it (`x=` in a section line,
+/// `axes[0]` in a TOML table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SectionField {
+    /// The corner.
+    Origin,
+    /// Edge vector 0, 1 or 2.
+    Axis(usize),
+    /// The cells per axis.
+    Grid,
+}
+
+impl SectionField {
+    /// The key in a TOML `[[section]]` table: `origin`, `axes[0]`..`axes[2]`, `grid`.
+    pub fn toml_key(self) -> &'static str {
+        match self {
+            SectionField::Origin => "origin",
+            SectionField::Axis(0) => "axes[0]",
+            SectionField::Axis(1) => "axes[1]",
+            SectionField::Axis(_) => "axes[2]",
+            SectionField::Grid => "grid",
+        }
+    }
+
+    /// The key in a section line (`interior origin=.. x=.. y=.. z=.. grid=..`).
+    pub fn text_key(self) -> &'static str {
+        match self {
+            SectionField::Origin => "origin=",
+            SectionField::Axis(0) => "x=",
+            SectionField::Axis(1) => "y=",
+            SectionField::Axis(_) => "z=",
+            SectionField::Grid => "grid=",
+        }
+    }
+}
+
+impl SectionError {
+    /// The field of the description the error is about, where it is about one.
+    pub fn field(&self) -> Option<SectionField> {
+        match self {
+            SectionError::NonFinite { what: "origin", .. } => Some(SectionField::Origin),
+            SectionError::NonFinite { what, .. } => what
+                .strip_prefix("axis ")
+                .and_then(|n| n.parse().ok())
+                .map(SectionField::Axis),
+            SectionError::GridOutOfRange { .. } | SectionError::TooManyBeams { .. } => Some(SectionField::Grid),
+            _ => None,
+        }
+    }
+}
+
 /// Whether views look out of the section (interior) or into it (exterior).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

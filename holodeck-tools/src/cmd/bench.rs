@@ -376,7 +376,7 @@ fn row(what: &str, result: String, baseline: String, ratio: f64) {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let cache = parse_size(&a.cache).map_err(anyhow::Error::msg)?;
+    let cache = parse_size(&a.cache).context("--cache")?;
     match a.what {
         Target::Stream => {
             return stream(

@@ -482,7 +482,7 @@ impl Walker {
     fn new(file: HoloFile, viewport: Viewport, estimator: EstimatorOptions) -> Result<Walker> {
         Ok(Walker {
             decoder: SampleDecoder::new(file.sections().to_vec()),
-            driver: new_driver_with("quadtree", viewport, estimator).map_err(anyhow::Error::msg)?,
+            driver: new_driver_with("quadtree", viewport, estimator)?,
             file,
             fed: HashMap::new(),
         })

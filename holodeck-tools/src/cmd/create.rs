@@ -67,17 +67,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         for (i, spec) in a.sections.iter().enumerate() {
             let section = parse_section_line(spec, a.grid, a.beams)
-                .map_err(anyhow::Error::msg)
                 .with_context(|| format!("--section number {} ({spec:?})", i + 1))?;
             s.sections.push(section);
         }
         s
     };
     if let Some(c) = &a.cache {
-        settings.cache_bytes = parse_size(c).map_err(anyhow::Error::msg).context("--cache")?;
+        settings.cache_bytes = parse_size(c).context("--cache")?;
     }
     if let Some(d) = &a.diskspace {
-        settings.diskspace_bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
+        settings.diskspace_bytes = parse_size(d).context("--diskspace")?;
     }
     settings.obstructions |= a.obstructions;
     settings.vdistance |= a.vdistance;

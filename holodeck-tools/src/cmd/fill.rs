@@ -115,7 +115,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .as_deref()
         .map(|t| parse_duration(t, 1.0))
         .transpose()
-        .map_err(anyhow::Error::msg)?;
+        .context("--time")?;
     let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles)?;
     let options = TraceOptions {
         max_bounces: a.bounces,

@@ -92,7 +92,7 @@ pub fn draw(
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
     let decoder = SampleDecoder::new(sections);
-    let mut d = new_driver_with(driver, viewport, estimator).map_err(anyhow::Error::msg)?;
+    let mut d = new_driver_with(driver, viewport, estimator)?;
     let mut samples = 0u64;
     let start = Instant::now();
     // Beams are gathered into chunks and decoded in parallel; while the
@@ -216,7 +216,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
         let (picture, hist, s) = draw(&mut file, viewport, &a.frame.driver, estimator, a.stride, i as u64)?;
-        let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, &hist, mode, &out)?;
         let secs = s.recall.as_secs_f64();
         println!(

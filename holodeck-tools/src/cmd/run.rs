@@ -123,7 +123,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let driver = match a.output.as_str() {
         "none" => None,
         d if holodeck_display::DRIVERS.contains(&d) => Some(d.to_string()),
-        "voronoi" | "mesh" => bail!(
+        d if holodeck_display::GPU_DRIVERS.contains(&d) => bail!(
             "the {} driver needs the GPU front end, which is not built yet; use -o quadtree",
             a.output
         ),
@@ -132,9 +132,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             holodeck_display::DRIVERS.join(", ")
         ),
     };
-    let time = parse_duration(&a.time, 1.0)
-        .map_err(anyhow::Error::msg)
-        .context("--time")?;
+    let time = parse_duration(&a.time, 1.0).context("--time")?;
     let (before, default_view) = {
         let (_, file) = super::fill::prepare(&a.scene, &a.file, None)?;
         let view = if a.scene == "builtin:room" {

@@ -103,9 +103,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ..TraceOptions::default()
     };
     let tracer = Tracer::new(scene, options);
-    let retry_for = parse_duration(&a.retry_for, 1.0)
-        .map_err(anyhow::Error::msg)
-        .context("--retry-for")?;
+    let retry_for = parse_duration(&a.retry_for, 1.0).context("--retry-for")?;
     let jobs = a
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))

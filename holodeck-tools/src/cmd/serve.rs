@@ -104,7 +104,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     };
     let cache_bytes = match &a.cache {
-        Some(c) => Some(parse_size(c).map_err(anyhow::Error::msg).context("--cache")?),
+        Some(c) => Some(parse_size(c).context("--cache")?),
         None => None,
     };
     let mut file = HoloFile::open(
@@ -115,14 +115,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         },
     )?;
     if let Some(d) = &a.diskspace {
-        let bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
+        let bytes = parse_size(d).context("--diskspace")?;
         file.set_size_limit((bytes > 0).then_some(bytes));
     }
     let setting = |flag: &Option<String>, from_file: Duration, name: &str| -> Result<Option<Duration>> {
         let d = match flag {
-            Some(t) => parse_duration(t, 1.0)
-                .map_err(anyhow::Error::msg)
-                .with_context(|| format!("--{name}"))?,
+            Some(t) => parse_duration(t, 1.0).with_context(|| format!("--{name}"))?,
             None => from_file,
         };
         Ok((!d.is_zero()).then_some(d))
@@ -145,9 +143,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         fill,
         time,
         report,
-        stall: parse_duration(&a.stall_timeout, 1.0)
-            .map_err(anyhow::Error::msg)
-            .context("--stall-timeout")?,
+        stall: parse_duration(&a.stall_timeout, 1.0).context("--stall-timeout")?,
         ..ServerConfig::new(token)
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;

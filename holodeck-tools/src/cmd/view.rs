@@ -91,9 +91,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("--density and --max-density must be positive numbers");
     }
     let token = a.token.token()?;
-    let wait = parse_duration(&a.wait, 1.0)
-        .map_err(anyhow::Error::msg)
-        .context("--wait")?;
+    let wait = parse_duration(&a.wait, 1.0).context("--wait")?;
     let text = std::fs::read_to_string(&a.views).with_context(|| format!("reading {}", a.views.display()))?;
     let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", a.views.display()))?;
     if views.is_empty() {
@@ -103,8 +101,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
-    let mut driver =
-        new_driver_with(&a.frame.driver, first, a.frame.estimator.options()?).map_err(anyhow::Error::msg)?;
+    let mut driver = new_driver_with(&a.frame.driver, first, a.frame.estimator.options()?)?;
     let mut hist = Histogram::new();
     let save = |driver: &mut dyn holodeck_display::Driver,
                 hist: &Histogram,
@@ -117,7 +114,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let picture = driver.render();
         let render = start.elapsed();
         let path = a.output.join(name);
-        let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, hist, mode, &path)?;
         println!(
             "{}: {} new samples in {:.0} ms ({} in all, {} pixel estimates), drawn in {:.1} ms",

@@ -81,54 +81,89 @@ impl Material {
         }
     }
 
-    /// Checks parameter ranges; returns what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
-        let color_ok = |c: &[f32; 3]| c.iter().all(|v| v.is_finite() && *v >= 0.0);
-        let unit_ok = |c: &[f32; 3]| c.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v));
-        let rough_ok = |r: f32| r.is_finite() && (0.0..=1.0).contains(&r);
+    /// Checks parameter ranges; the error names the parameter.
+    pub fn validate(&self) -> Result<(), MaterialError> {
+        let unit = |key: &'static str, value: &[f32; 3]| {
+            if value.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)) {
+                Ok(())
+            } else {
+                Err(MaterialError::NotUnit { key, value: *value })
+            }
+        };
+        let radiance = |key: &'static str, value: &[f32; 3]| {
+            if value.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                Ok(())
+            } else {
+                Err(MaterialError::NotRadiance { key, value: *value })
+            }
+        };
+        let rough = |r: f32| {
+            if r.is_finite() && (0.0..=1.0).contains(&r) {
+                Ok(())
+            } else {
+                Err(MaterialError::Roughness(r))
+            }
+        };
+        let ior = |n: f32| {
+            if n.is_finite() && n >= 1.0 {
+                Ok(())
+            } else {
+                Err(MaterialError::Ior(n))
+            }
+        };
         match self {
-            Material::Lambertian { albedo, .. } if !unit_ok(albedo) => {
-                Err(format!("albedo {albedo:?} must be in [0, 1]"))
+            Material::Lambertian { albedo, emission } => {
+                unit("albedo", albedo)?;
+                radiance("emission", emission)
             }
-            Material::Lambertian { emission, .. } if !color_ok(emission) => {
-                Err(format!("emission {emission:?} must be finite and non-negative"))
-            }
-            Material::Plastic { albedo, roughness, ior } => {
-                if !unit_ok(albedo) {
-                    Err(format!("albedo {albedo:?} must be in [0, 1]"))
-                } else if !rough_ok(*roughness) {
-                    Err(format!("roughness {roughness} must be in [0, 1]"))
-                } else if !(ior.is_finite() && *ior >= 1.0) {
-                    Err(format!("ior {ior} must be at least 1"))
-                } else {
-                    Ok(())
-                }
+            Material::Plastic {
+                albedo,
+                roughness,
+                ior: n,
+            } => {
+                unit("albedo", albedo)?;
+                rough(*roughness)?;
+                ior(*n)
             }
             Material::Metal { color, roughness } => {
-                if !unit_ok(color) {
-                    Err(format!("color {color:?} must be in [0, 1]"))
-                } else if !rough_ok(*roughness) {
-                    Err(format!("roughness {roughness} must be in [0, 1]"))
-                } else {
-                    Ok(())
-                }
+                unit("color", color)?;
+                rough(*roughness)
             }
-            Material::Mirror { color } if !unit_ok(color) => Err(format!("color {color:?} must be in [0, 1]")),
-            Material::Glass { ior, color, .. } => {
-                if !(ior.is_finite() && *ior >= 1.0) {
-                    Err(format!("ior {ior} must be at least 1"))
-                } else if !unit_ok(color) {
-                    Err(format!("color {color:?} must be in [0, 1]"))
-                } else {
-                    Ok(())
-                }
+            Material::Mirror { color } => unit("color", color),
+            Material::Glass { ior: n, color, .. } => {
+                ior(*n)?;
+                unit("color", color)
             }
-            Material::Emitter { radiance } if !color_ok(radiance) => {
-                Err(format!("radiance {radiance:?} must be finite and non-negative"))
-            }
-            _ => Ok(()),
+            Material::Emitter { radiance: r } => radiance("radiance", r),
         }
     }
+}
+
+/// Why a material's parameters are impossible, naming the parameter.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum MaterialError {
+    /// A reflectance outside [0, 1] (it would create energy) or not finite.
+    #[error("{key} {value:?} must be in [0, 1]")]
+    NotUnit {
+        /// `albedo` or `color`.
+        key: &'static str,
+        /// The value given.
+        value: [f32; 3],
+    },
+    /// An emitted radiance that is negative or not finite.
+    #[error("{key} {value:?} must be finite and non-negative")]
+    NotRadiance {
+        /// `emission` or `radiance`.
+        key: &'static str,
+        /// The value given.
+        value: [f32; 3],
+    },
+    /// A roughness outside [0, 1].
+    #[error("roughness {0} must be in [0, 1]")]
+    Roughness(f32),
+    /// An index of refraction below 1 or not finite.
+    #[error("ior {0} must be at least 1")]
+    Ior(f32),
 }
 
 /// What rays that leave the scene see.

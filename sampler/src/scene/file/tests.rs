@@ -200,6 +200,12 @@ fn errors_name_the_file_and_the_key() {
     );
     let err = load("[[geometry]]\nfile = \"mesh/tri.obj\"\nscale = 0\n");
     assert!(err.contains("bad.toml") && err.contains("scale"), "{err}");
+    std::fs::write(&path, "[[geometry]]\nfile = \"mesh/tri.obj\"\nrotate = [0, nan, 0]\n").unwrap();
+    let e = load_scene(&path).unwrap_err();
+    assert!(
+        matches!(&e, SceneError::Transform { source: TransformError::Rotate(r), .. } if r.y.is_nan()),
+        "{e}"
+    );
     let err = load("[[section]]\norigin = [0, 0, 0]\naxes = [[1, 0, 0], [2, 0, 0], [0, 0, 1]]\n");
     assert!(err.contains("bad.toml") && err.contains("[[section]] 1"), "{err}");
     let err = load("[[geometry]]\nfile = \"mesh/none.obj\"\nmaterial = \"x\"\n");

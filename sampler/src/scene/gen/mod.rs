@@ -18,6 +18,7 @@ use holodeck_protocol::Section;
 
 use super::builder::SceneBuilder;
 use super::material::{Material, Sky};
+use super::section::SectionTableError;
 use super::Scene;
 use crate::error::SceneError;
 
@@ -88,10 +89,10 @@ fn material(b: &mut SceneBuilder, name: &str, m: Material) -> Result<u32, SceneE
 }
 
 /// An error for an impossible generated section (a bug in a generator's numbers).
-fn section_error(what: &str, message: String) -> SceneError {
-    SceneError::Invalid {
+fn section_error(what: &str, source: SectionTableError) -> SceneError {
+    SceneError::Section {
         what: format!("{what} section"),
-        message,
+        source,
     }
 }
 

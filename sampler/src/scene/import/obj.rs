@@ -31,7 +31,9 @@ pub(super) fn import(
     let (models, materials) = tobj::load_obj_buf(&mut BufReader::new(file), &load, |mtl| {
         let full = dir.join(mtl);
         let result = match super::check_regular_file(&full) {
-            Ok(()) => tobj::load_mtl(&full),
+            // tobj panics on some malformed lines (one number where three
+            // belong); such a library is as broken as an unreadable one.
+            Ok(()) => std::panic::catch_unwind(|| tobj::load_mtl(&full)).unwrap_or(Err(tobj::LoadError::ReadError)),
             Err(_) => Err(tobj::LoadError::OpenFileFailed),
         };
         if let Err(e) = &result {
