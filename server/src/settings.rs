@@ -253,12 +253,12 @@ impl Settings {
             return Err(SettingsError::NoSections);
         }
         if let Some(scene) = &self.scene {
-            check_scene(scene).map_err(|source| SettingsError::Key { key: "scene", source })?;
+            check_scene(scene).map_err(|error| SettingsError::Key { key: "scene", error })?;
         }
         if let Some(g) = self.grid.filter(|g| !(g.is_finite() && *g > 0.0)) {
             return Err(SettingsError::Key {
                 key: "grid",
-                source: ValueError::GridLength(g.to_string()),
+                error: ValueError::GridLength(g.to_string()),
             });
         }
         Ok(())
@@ -292,7 +292,7 @@ impl Settings {
         for (i, raw) in text.lines().enumerate() {
             let line = i + 1;
             let err = |message: String| SettingsError::Line { line, message };
-            let bad = |source: ValueError| SettingsError::Value { line, source };
+            let bad = |error: ValueError| SettingsError::Value { line, error };
             let content = raw.split('#').next().unwrap_or("").trim();
             if content.is_empty() {
                 continue;
@@ -390,7 +390,7 @@ pub const DEFAULT_TARGET_BEAMS: u64 = 150_000;
 impl ControlFile {
     /// Validates and converts to [`Settings`].
     pub fn resolve(&self) -> Result<Settings, SettingsError> {
-        let key = |key: &'static str| move |e: ValueError| SettingsError::Key { key, source: e };
+        let key = |key: &'static str| move |error: ValueError| SettingsError::Key { key, error };
         let mut s = Settings {
             grid: self.grid,
             obstructions: self.obstructions,
@@ -411,7 +411,7 @@ impl ControlFile {
             s.report = parse_duration(r, 60.0).map_err(|e| key("report")(e.into()))?;
         }
         for (index, e) in self.sections.iter().enumerate() {
-            let wrap = |source| SettingsError::Section { index, source };
+            let wrap = |error| SettingsError::Section { index, error };
             let grid = match (e.grid, self.grid, e.beams) {
                 (Some(g), _, _) => g,
                 (None, Some(len), None) => grid_for_length(e.axes, len).map_err(wrap)?,
@@ -483,7 +483,7 @@ mod tests {
                 e,
                 SettingsError::Value {
                     line: 1,
-                    source: ValueError::Section(ref s),
+                    error: ValueError::Section(ref s),
                 } if **s == SectionTextError::Missing(SectionField::Axis(2))
             ),
             "{e:?}"
@@ -495,7 +495,7 @@ mod tests {
             e,
             SettingsError::Value {
                 line: 2,
-                source: ValueError::Size(SizeError::UnknownUnit("12Q".into()))
+                error: ValueError::Size(SizeError::UnknownUnit("12Q".into()))
             }
         );
         assert!(e.to_string().contains("unknown unit"), "{e}");
@@ -548,7 +548,7 @@ mod tests {
             e,
             Err(SettingsError::Key {
                 key: "time",
-                source: ValueError::Duration(DurationError::NotANumber("forever".into()))
+                error: ValueError::Duration(DurationError::NotANumber("forever".into()))
             })
         );
     }

@@ -68,7 +68,13 @@ pub enum FrameError {
     },
     /// A message that decodes but whose contents are impossible.
     #[error("invalid message: {0}")]
-    Invalid(#[from] MessageError),
+    Invalid(MessageError),
+}
+
+impl From<MessageError> for FrameError {
+    fn from(e: MessageError) -> Self {
+        FrameError::Invalid(e)
+    }
 }
 
 /// Appends the encoding of `frame` to `out`.

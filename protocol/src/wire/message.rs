@@ -162,12 +162,12 @@ pub enum Message {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MessageError {
     /// A section of a `Welcome` is invalid.
-    #[error("section {index}: {source}")]
+    #[error("section {index}: {error}")]
     Section {
         /// Its index in the message.
         index: usize,
-        /// Why.
-        source: SectionError,
+        /// Why (part of this message, not a separate cause).
+        error: SectionError,
     },
     /// A number that must be finite is NaN or infinite.
     #[error("{what} is {value}")]
@@ -216,7 +216,7 @@ impl Message {
         match self {
             Message::Welcome { sections, .. } => {
                 for (index, s) in sections.iter().enumerate() {
-                    Section::try_from(s.clone()).map_err(|source| MessageError::Section { index, source })?;
+                    Section::try_from(s.clone()).map_err(|error| MessageError::Section { index, error })?;
                 }
                 Ok(())
             }

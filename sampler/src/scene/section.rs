@@ -17,7 +17,13 @@ pub enum SectionTableError {
     /// The numbers do not make a valid section; the message names the key
     /// the problem is in, where it is in one.
     #[error("{key}{0}", key = .0.field().map(|f| format!("{}: ", f.toml_key())).unwrap_or_default())]
-    Section(#[from] SectionError),
+    Section(SectionError),
+}
+
+impl From<SectionError> for SectionTableError {
+    fn from(e: SectionError) -> Self {
+        SectionTableError::Section(e)
+    }
 }
 
 /// A section as written in a scene file.

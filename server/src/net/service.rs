@@ -193,7 +193,7 @@ pub enum ControlError {
     #[error(transparent)]
     Storage(#[from] StorageError),
     /// A new schedule could not be made from the file's sections.
-    #[error("scheduling: {0}")]
+    #[error(transparent)]
     Schedule(#[from] holodeck_protocol::SectionError),
 }
 

@@ -65,7 +65,13 @@ pub enum SectionTextError {
     /// The numbers do not make a valid section; the message names the key
     /// the problem is in, where it is in one.
     #[error("{key}{0}", key = .0.field().map(|f| format!("{}: ", f.text_key())).unwrap_or_default())]
-    Section(#[from] SectionError),
+    Section(SectionError),
+}
+
+impl From<SectionError> for SectionTextError {
+    fn from(e: SectionError) -> Self {
+        SectionTextError::Section(e)
+    }
 }
 
 fn missing(key: SectionField) -> String {
@@ -110,29 +116,29 @@ pub enum SettingsError {
         message: String,
     },
     /// A value on a line of settings text does not parse.
-    #[error("line {line}: {source}")]
+    #[error("line {line}: {error}")]
     Value {
         /// 1-based line number.
         line: usize,
-        /// Why.
-        source: ValueError,
+        /// Why (part of this message, not a separate cause).
+        error: ValueError,
     },
     /// A value of a control file (or of settings built in code) is invalid.
-    #[error("{key}: {source}")]
+    #[error("{key}: {error}")]
     Key {
         /// The key, as written in a control file.
         key: &'static str,
-        /// Why.
-        source: ValueError,
+        /// Why (part of this message, not a separate cause).
+        error: ValueError,
     },
     /// A section is invalid; the message names the control file key the
     /// problem is in (`origin`, `axes[0]`, `grid`), where it is in one.
-    #[error("section {index}{}: {source}", source.field().map(|f| format!(" {}", f.toml_key())).unwrap_or_default())]
+    #[error("section {index}{key}: {error}", key = error.field().map(|f| format!(" {}", f.toml_key())).unwrap_or_default())]
     Section {
         /// Index of the section.
         index: usize,
-        /// Why.
-        source: SectionError,
+        /// Why (part of this message, not a separate cause).
+        error: SectionError,
     },
     /// The holodeck has no section.
     #[error("no section is defined: a holodeck needs at least one (SECTION= line, or [[section]] in a control file)")]
