@@ -171,3 +171,78 @@ fn every_command_has_help_with_examples() {
     }
     assert!(text(&holodeck(&["--help"])).contains("Examples:"));
 }
+
+#[test]
+fn sections_beyond_sane_sizes_and_zero_directions_are_refused_by_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("x.hdk");
+    let f = file.to_str().unwrap();
+    let refused = |args: &[&str], wants: &[&str]| {
+        let o = holodeck(args);
+        assert!(!o.status.success(), "{args:?} was accepted: {}", text(&o));
+        for w in wants {
+            assert!(text(&o).contains(w), "{args:?}: no {w:?} in {}", text(&o));
+        }
+        assert!(!file.exists(), "{args:?} left a file behind");
+    };
+    let section = |s: &str| ["create", f, "--section", s].map(str::to_string);
+    let run = |s: &str, wants: &[&str]| {
+        let args = section(s);
+        refused(&args.iter().map(String::as_str).collect::<Vec<_>>(), wants)
+    };
+    // Too small and too large to hold a grid; the key is named as written.
+    run(
+        "interior origin=0,0,0 x=1e-30,0,0 y=0,1,0 z=0,0,1",
+        &[
+            "x=: section axis 0 is 1e-30 long",
+            "between 0.001 and 10000000 scene units",
+        ],
+    );
+    run(
+        "interior origin=0,0,0 x=1,0,0 y=0,1e30,0 z=0,0,1",
+        &["y=: section axis 1 is 1e30 long"],
+    );
+    run("interior origin=0,0,0 x=1,0,0 y=0,1,0 z=nan,0,1", &["z=", "not finite"]);
+    run(
+        "interior origin=0,2e7,0 x=1,0,0 y=0,1,0 z=0,0,1",
+        &["origin=: section origin [0.0, 20000000.0, 0.0]"],
+    );
+    // Axes nearly in one plane: no volume worth a grid.
+    run("interior origin=0,0,0 x=1,0,0 y=0,1,0 z=1,1,1e-6", &["degenerate"]);
+    // Cells finer than single precision resolves that far from the origin.
+    run(
+        "interior origin=5e6,0,0 x=1,0,0 y=0,1,0 z=0,0,1 grid=200,2,2",
+        &["x=: section cells along axis 0", "single precision"],
+    );
+
+    let toml = dir.path().join("c.toml");
+    std::fs::write(
+        &toml,
+        "[[section]]\norigin = [0, 0, 0]\naxes = [[1, 0, 0], [0, 1, 0], [0, 0, 1e-9]]\n",
+    )
+    .unwrap();
+    refused(
+        &["create", f, "--control", toml.to_str().unwrap()],
+        &["c.toml", "section 0 axes[2]: section axis 2 is 1e-9 long"],
+    );
+
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[[section]]\norigin = [0, 0, 0]\naxes = [[1e30, 0, 0], [0, 1, 0], [0, 0, 1]]\n",
+    )
+    .unwrap();
+    refused(
+        &["scene", "info", scene.to_str().unwrap()],
+        &["s.toml", "[[section]] 1: axes[0]"],
+    );
+    std::fs::write(
+        &scene,
+        "[sky]\ntype = \"sun\"\ndirection = [0, 0, 0]\nsun_radiance = [1, 1, 1]\nzenith = [1, 1, 1]\nhorizon = [1, 1, 1]\nground = [0, 0, 0]\n",
+    )
+    .unwrap();
+    refused(
+        &["scene", "info", scene.to_str().unwrap()],
+        &["s.toml", "[sky]", "direction"],
+    );
+}

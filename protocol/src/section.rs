@@ -16,6 +16,29 @@ pub const MAX_GRID: u16 = 255;
 /// the in-memory directory (16 bytes per beam) under 2 GiB.
 pub const MAX_BEAMS_PER_SECTION: u64 = 1 << 27;
 
+/// Shortest axis a section may have, in scene units: a millimeter in a scene
+/// in meters. Shorter sections cannot hold a grid worth tracing.
+pub const MIN_AXIS_LENGTH: f64 = 1e-3;
+
+/// Longest axis a section may have, in scene units (10,000 km in meters).
+pub const MAX_AXIS_LENGTH: f64 = 1e7;
+
+/// Largest magnitude of an origin coordinate, in scene units: the scene's
+/// sane range, the same as [`MAX_AXIS_LENGTH`].
+pub const MAX_COORDINATE: f64 = 1e7;
+
+/// Least volume of a section as a fraction of the box its axis lengths span
+/// (1 for perpendicular axes): below this the axes are nearly coplanar and
+/// cells become slivers.
+pub const MIN_VOLUME_RATIO: f64 = 1e-3;
+
+/// Least length of a grid cell as a fraction of the section's largest
+/// coordinate. Samplers trace in single precision, whose steps near a
+/// coordinate of magnitude m are at most m * 2^-23 apart; a ray record places
+/// rays at 256 positions per cell along each axis, so a cell must span 256
+/// such steps: 2^-15 of m.
+pub const MIN_CELL_FRACTION: f64 = 1.0 / 32768.0;
+
 /// Errors in defining a section or addressing its beams.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SectionError {
@@ -27,9 +50,35 @@ pub enum SectionError {
         /// Its value.
         value: [f64; 3],
     },
-    /// The three axes span no volume.
-    #[error("section axes {0:?} are degenerate: they span no volume")]
+    /// The three axes span no volume, or so little that they are nearly
+    /// coplanar (see [`MIN_VOLUME_RATIO`]).
+    #[error("section axes {0:?} are degenerate: they lie (nearly) in one plane, spanning less than {MIN_VOLUME_RATIO} of the volume of a box with their lengths")]
     Degenerate([[f64; 3]; 3]),
+    /// An axis too short or too long to hold a grid.
+    #[error("section axis {axis} is {length:?} long; every axis must be between {MIN_AXIS_LENGTH} and {MAX_AXIS_LENGTH} scene units")]
+    AxisLength {
+        /// Axis 0, 1 or 2.
+        axis: usize,
+        /// Its length.
+        length: f64,
+    },
+    /// An origin beyond the scene's sane range.
+    #[error("section origin {value:?} is outside the sane range: every coordinate must be within ±{MAX_COORDINATE} scene units")]
+    OriginOutOfRange {
+        /// The origin given.
+        value: [f64; 3],
+    },
+    /// Cells too small for single-precision tracing that far from the
+    /// scene's origin (see [`MIN_CELL_FRACTION`]).
+    #[error("section cells along axis {axis} are {cell:?} long, too fine for single precision at coordinates up to {magnitude:?}: cells there must be at least {min:?} long; use a coarser grid or move the scene nearer its origin", min = magnitude * MIN_CELL_FRACTION)]
+    TooFine {
+        /// Axis 0, 1 or 2.
+        axis: usize,
+        /// Length of one cell along it.
+        cell: f64,
+        /// Largest coordinate of the section's corners.
+        magnitude: f64,
+    },
     /// A grid size is zero or above [`MAX_GRID`].
     #[error("section grid size {size} along axis {axis} is outside 1..={max}", max = MAX_GRID)]
     GridOutOfRange {
@@ -111,7 +160,12 @@ impl SectionError {
     /// The field of the description the error is about, where it is about one.
     pub fn field(&self) -> Option<SectionField> {
         match self {
-            SectionError::NonFinite { what: "origin", .. } => Some(SectionField::Origin),
+            SectionError::NonFinite { what: "origin", .. } | SectionError::OriginOutOfRange { .. } => {
+                Some(SectionField::Origin)
+            }
+            SectionError::AxisLength { axis, .. } | SectionError::TooFine { axis, .. } => {
+                Some(SectionField::Axis(*axis))
+            }
             SectionError::NonFinite { what, .. } => what
                 .strip_prefix("axis ")
                 .and_then(|n| n.parse().ok())
@@ -254,7 +308,9 @@ fn finite(what: &'static str, v: [f64; 3]) -> Result<DVec3, SectionError> {
 }
 
 impl Section {
-    /// Builds a section, checking that it is finite, spans a volume and has a valid grid.
+    /// Builds a section, checking that it is finite, within the sane range of
+    /// sizes and coordinates, spans a volume, and has a valid grid whose cells
+    /// single precision resolves.
     pub fn new(
         origin: [f64; 3],
         axes: [[f64; 3]; 3],
@@ -267,6 +323,17 @@ impl Section {
             finite("axis 1", axes[1])?,
             finite("axis 2", axes[2])?,
         ];
+        if origin.abs().max_element() > MAX_COORDINATE {
+            return Err(SectionError::OriginOutOfRange {
+                value: origin.to_array(),
+            });
+        }
+        for (axis, a) in axis_vecs.iter().enumerate() {
+            let length = a.length();
+            if !(MIN_AXIS_LENGTH..=MAX_AXIS_LENGTH).contains(&length) {
+                return Err(SectionError::AxisLength { axis, length });
+            }
+        }
         for (axis, &size) in grid.iter().enumerate() {
             if size == 0 || size > MAX_GRID {
                 return Err(SectionError::GridOutOfRange {
@@ -282,8 +349,18 @@ impl Section {
         let m = DMat3::from_cols(axis_vecs[0], axis_vecs[1], axis_vecs[2]);
         let scale = axis_vecs.iter().map(|a| a.length()).product::<f64>();
         let det = m.determinant();
-        if !(scale > 0.0 && (det / scale).abs() > 1e-9) {
+        if !(scale > 0.0 && (det / scale).abs() >= MIN_VOLUME_RATIO) {
             return Err(SectionError::Degenerate(axes));
+        }
+        // The farthest corner from the scene's origin sets the coarsest
+        // single-precision step any ray in the section meets.
+        let far = origin.abs() + axis_vecs.iter().map(|a| a.abs()).sum::<DVec3>();
+        let magnitude = far.max_element();
+        for (axis, a) in axis_vecs.iter().enumerate() {
+            let cell = a.length() / f64::from(grid[axis]);
+            if cell < magnitude * MIN_CELL_FRACTION {
+                return Err(SectionError::TooFine { axis, cell, magnitude });
+            }
         }
         let cells = |w: Wall| {
             let [u, v] = w.cell_axes();
@@ -496,6 +573,65 @@ mod tests {
         ));
         let err = Section::new([0.0; 3], BOX, [255, 255, 255], k).unwrap_err();
         assert!(err.to_string().contains("coarser grid"), "{err}");
+    }
+
+    #[test]
+    fn sections_must_be_of_sane_size_range_and_shape() {
+        let k = SectionKind::Interior;
+        let scaled = |s: f64| BOX.map(|a| a.map(|c| c * s));
+        // 10 x 6 x 3 scaled to the bounds: the 3 and the 10 reach them.
+        assert!(Section::new([0.0; 3], scaled(MIN_AXIS_LENGTH / 3.0), [4, 4, 4], k).is_ok());
+        assert!(Section::new([0.0; 3], scaled(MAX_AXIS_LENGTH / 10.0), [4, 4, 4], k).is_ok());
+        let tiny = [[1e-30, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert_eq!(
+            Section::new([0.0; 3], tiny, [1, 1, 1], k),
+            Err(SectionError::AxisLength { axis: 0, length: 1e-30 })
+        );
+        let huge = Section::new([0.0; 3], scaled(1e30), [1, 1, 1], k).unwrap_err();
+        assert!(matches!(huge, SectionError::AxisLength { axis: 0, .. }), "{huge:?}");
+        assert_eq!(huge.field(), Some(SectionField::Axis(0)));
+        let far = Section::new([0.0, -2e7, 0.0], BOX, [1, 1, 1], k).unwrap_err();
+        assert_eq!(
+            far,
+            SectionError::OriginOutOfRange {
+                value: [0.0, -2e7, 0.0]
+            }
+        );
+        assert_eq!(far.field(), Some(SectionField::Origin));
+        // Nearly coplanar: the third axis rises 0.04 degrees out of the plane of the others.
+        let sliver = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.001]];
+        assert!(matches!(
+            Section::new([0.0; 3], sliver, [1, 1, 1], k),
+            Err(SectionError::Degenerate(_))
+        ));
+        let steep = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.01]];
+        assert!(Section::new([0.0; 3], steep, [1, 1, 1], k).is_ok());
+    }
+
+    #[test]
+    fn cells_must_span_256_single_precision_steps() {
+        let k = SectionKind::Interior;
+        let unit = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        // At 5e6 a cell must be at least 5e6 / 32768 = 152.6 long: one cell
+        // of 1 unit is far too fine, far from it ...
+        let e = Section::new([5e6, 0.0, 0.0], unit, [2, 1, 1], k).unwrap_err();
+        let SectionError::TooFine {
+            axis: 0,
+            cell,
+            magnitude,
+        } = e
+        else {
+            panic!("{e:?}")
+        };
+        assert_eq!((cell, magnitude), (0.5, 5e6 + 1.0));
+        assert!(e.to_string().contains("single precision"), "{e}");
+        // ... while near the origin 255 cells across a millimeter are fine.
+        let mm = unit.map(|a| a.map(|c| c * 1e-3));
+        assert!(Section::new([0.0; 3], mm, [255, 255, 255], k)
+            .is_err_and(|e| matches!(e, SectionError::TooManyBeams { .. })));
+        assert!(Section::new([0.0; 3], mm, [32, 32, 32], k).is_ok());
+        let wide = [[1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0], [0.0, 0.0, 1000.0]];
+        assert!(Section::new([5e6, 0.0, 0.0], wide, [4, 4, 4], k).is_ok());
     }
 
     #[test]

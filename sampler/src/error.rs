@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use crate::scene::export::ExportError;
 use crate::scene::file::TransformError;
-use crate::scene::material::MaterialError;
+use crate::scene::material::{MaterialError, SkyError};
 use crate::scene::section::SectionTableError;
 
 /// What went wrong building a scene, naming the file or mesh involved.
@@ -45,6 +45,14 @@ pub enum SceneError {
     /// A material name added again with other parameters.
     #[error("material {0:?}: defined twice with different parameters")]
     MaterialRedefined(String),
+    /// The sky has impossible parameters.
+    #[error("{what}: {source}")]
+    BadSky {
+        /// Where the sky was written.
+        what: String,
+        /// Which key is wrong.
+        source: SkyError,
+    },
     /// A geometry entry's transform is impossible.
     #[error("{what}: {source}")]
     Transform {

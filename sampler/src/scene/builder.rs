@@ -281,9 +281,14 @@ impl SceneBuilder {
         Ok(())
     }
 
-    /// Sets the sky.
-    pub fn sky(&mut self, sky: Sky) {
+    /// Sets the sky, once it is checked.
+    pub fn sky(&mut self, sky: Sky) -> Result<(), SceneError> {
+        sky.validate().map_err(|source| SceneError::BadSky {
+            what: "sky".to_string(),
+            source,
+        })?;
         self.scene.sky = sky;
+        Ok(())
     }
 
     /// Adds a holodeck section.

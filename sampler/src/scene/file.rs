@@ -241,7 +241,11 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
         (None, Some(s)) => s.sky.clone(),
         (None, None) => Sky::None,
     };
-    b.sky(sky);
+    sky.validate().map_err(|source| SceneError::BadSky {
+        what: format!("{}: [sky]", path.display()),
+        source,
+    })?;
+    b.sky(sky)?;
     if file.section.is_empty() {
         for s in settings.into_iter().flat_map(|s| s.sections) {
             b.section(s);

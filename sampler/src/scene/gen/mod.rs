@@ -56,7 +56,7 @@ pub struct Setting {
 pub fn generate(name: &str, params: &GenParams) -> Result<Scene, SceneError> {
     let mut b = SceneBuilder::new();
     let setting = add(name, params, &mut b)?;
-    b.sky(setting.sky);
+    b.sky(setting.sky)?;
     for s in setting.sections {
         b.section(s);
     }
