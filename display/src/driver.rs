@@ -2,13 +2,13 @@
 //! in (with world hit points, so they reproject into any view), a view is set,
 //! and a frame of linear radiance comes out.
 
-use holodeck_protocol::{Picture, View};
+use holodeck_protocol::{check_picture_size, Picture, PictureSizeError, View};
 
 use crate::sample::Sample;
 
-/// The largest frame a driver accepts: 8192 x 8192 pixels (a 16384 x 16384
-/// frame would need 3 GiB of radiance alone).
-pub const MAX_VIEWPORT_PIXELS: u64 = 8192 * 8192;
+/// The largest frame a driver accepts: the largest picture,
+/// [`holodeck_protocol::MAX_PICTURE_PIXELS`].
+pub const MAX_VIEWPORT_PIXELS: u64 = holodeck_protocol::MAX_PICTURE_PIXELS;
 
 /// A view and the pixel size of the frame it is drawn into.
 #[derive(Clone, Debug, PartialEq)]
@@ -31,13 +31,8 @@ pub enum DriverError {
     #[error("the {0} driver needs a GPU front end, which is not built yet")]
     NeedsGpu(String),
     /// A zero-sized or oversized frame.
-    #[error("a {width}x{height} frame is not supported (1x1 up to {max} pixels)", max = MAX_VIEWPORT_PIXELS)]
-    FrameSize {
-        /// Requested width.
-        width: u32,
-        /// Requested height.
-        height: u32,
-    },
+    #[error("frame: {0}")]
+    FrameSize(PictureSizeError),
     /// A view whose numbers are not finite or whose directions are degenerate.
     #[error("the view is degenerate: {0}")]
     View(String),
@@ -46,9 +41,7 @@ pub enum DriverError {
 impl Viewport {
     /// Checks the size and the view.
     pub fn new(view: View, width: u32, height: u32) -> Result<Viewport, DriverError> {
-        if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_VIEWPORT_PIXELS {
-            return Err(DriverError::FrameSize { width, height });
-        }
+        check_picture_size(u64::from(width), u64::from(height)).map_err(DriverError::FrameSize)?;
         let finite = view.position.is_finite()
             && view.direction.is_finite()
             && view.up.is_finite()

@@ -38,6 +38,16 @@ pub enum CountError {
     /// A whole count above 2^64.
     #[error("{0:?} is more than 64 bits can count")]
     TooLarge(String),
+    /// A count outside what the flag accepts.
+    #[error("{text:?} is outside {min}..={max}")]
+    OutOfRange {
+        /// The count as given.
+        text: String,
+        /// The least accepted.
+        min: u64,
+        /// The most accepted.
+        max: u64,
+    },
 }
 
 /// A count with an optional K, M or G suffix (powers of 1000), e.g. `50M` or `2.5k`.
@@ -59,6 +69,23 @@ pub fn parse_count(s: &str) -> Result<u64, CountError> {
         return Err(CountError::TooLarge(s.to_string()));
     }
     Ok(n as u64)
+}
+
+/// A clap value parser of counts (as [`parse_count`]) from `min` to `max`:
+/// flags whose numbers size an allocation refuse what cannot be allocated.
+pub fn count_in(min: u64, max: u64) -> impl Fn(&str) -> Result<u64, CountError> + Clone + Send + Sync + 'static {
+    move |s| {
+        let n = parse_count(s)?;
+        if (min..=max).contains(&n) {
+            Ok(n)
+        } else {
+            Err(CountError::OutOfRange {
+                text: s.trim().to_string(),
+                min,
+                max,
+            })
+        }
+    }
 }
 
 #[cfg(test)]

@@ -246,3 +246,106 @@ fn sections_beyond_sane_sizes_and_zero_directions_are_refused_by_key() {
         &["s.toml", "[sky]", "direction"],
     );
 }
+
+#[test]
+fn numbers_that_size_an_allocation_are_refused_by_their_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let (png, hdk, toml) = (
+        out.to_str().unwrap(),
+        dir.path().join("x.hdk"),
+        dir.path().join("s.toml"),
+    );
+    let (hdk, toml) = (hdk.to_str().unwrap(), toml.to_str().unwrap());
+    let views = dir.path().join("v.vf");
+    std::fs::write(
+        &views,
+        format!("{}\n", "-vtv -vp 1 1 1 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45"),
+    )
+    .unwrap();
+    let views = views.to_str().unwrap();
+    let refused = |args: &[&str], flag: &str| {
+        let o = holodeck(args);
+        assert!(!o.status.success(), "{args:?} was accepted: {}", text(&o));
+        assert!(
+            text(&o).contains(flag),
+            "{args:?}: {flag:?} is not named in {}",
+            text(&o)
+        );
+        assert!(!text(&o).contains("memory allocation"), "{}", text(&o));
+        for made in [png, hdk, toml] {
+            assert!(!Path::new(made).exists(), "{args:?} wrote {made}");
+        }
+    };
+    let both = "-x/--width and -y/--height";
+    refused(
+        &["render", "builtin:room", "-x", "4000000000", "-y", "1", "-o", png],
+        "--width",
+    );
+    refused(&["render", "builtin:room", "-x", "0", "-o", png], "--width");
+    refused(&["render", "builtin:room", "--spp", "0", "-o", png], "--spp");
+    refused(
+        &["render", "builtin:room", "-x", "65536", "-y", "65536", "-o", png],
+        both,
+    );
+    refused(
+        &["render", "builtin:landscape", "--triangles", "1G", "-o", png],
+        "--triangles",
+    );
+    refused(&["pict", hdk, "-y", "0", "-o", png], "--height");
+    refused(&["pict", hdk, "-x", "16384", "-y", "16384", "-o", png], both);
+    let view = [
+        "view",
+        "--connect",
+        "127.0.0.1:1",
+        "--token",
+        "t",
+        "--headless",
+        "--views",
+        views,
+    ];
+    refused(&[&view[..], &["-o", png, "-x", "0"]].concat(), "--width");
+    refused(&[&view[..], &["-o", png, "-x", "65536", "-y", "1025"]].concat(), both);
+    let run = ["run", "builtin:room", hdk, "--time", "1s"];
+    refused(&[&run[..], &["-x", "100000"]].concat(), "--width");
+    refused(&[&run[..], &["-x", "60000", "-y", "60000"]].concat(), both);
+    refused(&[&run[..], &["-n", "0"]].concat(), "--workers");
+    refused(&["bench", "accuracy", "-x", "0"], "--width");
+    refused(&["bench", "accuracy", "-x", "9000", "-y", "9000"], both);
+    refused(&["bench", "tracer", "--pixels", "100000"], "--pixels");
+    refused(&["bench", "display", "--samples", "1e12"], "--samples");
+    refused(&["bench", "storage", "--request", "0"], "--request");
+    refused(&["bench", "network", "--seconds=-1"], "--seconds");
+    refused(
+        &["scene", "gen", "landscape", "--triangles", "1G", "-o", toml],
+        "--triangles",
+    );
+    refused(
+        &["scene", "gen", "landscape", "--triangles", "0", "-o", toml],
+        "--triangles",
+    );
+    refused(
+        &["scene", "gen", "mandelbulb", "--resolution", "100000", "-o", toml],
+        "--resolution",
+    );
+    refused(&["fill", "builtin:room", hdk, "--rays", "0"], "--rays");
+    refused(
+        &["fill", "builtin:room", hdk, "--rays", "1K", "--packet", "4000000000"],
+        "--packet",
+    );
+    refused(
+        &[
+            "sample",
+            "builtin:room",
+            "--connect",
+            "127.0.0.1:1",
+            "--token",
+            "t",
+            "-j",
+            "100000",
+        ],
+        "--jobs",
+    );
+    refused(&["serve", hdk, "--packet", "0"], "--packet");
+    refused(&["create", hdk, "--section", ROOM, "--beams", "0"], "--beams");
+}

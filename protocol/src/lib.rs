@@ -19,7 +19,7 @@ pub mod wire;
 
 pub use beam::{BeamIndex, BeamKey, BeamRay, CellPair, LocatedRay, WallCell};
 pub use depth::DepthCode;
-pub use picture::Picture;
+pub use picture::{check_size as check_picture_size, Picture, PictureSizeError, MAX_PICTURE_PIXELS, MAX_PICTURE_SIDE};
 pub use record::{BeamDecoder, DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
 pub use rgbe::Rgbe;
 pub use section::{

@@ -4,8 +4,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
+use holodeck_protocol::MAX_BEAMS_PER_SECTION;
 use holodeck_server::settings::{parse_section_line, parse_size, Settings};
 use holodeck_server::HoloFile;
+
+use crate::human::count_in;
 
 /// Arguments of `holodeck create`.
 #[derive(clap::Args)]
@@ -32,8 +35,8 @@ pub struct Args {
     /// Cell length for sections without grid= (Radiance's GRID).
     #[arg(long, value_name = "LENGTH")]
     grid: Option<f64>,
-    /// Target beam count per section for sections without grid=.
-    #[arg(long, value_name = "N")]
+    /// Target beam count per section for sections without grid= (K, M suffixes).
+    #[arg(long, value_name = "N", value_parser = count_in(1, MAX_BEAMS_PER_SECTION))]
     beams: Option<u64>,
     /// Beam cache budget, e.g. 64M (CACHE).
     #[arg(long, value_name = "SIZE")]

@@ -52,7 +52,7 @@ pub struct Args {
     #[command(flatten)]
     frame: super::args::FrameArgs,
     /// Beam selection: one view ray per this many pixels across and down.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(super::args::SIDE))]
     stride: u32,
     /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
     #[arg(short, long)]
@@ -194,6 +194,7 @@ fn numbered(pattern: &Path, n: usize) -> Result<PathBuf> {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    a.frame.check()?;
     let views = match &a.views {
         Some(path) => {
             let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;

@@ -13,6 +13,7 @@ use holodeck_sampler::worker::connect;
 use holodeck_server::settings::parse_duration;
 use holodeck_server::{HoloFile, OpenOptions};
 
+use super::args::{frame_size, MAX_WORKERS, SIDE};
 use crate::human::count;
 
 /// Arguments of `holodeck run`.
@@ -35,8 +36,8 @@ pub struct Args {
     /// The holodeck file (created from the scene if missing).
     file: PathBuf,
     /// Local sampler processes.
-    #[arg(short = 'n', long, default_value_t = 1)]
-    workers: usize,
+    #[arg(short = 'n', long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=MAX_WORKERS))]
+    workers: u32,
     /// How long to fill (e.g. 30s, 10m, 2h).
     #[arg(long)]
     time: String,
@@ -52,16 +53,16 @@ pub struct Args {
     #[arg(long, default_value = "frames")]
     frames: PathBuf,
     /// Frame width.
-    #[arg(short = 'x', long, default_value_t = 512)]
+    #[arg(short = 'x', long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(SIDE))]
     width: u32,
     /// Frame height.
-    #[arg(short = 'y', long, default_value_t = 384)]
+    #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
     /// Path samples averaged per ray (less noise per ray, fewer rays).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
 }
 
@@ -120,6 +121,7 @@ fn default_view(section: &holodeck_protocol::Section) -> String {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    frame_size(a.width, a.height)?;
     let driver = match a.output.as_str() {
         "none" => None,
         d if holodeck_display::DRIVERS.contains(&d) => Some(d.to_string()),
@@ -178,7 +180,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_string();
     let bounces = a.bounces.to_string();
     let samples = a.samples.to_string();
-    let mut workers: Vec<Child> = (0..a.workers.max(1))
+    let mut workers: Vec<Child> = (0..a.workers)
         .map(|i| {
             me()?
                 .args([

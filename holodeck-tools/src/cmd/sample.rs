@@ -9,7 +9,8 @@ use holodeck_sampler::worker::{run_worker, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::settings::parse_duration;
 
-use crate::human::count;
+use super::args::{MAX_TRIANGLES, MAX_WORKERS};
+use crate::human::{count, count_in};
 
 /// Arguments of `holodeck sample`.
 #[derive(clap::Args)]
@@ -31,19 +32,19 @@ pub struct Args {
     #[command(flatten)]
     token: super::args::TokenArgs,
     /// Worker connections (one tracing thread each); default: one per core.
-    #[arg(short = 'j', long)]
-    jobs: Option<usize>,
+    #[arg(short = 'j', long, value_parser = clap::value_parser!(u32).range(1..=MAX_WORKERS))]
+    jobs: Option<u32>,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
     /// Path samples averaged per ray.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
     /// Seed (give each worker host its own to trace independent rays).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Triangles for builtin:landscape.
-    #[arg(long)]
+    /// Triangles for builtin:landscape (K, M suffixes).
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// After losing the server, keep trying to reconnect this long (e.g. 30s, 5m; 0s: give up at once).
     #[arg(long, default_value = "60s")]
@@ -104,10 +105,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let tracer = Tracer::new(scene, options);
     let retry_for = parse_duration(&a.retry_for, 1.0).context("--retry-for")?;
-    let jobs = a
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
+    let jobs = a.jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        |j| j as usize,
+    );
     let results: Vec<Result<u64, WorkerError>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..jobs)
             .map(|j| {

@@ -5,11 +5,13 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use holodeck_sampler::scene::gen::mandelbulb::MAX_RESOLUTION;
 use holodeck_sampler::scene::gen::{self, GenParams};
 use holodeck_sampler::scene::{content_hash, load_scene, write_scene};
 use holodeck_sampler::{Material, Scene, Sky};
 
-use crate::human::{count, parse_count};
+use super::args::MAX_TRIANGLES;
+use crate::human::{count, count_in};
 
 /// Arguments of `holodeck scene`.
 #[derive(clap::Args)]
@@ -56,10 +58,10 @@ pub struct GenArgs {
     #[arg(value_parser = gen::NAMES)]
     name: String,
     /// Target triangle count (landscape); suffixes K, M, G as powers of 1000.
-    #[arg(long, value_parser = parse_count)]
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// Grid cells per axis (mandelbulb).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(4..=i64::from(MAX_RESOLUTION)))]
     resolution: Option<u32>,
     /// Random seed (landscape).
     #[arg(long, default_value_t = 0)]

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_server::net::{serve, Fill, Listener, ServerConfig};
 use holodeck_server::settings::{parse_duration, parse_size};
 use holodeck_server::{HoloFile, OpenOptions};
@@ -39,10 +40,10 @@ pub struct Args {
     #[arg(long)]
     token: Option<String>,
     /// Rays per batch-fill packet.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     packet: u32,
     /// Most rays per packet traced for a display.
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     request_packet: u32,
     /// Each sampler's queue drains within this many milliseconds.
     #[arg(long, default_value_t = 250)]
@@ -137,8 +138,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         (None, false) => Fill::All,
     };
     let config = ServerConfig {
-        packet: a.packet.max(1),
-        request_packet: a.request_packet.max(1),
+        packet: a.packet,
+        request_packet: a.request_packet,
         latency: Duration::from_millis(a.latency_ms.max(1)),
         fill,
         time,

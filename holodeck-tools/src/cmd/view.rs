@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1024.0)]
     max_density: f64,
     /// New samples pass this near the eye, as a fraction of the section diagonal.
-    #[arg(long, default_value_t = RequestOptions::default().eye_radius)]
+    #[arg(long, default_value_t = RequestOptions::default().eye_radius, value_parser = super::args::non_negative)]
     eye_radius: f64,
     /// Connect read-only (cannot clobber, kill samplers or quit the server).
     #[arg(long)]
@@ -81,6 +81,7 @@ const QUIET: Duration = Duration::from_secs(1);
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    a.frame.check()?;
     if !a.headless {
         bail!("the windowed display is not built yet: add --headless to draw frames into files");
     }
