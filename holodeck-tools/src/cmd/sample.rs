@@ -1,11 +1,10 @@
 //! `holodeck sample`: a sampler worker for a holodeck server on any host.
 
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use holodeck_sampler::scene::hash::content_hash;
-use holodeck_sampler::worker::{run_worker, WorkerError};
+use holodeck_sampler::worker::{run_worker_retrying, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::settings::parse_duration;
 
@@ -17,7 +16,8 @@ use crate::human::{count, count_in};
 #[command(after_help = "\
 Loads the scene, proves to the server that it is the same scene (content hash), and traces
 the packets the server hands out until the server stops. If the server goes away (a restart,
-say), each worker retries with growing delays for --retry-for before ending. Workers are stateless: start and
+say), each worker retries with growing delays for --retry-for before ending. A sampler
+that never reached the server in that time fails, naming the address. Workers are stateless: start and
 stop them at any time, on any host that can reach the server.
 
 Examples:
@@ -51,48 +51,6 @@ pub struct Args {
     retry_for: String,
 }
 
-/// Runs one worker connection, reconnecting with exponential backoff while
-/// the server is away (restarting, say) for up to `retry_for`; a refusal ends it.
-fn work(
-    addr: &str,
-    tracer: &Tracer,
-    hash: &str,
-    token: &str,
-    seed: u64,
-    retry_for: Duration,
-) -> Result<u64, WorkerError> {
-    let (mut total, mut round) = (0u64, 0u64);
-    let mut delay = Duration::from_millis(250);
-    let mut lost_since: Option<Instant> = None;
-    loop {
-        match run_worker(
-            addr,
-            tracer,
-            hash,
-            token,
-            seed.wrapping_add(round.wrapping_mul(0x9E37_79B9)),
-        ) {
-            Ok(n) => {
-                total += n;
-                if n > 0 {
-                    delay = Duration::from_millis(250);
-                    lost_since = None;
-                }
-            }
-            Err(WorkerError::Io { .. }) => {}
-            Err(e) => return Err(e),
-        }
-        round += 1;
-        let since = *lost_since.get_or_insert_with(Instant::now);
-        if since.elapsed() >= retry_for {
-            return Ok(total);
-        }
-        tracing::info!("{addr}: server unavailable; retrying in {delay:?}");
-        std::thread::sleep(delay.min(retry_for.saturating_sub(since.elapsed())));
-        delay = (delay * 2).min(Duration::from_secs(10));
-    }
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let token = a.token.token()?;
@@ -109,12 +67,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         || std::thread::available_parallelism().map_or(1, |n| n.get()),
         |j| j as usize,
     );
-    let results: Vec<Result<u64, WorkerError>> = std::thread::scope(|s| {
+    let results: Vec<Option<Result<u64, WorkerError>>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..jobs)
             .map(|j| {
                 let (tracer, hash, token, addr) = (&tracer, &hash, &token, &a.connect);
                 s.spawn(move || {
-                    work(
+                    run_worker_retrying(
                         addr,
                         tracer,
                         hash,
@@ -125,13 +83,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 })
             })
             .collect();
-        handles.into_iter().map(|h| h.join().unwrap_or(Ok(0))).collect()
+        handles.into_iter().map(|h| h.join().ok()).collect()
     });
     let mut rays = 0;
     for r in results {
         match r {
-            Ok(n) => rays += n,
-            Err(e) => bail!(e),
+            Some(Ok(n)) => rays += n,
+            Some(Err(e)) => bail!(e),
+            None => bail!("a worker thread failed; see the message above"),
         }
     }
     println!("traced {} rays for {}", count(rays), a.connect);
