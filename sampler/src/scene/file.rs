@@ -18,7 +18,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use super::builder::SceneBuilder;
 use super::gen::{self, GenParams};
-use super::import::{import_file_with, ImportOptions};
+use super::import::{import_file_with, ImportOptions, UpAxis};
 use super::material::{Material, Sky};
 use super::section::SectionTable;
 use super::Scene;
@@ -90,6 +90,10 @@ pub struct GeometryEntry {
     /// Scale (applied first): one factor or one per axis.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<Scale>,
+    /// The file's up axis, `"y"` or `"z"`: the file is turned +z up before
+    /// scale, rotate and translate apply. Default: y for glTF/GLB, z for the rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<UpAxis>,
 }
 
 /// A uniform or per-axis scale.
@@ -233,6 +237,7 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
             default_material,
             overrides: Some(&overrides),
             face_materials: &face_materials,
+            up: g.up,
         };
         import_file_with(&mut b, &base.join(&g.file), transform, &options)?;
     }
