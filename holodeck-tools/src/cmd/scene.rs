@@ -24,7 +24,8 @@ Examples:
   holodeck scene gen room -o scenes/room.toml
   holodeck scene gen landscape --triangles 100M --seed 7 -o big/landscape.toml
   holodeck scene gen mandelbulb --resolution 256 -o bulb.toml
-  holodeck scene gen bunny --bunny ../shared/scenes/bunny.obj -o bunny.toml
+  holodeck scene gen bunny -o bunny.toml
+  holodeck scene gen bunny --bunny my-bunny.obj -o my-bunny.toml
   holodeck scene info scenes/room.toml")]
 pub struct Args {
     #[command(subcommand)]
@@ -46,7 +47,7 @@ Scenes (z up, meters):
   room        a furnished 6 x 4 x 2.7 m room with a window, mirror, glass sphere, area light
   landscape   the room looking out on fBm terrain and a forest; --triangles (default 1M)
   mandelbulb  the power-8 Mandelbulb on a ground plane; --resolution (default 128)
-  bunny       the Stanford bunny on a table in a lit room; --bunny (default ../shared/scenes/bunny.obj)
+  bunny       the Stanford bunny on a table in a lit room; built in, or --bunny FILE.obj (Y up)
 
 The same name and parameters always give the same scene (the same content hash).
 
@@ -66,7 +67,7 @@ pub struct GenArgs {
     /// Random seed (landscape).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// The bunny OBJ file (bunny).
+    /// A bunny OBJ file (Y up) instead of the built-in one (bunny).
     #[arg(long, value_name = "OBJ")]
     bunny: Option<PathBuf>,
     /// The scene file to write; the mesh goes to the same name with .ply.

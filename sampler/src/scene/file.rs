@@ -161,7 +161,7 @@ pub struct BuiltinEntry {
     /// Random seed (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
-    /// The bunny OBJ, relative to the scene file.
+    /// A bunny OBJ, relative to the scene file, instead of the built-in one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bunny: Option<PathBuf>,
 }

@@ -39,7 +39,7 @@ pub struct GenParams {
     pub resolution: Option<u32>,
     /// Seed of everything random (landscape terrain and trees).
     pub seed: u64,
-    /// The bunny OBJ (default `../shared/scenes/bunny.obj` from the current directory).
+    /// A bunny OBJ file to use instead of the one built in.
     pub bunny_path: Option<PathBuf>,
 }
 

@@ -134,6 +134,23 @@ pub fn import_file_with(
     Ok(())
 }
 
+/// Imports OBJ text held in memory (a model built into the program), named
+/// `name` in messages and logs; its faces take `default_material`, and its
+/// coordinates are used as they are.
+pub(crate) fn import_obj_bytes(
+    b: &mut SceneBuilder,
+    bytes: &[u8],
+    name: &Path,
+    transform: Mat4,
+    default_material: Option<u32>,
+) -> Result<(), SceneError> {
+    let options = ImportOptions {
+        default_material,
+        ..ImportOptions::default()
+    };
+    obj::import_bytes(b, bytes, name, transform, &options)
+}
+
 /// Opens a file to import, naming it in the error.
 pub(crate) fn open(path: &Path) -> Result<std::fs::File, SceneError> {
     std::fs::File::open(path).map_err(|source| SceneError::Io {
