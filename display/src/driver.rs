@@ -2,13 +2,13 @@
 //! in (with world hit points, so they reproject into any view), a view is set,
 //! and a frame of linear radiance comes out.
 
-use holodeck_protocol::{Picture, View};
+use holodeck_protocol::{check_picture_size, Picture, PictureSizeError, View};
 
 use crate::sample::Sample;
 
-/// The largest frame a driver accepts: 8192 x 8192 pixels (a 16384 x 16384
-/// frame would need 3 GiB of radiance alone).
-pub const MAX_VIEWPORT_PIXELS: u64 = 8192 * 8192;
+/// The largest frame a driver accepts: the largest picture,
+/// [`holodeck_protocol::MAX_PICTURE_PIXELS`].
+pub const MAX_VIEWPORT_PIXELS: u64 = holodeck_protocol::MAX_PICTURE_PIXELS;
 
 /// A view and the pixel size of the frame it is drawn into.
 #[derive(Clone, Debug, PartialEq)]
@@ -21,17 +21,18 @@ pub struct Viewport {
     pub height: u32,
 }
 
-/// Why a driver cannot take a viewport.
+/// Why a driver cannot be made or cannot take a viewport.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DriverError {
+    /// No driver has this name.
+    #[error("unknown driver {0:?} (known: {known})", known = crate::DRIVERS.join(", "))]
+    Unknown(String),
+    /// A driver that needs a GPU front end, which is not built yet.
+    #[error("the {0} driver needs a GPU front end, which is not built yet")]
+    NeedsGpu(String),
     /// A zero-sized or oversized frame.
-    #[error("a {width}x{height} frame is not supported (1x1 up to {max} pixels)", max = MAX_VIEWPORT_PIXELS)]
-    FrameSize {
-        /// Requested width.
-        width: u32,
-        /// Requested height.
-        height: u32,
-    },
+    #[error("frame: {0}")]
+    FrameSize(PictureSizeError),
     /// A view whose numbers are not finite or whose directions are degenerate.
     #[error("the view is degenerate: {0}")]
     View(String),
@@ -40,9 +41,7 @@ pub enum DriverError {
 impl Viewport {
     /// Checks the size and the view.
     pub fn new(view: View, width: u32, height: u32) -> Result<Viewport, DriverError> {
-        if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_VIEWPORT_PIXELS {
-            return Err(DriverError::FrameSize { width, height });
-        }
+        check_picture_size(u64::from(width), u64::from(height)).map_err(DriverError::FrameSize)?;
         let finite = view.position.is_finite()
             && view.direction.is_finite()
             && view.up.is_finite()
@@ -117,4 +116,25 @@ pub trait Driver: Send {
     /// average, spent where they reduce the error most (row-major, top row
     /// first); see [`crate::store::Store::needs`].
     fn needs(&self, density: f32) -> Vec<f32>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{new_driver, GPU_DRIVERS};
+
+    #[test]
+    fn drivers_are_made_by_name_and_others_refused_by_kind() {
+        let viewport = Viewport::new(View::default(), 4, 3).unwrap();
+        let d = new_driver("splat", viewport.clone()).unwrap();
+        assert_eq!((d.name(), d.viewport().width), ("splat", 4));
+        assert_eq!(
+            new_driver("voronoi", viewport.clone()).err(),
+            Some(DriverError::NeedsGpu("voronoi".into()))
+        );
+        assert!(GPU_DRIVERS.contains(&"mesh"));
+        let e = new_driver("crayon", viewport).err().unwrap();
+        assert_eq!(e, DriverError::Unknown("crayon".into()));
+        assert!(e.to_string().contains("quadtree, splat"), "{e}");
+    }
 }

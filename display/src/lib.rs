@@ -29,19 +29,24 @@ pub use store::EstimatorOptions;
 /// The drivers this crate has, by name.
 pub const DRIVERS: &[&str] = &["quadtree", "splat"];
 
+/// The drivers that need a GPU front end, which this crate does not have.
+pub const GPU_DRIVERS: &[&str] = &["voronoi", "mesh"];
+
 /// Makes the driver called `name` (see [`DRIVERS`]).
-pub fn new_driver(name: &str, viewport: Viewport) -> Result<Box<dyn Driver>, String> {
+pub fn new_driver(name: &str, viewport: Viewport) -> Result<Box<dyn Driver>, DriverError> {
     new_driver_with(name, viewport, EstimatorOptions::default())
 }
 
 /// [`new_driver`] with pixels that combine rays as `options` say.
-pub fn new_driver_with(name: &str, viewport: Viewport, options: EstimatorOptions) -> Result<Box<dyn Driver>, String> {
+pub fn new_driver_with(
+    name: &str,
+    viewport: Viewport,
+    options: EstimatorOptions,
+) -> Result<Box<dyn Driver>, DriverError> {
     match name {
         "quadtree" => Ok(Box::new(quadtree::QuadtreeDriver::with_options(viewport, options))),
         "splat" => Ok(Box::new(splat::SplatDriver::with_options(viewport, options))),
-        "voronoi" | "mesh" => Err(format!(
-            "the {name} driver needs a GPU front end, which is not built yet"
-        )),
-        _ => Err(format!("unknown driver {name:?} (known: {})", DRIVERS.join(", "))),
+        _ if GPU_DRIVERS.contains(&name) => Err(DriverError::NeedsGpu(name.to_string())),
+        _ => Err(DriverError::Unknown(name.to_string())),
     }
 }

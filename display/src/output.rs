@@ -8,24 +8,33 @@ use holodeck_protocol::Picture;
 use crate::image_io::{self, ImageError};
 use crate::tonemap::{DisplayRange, Histogram, ToneMap, ToneMode};
 
+/// A tone-mapping mode that does not parse.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ToneError {
+    /// Not one of the modes.
+    #[error("tone mapping {0:?}: use camera, human, exposure:X or exposure:auto")]
+    UnknownMode(String),
+    /// `exposure:X` with an X that is not a positive finite number.
+    #[error("exposure {0:?} is not a positive number")]
+    BadExposure(String),
+}
+
 /// Parses a tone-mapping mode: `camera`, `human`, or `exposure:X` (a linear
 /// multiplier; `exposure:auto` puts the log-average at middle grey).
-pub fn parse_tone(s: &str, picture_hint: Option<&Picture>) -> Result<ToneMode, String> {
+pub fn parse_tone(s: &str, picture_hint: Option<&Picture>) -> Result<ToneMode, ToneError> {
     match s {
         "camera" => Ok(ToneMode::Camera),
         "human" => Ok(ToneMode::Human),
         _ => {
             let Some(x) = s.strip_prefix("exposure:") else {
-                return Err(format!(
-                    "tone mapping {s:?}: use camera, human, exposure:X or exposure:auto"
-                ));
+                return Err(ToneError::UnknownMode(s.to_string()));
             };
             if x == "auto" {
                 return Ok(ToneMode::Exposure(picture_hint.map_or(1.0, Picture::auto_exposure)));
             }
             match x.parse::<f32>() {
                 Ok(v) if v.is_finite() && v > 0.0 => Ok(ToneMode::Exposure(v)),
-                _ => Err(format!("exposure {x:?} is not a positive number")),
+                _ => Err(ToneError::BadExposure(x.to_string())),
             }
         }
     }
@@ -66,8 +75,13 @@ mod tests {
             panic!("auto exposure")
         };
         assert!((auto - 0.5).abs() < 1e-6, "0.18 / 0.36 = {auto}");
-        assert!(parse_tone("exposure:-1", None).unwrap_err().contains("positive"));
-        assert!(parse_tone("film", None).unwrap_err().contains("camera, human"));
+        assert_eq!(
+            parse_tone("exposure:-1", None),
+            Err(ToneError::BadExposure("-1".into()))
+        );
+        let film = parse_tone("film", None).unwrap_err();
+        assert_eq!(film, ToneError::UnknownMode("film".into()));
+        assert!(film.to_string().contains("camera, human"), "{film}");
     }
 
     #[test]

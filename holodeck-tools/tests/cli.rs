@@ -185,3 +185,181 @@ fn every_command_has_help_with_examples() {
     }
     assert!(text(&holodeck(&["--help"])).contains("Examples:"));
 }
+
+#[test]
+fn sections_beyond_sane_sizes_and_zero_directions_are_refused_by_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("x.hdk");
+    let f = file.to_str().unwrap();
+    let refused = |args: &[&str], wants: &[&str]| {
+        let o = holodeck(args);
+        assert!(!o.status.success(), "{args:?} was accepted: {}", text(&o));
+        for w in wants {
+            assert!(text(&o).contains(w), "{args:?}: no {w:?} in {}", text(&o));
+        }
+        assert!(!file.exists(), "{args:?} left a file behind");
+    };
+    let section = |s: &str| ["create", f, "--section", s].map(str::to_string);
+    let run = |s: &str, wants: &[&str]| {
+        let args = section(s);
+        refused(&args.iter().map(String::as_str).collect::<Vec<_>>(), wants)
+    };
+    // Too small and too large to hold a grid; the key is named as written.
+    run(
+        "interior origin=0,0,0 x=1e-30,0,0 y=0,1,0 z=0,0,1",
+        &[
+            "x=: section axis 0 is 1e-30 long",
+            "between 0.001 and 10000000 scene units",
+        ],
+    );
+    run(
+        "interior origin=0,0,0 x=1,0,0 y=0,1e30,0 z=0,0,1",
+        &["y=: section axis 1 is 1e30 long"],
+    );
+    run("interior origin=0,0,0 x=1,0,0 y=0,1,0 z=nan,0,1", &["z=", "not finite"]);
+    run(
+        "interior origin=0,2e7,0 x=1,0,0 y=0,1,0 z=0,0,1",
+        &["origin=: section origin [0.0, 20000000.0, 0.0]"],
+    );
+    // Axes nearly in one plane: no volume worth a grid.
+    run("interior origin=0,0,0 x=1,0,0 y=0,1,0 z=1,1,1e-6", &["degenerate"]);
+    // Cells finer than single precision resolves that far from the origin.
+    run(
+        "interior origin=5e6,0,0 x=1,0,0 y=0,1,0 z=0,0,1 grid=200,2,2",
+        &["x=: section cells along axis 0", "single precision"],
+    );
+
+    let toml = dir.path().join("c.toml");
+    std::fs::write(
+        &toml,
+        "[[section]]\norigin = [0, 0, 0]\naxes = [[1, 0, 0], [0, 1, 0], [0, 0, 1e-9]]\n",
+    )
+    .unwrap();
+    refused(
+        &["create", f, "--control", toml.to_str().unwrap()],
+        &["c.toml", "section 0 axes[2]: section axis 2 is 1e-9 long"],
+    );
+
+    let scene = dir.path().join("s.toml");
+    std::fs::write(
+        &scene,
+        "[[section]]\norigin = [0, 0, 0]\naxes = [[1e30, 0, 0], [0, 1, 0], [0, 0, 1]]\n",
+    )
+    .unwrap();
+    refused(
+        &["scene", "info", scene.to_str().unwrap()],
+        &["s.toml", "[[section]] 1: axes[0]"],
+    );
+    std::fs::write(
+        &scene,
+        "[sky]\ntype = \"sun\"\ndirection = [0, 0, 0]\nsun_radiance = [1, 1, 1]\nzenith = [1, 1, 1]\nhorizon = [1, 1, 1]\nground = [0, 0, 0]\n",
+    )
+    .unwrap();
+    refused(
+        &["scene", "info", scene.to_str().unwrap()],
+        &["s.toml", "[sky]", "direction"],
+    );
+}
+
+#[test]
+fn numbers_that_size_an_allocation_are_refused_by_their_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let (png, hdk, toml) = (
+        out.to_str().unwrap(),
+        dir.path().join("x.hdk"),
+        dir.path().join("s.toml"),
+    );
+    let (hdk, toml) = (hdk.to_str().unwrap(), toml.to_str().unwrap());
+    let views = dir.path().join("v.vf");
+    std::fs::write(
+        &views,
+        format!("{}\n", "-vtv -vp 1 1 1 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45"),
+    )
+    .unwrap();
+    let views = views.to_str().unwrap();
+    let refused = |args: &[&str], flag: &str| {
+        let o = holodeck(args);
+        assert!(!o.status.success(), "{args:?} was accepted: {}", text(&o));
+        assert!(
+            text(&o).contains(flag),
+            "{args:?}: {flag:?} is not named in {}",
+            text(&o)
+        );
+        assert!(!text(&o).contains("memory allocation"), "{}", text(&o));
+        for made in [png, hdk, toml] {
+            assert!(!Path::new(made).exists(), "{args:?} wrote {made}");
+        }
+    };
+    let both = "-x/--width and -y/--height";
+    refused(
+        &["render", "builtin:room", "-x", "4000000000", "-y", "1", "-o", png],
+        "--width",
+    );
+    refused(&["render", "builtin:room", "-x", "0", "-o", png], "--width");
+    refused(&["render", "builtin:room", "--spp", "0", "-o", png], "--spp");
+    refused(
+        &["render", "builtin:room", "-x", "65536", "-y", "65536", "-o", png],
+        both,
+    );
+    refused(
+        &["render", "builtin:landscape", "--triangles", "1G", "-o", png],
+        "--triangles",
+    );
+    refused(&["pict", hdk, "-y", "0", "-o", png], "--height");
+    refused(&["pict", hdk, "-x", "16384", "-y", "16384", "-o", png], both);
+    let view = [
+        "view",
+        "--connect",
+        "127.0.0.1:1",
+        "--token",
+        "t",
+        "--headless",
+        "--views",
+        views,
+    ];
+    refused(&[&view[..], &["-o", png, "-x", "0"]].concat(), "--width");
+    refused(&[&view[..], &["-o", png, "-x", "65536", "-y", "1025"]].concat(), both);
+    let run = ["run", "builtin:room", hdk, "--time", "1s"];
+    refused(&[&run[..], &["-x", "100000"]].concat(), "--width");
+    refused(&[&run[..], &["-x", "60000", "-y", "60000"]].concat(), both);
+    refused(&[&run[..], &["-n", "0"]].concat(), "--workers");
+    refused(&["bench", "accuracy", "-x", "0"], "--width");
+    refused(&["bench", "accuracy", "-x", "9000", "-y", "9000"], both);
+    refused(&["bench", "tracer", "--pixels", "100000"], "--pixels");
+    refused(&["bench", "display", "--samples", "1e12"], "--samples");
+    refused(&["bench", "storage", "--request", "0"], "--request");
+    refused(&["bench", "network", "--seconds=-1"], "--seconds");
+    refused(
+        &["scene", "gen", "landscape", "--triangles", "1G", "-o", toml],
+        "--triangles",
+    );
+    refused(
+        &["scene", "gen", "landscape", "--triangles", "0", "-o", toml],
+        "--triangles",
+    );
+    refused(
+        &["scene", "gen", "mandelbulb", "--resolution", "100000", "-o", toml],
+        "--resolution",
+    );
+    refused(&["fill", "builtin:room", hdk, "--rays", "0"], "--rays");
+    refused(
+        &["fill", "builtin:room", hdk, "--rays", "1K", "--packet", "4000000000"],
+        "--packet",
+    );
+    refused(
+        &[
+            "sample",
+            "builtin:room",
+            "--connect",
+            "127.0.0.1:1",
+            "--token",
+            "t",
+            "-j",
+            "100000",
+        ],
+        "--jobs",
+    );
+    refused(&["serve", hdk, "--packet", "0"], "--packet");
+    refused(&["create", hdk, "--section", ROOM, "--beams", "0"], "--beams");
+}

@@ -70,3 +70,57 @@ fn scene_errors_name_the_file_and_fail() {
     let o = holodeck(&["scene", "gen", "--help"]);
     assert!(o.status.success() && text(&o).contains("Examples:"), "{}", text(&o));
 }
+
+#[test]
+fn the_built_in_bunny_needs_no_files_from_anywhere() {
+    // An installed holodeck runs from any directory: nothing of the
+    // development tree is next to it.
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+        text(&o)
+    };
+    let t = run(&["scene", "gen", "bunny", "-o", "bunny.toml"]);
+    let bunny = holodeck_sampler::scene::generate("bunny", &Default::default()).unwrap();
+    let hash = holodeck_sampler::scene::content_hash(&bunny);
+    assert!(t.contains(&hash), "{t}");
+    // The Stanford bunny's 3,674 triangles, the room and the table.
+    assert!(
+        t.contains(&format!("{} triangles", count(bunny.triangles.len()))),
+        "{t}"
+    );
+    assert!(bunny.triangles.len() > 3_674, "{}", bunny.triangles.len());
+    let loaded = holodeck_sampler::scene::load_scene(&dir.path().join("bunny.toml")).unwrap();
+    assert_eq!(holodeck_sampler::scene::content_hash(&loaded), hash);
+    run(&[
+        "render",
+        "builtin:bunny",
+        "-x",
+        "16",
+        "-y",
+        "12",
+        "--spp",
+        "1",
+        "-o",
+        "bunny.png",
+    ]);
+    assert!(dir.path().join("bunny.png").is_file());
+}
+
+/// `n` with thousands separators, as the command prints counts.
+fn count(n: usize) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}

@@ -9,66 +9,12 @@
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
 
-/// Largest grid size along one axis: one byte per cell coordinate, as in the ray record's cells.
-pub const MAX_GRID: u16 = 255;
+mod bounds;
 
-/// Most beams one section may have. The paper advises 50k–500k; this bound keeps
-/// the in-memory directory (16 bytes per beam) under 2 GiB.
-pub const MAX_BEAMS_PER_SECTION: u64 = 1 << 27;
-
-/// Errors in defining a section or addressing its beams.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SectionError {
-    /// A coordinate is NaN or infinite.
-    #[error("section {what} is not finite: {value:?}")]
-    NonFinite {
-        /// Which vector ("origin", "axis 0", ...).
-        what: &'static str,
-        /// Its value.
-        value: [f64; 3],
-    },
-    /// The three axes span no volume.
-    #[error("section axes {0:?} are degenerate: they span no volume")]
-    Degenerate([[f64; 3]; 3]),
-    /// A grid size is zero or above [`MAX_GRID`].
-    #[error("section grid size {size} along axis {axis} is outside 1..={max}", max = MAX_GRID)]
-    GridOutOfRange {
-        /// Axis 0, 1 or 2.
-        axis: usize,
-        /// The size given.
-        size: u32,
-    },
-    /// The grid gives more beams than [`MAX_BEAMS_PER_SECTION`].
-    #[error("section grid {grid:?} gives {count} beams, more than the {max} a section may hold; use a coarser grid", max = MAX_BEAMS_PER_SECTION)]
-    TooManyBeams {
-        /// The grid.
-        grid: [u16; 3],
-        /// Its beam count.
-        count: u64,
-    },
-    /// A beam index at or beyond the section's beam count.
-    #[error("beam index {beam} is out of range: the section has {count} beams")]
-    BeamOutOfRange {
-        /// The index given.
-        beam: u32,
-        /// The section's beam count.
-        count: u32,
-    },
-    /// A wall cell outside the wall's grid.
-    #[error("cell {cell:?} is outside wall {wall}'s grid")]
-    CellOutOfRange {
-        /// The wall.
-        wall: u8,
-        /// The cell coordinates.
-        cell: [u16; 2],
-    },
-    /// Entry and exit cells on the same wall do not make a beam.
-    #[error("entry and exit cells are both on wall {0}: no ray crosses a wall twice")]
-    SameWall(u8),
-    /// A grid length (Radiance's GRID) that is not a positive finite number.
-    #[error("grid length {0} must be a positive finite number")]
-    BadGridLength(f64),
-}
+pub use bounds::{
+    SectionError, SectionField, MAX_AXIS_LENGTH, MAX_BEAMS_PER_SECTION, MAX_COORDINATE, MAX_GRID, MIN_AXIS_LENGTH,
+    MIN_CELL_FRACTION, MIN_VOLUME_RATIO,
+};
 
 /// Whether views look out of the section (interior) or into it (exterior).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -202,7 +148,9 @@ fn finite(what: &'static str, v: [f64; 3]) -> Result<DVec3, SectionError> {
 }
 
 impl Section {
-    /// Builds a section, checking that it is finite, spans a volume and has a valid grid.
+    /// Builds a section, checking that it is finite, within the sane range of
+    /// sizes and coordinates, spans a volume, and has a valid grid whose cells
+    /// single precision resolves.
     pub fn new(
         origin: [f64; 3],
         axes: [[f64; 3]; 3],
@@ -215,6 +163,17 @@ impl Section {
             finite("axis 1", axes[1])?,
             finite("axis 2", axes[2])?,
         ];
+        if origin.abs().max_element() > MAX_COORDINATE {
+            return Err(SectionError::OriginOutOfRange {
+                value: origin.to_array(),
+            });
+        }
+        for (axis, a) in axis_vecs.iter().enumerate() {
+            let length = a.length();
+            if !(MIN_AXIS_LENGTH..=MAX_AXIS_LENGTH).contains(&length) {
+                return Err(SectionError::AxisLength { axis, length });
+            }
+        }
         for (axis, &size) in grid.iter().enumerate() {
             if size == 0 || size > MAX_GRID {
                 return Err(SectionError::GridOutOfRange {
@@ -230,8 +189,18 @@ impl Section {
         let m = DMat3::from_cols(axis_vecs[0], axis_vecs[1], axis_vecs[2]);
         let scale = axis_vecs.iter().map(|a| a.length()).product::<f64>();
         let det = m.determinant();
-        if !(scale > 0.0 && (det / scale).abs() > 1e-9) {
+        if !(scale > 0.0 && (det / scale).abs() >= MIN_VOLUME_RATIO) {
             return Err(SectionError::Degenerate(axes));
+        }
+        // The farthest corner from the scene's origin sets the coarsest
+        // single-precision step any ray in the section meets.
+        let far = origin.abs() + axis_vecs.iter().map(|a| a.abs()).sum::<DVec3>();
+        let magnitude = far.max_element();
+        for (axis, a) in axis_vecs.iter().enumerate() {
+            let cell = a.length() / f64::from(grid[axis]);
+            if cell < magnitude * MIN_CELL_FRACTION {
+                return Err(SectionError::TooFine { axis, cell, magnitude });
+            }
         }
         let cells = |w: Wall| {
             let [u, v] = w.cell_axes();
@@ -444,6 +413,65 @@ mod tests {
         ));
         let err = Section::new([0.0; 3], BOX, [255, 255, 255], k).unwrap_err();
         assert!(err.to_string().contains("coarser grid"), "{err}");
+    }
+
+    #[test]
+    fn sections_must_be_of_sane_size_range_and_shape() {
+        let k = SectionKind::Interior;
+        let scaled = |s: f64| BOX.map(|a| a.map(|c| c * s));
+        // 10 x 6 x 3 scaled to the bounds: the 3 and the 10 reach them.
+        assert!(Section::new([0.0; 3], scaled(MIN_AXIS_LENGTH / 3.0), [4, 4, 4], k).is_ok());
+        assert!(Section::new([0.0; 3], scaled(MAX_AXIS_LENGTH / 10.0), [4, 4, 4], k).is_ok());
+        let tiny = [[1e-30, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert_eq!(
+            Section::new([0.0; 3], tiny, [1, 1, 1], k),
+            Err(SectionError::AxisLength { axis: 0, length: 1e-30 })
+        );
+        let huge = Section::new([0.0; 3], scaled(1e30), [1, 1, 1], k).unwrap_err();
+        assert!(matches!(huge, SectionError::AxisLength { axis: 0, .. }), "{huge:?}");
+        assert_eq!(huge.field(), Some(SectionField::Axis(0)));
+        let far = Section::new([0.0, -2e7, 0.0], BOX, [1, 1, 1], k).unwrap_err();
+        assert_eq!(
+            far,
+            SectionError::OriginOutOfRange {
+                value: [0.0, -2e7, 0.0]
+            }
+        );
+        assert_eq!(far.field(), Some(SectionField::Origin));
+        // Nearly coplanar: the third axis rises 0.04 degrees out of the plane of the others.
+        let sliver = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.001]];
+        assert!(matches!(
+            Section::new([0.0; 3], sliver, [1, 1, 1], k),
+            Err(SectionError::Degenerate(_))
+        ));
+        let steep = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.01]];
+        assert!(Section::new([0.0; 3], steep, [1, 1, 1], k).is_ok());
+    }
+
+    #[test]
+    fn cells_must_span_256_single_precision_steps() {
+        let k = SectionKind::Interior;
+        let unit = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        // At 5e6 a cell must be at least 5e6 / 32768 = 152.6 long: one cell
+        // of 1 unit is far too fine, far from it ...
+        let e = Section::new([5e6, 0.0, 0.0], unit, [2, 1, 1], k).unwrap_err();
+        let SectionError::TooFine {
+            axis: 0,
+            cell,
+            magnitude,
+        } = e
+        else {
+            panic!("{e:?}")
+        };
+        assert_eq!((cell, magnitude), (0.5, 5e6 + 1.0));
+        assert!(e.to_string().contains("single precision"), "{e}");
+        // ... while near the origin 255 cells across a millimeter are fine.
+        let mm = unit.map(|a| a.map(|c| c * 1e-3));
+        assert!(Section::new([0.0; 3], mm, [255, 255, 255], k)
+            .is_err_and(|e| matches!(e, SectionError::TooManyBeams { .. })));
+        assert!(Section::new([0.0; 3], mm, [32, 32, 32], k).is_ok());
+        let wide = [[1000.0, 0.0, 0.0], [0.0, 1000.0, 0.0], [0.0, 0.0, 1000.0]];
+        assert!(Section::new([5e6, 0.0, 0.0], wide, [4, 4, 4], k).is_ok());
     }
 
     #[test]

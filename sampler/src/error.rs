@@ -2,6 +2,11 @@
 
 use std::path::PathBuf;
 
+use crate::scene::export::ExportError;
+use crate::scene::file::TransformError;
+use crate::scene::material::{MaterialError, SkyError};
+use crate::scene::section::SectionTableError;
+
 /// What went wrong building a scene, naming the file or mesh involved.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -30,12 +35,47 @@ pub enum SceneError {
         message: String,
     },
     /// A material has impossible parameters.
-    #[error("material {name:?}: {message}")]
+    #[error("material {name:?}: {source}")]
     BadMaterial {
         /// Its name.
         name: String,
         /// What is wrong.
-        message: String,
+        source: MaterialError,
+    },
+    /// A material name added again with other parameters.
+    #[error("material {0:?}: defined twice with different parameters")]
+    MaterialRedefined(String),
+    /// The sky has impossible parameters.
+    #[error("{what}: {source}")]
+    BadSky {
+        /// Where the sky was written.
+        what: String,
+        /// Which key is wrong.
+        source: SkyError,
+    },
+    /// A geometry entry's transform is impossible.
+    #[error("{what}: {source}")]
+    Transform {
+        /// The geometry entry.
+        what: String,
+        /// Which key is wrong.
+        source: TransformError,
+    },
+    /// A section table does not describe a valid section.
+    #[error("{what}: {source}")]
+    Section {
+        /// The table (file and index) or the generated scene.
+        what: String,
+        /// Why.
+        source: SectionTableError,
+    },
+    /// A scene could not be written as a scene file.
+    #[error("{path}: {source}")]
+    Export {
+        /// The scene file.
+        path: PathBuf,
+        /// Why.
+        source: ExportError,
     },
     /// A material name that is not defined.
     #[error("{what}: unknown material {name:?}; defined materials are: {known}")]

@@ -32,6 +32,16 @@ pub enum WorkerError {
     /// A section the server described is invalid.
     #[error("section from the server: {0}")]
     Section(#[from] SectionError),
+    /// No server answered at the address in all the time given to retrying.
+    #[error("no holodeck server reached at {addr} (retried for {secs} s): {error}", secs = retried.as_secs_f64())]
+    Unreachable {
+        /// The server's address.
+        addr: String,
+        /// How long connecting was retried.
+        retried: Duration,
+        /// Why the last attempt failed (part of this message).
+        error: Box<LinkError>,
+    },
 }
 
 /// A byte stream to the server.
@@ -140,4 +150,87 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
     }
     tracing::info!("{addr}: the server closed the connection after {traced} rays");
     Ok(traced)
+}
+
+/// Runs [`run_worker`] and reconnects with growing delays while the server is
+/// away (restarting, say), for up to `retry_for` after it was last seen
+/// working; a refusal or a protocol error ends it at once. Returns the rays
+/// traced. A worker that never reached a server fails with
+/// [`WorkerError::Unreachable`]; one whose server went away after it was
+/// reached ends normally.
+pub fn run_worker_retrying(
+    addr: &str,
+    tracer: &Tracer,
+    scene: &str,
+    token: &str,
+    seed: u64,
+    retry_for: Duration,
+) -> Result<u64, WorkerError> {
+    let (mut total, mut round, mut reached) = (0u64, 0u64, false);
+    let mut delay = Duration::from_millis(250);
+    let mut lost_since: Option<Instant> = None;
+    loop {
+        let round_seed = seed.wrapping_add(round.wrapping_mul(0x9E37_79B9));
+        let failure = match run_worker(addr, tracer, scene, token, round_seed) {
+            Ok(n) => {
+                reached = true;
+                total += n;
+                if n > 0 {
+                    delay = Duration::from_millis(250);
+                    lost_since = None;
+                }
+                None
+            }
+            Err(WorkerError::Io { source, .. }) => Some(source),
+            Err(e) => return Err(e),
+        };
+        round += 1;
+        let since = *lost_since.get_or_insert_with(Instant::now);
+        if since.elapsed() >= retry_for {
+            return match failure {
+                Some(error) if !reached => Err(WorkerError::Unreachable {
+                    addr: addr.to_string(),
+                    retried: retry_for,
+                    error: Box::new(error),
+                }),
+                _ => Ok(total),
+            };
+        }
+        tracing::info!("{addr}: server unavailable; retrying in {delay:?}");
+        std::thread::sleep(delay.min(retry_for.saturating_sub(since.elapsed())));
+        delay = (delay * 2).min(Duration::from_secs(10));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+    use crate::shade::TraceOptions;
+
+    #[test]
+    fn a_worker_that_never_reaches_a_server_says_where_it_looked() {
+        let tracer = Tracer::new(Scene::default(), TraceOptions::default());
+        // A port that was just free: nothing listens there.
+        let addr = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .to_string();
+        let e = run_worker_retrying(&addr, &tracer, "scene", "token", 1, Duration::ZERO).unwrap_err();
+        let WorkerError::Unreachable {
+            addr: at,
+            retried,
+            error,
+        } = &e
+        else {
+            panic!("{e:?}")
+        };
+        let LinkError::Io(io) = error.as_ref() else {
+            panic!("{e:?}")
+        };
+        assert_eq!((at.as_str(), *retried), (addr.as_str(), Duration::ZERO));
+        assert_eq!(io.kind(), std::io::ErrorKind::ConnectionRefused);
+        assert!(e.to_string().contains(&addr), "{e}");
+    }
 }

@@ -94,14 +94,13 @@ fn obj_with_broken_or_device_material_libraries() {
     let dev = dir.path().join("dev.obj");
     std::fs::write(&dev, format!("mtllib /dev/zero\n{tri}usemtl x\nf 1 2 3\n")).unwrap();
     assert_eq!(import(&dev).unwrap(), 1);
-    // A malformed material library line that crashes the parser inside.
+    // A malformed material library line (one number where Kd wants three)
+    // is a broken library like any other: skipped with a warning, and the
+    // faces get the default material.
     std::fs::write(dir.path().join("bad.mtl"), "newmtl x\nKd 0.5\n").unwrap();
     let bad = dir.path().join("bad.obj");
     std::fs::write(&bad, format!("mtllib bad.mtl\n{tri}usemtl x\nf 1 2 3\n")).unwrap();
-    match import(&bad) {
-        Ok(n) => assert_eq!(n, 1),
-        Err(e) => assert!(e.contains("bad.obj"), "{e}"),
-    }
+    assert_eq!(import(&bad).unwrap(), 1);
 }
 
 #[test]

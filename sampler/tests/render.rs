@@ -2,7 +2,7 @@
 //! high-sample render falls as the sample count grows, at the Monte Carlo rate.
 
 use holodeck_protocol::View;
-use holodeck_sampler::render::{render, RenderOptions};
+use holodeck_sampler::render::{render, PictureSizeError, RenderError, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::{TraceOptions, Tracer};
 
@@ -30,12 +30,17 @@ fn room_error_halves_when_samples_double() {
         seed,
     };
     let none = |_: usize, _: usize| {};
-    let reference = render(&tracer, &view, &opts(1024, 99), &none);
+    let reference = render(&tracer, &view, &opts(1024, 99), &none).unwrap();
     assert!(reference.mean_luminance() > 0.01, "the room is lit");
     // Average over independent seeds: squared error has heavy tails.
     let mse = |spp: u32| -> f64 {
         (0..3)
-            .map(|s| render(&tracer, &view, &opts(spp, s), &none).mse(&reference).unwrap())
+            .map(|s| {
+                render(&tracer, &view, &opts(spp, s), &none)
+                    .unwrap()
+                    .mse(&reference)
+                    .unwrap()
+            })
             .sum::<f64>()
             / 3.0
     };
@@ -48,4 +53,37 @@ fn room_error_halves_when_samples_double() {
         );
     }
     assert_eq!(tracer.non_finite_count(), 0);
+}
+
+#[test]
+fn impossible_sizes_and_zero_samples_are_refused_before_allocating() {
+    let tracer = Tracer::new(
+        generate("room", &GenParams::default()).unwrap(),
+        TraceOptions::default(),
+    );
+    let view = View::default();
+    let run = |width, height, spp| {
+        render(
+            &tracer,
+            &view,
+            &RenderOptions {
+                width,
+                height,
+                spp,
+                seed: 1,
+            },
+            &|_, _| {},
+        )
+    };
+    assert!(matches!(
+        run(4_000_000_000, 1, 1),
+        Err(RenderError::Size(PictureSizeError::TooLarge { .. }))
+    ));
+    assert!(matches!(
+        run(0, 10, 1),
+        Err(RenderError::Size(PictureSizeError::Empty { .. }))
+    ));
+    assert_eq!(run(2, 2, 0).err(), Some(RenderError::NoSamples));
+    let p = run(3, 2, 1).unwrap();
+    assert_eq!((p.width, p.height, p.pixels.len()), (3, 2, 6));
 }

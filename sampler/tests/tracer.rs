@@ -199,7 +199,7 @@ fn an_invisible_pane_changes_nothing() {
             b.add_mesh("pane", &high, &[[0, 1, 2], [0, 2, 3]], &[glass], Mat4::IDENTITY)
                 .unwrap();
         }
-        b.sky(sky.clone());
+        b.sky(sky.clone()).unwrap();
         Tracer::new(b.finish(), TraceOptions::default())
     };
     let (open, glazed) = (build(false), build(true));

@@ -7,8 +7,12 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
-use holodeck_protocol::{grid_for_beam_count, grid_for_length, Section, SectionError, SectionKind};
+use holodeck_protocol::{grid_for_beam_count, grid_for_length, Section, SectionField, SectionKind};
 use serde::Deserialize;
+
+mod error;
+
+pub use error::{DurationError, SectionTextError, SettingsError, SizeError, ValueError};
 
 /// Default beam cache budget: 64 MiB.
 pub const DEFAULT_CACHE_BYTES: u64 = 64 << 20;
@@ -52,33 +56,6 @@ impl Default for Settings {
     }
 }
 
-/// A problem in settings text or a control file, with its line where known.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SettingsError {
-    /// A line could not be understood.
-    #[error("line {line}: {message}")]
-    Line {
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-    /// A section is invalid.
-    #[error("section {index}: {source}")]
-    Section {
-        /// Index of the section.
-        index: usize,
-        /// Why.
-        source: SectionError,
-    },
-    /// The holodeck has no section.
-    #[error("no section is defined: a holodeck needs at least one (SECTION= line, or [[section]] in a control file)")]
-    NoSections,
-    /// The TOML could not be parsed.
-    #[error("{0}")]
-    Toml(String),
-}
-
 const KEYS: &[&str] = &[
     "SECTION",
     "GRID",
@@ -92,7 +69,7 @@ const KEYS: &[&str] = &[
 ];
 
 /// Parses a byte size such as `64M`, `1.5G`, `4096` or `0`.
-pub fn parse_size(s: &str) -> Result<u64, String> {
+pub fn parse_size(s: &str) -> Result<u64, SizeError> {
     let s = s.trim();
     let (num, mult) = match s.char_indices().last() {
         Some((i, c)) if c.is_ascii_alphabetic() => {
@@ -101,20 +78,22 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
                 'M' => 1 << 20,
                 'G' => 1 << 30,
                 'T' => 1 << 40,
-                _ => return Err(format!("size {s:?} has an unknown unit (use K, M, G or T)")),
+                _ => return Err(SizeError::UnknownUnit(s.to_string())),
             };
             (&s[..i], mult)
         }
         _ => (s, 1),
     };
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("size {s:?} is not a number with an optional K/M/G/T unit"))?;
+    let v: f64 = num.trim().parse().map_err(|_| SizeError::NotANumber(s.to_string()))?;
     if !(v.is_finite() && v >= 0.0) {
-        return Err(format!("size {s:?} must be a non-negative number"));
+        return Err(SizeError::Negative(s.to_string()));
     }
-    Ok((v * mult as f64).round() as u64)
+    let bytes = (v * mult as f64).round();
+    // 2^64 itself is the first value a u64 cannot hold.
+    if bytes >= 18_446_744_073_709_551_616.0 {
+        return Err(SizeError::TooLarge(s.to_string()));
+    }
+    Ok(bytes as u64)
 }
 
 /// Formats a byte size compactly, exactly (`64M`, `1536K`, `1000`).
@@ -128,7 +107,7 @@ pub fn format_size(bytes: u64) -> String {
 }
 
 /// Parses a duration such as `90s`, `15m`, `2h`; a bare number takes `default_unit` seconds.
-pub fn parse_duration(s: &str, default_unit: f64) -> Result<Duration, String> {
+pub fn parse_duration(s: &str, default_unit: f64) -> Result<Duration, DurationError> {
     let s = s.trim();
     let (num, unit) = match s.chars().last() {
         Some('s') => (&s[..s.len() - 1], 1.0),
@@ -139,11 +118,11 @@ pub fn parse_duration(s: &str, default_unit: f64) -> Result<Duration, String> {
     let v: f64 = num
         .trim()
         .parse()
-        .map_err(|_| format!("duration {s:?} is not a number with an optional s/m/h unit"))?;
+        .map_err(|_| DurationError::NotANumber(s.to_string()))?;
     if !(v.is_finite() && v >= 0.0) {
-        return Err(format!("duration {s:?} must be non-negative"));
+        return Err(DurationError::Negative(s.to_string()));
     }
-    Ok(Duration::from_secs_f64(v * unit))
+    Duration::try_from_secs_f64(v * unit).map_err(|_| DurationError::TooLong(s.to_string()))
 }
 
 fn format_duration(d: Duration) -> String {
@@ -152,36 +131,35 @@ fn format_duration(d: Duration) -> String {
 
 /// A scene identity is one word of letters, digits and `:._-+/=` (a hash such as
 /// `blake3:...`), so it survives the settings text unchanged.
-fn check_scene(s: &str) -> Result<&str, String> {
+fn check_scene(s: &str) -> Result<&str, ValueError> {
     let ok = !s.is_empty() && s.len() <= 256 && s.chars().all(|c| c.is_ascii_alphanumeric() || ":._-+/=".contains(c));
     if ok {
         Ok(s)
     } else {
-        Err(format!(
-            "scene identity {s:?} must be 1-256 letters, digits or :._-+/= (a content hash)"
-        ))
+        Err(ValueError::Scene(s.to_string()))
     }
 }
 
-fn parse_bool(s: &str) -> Result<bool, String> {
+fn parse_bool(s: &str) -> Result<bool, ValueError> {
     match s.trim().to_ascii_lowercase().as_str() {
         "1" | "true" | "yes" | "on" | "t" | "y" => Ok(true),
         "0" | "false" | "no" | "off" | "f" | "n" => Ok(false),
-        other => Err(format!("{other:?} is not a boolean (use true or false)")),
+        other => Err(ValueError::Bool(other.to_string())),
     }
 }
 
-fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+fn parse_vec3(key: SectionField, s: &str) -> Result<[f64; 3], SectionTextError> {
+    let bad = || SectionTextError::NotThreeNumbers {
+        key,
+        text: s.to_string(),
+    };
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 3 {
-        return Err(format!("{s:?} is not three comma-separated numbers"));
+        return Err(bad());
     }
     let mut v = [0.0; 3];
     for (k, p) in parts.iter().enumerate() {
-        v[k] = p
-            .trim()
-            .parse()
-            .map_err(|_| format!("{p:?} in {s:?} is not a number"))?;
+        v[k] = p.trim().parse().map_err(|_| bad())?;
     }
     Ok(v)
 }
@@ -208,66 +186,63 @@ pub fn section_text(s: &Section) -> String {
 }
 
 /// Parses a section line (the inverse of [`section_text`]); `grid=` is required.
-pub fn parse_section(text: &str) -> Result<Section, String> {
+pub fn parse_section(text: &str) -> Result<Section, SectionTextError> {
     parse_section_with(text, None)
 }
 
 /// Parses a section line whose `grid=` may be left out: the grid then comes from
 /// `grid_length` (Radiance's GRID), else from `target_beams`, else
 /// [`DEFAULT_TARGET_BEAMS`] beams.
-pub fn parse_section_line(text: &str, grid_length: Option<f64>, target_beams: Option<u64>) -> Result<Section, String> {
+pub fn parse_section_line(
+    text: &str,
+    grid_length: Option<f64>,
+    target_beams: Option<u64>,
+) -> Result<Section, SectionTextError> {
     parse_section_with(text, Some((grid_length, target_beams)))
 }
 
 /// `auto` is `None` when the grid must be explicit.
-fn parse_section_with(text: &str, auto: Option<(Option<f64>, Option<u64>)>) -> Result<Section, String> {
+fn parse_section_with(text: &str, auto: Option<(Option<f64>, Option<u64>)>) -> Result<Section, SectionTextError> {
     let mut words = text.split_whitespace();
     let kind = match words.next() {
         Some("interior") => SectionKind::Interior,
         Some("exterior") => SectionKind::Exterior,
-        other => return Err(format!("section must start with interior or exterior, not {other:?}")),
+        other => return Err(SectionTextError::Kind(other.map(str::to_string))),
     };
     let (mut origin, mut axes, mut grid) = (None, [None; 3], None);
     for w in words {
-        let (k, v) = w.split_once('=').ok_or_else(|| format!("{w:?} is not key=value"))?;
+        let (k, v) = w
+            .split_once('=')
+            .ok_or_else(|| SectionTextError::NotKeyValue(w.to_string()))?;
         match k {
-            "origin" => origin = Some(parse_vec3(v)?),
-            "x" => axes[0] = Some(parse_vec3(v)?),
-            "y" => axes[1] = Some(parse_vec3(v)?),
-            "z" => axes[2] = Some(parse_vec3(v)?),
+            "origin" => origin = Some(parse_vec3(SectionField::Origin, v)?),
+            "x" => axes[0] = Some(parse_vec3(SectionField::Axis(0), v)?),
+            "y" => axes[1] = Some(parse_vec3(SectionField::Axis(1), v)?),
+            "z" => axes[2] = Some(parse_vec3(SectionField::Axis(2), v)?),
             "grid" => {
-                let g = parse_vec3(v)?;
+                let g = parse_vec3(SectionField::Grid, v)?;
                 let mut out = [0u16; 3];
                 for (k, x) in g.iter().enumerate() {
                     if x.fract() != 0.0 || !(0.0..=65535.0).contains(x) {
-                        return Err(format!("grid size {x} is not a whole number of cells"));
+                        return Err(SectionTextError::GridNotWhole(*x));
                     }
                     out[k] = *x as u16;
                 }
                 grid = Some(out);
             }
-            other => {
-                return Err(format!(
-                    "unknown section field {other:?} (expected origin, x, y, z, grid)"
-                ))
-            }
+            other => return Err(SectionTextError::UnknownField(other.to_string())),
         }
     }
-    let origin = origin.ok_or("section has no origin=")?;
-    let axes = [
-        axes[0].ok_or("section has no x= axis")?,
-        axes[1].ok_or("section has no y= axis")?,
-        axes[2].ok_or("section has no z= axis")?,
-    ];
+    let origin = origin.ok_or(SectionTextError::Missing(SectionField::Origin))?;
+    let axis = |k: usize| axes[k].ok_or(SectionTextError::Missing(SectionField::Axis(k)));
+    let axes = [axis(0)?, axis(1)?, axis(2)?];
     let grid = match (grid, auto) {
         (Some(g), _) => g,
-        (None, Some((Some(len), _))) => grid_for_length(axes, len).map_err(|e| e.to_string())?,
-        (None, Some((None, target))) => {
-            grid_for_beam_count(axes, target.unwrap_or(DEFAULT_TARGET_BEAMS)).map_err(|e| e.to_string())?
-        }
-        (None, None) => return Err("section has no grid=".into()),
+        (None, Some((Some(len), _))) => grid_for_length(axes, len)?,
+        (None, Some((None, target))) => grid_for_beam_count(axes, target.unwrap_or(DEFAULT_TARGET_BEAMS))?,
+        (None, None) => return Err(SectionTextError::Missing(SectionField::Grid)),
     };
-    Section::new(origin, axes, grid, kind).map_err(|e| e.to_string())
+    Ok(Section::new(origin, axes, grid, kind)?)
 }
 
 impl Settings {
@@ -278,13 +253,13 @@ impl Settings {
             return Err(SettingsError::NoSections);
         }
         if let Some(scene) = &self.scene {
-            check_scene(scene).map_err(|message| SettingsError::Line { line: 0, message })?;
+            check_scene(scene).map_err(|error| SettingsError::Key { key: "scene", error })?;
         }
-        if self.grid.is_some_and(|g| !(g.is_finite() && g > 0.0)) {
-            return Err(SettingsError::Toml(format!(
-                "grid length {:?} must be a positive number",
-                self.grid
-            )));
+        if let Some(g) = self.grid.filter(|g| !(g.is_finite() && *g > 0.0)) {
+            return Err(SettingsError::Key {
+                key: "grid",
+                error: ValueError::GridLength(g.to_string()),
+            });
         }
         Ok(())
     }
@@ -317,6 +292,7 @@ impl Settings {
         for (i, raw) in text.lines().enumerate() {
             let line = i + 1;
             let err = |message: String| SettingsError::Line { line, message };
+            let bad = |error: ValueError| SettingsError::Value { line, error };
             let content = raw.split('#').next().unwrap_or("").trim();
             if content.is_empty() {
                 continue;
@@ -326,20 +302,20 @@ impl Settings {
                 .ok_or_else(|| err(format!("{content:?} is not KEY=value")))?;
             let (key, value) = (key.trim().to_ascii_uppercase(), value.trim());
             match key.as_str() {
-                "SECTION" => s.sections.push(parse_section(value).map_err(err)?),
+                "SECTION" => s.sections.push(parse_section(value).map_err(|e| bad(e.into()))?),
                 "GRID" => {
                     let g: f64 = value
                         .parse()
-                        .map_err(|_| err(format!("GRID {value:?} is not a number")))?;
+                        .map_err(|_| bad(ValueError::GridLength(value.to_string())))?;
                     s.grid = Some(g);
                 }
-                "OBSTRUCTIONS" => s.obstructions = parse_bool(value).map_err(err)?,
-                "VDISTANCE" => s.vdistance = parse_bool(value).map_err(err)?,
-                "CACHE" => s.cache_bytes = parse_size(value).map_err(err)?,
-                "DISKSPACE" => s.diskspace_bytes = parse_size(value).map_err(err)?,
-                "TIME" => s.time = parse_duration(value, 3600.0).map_err(err)?,
-                "REPORT" => s.report = parse_duration(value, 60.0).map_err(err)?,
-                "SCENE" => s.scene = Some(check_scene(value).map_err(err)?.to_string()),
+                "OBSTRUCTIONS" => s.obstructions = parse_bool(value).map_err(bad)?,
+                "VDISTANCE" => s.vdistance = parse_bool(value).map_err(bad)?,
+                "CACHE" => s.cache_bytes = parse_size(value).map_err(|e| bad(e.into()))?,
+                "DISKSPACE" => s.diskspace_bytes = parse_size(value).map_err(|e| bad(e.into()))?,
+                "TIME" => s.time = parse_duration(value, 3600.0).map_err(|e| bad(e.into()))?,
+                "REPORT" => s.report = parse_duration(value, 60.0).map_err(|e| bad(e.into()))?,
+                "SCENE" => s.scene = Some(check_scene(value).map_err(bad)?.to_string()),
                 other => {
                     return Err(err(format!(
                         "unknown setting {other:?}; known settings are {}",
@@ -414,7 +390,7 @@ pub const DEFAULT_TARGET_BEAMS: u64 = 150_000;
 impl ControlFile {
     /// Validates and converts to [`Settings`].
     pub fn resolve(&self) -> Result<Settings, SettingsError> {
-        let toml_err = |what: &str, e: String| SettingsError::Toml(format!("{what}: {e}"));
+        let key = |key: &'static str| move |error: ValueError| SettingsError::Key { key, error };
         let mut s = Settings {
             grid: self.grid,
             obstructions: self.obstructions,
@@ -423,19 +399,19 @@ impl ControlFile {
             ..Settings::default()
         };
         if let Some(c) = &self.cache {
-            s.cache_bytes = parse_size(c).map_err(|e| toml_err("cache", e))?;
+            s.cache_bytes = parse_size(c).map_err(|e| key("cache")(e.into()))?;
         }
         if let Some(d) = &self.diskspace {
-            s.diskspace_bytes = parse_size(d).map_err(|e| toml_err("diskspace", e))?;
+            s.diskspace_bytes = parse_size(d).map_err(|e| key("diskspace")(e.into()))?;
         }
         if let Some(t) = &self.time {
-            s.time = parse_duration(t, 3600.0).map_err(|e| toml_err("time", e))?;
+            s.time = parse_duration(t, 3600.0).map_err(|e| key("time")(e.into()))?;
         }
         if let Some(r) = &self.report {
-            s.report = parse_duration(r, 60.0).map_err(|e| toml_err("report", e))?;
+            s.report = parse_duration(r, 60.0).map_err(|e| key("report")(e.into()))?;
         }
         for (index, e) in self.sections.iter().enumerate() {
-            let wrap = |source| SettingsError::Section { index, source };
+            let wrap = |error| SettingsError::Section { index, error };
             let grid = match (e.grid, self.grid, e.beams) {
                 (Some(g), _, _) => g,
                 (None, Some(len), None) => grid_for_length(e.axes, len).map_err(wrap)?,
@@ -454,6 +430,7 @@ impl ControlFile {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use holodeck_protocol::SectionError;
 
     fn sample() -> Settings {
         let a = Section::new(
@@ -501,12 +478,79 @@ mod tests {
         let e = Settings::from_text(&format!("{base}\nFOO=1\n")).unwrap_err();
         assert!(e.to_string().starts_with("line 3: unknown setting \"FOO\""), "{e}");
         let e = Settings::from_text("SECTION=interior origin=0,0,0 x=1,0,0 y=0,1,0 grid=2,2,2").unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SettingsError::Value {
+                    line: 1,
+                    error: ValueError::Section(ref s),
+                } if **s == SectionTextError::Missing(SectionField::Axis(2))
+            ),
+            "{e:?}"
+        );
         assert!(e.to_string().contains("no z= axis"), "{e}");
         assert_eq!(Settings::from_text("# nothing\n"), Err(SettingsError::NoSections));
-        assert!(Settings::from_text(&format!("{base}CACHE=12Q"))
-            .unwrap_err()
-            .to_string()
-            .contains("unknown unit"));
+        let e = Settings::from_text(&format!("{base}CACHE=12Q")).unwrap_err();
+        assert_eq!(
+            e,
+            SettingsError::Value {
+                line: 2,
+                error: ValueError::Size(SizeError::UnknownUnit("12Q".into()))
+            }
+        );
+        assert!(e.to_string().contains("unknown unit"), "{e}");
+    }
+
+    #[test]
+    fn values_that_do_not_parse_say_which_way() {
+        assert_eq!(parse_size("1.5K"), Ok(1536));
+        assert_eq!(parse_size("-1"), Err(SizeError::Negative("-1".into())));
+        assert_eq!(parse_size("lots"), Err(SizeError::UnknownUnit("lots".into())));
+        assert_eq!(parse_size("M"), Err(SizeError::NotANumber("M".into())));
+        assert_eq!(parse_size("1e10T"), Err(SizeError::TooLarge("1e10T".into())));
+        assert_eq!(parse_duration("2m", 1.0), Ok(Duration::from_secs(120)));
+        assert_eq!(
+            parse_duration("soon", 1.0),
+            Err(DurationError::NotANumber("soon".into()))
+        );
+        assert_eq!(parse_duration("-3s", 1.0), Err(DurationError::Negative("-3s".into())));
+        // Far past what a Duration holds: refused, not a panic.
+        assert_eq!(
+            parse_duration("1e30h", 1.0),
+            Err(DurationError::TooLong("1e30h".into()))
+        );
+        let grid = parse_section("interior origin=0,0,0 x=1,0,0 y=0,1,0 z=0,0,1 grid=2,2.5,2");
+        assert_eq!(grid, Err(SectionTextError::GridNotWhole(2.5)));
+        let axis = parse_section("interior origin=0,0,0 x=1,0 y=0,1,0 z=0,0,1 grid=2,2,2").unwrap_err();
+        assert!(
+            matches!(
+                axis,
+                SectionTextError::NotThreeNumbers {
+                    key: SectionField::Axis(0),
+                    ..
+                }
+            ),
+            "{axis:?}"
+        );
+        assert_eq!(axis.to_string(), "x=1,0 is not three comma-separated numbers");
+        assert!(matches!(
+            parse_section("inside origin=0,0,0"),
+            Err(SectionTextError::Kind(Some(k))) if k == "inside"
+        ));
+        let flat = parse_section("interior origin=0,0,0 x=1,0,0 y=2,0,0 z=0,0,1 grid=2,2,2");
+        assert!(
+            matches!(flat, Err(SectionTextError::Section(SectionError::Degenerate(_)))),
+            "{flat:?}"
+        );
+        let e =
+            Settings::from_toml("time = \"forever\"\n[[section]]\norigin=[0,0,0]\naxes=[[1,0,0],[0,1,0],[0,0,1]]\n");
+        assert_eq!(
+            e,
+            Err(SettingsError::Key {
+                key: "time",
+                error: ValueError::Duration(DurationError::NotANumber("forever".into()))
+            })
+        );
     }
 
     #[test]

@@ -4,7 +4,7 @@ use crate::splat::SplatDriver;
 use crate::store::{Fit, CACHE_DROP_DEGREES};
 use crate::testkit::*;
 use glam::DVec3;
-use holodeck_protocol::View;
+use holodeck_protocol::{PictureSizeError, View};
 use proptest::prelude::*;
 use std::collections::HashMap;
 
@@ -328,9 +328,12 @@ fn oversized_and_empty_frames_are_refused() {
     let view = View::parse(EYE_VIEW).unwrap();
     assert!(matches!(
         Viewport::new(view.clone(), 16384, 16384),
-        Err(DriverError::FrameSize { .. })
+        Err(DriverError::FrameSize(PictureSizeError::TooLarge { .. }))
     ));
-    assert!(Viewport::new(view.clone(), 0, 10).is_err());
+    assert_eq!(
+        Viewport::new(view.clone(), 0, 10),
+        Err(DriverError::FrameSize(PictureSizeError::Empty { width: 0, height: 10 }))
+    );
     assert!(Viewport::new(view, 8192, 8192).is_ok());
     assert_eq!(MAX_VIEWPORT_PIXELS, 8192 * 8192);
 }

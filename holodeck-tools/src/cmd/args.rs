@@ -1,9 +1,66 @@
-//! Argument groups several subcommands share.
+//! Argument groups several subcommands share, and the bounds of the numbers
+//! they take: a number that sizes an allocation is refused by its flag before
+//! anything is allocated.
 
+use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use holodeck_display::EstimatorOptions;
+use holodeck_protocol::{check_picture_size, MAX_PICTURE_SIDE};
+
+/// Pixels along one side of a picture (the whole picture is checked by
+/// [`frame_size`]).
+pub const SIDE: RangeInclusive<i64> = 1..=MAX_PICTURE_SIDE as i64;
+
+/// Most triangles a generated scene may be asked for (an in-core scene's limit).
+pub const MAX_TRIANGLES: u64 = holodeck_sampler::scene::builder::MAX_TRIANGLES as u64;
+
+/// Most worker threads or sampler processes one command starts.
+pub const MAX_WORKERS: i64 = 1024;
+
+/// Checks a frame of `width` x `height` pixels from `-x/--width` and
+/// `-y/--height` against the largest picture, naming the flags.
+pub fn frame_size(width: u32, height: u32) -> Result<()> {
+    check_picture_size(u64::from(width), u64::from(height)).context("-x/--width and -y/--height")
+}
+
+/// A value that is not a finite number in the range a flag takes.
+#[derive(Debug, thiserror::Error)]
+#[error("{text:?} is not a number {range}")]
+pub struct NumberError {
+    text: String,
+    range: &'static str,
+}
+
+/// A clap value parser of finite numbers of at least 0 (radii, fractions).
+pub fn non_negative(s: &str) -> Result<f64, NumberError> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(NumberError {
+            text: s.to_string(),
+            range: "of at least 0",
+        }),
+    }
+}
+
+/// A clap value parser of finite numbers above 0 (seconds, targets).
+pub fn positive(s: &str) -> Result<f64, NumberError> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(NumberError {
+            text: s.to_string(),
+            range: "above 0",
+        }),
+    }
+}
+
+impl FrameArgs {
+    /// Checks the frame size as a whole (each side is checked as it is parsed).
+    pub fn check(&self) -> Result<()> {
+        frame_size(self.width, self.height)
+    }
+}
 
 /// How a client proves it may talk to the server.
 #[derive(clap::Args)]
@@ -34,10 +91,10 @@ impl TokenArgs {
 #[derive(clap::Args)]
 pub struct FrameArgs {
     /// Frame width.
-    #[arg(short = 'x', long, default_value_t = 512)]
+    #[arg(short = 'x', long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(SIDE))]
     pub width: u32,
     /// Frame height.
-    #[arg(short = 'y', long, default_value_t = 384)]
+    #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     pub height: u32,
     /// Display driver: quadtree, or splat (plain points, the baseline).
     #[arg(long, default_value = "quadtree")]

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
+use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind, MAX_BEAMS_PER_SECTION};
 use holodeck_server::settings::{parse_size, Settings};
 use holodeck_server::storage;
 use holodeck_server::{HoloFile, OpenOptions};
@@ -18,7 +18,11 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
-use crate::human::{bytes, count, parse_count};
+use super::args::{frame_size, non_negative, positive, MAX_TRIANGLES, SIDE};
+use crate::human::{bytes, count, count_in};
+
+/// Most driver samples `bench display` traces and holds at once.
+const MAX_DISPLAY_SAMPLES: u64 = 100_000_000;
 
 /// Arguments of `holodeck bench`.
 #[derive(clap::Args)]
@@ -38,14 +42,14 @@ pub struct Args {
     #[arg(value_enum)]
     what: Target,
     /// Rays in the large file (suffixes K, M, G as powers of 1000).
-    #[arg(long, default_value = "50M", value_parser = parse_count)]
+    #[arg(long, default_value = "50M", value_parser = count_in(1, u64::MAX))]
     rays: u64,
     /// Rays in the Radiance-like reference file (1 section, 154,728 beams).
-    #[arg(long, default_value = "6.2M", value_parser = parse_count)]
+    #[arg(long, default_value = "6.2M", value_parser = count_in(1, u64::MAX))]
     reference_rays: u64,
     /// Beams in each request list.
-    #[arg(long, default_value = "10000")]
-    request: usize,
+    #[arg(long, default_value = "10000", value_parser = count_in(1, MAX_BEAMS_PER_SECTION))]
+    request: u64,
     /// Beam cache budget.
     #[arg(long, default_value = "64M")]
     cache: String,
@@ -56,19 +60,19 @@ pub struct Args {
     #[arg(long)]
     keep: bool,
     /// Landscape sizes for `tracer` (triangles; repeat for several).
-    #[arg(long, value_parser = parse_count, default_values = ["1M"])]
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES), default_values = ["1M"])]
     triangles: Vec<u64>,
     /// Rays per measurement for `tracer`: a square of this many pixels per side.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=8192))]
     pixels: u32,
-    /// Driver samples for `display`.
-    #[arg(long, default_value = "1M", value_parser = parse_count)]
+    /// Driver samples for `display` (at most 100M: about 10 GB of samples).
+    #[arg(long, default_value = "1M", value_parser = count_in(1, MAX_DISPLAY_SAMPLES))]
     samples: u64,
     /// Seconds per fill measurement for `network`.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, default_value_t = 8.0, value_parser = positive)]
     seconds: f64,
     /// Paths per budget for `accuracy` (repeat for several).
-    #[arg(long, value_parser = parse_count, default_values = ["62.5K", "250K", "1M", "4M"])]
+    #[arg(long, value_parser = count_in(1, u64::from(u32::MAX)), default_values = ["62.5K", "250K", "1M", "4M"])]
     paths: Vec<u64>,
     /// Scene for `accuracy`.
     #[arg(long, default_value = "builtin:room")]
@@ -77,25 +81,25 @@ pub struct Args {
     #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true)]
     view: String,
     /// Frame width for `accuracy`.
-    #[arg(short = 'x', long, default_value_t = 128)]
+    #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(SIDE))]
     width: u32,
     /// Frame height for `accuracy`.
-    #[arg(short = 'y', long, default_value_t = 96)]
+    #[arg(short = 'y', long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
     /// Samples per pixel of the references for `accuracy` (rendered once, kept in --dir).
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     reference_spp: u32,
     /// Independent runs averaged per budget for `accuracy`.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     repeats: u32,
-    /// Views in the walkthrough of `accuracy` (0: none).
-    #[arg(long, default_value_t = 10)]
-    walk_views: usize,
+    /// Views in the walkthrough of `accuracy` (0: none; each keeps a reference picture).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(0..=1000))]
+    walk_views: u16,
     /// Relative RMSE every walkthrough view must reach.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, value_parser = positive)]
     target: f64,
     /// Eye radius of the holodeck's fills for `accuracy` (fraction of the section diagonal).
-    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius)]
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, value_parser = non_negative)]
     eye_radius: f64,
     #[command(flatten)]
     estimator: super::args::EstimatorArgs,
@@ -376,15 +380,11 @@ fn row(what: &str, result: String, baseline: String, ratio: f64) {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let cache = parse_size(&a.cache).map_err(anyhow::Error::msg)?;
+    let cache = parse_size(&a.cache).context("--cache")?;
+    // At most MAX_BEAMS_PER_SECTION, as parsed.
+    let request = a.request as usize;
     match a.what {
-        Target::Stream => {
-            return stream(
-                a.file.as_deref().context("bench stream needs --file")?,
-                cache,
-                a.request,
-            )
-        }
+        Target::Stream => return stream(a.file.as_deref().context("bench stream needs --file")?, cache, request),
         Target::Fill => {
             let file = a.file.as_deref().context("bench fill needs --file")?;
             let (_, start) = rss();
@@ -406,6 +406,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             return Ok(ExitCode::SUCCESS);
         }
         Target::Accuracy => {
+            frame_size(a.width, a.height)?;
             super::bench_accuracy::AccuracyBench {
                 scene: a.scene.clone(),
                 view: holodeck_protocol::View::parse(&a.view).context("--view")?,
@@ -413,8 +414,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 height: a.height,
                 paths: a.paths.clone(),
                 reference_spp: a.reference_spp,
-                repeats: a.repeats.max(1),
-                walk_views: a.walk_views,
+                repeats: a.repeats,
+                walk_views: usize::from(a.walk_views),
                 target: a.target,
                 estimator: a.estimator.options()?,
                 eye_radius: a.eye_radius,
@@ -438,7 +439,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         "holodeck bench storage: {} rays in 154,728 beams, CACHE {}, requests of {} beams",
         count(a.rays),
         bytes(cache),
-        count(a.request as u64)
+        count(request as u64)
     );
     println!();
     println!("| measurement | result | baseline (same run) | ratio |");
@@ -477,15 +478,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let beams = section.beam_count();
     let mut all: Vec<BeamKey> = (0..beams).map(|b| BeamKey::new(0, b)).collect();
     all.shuffle(&mut StdRng::seed_from_u64(2));
-    let random = &all[..a.request.min(all.len())];
-    let view = view_request(&section, a.request);
+    let random = &all[..request.min(all.len())];
+    let view = view_request(&section, request);
     let in_order: Vec<BeamKey> = (0..beams).map(|b| BeamKey::new(0, b)).collect();
     let lists = RequestLists {
         random,
         view: &view,
         all: &all,
         in_order: &in_order,
-        size: a.request,
+        size: request,
     };
     lists.report("as filled", &big, cache, raw, &raw_text)?;
 
@@ -522,12 +523,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         rate(warm_bytes / 10, warm_secs),
         bytes((warm_bytes as f64 / warm_secs) as u64)
     );
-    let requests: Vec<&[BeamKey]> = in_order.chunks(a.request).collect();
+    let requests: Vec<&[BeamKey]> = in_order.chunks(request).collect();
     let (rays, secs) = recall(&big, cache, &requests, false)?;
     row(
         &format!(
             "OS-cached recall optimized: all beams, beam-order lists of {} ({} rays)",
-            count(a.request as u64),
+            count(request as u64),
             count(rays)
         ),
         rate(rays, secs),
@@ -573,8 +574,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     );
     drop(f);
 
-    let request = a.request.to_string();
-    let (above, _) = child_rss(&["bench", "stream", "--cache", &a.cache, "--request", &request], &big)?;
+    let request_text = request.to_string();
+    let (above, _) = child_rss(
+        &["bench", "stream", "--cache", &a.cache, "--request", &request_text],
+        &big,
+    )?;
     row(
         &format!(
             "peak RSS streaming every beam of a {} file ({:.1}x CACHE), child process",

@@ -130,12 +130,12 @@ impl AccuracyBench {
                     spp: self.reference_spp,
                     seed: 0x005e_ed0f_7e57,
                 };
-                let p = render(tracer, view, &o, &|_, _| {});
+                let p = render(tracer, view, &o, &|_, _| {})?;
                 write_hdr(&p, &path).with_context(|| format!("writing {}", path.display()))?;
                 p
             }
         };
-        let edges = silhouettes(tracer, view, self.width, self.height, 1.1);
+        let edges = silhouettes(tracer, view, self.width, self.height, 1.1)?;
         Ok(Truth {
             picture,
             band: dilate(&edges, self.width as usize, self.height as usize),
@@ -147,7 +147,7 @@ impl AccuracyBench {
     }
 
     /// A direct render of `paths` paths (rounded to whole samples per pixel).
-    fn direct(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> (Picture, f64, u64) {
+    fn direct(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
         let pixels = u64::from(self.width) * u64::from(self.height);
         let spp = (paths as f64 / pixels as f64).round().max(1.0) as u32;
         let o = RenderOptions {
@@ -157,8 +157,8 @@ impl AccuracyBench {
             seed,
         };
         let start = Instant::now();
-        let p = render(tracer, view, &o, &|_, _| {});
-        (p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels)
+        let p = render(tracer, view, &o, &|_, _| {})?;
+        Ok((p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels))
     }
 
     /// A fresh holodeck filled with `paths` rays for `view`, then its picture.
@@ -248,7 +248,7 @@ impl AccuracyBench {
                     }
                     Ok(())
                 };
-                let (p, secs, n) = self.direct(tracer, &self.view, paths, seed);
+                let (p, secs, n) = self.direct(tracer, &self.view, paths, seed)?;
                 add(&mut d, truth.error(&p)?);
                 keep(&p, "direct")?;
                 (dt, traced) = (dt + secs, n);
@@ -370,7 +370,7 @@ impl AccuracyBench {
                         ..o.clone()
                     },
                     &|_, _| {},
-                );
+                )?;
                 let acc = match sum.take() {
                     None => p,
                     Some(mut s) => {
@@ -482,7 +482,7 @@ impl Walker {
     fn new(file: HoloFile, viewport: Viewport, estimator: EstimatorOptions) -> Result<Walker> {
         Ok(Walker {
             decoder: SampleDecoder::new(file.sections().to_vec()),
-            driver: new_driver_with("quadtree", viewport, estimator).map_err(anyhow::Error::msg)?,
+            driver: new_driver_with("quadtree", viewport, estimator)?,
             file,
             fed: HashMap::new(),
         })

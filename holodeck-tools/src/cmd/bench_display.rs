@@ -50,7 +50,7 @@ fn room_samples(tracer: &Tracer, view: &View, n: usize, radius: f64) -> Vec<Samp
 /// Insertion rate (samples/s) into a warm driver in batches of `batch`, and
 /// the best of three frame times (ms).
 fn time_driver(name: &str, viewport: &Viewport, samples: &[Sample], batch: usize) -> Result<(f64, f64, u64, u64)> {
-    let mut d = new_driver(name, viewport.clone()).map_err(anyhow::Error::msg)?;
+    let mut d = new_driver(name, viewport.clone())?;
     // A display keeps its driver from frame to frame: time a warm one (the
     // first pass pays the kernel for fresh pages).
     for chunk in samples.chunks(batch.max(1)) {

@@ -73,7 +73,7 @@ const EQUAL_TIME: f64 = 3.0;
 
 /// Renders passes of one sample per pixel until [`EQUAL_TIME`] has passed;
 /// returns the average, the passes made and the seconds taken.
-fn equal_time(tracer: &Tracer, view: &View, w: u32, h: u32) -> (Picture, u32, f64) {
+fn equal_time(tracer: &Tracer, view: &View, w: u32, h: u32) -> Result<(Picture, u32, f64)> {
     let start = Instant::now();
     let mut sum: Option<Picture> = None;
     let mut passes = 0u32;
@@ -84,7 +84,7 @@ fn equal_time(tracer: &Tracer, view: &View, w: u32, h: u32) -> (Picture, u32, f6
             spp: 1,
             seed: 1000 + u64::from(passes),
         };
-        let p = render(tracer, view, &options, &|_, _| {});
+        let p = render(tracer, view, &options, &|_, _| {})?;
         match &mut sum {
             None => sum = Some(p),
             Some(acc) => acc.pixels.iter_mut().zip(&p.pixels).for_each(|(a, b)| *a += *b),
@@ -98,7 +98,7 @@ fn equal_time(tracer: &Tracer, view: &View, w: u32, h: u32) -> (Picture, u32, f6
         pixels: Vec::new(),
     });
     picture.pixels.iter_mut().for_each(|p| *p /= passes as f32);
-    (picture, passes, secs)
+    Ok((picture, passes, secs))
 }
 
 /// Runs the tracer measurements and prints a table.
@@ -183,7 +183,7 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
             seed: 7,
         },
         &|_, _| {},
-    );
+    )?;
     let reference_secs = start.elapsed().as_secs_f64();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     println!();
@@ -195,7 +195,7 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
     println!("|---|---|---|---|");
     for (label, light_sampling) in [("NEE + MIS (sun, area light)", true), ("BSDF sampling only", false)] {
         let tracer = Tracer::new(room.clone(), one_bounce(light_sampling));
-        let (picture, spp, secs) = pool.install(|| equal_time(&tracer, &view, w, h));
+        let (picture, spp, secs) = pool.install(|| equal_time(&tracer, &view, w, h))?;
         let rmse = picture.mse(&reference).unwrap_or(f64::NAN).sqrt() / reference.mean_luminance().max(1e-9);
         println!(
             "| {label} | {:.2} M | {spp} | {:.3} |",

@@ -4,8 +4,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
+use holodeck_protocol::MAX_BEAMS_PER_SECTION;
 use holodeck_server::settings::{parse_section_line, parse_size, Settings};
 use holodeck_server::HoloFile;
+
+use crate::human::count_in;
 
 /// Arguments of `holodeck create`.
 #[derive(clap::Args)]
@@ -32,8 +35,8 @@ pub struct Args {
     /// Cell length for sections without grid= (Radiance's GRID).
     #[arg(long, value_name = "LENGTH")]
     grid: Option<f64>,
-    /// Target beam count per section for sections without grid=.
-    #[arg(long, value_name = "N")]
+    /// Target beam count per section for sections without grid= (K, M suffixes).
+    #[arg(long, value_name = "N", value_parser = count_in(1, MAX_BEAMS_PER_SECTION))]
     beams: Option<u64>,
     /// Beam cache budget, e.g. 64M (CACHE).
     #[arg(long, value_name = "SIZE")]
@@ -67,17 +70,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         for (i, spec) in a.sections.iter().enumerate() {
             let section = parse_section_line(spec, a.grid, a.beams)
-                .map_err(anyhow::Error::msg)
                 .with_context(|| format!("--section number {} ({spec:?})", i + 1))?;
             s.sections.push(section);
         }
         s
     };
     if let Some(c) = &a.cache {
-        settings.cache_bytes = parse_size(c).map_err(anyhow::Error::msg).context("--cache")?;
+        settings.cache_bytes = parse_size(c).context("--cache")?;
     }
     if let Some(d) = &a.diskspace {
-        settings.diskspace_bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
+        settings.diskspace_bytes = parse_size(d).context("--diskspace")?;
     }
     settings.obstructions |= a.obstructions;
     settings.vdistance |= a.vdistance;

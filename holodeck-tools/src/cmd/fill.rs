@@ -4,14 +4,16 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
+use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
 use holodeck_server::settings::{parse_duration, Settings};
 use holodeck_server::{HoloFile, OpenOptions, StorageError};
 
+use super::args::MAX_TRIANGLES;
 use crate::fill::{fill, FillOptions, ViewFill};
-use crate::human::{bytes, count, parse_count};
+use crate::human::{bytes, count, count_in};
 
 /// Arguments of `holodeck fill`.
 #[derive(clap::Args)]
@@ -32,16 +34,16 @@ pub struct Args {
     /// The holodeck file (created if missing).
     file: PathBuf,
     /// Stop after this many rays (K, M, G suffixes).
-    #[arg(long, value_parser = parse_count)]
+    #[arg(long, value_parser = count_in(1, u64::MAX))]
     rays: Option<u64>,
     /// Stop after this long (e.g. 90s, 10m, 2h).
     #[arg(long)]
     time: Option<String>,
     /// Rays per beam per visit.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     packet: u32,
     /// Path samples averaged per ray.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
@@ -49,15 +51,15 @@ pub struct Args {
     /// Seed of this run (use another to add independent rays).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Triangles for builtin:landscape.
-    #[arg(long)]
+    /// Triangles for builtin:landscape (K, M suffixes).
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// Fill only the beams these views see (a file of Radiance views, one per line).
     #[arg(long)]
     views: Option<PathBuf>,
     /// With --views: new rays pass this near the eye of the view that sees their beam
     /// most, as a fraction of the section diagonal (0: anywhere in the beam).
-    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views")]
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = super::args::non_negative)]
     eye_radius: f64,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).
@@ -129,7 +131,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .as_deref()
         .map(|t| parse_duration(t, 1.0))
         .transpose()
-        .map_err(anyhow::Error::msg)?;
+        .context("--time")?;
     let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles, a.accept_loss)?;
     let options = TraceOptions {
         max_bounces: a.bounces,

@@ -52,7 +52,7 @@ pub struct Args {
     #[command(flatten)]
     frame: super::args::FrameArgs,
     /// Beam selection: one view ray per this many pixels across and down.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(super::args::SIDE))]
     stride: u32,
     /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
     #[arg(short, long)]
@@ -92,7 +92,7 @@ pub fn draw(
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
     let decoder = SampleDecoder::new(sections);
-    let mut d = new_driver_with(driver, viewport, estimator).map_err(anyhow::Error::msg)?;
+    let mut d = new_driver_with(driver, viewport, estimator)?;
     let mut samples = 0u64;
     let start = Instant::now();
     // Beams are gathered into chunks and decoded in parallel; while the
@@ -194,6 +194,7 @@ fn numbered(pattern: &Path, n: usize) -> Result<PathBuf> {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    a.frame.check()?;
     let views = match &a.views {
         Some(path) => {
             let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -216,7 +217,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         };
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
         let (picture, hist, s) = draw(&mut file, viewport, &a.frame.driver, estimator, a.stride, i as u64)?;
-        let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, &hist, mode, &out)?;
         let secs = s.recall.as_secs_f64();
         println!(

@@ -11,7 +11,8 @@ use holodeck_sampler::scene::file::load_scene;
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
 
-use crate::human::count;
+use super::args::{frame_size, MAX_TRIANGLES, SIDE};
+use crate::human::{count, count_in};
 
 /// A view from inside the built-in room toward its window.
 pub const ROOM_VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";
@@ -35,13 +36,13 @@ pub struct Args {
     #[arg(long, default_value = ROOM_VIEW, allow_hyphen_values = true)]
     view: String,
     /// Image width.
-    #[arg(short = 'x', long, default_value_t = 512)]
+    #[arg(short = 'x', long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(SIDE))]
     width: u32,
     /// Image height.
-    #[arg(short = 'y', long, default_value_t = 384)]
+    #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
@@ -52,8 +53,8 @@ pub struct Args {
     /// Exposure for PNG output; automatic if omitted.
     #[arg(long)]
     exposure: Option<f32>,
-    /// Triangles for builtin:landscape.
-    #[arg(long)]
+    /// Triangles for builtin:landscape (K, M suffixes).
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// Output picture: .png (tone-mapped) or .hdr (Radiance RGBE, linear).
     #[arg(short, long)]
@@ -74,6 +75,7 @@ pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene> {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    frame_size(a.width, a.height)?;
     let view = View::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
     let ext = a
         .output
@@ -113,7 +115,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seed: a.seed,
     };
     let start = Instant::now();
-    let picture = render::render(&tracer, &view, &options, &|done, _| bar.set_position(done as u64));
+    let picture = render::render(&tracer, &view, &options, &|done, _| bar.set_position(done as u64))
+        .context("-x/--width, -y/--height or --spp")?;
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
     match ext.as_str() {
@@ -124,7 +127,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             a.exposure.unwrap_or_else(|| picture.auto_exposure()),
         )?,
     }
-    let samples = u64::from(a.width) * u64::from(a.height) * u64::from(a.spp.max(1));
+    let samples = u64::from(a.width) * u64::from(a.height) * u64::from(a.spp);
     println!(
         "{}: {} x {} at {} spp in {secs:.2} s ({:.2} M samples/s, {} threads); {} triangles, tree {build:.2} s",
         a.output.display(),

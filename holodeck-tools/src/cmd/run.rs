@@ -13,6 +13,7 @@ use holodeck_sampler::worker::connect;
 use holodeck_server::settings::parse_duration;
 use holodeck_server::{HoloFile, OpenOptions};
 
+use super::args::{frame_size, MAX_WORKERS, SIDE};
 use crate::human::count;
 
 /// Arguments of `holodeck run`.
@@ -38,8 +39,8 @@ pub struct Args {
     /// The holodeck file (created from the scene if missing).
     file: PathBuf,
     /// Local sampler processes.
-    #[arg(short = 'n', long, default_value_t = 1)]
-    workers: usize,
+    #[arg(short = 'n', long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=MAX_WORKERS))]
+    workers: u32,
     /// How long to fill (e.g. 30s, 10m, 2h).
     #[arg(long)]
     time: String,
@@ -55,16 +56,16 @@ pub struct Args {
     #[arg(long, default_value = "frames")]
     frames: PathBuf,
     /// Frame width.
-    #[arg(short = 'x', long, default_value_t = 512)]
+    #[arg(short = 'x', long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(SIDE))]
     width: u32,
     /// Frame height.
-    #[arg(short = 'y', long, default_value_t = 384)]
+    #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
     /// Path samples averaged per ray (less noise per ray, fewer rays).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).
@@ -196,10 +197,11 @@ fn default_view(section: &holodeck_protocol::Section) -> String {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    frame_size(a.width, a.height)?;
     let driver = match a.output.as_str() {
         "none" => None,
         d if holodeck_display::DRIVERS.contains(&d) => Some(d.to_string()),
-        "voronoi" | "mesh" => bail!(
+        d if holodeck_display::GPU_DRIVERS.contains(&d) => bail!(
             "the {} driver needs the GPU front end, which is not built yet; use -o quadtree",
             a.output
         ),
@@ -208,9 +210,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             holodeck_display::DRIVERS.join(", ")
         ),
     };
-    let time = parse_duration(&a.time, 1.0)
-        .map_err(anyhow::Error::msg)
-        .context("--time")?;
+    let time = parse_duration(&a.time, 1.0).context("--time")?;
     let (before, default_view) = {
         let (_, file) = super::fill::prepare(&a.scene, &a.file, None, a.accept_loss)?;
         let view = if a.scene == "builtin:room" {
@@ -257,7 +257,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_string();
     let bounces = a.bounces.to_string();
     let samples = a.samples.to_string();
-    let mut workers: Vec<Child> = (0..a.workers.max(1))
+    let mut workers: Vec<Child> = (0..a.workers)
         .map(|i| {
             let mut cmd = me()?;
             cmd.args([

@@ -5,11 +5,13 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
+use holodeck_sampler::scene::gen::mandelbulb::MAX_RESOLUTION;
 use holodeck_sampler::scene::gen::{self, GenParams};
 use holodeck_sampler::scene::{content_hash, load_scene, write_scene};
 use holodeck_sampler::{Material, Scene, Sky};
 
-use crate::human::{count, parse_count};
+use super::args::MAX_TRIANGLES;
+use crate::human::{count, count_in};
 
 /// Arguments of `holodeck scene`.
 #[derive(clap::Args)]
@@ -22,7 +24,8 @@ Examples:
   holodeck scene gen room -o scenes/room.toml
   holodeck scene gen landscape --triangles 100M --seed 7 -o big/landscape.toml
   holodeck scene gen mandelbulb --resolution 256 -o bulb.toml
-  holodeck scene gen bunny --bunny ../shared/scenes/bunny.obj -o bunny.toml
+  holodeck scene gen bunny -o bunny.toml
+  holodeck scene gen bunny --bunny my-bunny.obj -o my-bunny.toml
   holodeck scene info scenes/room.toml")]
 pub struct Args {
     #[command(subcommand)]
@@ -44,7 +47,7 @@ Scenes (z up, meters):
   room        a furnished 6 x 4 x 2.7 m room with a window, mirror, glass sphere, area light
   landscape   the room looking out on fBm terrain and a forest; --triangles (default 1M)
   mandelbulb  the power-8 Mandelbulb on a ground plane; --resolution (default 128)
-  bunny       the Stanford bunny on a table in a lit room; --bunny (default ../shared/scenes/bunny.obj)
+  bunny       the Stanford bunny on a table in a lit room; built in, or --bunny FILE.obj (Y up)
 
 The same name and parameters always give the same scene (the same content hash).
 
@@ -56,15 +59,15 @@ pub struct GenArgs {
     #[arg(value_parser = gen::NAMES)]
     name: String,
     /// Target triangle count (landscape); suffixes K, M, G as powers of 1000.
-    #[arg(long, value_parser = parse_count)]
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// Grid cells per axis (mandelbulb).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(4..=i64::from(MAX_RESOLUTION)))]
     resolution: Option<u32>,
     /// Random seed (landscape).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// The bunny OBJ file (bunny).
+    /// A bunny OBJ file (Y up) instead of the built-in one (bunny).
     #[arg(long, value_name = "OBJ")]
     bunny: Option<PathBuf>,
     /// The scene file to write; the mesh goes to the same name with .ply.

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_server::net::{serve, Fill, Listener, ServerConfig};
 use holodeck_server::settings::{parse_duration, parse_size};
 use holodeck_server::{HoloFile, OpenOptions};
@@ -39,10 +40,10 @@ pub struct Args {
     #[arg(long)]
     token: Option<String>,
     /// Rays per batch-fill packet.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     packet: u32,
     /// Most rays per packet traced for a display.
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     request_packet: u32,
     /// Each sampler's queue drains within this many milliseconds.
     #[arg(long, default_value_t = 250)]
@@ -108,7 +109,7 @@ fn write_token(path: &Path, token: &str) -> Result<()> {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let cache_bytes = match &a.cache {
-        Some(c) => Some(parse_size(c).map_err(anyhow::Error::msg).context("--cache")?),
+        Some(c) => Some(parse_size(c).context("--cache")?),
         None => None,
     };
     let mut file = HoloFile::open(
@@ -133,14 +134,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     };
     if let Some(d) = &a.diskspace {
-        let bytes = parse_size(d).map_err(anyhow::Error::msg).context("--diskspace")?;
+        let bytes = parse_size(d).context("--diskspace")?;
         file.set_size_limit((bytes > 0).then_some(bytes));
     }
     let setting = |flag: &Option<String>, from_file: Duration, name: &str| -> Result<Option<Duration>> {
         let d = match flag {
-            Some(t) => parse_duration(t, 1.0)
-                .map_err(anyhow::Error::msg)
-                .with_context(|| format!("--{name}"))?,
+            Some(t) => parse_duration(t, 1.0).with_context(|| format!("--{name}"))?,
             None => from_file,
         };
         Ok((!d.is_zero()).then_some(d))
@@ -157,15 +156,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
         (None, false) => Fill::All,
     };
     let config = ServerConfig {
-        packet: a.packet.max(1),
-        request_packet: a.request_packet.max(1),
+        packet: a.packet,
+        request_packet: a.request_packet,
         latency: Duration::from_millis(a.latency_ms.max(1)),
         fill,
         time,
         report,
-        stall: parse_duration(&a.stall_timeout, 1.0)
-            .map_err(anyhow::Error::msg)
-            .context("--stall-timeout")?,
+        stall: parse_duration(&a.stall_timeout, 1.0).context("--stall-timeout")?,
         ..ServerConfig::new(token)
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;

@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1024.0)]
     max_density: f64,
     /// New samples pass this near the eye, as a fraction of the section diagonal.
-    #[arg(long, default_value_t = RequestOptions::default().eye_radius)]
+    #[arg(long, default_value_t = RequestOptions::default().eye_radius, value_parser = super::args::non_negative)]
     eye_radius: f64,
     /// Connect read-only (cannot clobber, kill samplers or quit the server).
     #[arg(long)]
@@ -81,6 +81,7 @@ const QUIET: Duration = Duration::from_secs(1);
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
+    a.frame.check()?;
     if !a.headless {
         bail!("the windowed display is not built yet: add --headless to draw frames into files");
     }
@@ -91,9 +92,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("--density and --max-density must be positive numbers");
     }
     let token = a.token.token()?;
-    let wait = parse_duration(&a.wait, 1.0)
-        .map_err(anyhow::Error::msg)
-        .context("--wait")?;
+    let wait = parse_duration(&a.wait, 1.0).context("--wait")?;
     let text = std::fs::read_to_string(&a.views).with_context(|| format!("reading {}", a.views.display()))?;
     let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", a.views.display()))?;
     if views.is_empty() {
@@ -103,8 +102,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
-    let mut driver =
-        new_driver_with(&a.frame.driver, first, a.frame.estimator.options()?).map_err(anyhow::Error::msg)?;
+    let mut driver = new_driver_with(&a.frame.driver, first, a.frame.estimator.options()?)?;
     let mut hist = Histogram::new();
     let save = |driver: &mut dyn holodeck_display::Driver,
                 hist: &Histogram,
@@ -117,7 +115,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let picture = driver.render();
         let render = start.elapsed();
         let path = a.output.join(name);
-        let mode = output::parse_tone(&a.frame.tone, Some(&picture)).map_err(anyhow::Error::msg)?;
+        let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, hist, mode, &path)?;
         println!(
             "{}: {} new samples in {:.0} ms ({} in all, {} pixel estimates), drawn in {:.1} ms",

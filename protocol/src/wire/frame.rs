@@ -9,7 +9,7 @@
 use crate::beam::BeamKey;
 use crate::record::{RayRecord, RAY_RECORD_BYTES};
 
-use super::message::Message;
+use super::message::{Message, MessageError};
 
 /// Bytes before the payload: length (4) and kind (1).
 pub const FRAME_HEADER: usize = 5;
@@ -45,7 +45,7 @@ pub enum Frame {
 }
 
 /// Why bytes are not a valid frame.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FrameError {
     /// The declared payload is larger than [`MAX_FRAME`].
     #[error("frame of {len} bytes is larger than the {max} allowed")]
@@ -66,6 +66,15 @@ pub enum FrameError {
         /// What is wrong.
         detail: String,
     },
+    /// A message that decodes but whose contents are impossible.
+    #[error("invalid message: {0}")]
+    Invalid(MessageError),
+}
+
+impl From<MessageError> for FrameError {
+    fn from(e: MessageError) -> Self {
+        FrameError::Invalid(e)
+    }
 }
 
 /// Appends the encoding of `frame` to `out`.
@@ -140,10 +149,7 @@ pub fn decode_frame(buf: &[u8]) -> Result<Option<(Frame, usize)>, FrameError> {
                 kind: "message",
                 detail: e.to_string(),
             })?;
-            m.validate().map_err(|detail| FrameError::Malformed {
-                kind: "message",
-                detail,
-            })?;
+            m.validate()?;
             Frame::Message(m)
         }
         KIND_BEAM => {
@@ -377,6 +383,16 @@ mod tests {
         let mut out = Vec::new();
         encode_frame(&nan, &mut out).unwrap();
         let e = decode_frame(&out).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                FrameError::Invalid(MessageError::NonFinite {
+                    what: "eye coordinate",
+                    ..
+                })
+            ),
+            "{e:?}"
+        );
         assert!(e.to_string().contains("eye coordinate is NaN"), "{e}");
         let mut garbage = vec![3, 0, 0, 0, KIND_MESSAGE];
         garbage.extend_from_slice(&[200, 201, 202]);

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::beam::BeamKey;
-use crate::section::SectionSpec;
+use crate::section::{Section, SectionError, SectionSpec};
 use crate::view::Frustum;
 
 /// What a peer is.
@@ -158,54 +158,79 @@ pub enum Message {
     },
 }
 
+/// Why a decoded message cannot be used: what decoding alone does not check.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MessageError {
+    /// A section of a `Welcome` is invalid.
+    #[error("section {index}: {error}")]
+    Section {
+        /// Its index in the message.
+        index: usize,
+        /// Why (part of this message, not a separate cause).
+        error: SectionError,
+    },
+    /// A number that must be finite is NaN or infinite.
+    #[error("{what} is {value}")]
+    NonFinite {
+        /// Which number.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A radius that must not be negative is.
+    #[error("{what} {value} is negative")]
+    Negative {
+        /// Which number.
+        what: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// A frustum with a NaN or infinite plane.
+    #[error("the frustum is not finite")]
+    Frustum,
+}
+
 impl Message {
     /// Checks what decoding alone cannot: finite numbers and valid sections.
-    /// Returns what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
-        let finite = |what: &str, v: f64| {
-            if v.is_finite() {
+    pub fn validate(&self) -> Result<(), MessageError> {
+        let finite = |what: &'static str, value: f64| {
+            if value.is_finite() {
                 Ok(())
             } else {
-                Err(format!("{what} is {v}"))
+                Err(MessageError::NonFinite { what, value })
             }
+        };
+        let eye = |position: &[f64; 3], radius: f64, frustum: &Option<Frustum>, what: &'static str| {
+            for v in position {
+                finite("eye coordinate", *v)?;
+            }
+            if frustum.is_some_and(|f| !f.is_finite()) {
+                return Err(MessageError::Frustum);
+            }
+            finite(what, radius)?;
+            if radius < 0.0 {
+                return Err(MessageError::Negative { what, value: radius });
+            }
+            Ok(())
         };
         match self {
             Message::Welcome { sections, .. } => {
-                for (i, s) in sections.iter().enumerate() {
-                    crate::section::Section::try_from(s.clone()).map_err(|e| format!("section {i}: {e}"))?;
+                for (index, s) in sections.iter().enumerate() {
+                    Section::try_from(s.clone()).map_err(|error| MessageError::Section { index, error })?;
                 }
                 Ok(())
             }
             Message::Trace(TracePacket {
-                mode: SamplingMode::NearEye { eye, radius, frustum },
+                mode:
+                    SamplingMode::NearEye {
+                        eye: e,
+                        radius,
+                        frustum,
+                    },
                 ..
-            }) => {
-                for v in eye {
-                    finite("eye coordinate", *v)?;
-                }
-                if frustum.is_some_and(|f| !f.is_finite()) {
-                    return Err("the frustum is not finite".into());
-                }
-                finite("radius", *radius)?;
-                if *radius < 0.0 {
-                    return Err(format!("radius {radius} is negative"));
-                }
-                Ok(())
-            }
+            }) => eye(e, *radius, frustum, "radius"),
             Message::Progress(p) => finite("rays per second", p.rays_per_second),
-            Message::BeamRequest { eye: Some(e), .. } => {
-                for v in e.position {
-                    finite("eye coordinate", v)?;
-                }
-                if e.frustum.is_some_and(|f| !f.is_finite()) {
-                    return Err("the frustum is not finite".into());
-                }
-                finite("eye radius", e.radius)?;
-                if e.radius < 0.0 {
-                    return Err(format!("eye radius {} is negative", e.radius));
-                }
-                Ok(())
-            }
+            Message::BeamRequest { eye: Some(e), .. } => eye(&e.position, e.radius, &e.frustum, "eye radius"),
             _ => Ok(()),
         }
     }

@@ -9,7 +9,7 @@ mod message;
 
 pub use frame::{decode_frame, encode_frame, Frame, FrameBuffer, FrameError, FRAME_HEADER, MAX_FRAME};
 pub use link::{FrameLink, LinkError};
-pub use message::{Control, EyePoint, Hello, Message, Progress, Role, SamplingMode, TracePacket};
+pub use message::{Control, EyePoint, Hello, Message, MessageError, Progress, Role, SamplingMode, TracePacket};
 
 /// Most rays one trace packet may ask for; samplers trace at most this many.
 pub const MAX_PACKET_RAYS: u32 = 1 << 16;

@@ -2,12 +2,12 @@
 //! with a deterministic sequence of samples per pixel. Its pictures are the
 //! ground truth every holodeck reconstruction is measured against.
 
-pub use holodeck_protocol::Picture;
+pub use holodeck_protocol::{Picture, PictureSizeError};
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::Vec3;
-use holodeck_protocol::View;
+use holodeck_protocol::{check_picture_size, View};
 use rayon::prelude::*;
 
 use crate::geom::Ray;
@@ -26,10 +26,30 @@ pub struct RenderOptions {
     pub seed: u64,
 }
 
+/// Why a render cannot start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum RenderError {
+    /// No picture can have the size asked for.
+    #[error("{0}")]
+    Size(PictureSizeError),
+    /// Zero samples per pixel would leave every pixel undefined.
+    #[error("0 samples per pixel render nothing: give at least 1")]
+    NoSamples,
+}
+
 /// Renders `view`; `progress` is called with rows done and the total.
-pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn Fn(usize, usize) + Sync)) -> Picture {
-    let (w, h) = (o.width.max(1) as usize, o.height.max(1) as usize);
-    let spp = o.spp.max(1);
+pub fn render(
+    tracer: &Tracer,
+    view: &View,
+    o: &RenderOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<Picture, RenderError> {
+    check_picture_size(u64::from(o.width), u64::from(o.height)).map_err(RenderError::Size)?;
+    if o.spp == 0 {
+        return Err(RenderError::NoSamples);
+    }
+    let (w, h) = (o.width as usize, o.height as usize);
+    let spp = o.spp;
     // Stratify over a sqrt(spp) x sqrt(spp) grid where spp is a square, else jitter freely.
     let strata = (f64::from(spp).sqrt() as u32).max(1);
     let stratified = strata * strata == spp;
@@ -66,11 +86,11 @@ pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn F
             out
         })
         .collect();
-    Picture {
+    Ok(Picture {
         width: w,
         height: h,
         pixels: rows.into_iter().flatten().collect(),
-    }
+    })
 }
 
 /// Pixels of a `width` x `height` frame of `view` that straddle a silhouette:
@@ -78,12 +98,19 @@ pub fn render(tracer: &Tracer, view: &View, o: &RenderOptions, progress: &(dyn F
 /// by more than `ratio` (nearest to farthest), or some hit and some escape.
 /// The band where reconstructions from reprojected rays are hardest, so image
 /// errors are reported there separately.
-pub fn silhouettes(tracer: &Tracer, view: &View, width: u32, height: u32, ratio: f32) -> Vec<bool> {
+pub fn silhouettes(
+    tracer: &Tracer,
+    view: &View,
+    width: u32,
+    height: u32,
+    ratio: f32,
+) -> Result<Vec<bool>, PictureSizeError> {
     const N: u32 = 4;
-    let (w, h) = (width.max(1) as usize, height.max(1) as usize);
+    check_picture_size(u64::from(width), u64::from(height))?;
+    let (w, h) = (width as usize, height as usize);
     let rays = view.rays();
     let (scene, tree) = (tracer.scene(), tracer.tree());
-    (0..w * h)
+    Ok((0..w * h)
         .into_par_iter()
         .map(|i| {
             let (col, row) = ((i % w) as f64, (i / w) as f64);
@@ -107,5 +134,5 @@ pub fn silhouettes(tracer: &Tracer, view: &View, width: u32, height: u32, ratio:
             }
             hit && (escaped || far > near * ratio)
         })
-        .collect()
+        .collect())
 }

@@ -46,17 +46,13 @@ impl SceneBuilder {
     /// Adds a named material (validated) and returns its index; a name added
     /// again returns the existing index if the parameters agree, else an error.
     pub fn material(&mut self, name: &str, m: Material) -> Result<u32, SceneError> {
-        m.validate().map_err(|message| SceneError::BadMaterial {
+        m.validate().map_err(|source| SceneError::BadMaterial {
             name: name.to_string(),
-            message,
+            source,
         })?;
         if let Some(&id) = self.by_name.get(name) {
             if self.scene.materials[id as usize] != m {
-                let message = "defined twice with different parameters".to_string();
-                return Err(SceneError::BadMaterial {
-                    name: name.to_string(),
-                    message,
-                });
+                return Err(SceneError::MaterialRedefined(name.to_string()));
             }
             return Ok(id);
         }
@@ -285,9 +281,14 @@ impl SceneBuilder {
         Ok(())
     }
 
-    /// Sets the sky.
-    pub fn sky(&mut self, sky: Sky) {
+    /// Sets the sky, once it is checked.
+    pub fn sky(&mut self, sky: Sky) -> Result<(), SceneError> {
+        sky.validate().map_err(|source| SceneError::BadSky {
+            what: "sky".to_string(),
+            source,
+        })?;
         self.scene.sky = sky;
+        Ok(())
     }
 
     /// Adds a holodeck section.
@@ -304,14 +305,24 @@ impl SceneBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::material::MaterialError;
 
     #[test]
     fn skips_bad_triangles_and_refuses_bad_indices() {
         let mut b = SceneBuilder::new();
         let m = b.material("white", Material::lambertian([0.8; 3])).unwrap();
         assert_eq!(b.material("white", Material::lambertian([0.8; 3])).unwrap(), m);
-        assert!(b.material("white", Material::lambertian([0.5; 3])).is_err());
-        assert!(b.material("hot", Material::lambertian([2.0; 3])).is_err());
+        assert!(matches!(
+            b.material("white", Material::lambertian([0.5; 3])),
+            Err(SceneError::MaterialRedefined(name)) if name == "white"
+        ));
+        assert!(matches!(
+            b.material("hot", Material::lambertian([2.0; 3])),
+            Err(SceneError::BadMaterial {
+                source: MaterialError::NotUnit { key: "albedo", .. },
+                ..
+            })
+        ));
         let p = [
             Vec3::ZERO,
             Vec3::X,

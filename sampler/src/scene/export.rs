@@ -24,9 +24,9 @@ pub fn write_scene(scene: &Scene, toml_path: &Path) -> Result<PathBuf, SceneErro
         .map(PathBuf::from)
         .unwrap_or_else(|| ply_path.clone());
     write_ply(scene, &ply_path)?;
-    let text = scene_text(scene, &ply_name).map_err(|message| SceneError::Invalid {
-        what: toml_path.display().to_string(),
-        message,
+    let text = scene_text(scene, &ply_name).map_err(|source| SceneError::Export {
+        path: toml_path.to_path_buf(),
+        source,
     })?;
     std::fs::write(toml_path, text).map_err(|source| SceneError::Io {
         path: toml_path.to_path_buf(),
@@ -35,8 +35,21 @@ pub fn write_scene(scene: &Scene, toml_path: &Path) -> Result<PathBuf, SceneErro
     Ok(ply_path)
 }
 
+/// Why a scene cannot be written as scene file text.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// A table has a value TOML cannot hold (a NaN, say).
+    #[error("{table} cannot be written as TOML: {source}")]
+    Toml {
+        /// Which table.
+        table: &'static str,
+        /// Why.
+        source: toml::ser::Error,
+    },
+}
+
 /// The scene file text for `scene` with its mesh in the file `ply`.
-pub fn scene_text(scene: &Scene, ply: &Path) -> Result<String, String> {
+pub fn scene_text(scene: &Scene, ply: &Path) -> Result<String, ExportError> {
     let mut out = format!(
         "# Holodeck scene: {} triangles, {} materials.\n# Content hash {}\n\n",
         scene.triangles.len(),
@@ -44,10 +57,10 @@ pub fn scene_text(scene: &Scene, ply: &Path) -> Result<String, String> {
         content_hash(scene)
     );
     out += "[sky]\n";
-    out += &to_toml(&scene.sky)?;
+    out += &to_toml("[sky]", &scene.sky)?;
     for (name, m) in scene.material_names.iter().zip(&scene.materials) {
         out += &format!("\n[materials.{}]\n", key(name));
-        out += &to_toml(m)?;
+        out += &to_toml("[materials]", m)?;
     }
     let geometry = GeometryEntry {
         file: ply.to_path_buf(),
@@ -55,10 +68,10 @@ pub fn scene_text(scene: &Scene, ply: &Path) -> Result<String, String> {
         ..Default::default()
     };
     out += "\n[[geometry]]\n";
-    out += &to_toml(&geometry)?;
+    out += &to_toml("[[geometry]]", &geometry)?;
     for s in &scene.sections {
         out += "\n[[section]]\n";
-        out += &to_toml(&SectionTable::from_section(s))?;
+        out += &to_toml("[[section]]", &SectionTable::from_section(s))?;
     }
     Ok(out)
 }
@@ -74,9 +87,10 @@ fn key(name: &str) -> String {
 }
 
 /// One table's body as TOML, `type` first, with f32 values in their shortest exact form.
-fn to_toml<T: Serialize>(v: &T) -> Result<String, String> {
-    let value = toml::Value::try_from(v).map_err(|e| e.to_string())?;
-    let text = toml::to_string(&shortest(value)).map_err(|e| e.to_string())?;
+fn to_toml<T: Serialize>(table: &'static str, v: &T) -> Result<String, ExportError> {
+    let err = |source| ExportError::Toml { table, source };
+    let value = toml::Value::try_from(v).map_err(err)?;
+    let text = toml::to_string(&shortest(value)).map_err(err)?;
     let (first, rest): (Vec<&str>, Vec<&str>) = text.lines().partition(|l| l.starts_with("type = "));
     Ok(first.into_iter().chain(rest).map(|l| format!("{l}\n")).collect())
 }

@@ -18,7 +18,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use super::builder::SceneBuilder;
 use super::gen::{self, GenParams};
-use super::import::{import_file_with, ImportOptions};
+use super::import::{import_file_with, ImportOptions, UpAxis};
 use super::material::{Material, Sky};
 use super::section::SectionTable;
 use super::Scene;
@@ -90,6 +90,10 @@ pub struct GeometryEntry {
     /// Scale (applied first): one factor or one per axis.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<Scale>,
+    /// The file's up axis, `"y"` or `"z"`: the file is turned +z up before
+    /// scale, rotate and translate apply. Default: y for glTF/GLB, z for the rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<UpAxis>,
 }
 
 /// A uniform or per-axis scale.
@@ -102,24 +106,38 @@ pub enum Scale {
     Axes([f32; 3]),
 }
 
+/// Why a `[[geometry]]` entry's transform is refused, naming the key.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum TransformError {
+    /// `scale` with a zero, NaN or infinite factor.
+    #[error("scale {0} must be finite and non-zero")]
+    Scale(Vec3),
+    /// `rotate` with a NaN or infinite angle.
+    #[error("rotate {0} must be finite")]
+    Rotate(Vec3),
+    /// `translate` with a NaN or infinite offset.
+    #[error("translate {0} must be finite")]
+    Translate(Vec3),
+}
+
 impl GeometryEntry {
     /// Scale, then rotate about x, y, z, then translate; an error names the bad key.
-    pub fn transform(&self) -> Result<Mat4, String> {
+    pub fn transform(&self) -> Result<Mat4, TransformError> {
         let scale = match self.scale {
             None => Vec3::ONE,
             Some(Scale::Uniform(s)) => Vec3::splat(s),
             Some(Scale::Axes(a)) => Vec3::from(a),
         };
         if !scale.is_finite() || scale.x * scale.y * scale.z == 0.0 {
-            return Err(format!("scale {scale} must be finite and non-zero"));
+            return Err(TransformError::Scale(scale));
         }
         let rotate = Vec3::from(self.rotate.unwrap_or([0.0; 3]));
         let translate = Vec3::from(self.translate.unwrap_or([0.0; 3]));
         if !rotate.is_finite() {
-            return Err(format!("rotate {rotate} must be finite"));
+            return Err(TransformError::Rotate(rotate));
         }
         if !translate.is_finite() {
-            return Err(format!("translate {translate} must be finite"));
+            return Err(TransformError::Translate(translate));
         }
         let r = rotate * (std::f32::consts::PI / 180.0);
         // Extrinsic x, then y, then z is the intrinsic z-y-x rotation.
@@ -143,7 +161,7 @@ pub struct BuiltinEntry {
     /// Random seed (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
-    /// The bunny OBJ, relative to the scene file.
+    /// A bunny OBJ, relative to the scene file, instead of the built-in one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bunny: Option<PathBuf>,
 }
@@ -211,14 +229,15 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
         };
         let default_material = g.material.as_ref().map(id).transpose()?;
         let face_materials = g.materials.iter().map(id).collect::<Result<Vec<u32>, _>>()?;
-        let transform = g.transform().map_err(|message| SceneError::Invalid {
+        let transform = g.transform().map_err(|source| SceneError::Transform {
             what: what.clone(),
-            message,
+            source,
         })?;
         let options = ImportOptions {
             default_material,
             overrides: Some(&overrides),
             face_materials: &face_materials,
+            up: g.up,
         };
         import_file_with(&mut b, &base.join(&g.file), transform, &options)?;
     }
@@ -227,16 +246,20 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
         (None, Some(s)) => s.sky.clone(),
         (None, None) => Sky::None,
     };
-    b.sky(sky);
+    sky.validate().map_err(|source| SceneError::BadSky {
+        what: format!("{}: [sky]", path.display()),
+        source,
+    })?;
+    b.sky(sky)?;
     if file.section.is_empty() {
         for s in settings.into_iter().flat_map(|s| s.sections) {
             b.section(s);
         }
     } else {
         for (k, t) in file.section.iter().enumerate() {
-            let s = t.to_section().map_err(|message| SceneError::Parse {
-                path: path.to_path_buf(),
-                message: format!("[[section]] {}: {message}", k + 1),
+            let s = t.to_section().map_err(|source| SceneError::Section {
+                what: format!("{}: [[section]] {}", path.display(), k + 1),
+                source,
             })?;
             b.section(s);
         }

@@ -81,54 +81,89 @@ impl Material {
         }
     }
 
-    /// Checks parameter ranges; returns what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
-        let color_ok = |c: &[f32; 3]| c.iter().all(|v| v.is_finite() && *v >= 0.0);
-        let unit_ok = |c: &[f32; 3]| c.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v));
-        let rough_ok = |r: f32| r.is_finite() && (0.0..=1.0).contains(&r);
+    /// Checks parameter ranges; the error names the parameter.
+    pub fn validate(&self) -> Result<(), MaterialError> {
+        let unit = |key: &'static str, value: &[f32; 3]| {
+            if value.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)) {
+                Ok(())
+            } else {
+                Err(MaterialError::NotUnit { key, value: *value })
+            }
+        };
+        let radiance = |key: &'static str, value: &[f32; 3]| {
+            if value.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                Ok(())
+            } else {
+                Err(MaterialError::NotRadiance { key, value: *value })
+            }
+        };
+        let rough = |r: f32| {
+            if r.is_finite() && (0.0..=1.0).contains(&r) {
+                Ok(())
+            } else {
+                Err(MaterialError::Roughness(r))
+            }
+        };
+        let ior = |n: f32| {
+            if n.is_finite() && n >= 1.0 {
+                Ok(())
+            } else {
+                Err(MaterialError::Ior(n))
+            }
+        };
         match self {
-            Material::Lambertian { albedo, .. } if !unit_ok(albedo) => {
-                Err(format!("albedo {albedo:?} must be in [0, 1]"))
+            Material::Lambertian { albedo, emission } => {
+                unit("albedo", albedo)?;
+                radiance("emission", emission)
             }
-            Material::Lambertian { emission, .. } if !color_ok(emission) => {
-                Err(format!("emission {emission:?} must be finite and non-negative"))
-            }
-            Material::Plastic { albedo, roughness, ior } => {
-                if !unit_ok(albedo) {
-                    Err(format!("albedo {albedo:?} must be in [0, 1]"))
-                } else if !rough_ok(*roughness) {
-                    Err(format!("roughness {roughness} must be in [0, 1]"))
-                } else if !(ior.is_finite() && *ior >= 1.0) {
-                    Err(format!("ior {ior} must be at least 1"))
-                } else {
-                    Ok(())
-                }
+            Material::Plastic {
+                albedo,
+                roughness,
+                ior: n,
+            } => {
+                unit("albedo", albedo)?;
+                rough(*roughness)?;
+                ior(*n)
             }
             Material::Metal { color, roughness } => {
-                if !unit_ok(color) {
-                    Err(format!("color {color:?} must be in [0, 1]"))
-                } else if !rough_ok(*roughness) {
-                    Err(format!("roughness {roughness} must be in [0, 1]"))
-                } else {
-                    Ok(())
-                }
+                unit("color", color)?;
+                rough(*roughness)
             }
-            Material::Mirror { color } if !unit_ok(color) => Err(format!("color {color:?} must be in [0, 1]")),
-            Material::Glass { ior, color, .. } => {
-                if !(ior.is_finite() && *ior >= 1.0) {
-                    Err(format!("ior {ior} must be at least 1"))
-                } else if !unit_ok(color) {
-                    Err(format!("color {color:?} must be in [0, 1]"))
-                } else {
-                    Ok(())
-                }
+            Material::Mirror { color } => unit("color", color),
+            Material::Glass { ior: n, color, .. } => {
+                ior(*n)?;
+                unit("color", color)
             }
-            Material::Emitter { radiance } if !color_ok(radiance) => {
-                Err(format!("radiance {radiance:?} must be finite and non-negative"))
-            }
-            _ => Ok(()),
+            Material::Emitter { radiance: r } => radiance("radiance", r),
         }
     }
+}
+
+/// Why a material's parameters are impossible, naming the parameter.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum MaterialError {
+    /// A reflectance outside [0, 1] (it would create energy) or not finite.
+    #[error("{key} {value:?} must be in [0, 1]")]
+    NotUnit {
+        /// `albedo` or `color`.
+        key: &'static str,
+        /// The value given.
+        value: [f32; 3],
+    },
+    /// An emitted radiance that is negative or not finite.
+    #[error("{key} {value:?} must be finite and non-negative")]
+    NotRadiance {
+        /// `emission` or `radiance`.
+        key: &'static str,
+        /// The value given.
+        value: [f32; 3],
+    },
+    /// A roughness outside [0, 1].
+    #[error("roughness {0} must be in [0, 1]")]
+    Roughness(f32),
+    /// An index of refraction below 1 or not finite.
+    #[error("ior {0} must be at least 1")]
+    Ior(f32),
 }
 
 /// What rays that leave the scene see.
@@ -164,4 +199,125 @@ pub enum Sky {
 
 fn sun_diameter() -> f32 {
     0.53
+}
+
+impl Sky {
+    /// Checks that the sun has a direction and every radiance is finite and
+    /// non-negative; the error names the key.
+    pub fn validate(&self) -> Result<(), SkyError> {
+        let radiance = |key: &'static str, value: &[f32; 3]| {
+            if value.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                Ok(())
+            } else {
+                Err(SkyError::Radiance { key, value: *value })
+            }
+        };
+        match self {
+            Sky::None => Ok(()),
+            Sky::Constant { radiance: r } => radiance("radiance", r),
+            Sky::Sun {
+                direction,
+                sun_radiance,
+                diameter_deg,
+                zenith,
+                horizon,
+                ground,
+            } => {
+                // Normalizing divides by the length: it must be finite and above zero.
+                let length = direction.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>().sqrt();
+                if !(length.is_finite() && length > 0.0) {
+                    return Err(SkyError::Direction(*direction));
+                }
+                if !(*diameter_deg > 0.0 && *diameter_deg <= 180.0) {
+                    return Err(SkyError::Diameter(*diameter_deg));
+                }
+                radiance("sun_radiance", sun_radiance)?;
+                radiance("zenith", zenith)?;
+                radiance("horizon", horizon)?;
+                radiance("ground", ground)
+            }
+        }
+    }
+}
+
+/// Why a sky's parameters are impossible, naming the key.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum SkyError {
+    /// A sun direction that is zero or not finite: it points nowhere.
+    #[error("direction {0:?} must be finite and not zero: it points toward the sun")]
+    Direction([f32; 3]),
+    /// A sun whose angular diameter is not in (0, 180] degrees.
+    #[error("diameter_deg {0} must be above 0 and at most 180 degrees")]
+    Diameter(f32),
+    /// A radiance that is negative or not finite.
+    #[error("{key} {value:?} must be finite and non-negative")]
+    Radiance {
+        /// Which radiance.
+        key: &'static str,
+        /// The value given.
+        value: [f32; 3],
+    },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sun(direction: [f32; 3], diameter_deg: f32) -> Sky {
+        Sky::Sun {
+            direction,
+            sun_radiance: [1e5; 3],
+            diameter_deg,
+            zenith: [0.2, 0.3, 0.6],
+            horizon: [0.6; 3],
+            ground: [0.1; 3],
+        }
+    }
+
+    #[test]
+    fn skies_without_a_sun_direction_or_with_negative_light_are_refused() {
+        assert_eq!(sun([0.2, 0.1, 1.0], 0.53).validate(), Ok(()));
+        assert_eq!(sun([1e-30, 0.0, 0.0], 0.53).validate(), Ok(()), "tiny but a direction");
+        assert_eq!(sun([0.0; 3], 0.53).validate(), Err(SkyError::Direction([0.0; 3])));
+        assert!(matches!(
+            sun([f32::NAN, 0.0, 1.0], 0.53).validate(),
+            Err(SkyError::Direction(_))
+        ));
+        assert!(matches!(sun([f32::MAX, f32::MAX, 0.0], 0.53).validate(), Ok(())));
+        assert_eq!(sun([0.0, 0.0, 1.0], 0.0).validate(), Err(SkyError::Diameter(0.0)));
+        let dark = Sky::Constant {
+            radiance: [-1.0, 0.0, 0.0],
+        };
+        assert_eq!(
+            dark.validate(),
+            Err(SkyError::Radiance {
+                key: "radiance",
+                value: [-1.0, 0.0, 0.0]
+            })
+        );
+        assert!(sun([0.0; 3], 0.53)
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("direction"));
+    }
+
+    #[test]
+    fn material_errors_name_the_parameter() {
+        let glass = Material::Glass {
+            ior: 0.5,
+            color: [1.0; 3],
+            thin: false,
+        };
+        assert_eq!(glass.validate(), Err(MaterialError::Ior(0.5)));
+        let lamp = Material::Lambertian {
+            albedo: [0.5; 3],
+            emission: [f32::INFINITY, 0.0, 0.0],
+        };
+        assert!(matches!(
+            lamp.validate(),
+            Err(MaterialError::NotRadiance { key: "emission", .. })
+        ));
+        assert_eq!(Material::lambertian([0.5; 3]).validate(), Ok(()));
+    }
 }

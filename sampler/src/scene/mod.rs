@@ -20,7 +20,7 @@ pub use export::write_scene;
 pub use file::load_scene;
 pub use gen::{generate, GenParams};
 pub use hash::content_hash;
-pub use import::{import_file, import_file_with, ImportOptions};
+pub use import::{import_file, import_file_with, ImportOptions, UpAxis};
 pub use material::{Material, Sky};
 pub use section::SectionTable;
 

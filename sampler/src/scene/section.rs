@@ -2,11 +2,29 @@
 //! people (kind, origin, axes, and a grid or a target beam count), and its
 //! conversion to a validated [`Section`].
 
-use holodeck_protocol::{grid_for_beam_count, Section, SectionKind};
+use holodeck_protocol::{grid_for_beam_count, Section, SectionError, SectionKind};
 use serde::{Deserialize, Serialize};
 
 /// Beam count aimed at when a section gives neither `grid` nor `beams`.
 pub const DEFAULT_BEAMS: u64 = 150_000;
+
+/// Why a `[[section]]` table is not a valid section.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SectionTableError {
+    /// Both `grid` and `beams` were given.
+    #[error("give grid or beams, not both")]
+    GridAndBeams,
+    /// The numbers do not make a valid section; the message names the key
+    /// the problem is in, where it is in one.
+    #[error("{key}{0}", key = .0.field().map(|f| format!("{}: ", f.toml_key())).unwrap_or_default())]
+    Section(SectionError),
+}
+
+impl From<SectionError> for SectionTableError {
+    fn from(e: SectionError) -> Self {
+        SectionTableError::Section(e)
+    }
+}
 
 /// A section as written in a scene file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -44,22 +62,20 @@ impl SectionTable {
         }
     }
 
-    /// The validated section; the error says what is wrong.
-    pub fn to_section(&self) -> Result<Section, String> {
+    /// The validated section; the error says what is wrong, and in which key.
+    pub fn to_section(&self) -> Result<Section, SectionTableError> {
         let grid = match (self.grid, self.beams) {
-            (Some(_), Some(_)) => return Err("give grid or beams, not both".to_string()),
+            (Some(_), Some(_)) => return Err(SectionTableError::GridAndBeams),
             (Some(g), None) => g,
-            (None, beams) => {
-                grid_for_beam_count(self.axes, beams.unwrap_or(DEFAULT_BEAMS)).map_err(|e| e.to_string())?
-            }
+            (None, beams) => grid_for_beam_count(self.axes, beams.unwrap_or(DEFAULT_BEAMS))?,
         };
-        Section::new(self.origin, self.axes, grid, self.kind).map_err(|e| e.to_string())
+        Ok(Section::new(self.origin, self.axes, grid, self.kind)?)
     }
 }
 
 /// An axis-aligned section with its low corner at `origin` and edge lengths
 /// `size` (world meters), with about [`DEFAULT_BEAMS`] beams.
-pub fn box_section(kind: SectionKind, origin: [f64; 3], size: [f64; 3]) -> Result<Section, String> {
+pub fn box_section(kind: SectionKind, origin: [f64; 3], size: [f64; 3]) -> Result<Section, SectionTableError> {
     let [dx, dy, dz] = size;
     SectionTable {
         kind,
@@ -74,6 +90,7 @@ pub fn box_section(kind: SectionKind, origin: [f64; 3], size: [f64; 3]) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
+    use holodeck_protocol::SectionField;
 
     #[test]
     fn default_grid_aims_at_150k_beams_and_grid_round_trips() {
@@ -88,12 +105,30 @@ mod tests {
             beams: Some(1000),
             ..SectionTable::from_section(&s)
         };
-        assert!(both.to_section().unwrap_err().contains("not both"));
+        assert_eq!(both.to_section(), Err(SectionTableError::GridAndBeams));
         let flat = SectionTable {
             axes: [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            ..t.clone()
+        };
+        assert!(
+            matches!(
+                flat.to_section(),
+                Err(SectionTableError::Section(SectionError::Degenerate(_)))
+            ),
+            "{:?}",
+            flat.to_section()
+        );
+        let nan = SectionTable {
+            axes: [[1.0, 0.0, 0.0], [0.0, f64::NAN, 0.0], [0.0, 0.0, 1.0]],
+            grid: Some([2, 2, 2]),
             ..t
         };
-        assert!(flat.to_section().is_err());
+        let e = nan.to_section().unwrap_err();
+        assert!(
+            matches!(&e, SectionTableError::Section(s) if s.field() == Some(SectionField::Axis(1))),
+            "{e:?}"
+        );
+        assert!(e.to_string().starts_with("axes[1]: "), "{e}");
         assert!(toml::from_str::<SectionTable>(
             "origin = [0, 0, 0]\naxes = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nsize = 3"
         )

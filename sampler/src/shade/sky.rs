@@ -49,9 +49,13 @@ impl SkyModel {
                 horizon,
                 ground,
             } => {
-                let dir = Vec3::from_array(*direction);
-                let sun = (dir.length() > 0.0 && *diameter_deg > 0.0 && *diameter_deg <= 180.0).then(|| Sun {
-                    frame: Frame::new(dir.normalize()),
+                // Normalized in double precision: huge or tiny directions
+                // would overflow or underflow single precision on the way.
+                let dir = Vec3::from_array(*direction).as_dvec3();
+                let length = dir.length();
+                let pointed = length > 0.0 && length.is_finite();
+                let sun = (pointed && *diameter_deg > 0.0 && *diameter_deg <= 180.0).then(|| Sun {
+                    frame: Frame::new((dir / length).as_vec3()),
                     cos_max: (f64::from(*diameter_deg).to_radians() * 0.5).cos() as f32,
                     one_minus_cos: {
                         // 1 - cos(x) = 2 sin^2(x/2): exact even for a tiny sun.
@@ -116,5 +120,27 @@ impl SkyModel {
         let s = self.sun.as_ref()?;
         let d = s.frame.to_world(uniform_cone(u, s.cos_max));
         Some((d, s.radiance, 1.0 / (2.0 * std::f32::consts::PI * s.one_minus_cos)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn suns_point_where_their_direction_says_however_long_it_is() {
+        for direction in [[f32::MAX, f32::MAX, 0.0], [1e-30, 1e-30, 0.0], [3.0, 3.0, 0.0]] {
+            let sky = SkyModel::new(&Sky::Sun {
+                direction,
+                sun_radiance: [5.0; 3],
+                diameter_deg: 1.0,
+                zenith: [0.0; 3],
+                horizon: [0.0; 3],
+                ground: [0.0; 3],
+            });
+            let toward = Vec3::new(1.0, 1.0, 0.0).normalize();
+            assert_eq!(sky.sun(toward), Vec3::splat(5.0), "{direction:?}");
+            assert_eq!(sky.sun(Vec3::Z), Vec3::ZERO, "{direction:?}");
+        }
     }
 }

@@ -23,6 +23,7 @@ use tokio::sync::Notify;
 
 use super::connection::{Connection, ConnectionError};
 use super::service::Shared;
+use crate::storage::StorageError;
 
 /// Beams read from the store per round trip to the storage thread: bounds the
 /// memory one request can pin.
@@ -99,13 +100,13 @@ async fn send_beams(
     conn: &mut Connection,
     shared: &Shared,
     wanted: Vec<(BeamKey, u64)>,
-) -> Result<Result<(Vec<(BeamKey, u64)>, u64), String>, ConnectionError> {
+) -> Result<Result<(Vec<(BeamKey, u64)>, u64), StorageError>, ConnectionError> {
     let mut sent = Vec::with_capacity(wanted.len());
     let mut total = 0u64;
     for chunk in wanted.chunks(READ_CHUNK) {
         let beams = match shared.store.read(chunk.to_vec()).await {
             Ok(b) => b,
-            Err(e) => return Ok(Err(e.to_string())),
+            Err(e) => return Ok(Err(e)),
         };
         let mut frames = Vec::with_capacity(beams.len());
         for (key, records) in beams {
@@ -161,7 +162,10 @@ async fn display_loop(
                                 *sent.entry(k).or_default() += n;
                             }
                         }
-                        Err(message) => conn.write(&Frame::Message(Message::Error { message })).await?,
+                        Err(e) => {
+                            let message = e.to_string();
+                            conn.write(&Frame::Message(Message::Error { message })).await?
+                        }
                     }
                 }
                 continue;
@@ -213,6 +217,7 @@ async fn display_loop(
                 })
                 .validate()
                 {
+                    let message = message.to_string();
                     conn.write(&Frame::Message(Message::Error { message })).await?;
                     continue;
                 }
@@ -227,7 +232,8 @@ async fn display_loop(
                     .collect();
                 let (got, rays) = match send_beams(&mut conn, shared, wanted.clone()).await? {
                     Ok(x) => x,
-                    Err(message) => {
+                    Err(e) => {
+                        let message = e.to_string();
                         conn.write(&Frame::Message(Message::Error { message })).await?;
                         continue;
                     }
@@ -262,7 +268,8 @@ async fn display_loop(
             }
             Frame::Message(Message::Control(c)) if !read_only || matches!(c, Control::Pause | Control::Resume) => {
                 let quit = c == Control::Quit;
-                if let Err(message) = shared.control(c).await {
+                if let Err(e) = shared.control(c).await {
+                    let message = e.to_string();
                     conn.write(&Frame::Message(Message::Error { message })).await?;
                 }
                 if quit {

@@ -12,4 +12,4 @@ pub mod service;
 pub mod store;
 
 pub use listener::Listener;
-pub use service::{serve, Fill, ServerConfig};
+pub use service::{serve, ControlError, Fill, ServerConfig};

@@ -148,7 +148,7 @@ impl Shared {
     }
 
     /// Carries out a control command from a writable display or an admin.
-    pub async fn control(&self, c: Control) -> Result<(), String> {
+    pub async fn control(&self, c: Control) -> Result<(), ControlError> {
         match c {
             Control::Pause => self.lock_scheduler().set_paused(true),
             Control::Resume => {
@@ -160,17 +160,17 @@ impl Shared {
                 self.kill_samplers.send_modify(|n| *n += 1);
             }
             Control::Restart => {
-                let lens = self.store.lens().await.map_err(|e| e.to_string())?;
-                let batch = self.batch(&lens).map_err(|e| e.to_string())?;
+                let lens = self.store.lens().await?;
+                let batch = self.batch(&lens)?;
                 self.lock_scheduler().restart(batch);
                 self.samplers_allowed.store(true, Ordering::SeqCst);
                 self.work.notify_waiters();
             }
             Control::Clobber => {
-                self.store.clobber().await.map_err(|e| e.to_string())?;
+                self.store.clobber().await?;
                 self.generation.fetch_add(1, Ordering::SeqCst);
-                let lens = self.store.lens().await.map_err(|e| e.to_string())?;
-                let batch = self.batch(&lens).map_err(|e| e.to_string())?;
+                let lens = self.store.lens().await?;
+                let batch = self.batch(&lens)?;
                 let mut scheduler = self.lock_scheduler();
                 scheduler.restart(batch);
                 scheduler.requests().forget_stored();
@@ -184,6 +184,17 @@ impl Shared {
         tracing::info!("control: {c:?}");
         Ok(())
     }
+}
+
+/// Why a control command could not be carried out.
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    /// The file could not be read or written.
+    #[error(transparent)]
+    Storage(#[from] StorageError),
+    /// A new schedule could not be made from the file's sections.
+    #[error(transparent)]
+    Schedule(#[from] holodeck_protocol::SectionError),
 }
 
 /// Serves `file` on `listeners` until an admin says quit, TIME is up, or the

@@ -200,10 +200,54 @@ fn errors_name_the_file_and_the_key() {
     );
     let err = load("[[geometry]]\nfile = \"mesh/tri.obj\"\nscale = 0\n");
     assert!(err.contains("bad.toml") && err.contains("scale"), "{err}");
+    std::fs::write(&path, "[[geometry]]\nfile = \"mesh/tri.obj\"\nrotate = [0, nan, 0]\n").unwrap();
+    let e = load_scene(&path).unwrap_err();
+    assert!(
+        matches!(&e, SceneError::Transform { source: TransformError::Rotate(r), .. } if r.y.is_nan()),
+        "{e}"
+    );
     let err = load("[[section]]\norigin = [0, 0, 0]\naxes = [[1, 0, 0], [2, 0, 0], [0, 0, 1]]\n");
     assert!(err.contains("bad.toml") && err.contains("[[section]] 1"), "{err}");
     let err = load("[[geometry]]\nfile = \"mesh/none.obj\"\nmaterial = \"x\"\n");
     assert!(err.contains("bad.toml") && err.contains("\"x\""), "{err}");
     std::fs::remove_file(&path).unwrap();
     assert!(load_scene(&path).unwrap_err().to_string().contains("bad.toml"));
+}
+
+#[test]
+fn geometry_up_axes_default_by_format_and_can_be_overridden() {
+    let dir = scene_dir();
+    std::fs::write(
+        dir.path().join("mesh/box.gltf"),
+        crate::scene::import::tests::gltf_box(),
+    )
+    .unwrap();
+    let path = dir.path().join("up.toml");
+    let bounds = |geometry: &str| {
+        let text = format!("[materials.white]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n[[geometry]]\nmaterial = \"white\"\n{geometry}");
+        std::fs::write(&path, text).unwrap();
+        let (lo, hi) = load_scene(&path).unwrap().bounds();
+        hi - lo
+    };
+    // glTF: 1 wide, 2 tall in its +y, 3 deep; the scene is +z up.
+    assert_eq!(bounds("file = \"mesh/box.gltf\"\n"), Vec3::new(1.0, 3.0, 2.0));
+    assert_eq!(
+        bounds("file = \"mesh/box.gltf\"\nup = \"z\"\n"),
+        Vec3::new(1.0, 2.0, 3.0)
+    );
+    // The conversion comes first: scale then applies along the scene's axes.
+    assert_eq!(
+        bounds("file = \"mesh/box.gltf\"\nscale = [1, 1, 10]\n"),
+        Vec3::new(1.0, 3.0, 20.0)
+    );
+    // OBJ is taken as +z up unless the entry says otherwise: the triangle in
+    // the xy plane stands up in the xz plane.
+    assert_eq!(bounds("file = \"mesh/tri.obj\"\n"), Vec3::new(1.0, 1.0, 0.0));
+    assert_eq!(
+        bounds("file = \"mesh/tri.obj\"\nup = \"y\"\n"),
+        Vec3::new(1.0, 0.0, 1.0)
+    );
+    std::fs::write(&path, "[[geometry]]\nfile = \"mesh/tri.obj\"\nup = \"x\"\n").unwrap();
+    let err = load_scene(&path).unwrap_err().to_string();
+    assert!(err.contains("up.toml") && err.contains("unknown variant `x`"), "{err}");
 }

@@ -1,9 +1,9 @@
-//! The Stanford bunny (read from an OBJ file, Y up) turned Z up, scaled to
-//! 0.3 m tall and set on a table in a closed 4 x 4 x 2.6 m room lit by a 1 x 1 m
-//! ceiling light, with an exterior section around the bunny.
+//! The Stanford bunny (an OBJ, Y up: the one built into the program, or a
+//! file given instead) turned Z up, scaled to 0.3 m tall and set on a table in
+//! a closed 4 x 4 x 2.6 m room lit by a 1 x 1 m ceiling light, with an
+//! exterior section around the bunny.
 
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::{Mat4, Vec3};
 use holodeck_protocol::SectionKind;
@@ -13,12 +13,13 @@ use super::shapes::MeshBuf;
 use super::{material, section_error, GenParams, Setting};
 use crate::error::SceneError;
 use crate::scene::builder::SceneBuilder;
-use crate::scene::import::import_file;
+use crate::scene::import::{import_file_with, import_obj_bytes, ImportOptions, UpAxis};
 use crate::scene::material::{Material, Sky};
 use crate::scene::section::box_section;
 
-/// Where the bunny is looked for when no path is given (relative to the current directory).
-pub const DEFAULT_BUNNY_PATH: &str = "../shared/scenes/bunny.obj";
+/// The low-resolution Stanford bunny (3,674 triangles, public domain; see
+/// `sampler/assets/README.md`), built in so that the scene needs no file.
+pub const BUILT_IN_BUNNY_OBJ: &[u8] = include_bytes!("../../../assets/bunny.obj");
 /// Height of the placed bunny, meters.
 pub const BUNNY_HEIGHT: f32 = 0.3;
 /// Room size, meters.
@@ -41,11 +42,11 @@ pub fn add_bunny(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sc
     if params.triangles.is_some() || params.resolution.is_some() {
         tracing::warn!("bunny: --triangles and --resolution do not apply; ignored");
     }
-    let path: PathBuf = params
+    let bunny = read_mesh(params.bunny_path.as_deref())?;
+    let name = params
         .bunny_path
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(DEFAULT_BUNNY_PATH));
-    let bunny = read_mesh(&path)?;
+        .as_ref()
+        .map_or_else(|| "built-in bunny".to_string(), |p| p.display().to_string());
     let (lo, hi) = bunny.bounds();
     let foot = Vec3::new(SIZE.x / 2.0, SIZE.y / 2.0, TABLE_TOP);
     let transform = stand_up(lo, hi, BUNNY_HEIGHT, foot);
@@ -73,13 +74,7 @@ pub fn add_bunny(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sc
     add_ceiling_light(&mut mesh, [c.x - 0.5, c.y - 0.5], [c.x + 0.5, c.y + 0.5], SIZE.z, light);
     mesh.flush(b, "bunny room")?;
     let triangles: Vec<[u32; 3]> = bunny.triangles.iter().map(|t| t.v).collect();
-    b.add_mesh(
-        &path.display().to_string(),
-        &bunny.positions,
-        &triangles,
-        &[skin],
-        transform,
-    )?;
+    b.add_mesh(&name, &bunny.positions, &triangles, &[skin], transform)?;
 
     let corners = [lo, hi].map(|p| transform.transform_point3(p));
     let (wlo, whi) = (
@@ -97,11 +92,29 @@ pub fn add_bunny(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, Sc
     })
 }
 
-/// The bunny file as one mesh in its own coordinates (any materials it names are ignored).
-fn read_mesh(path: &Path) -> Result<crate::scene::Scene, SceneError> {
+/// The bunny as one mesh in its own coordinates (any materials it names are
+/// ignored): the file at `path`, else the built-in one.
+fn read_mesh(path: Option<&Path>) -> Result<crate::scene::Scene, SceneError> {
     let mut temp = SceneBuilder::new();
     let m = temp.material("bunny", Material::lambertian([0.8; 3]))?;
-    import_file(&mut temp, path, Mat4::IDENTITY, Some(m), &HashMap::new()).map_err(|e| match e {
+    let Some(path) = path else {
+        import_obj_bytes(
+            &mut temp,
+            BUILT_IN_BUNNY_OBJ,
+            Path::new("built-in bunny"),
+            Mat4::IDENTITY,
+            Some(m),
+        )?;
+        return Ok(temp.finish());
+    };
+    // A file given explicitly is read as OBJ whatever its axes convention:
+    // stand_up turns it Z up.
+    let options = ImportOptions {
+        default_material: Some(m),
+        up: Some(UpAxis::Z),
+        ..ImportOptions::default()
+    };
+    import_file_with(&mut temp, path, Mat4::IDENTITY, &options).map_err(|e| match e {
         SceneError::Io { path, source } => SceneError::Io {
             source: std::io::Error::new(
                 source.kind(),

@@ -18,6 +18,7 @@ use holodeck_protocol::Section;
 
 use super::builder::SceneBuilder;
 use super::material::{Material, Sky};
+use super::section::SectionTableError;
 use super::Scene;
 use crate::error::SceneError;
 
@@ -38,7 +39,7 @@ pub struct GenParams {
     pub resolution: Option<u32>,
     /// Seed of everything random (landscape terrain and trees).
     pub seed: u64,
-    /// The bunny OBJ (default `../shared/scenes/bunny.obj` from the current directory).
+    /// A bunny OBJ file to use instead of the one built in.
     pub bunny_path: Option<PathBuf>,
 }
 
@@ -55,7 +56,7 @@ pub struct Setting {
 pub fn generate(name: &str, params: &GenParams) -> Result<Scene, SceneError> {
     let mut b = SceneBuilder::new();
     let setting = add(name, params, &mut b)?;
-    b.sky(setting.sky);
+    b.sky(setting.sky)?;
     for s in setting.sections {
         b.section(s);
     }
@@ -88,10 +89,10 @@ fn material(b: &mut SceneBuilder, name: &str, m: Material) -> Result<u32, SceneE
 }
 
 /// An error for an impossible generated section (a bug in a generator's numbers).
-fn section_error(what: &str, message: String) -> SceneError {
-    SceneError::Invalid {
+fn section_error(what: &str, source: SectionTableError) -> SceneError {
+    SceneError::Section {
         what: format!("{what} section"),
-        message,
+        source,
     }
 }
 

@@ -4,7 +4,9 @@
 //! strips and fans are skipped and counted). Materials come from the
 //! metallic-roughness factors: emissive > 0 gives an emitter, metallic >= 0.5
 //! metal, roughness < 0.9 plastic, else lambertian. Textures, vertex colors,
-//! normals and extensions are ignored; images are never loaded.
+//! normals and extensions are ignored; images are never loaded. Positions are
+//! read in glTF's +y-up frame; the transform the caller passes turns them
+//! +z up (see [`super::UpAxis`]).
 
 use std::path::Path;
 

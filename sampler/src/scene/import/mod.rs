@@ -2,6 +2,11 @@
 //! glTF/GLB, each adding its triangles and materials to a [`SceneBuilder`].
 //! They only read files; they never decide where a scene's files live (the
 //! scene file does that) and never panic on what a file contains.
+//!
+//! Scenes are +z up. glTF files are +y up by specification, so they are
+//! turned to +z up on import, (x, y, z) -> (x, -z, y), a rotation that keeps
+//! handedness and face orientation; OBJ and PLY files are taken as +z up.
+//! [`UpAxis`] overrides either for files whose authors used the other.
 
 mod gltf;
 mod obj;
@@ -11,10 +16,46 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use glam::Mat4;
+use serde::{Deserialize, Serialize};
 
 use super::builder::SceneBuilder;
 use super::material::Material;
 use crate::error::SceneError;
+
+/// Which axis of a geometry file points up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    /// +y up (glTF's convention, and many OBJ exporters').
+    Y,
+    /// +z up (the scene's convention).
+    Z,
+}
+
+impl UpAxis {
+    /// The convention of the format of `path`: y for glTF and GLB, z for the rest.
+    pub fn default_for(path: &Path) -> UpAxis {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("gltf" | "glb") => UpAxis::Y,
+            _ => UpAxis::Z,
+        }
+    }
+
+    /// The rotation that turns a file with this up axis +z up: for y, +90
+    /// degrees about x, taking (x, y, z) to (x, -z, y).
+    pub fn to_z_up(self) -> Mat4 {
+        match self {
+            UpAxis::Y => Mat4::from_cols_array(&[
+                1.0, 0.0, 0.0, 0.0, //
+                0.0, 0.0, 1.0, 0.0, //
+                0.0, -1.0, 0.0, 0.0, //
+                0.0, 0.0, 0.0, 1.0,
+            ]),
+            UpAxis::Z => Mat4::IDENTITY,
+        }
+    }
+}
 
 /// How one file is imported besides its transform.
 #[derive(Clone, Copy, Debug, Default)]
@@ -27,6 +68,8 @@ pub struct ImportOptions<'a> {
     pub overrides: Option<&'a HashMap<String, u32>>,
     /// Material ids that a PLY file's per-face `material_index` indexes.
     pub face_materials: &'a [u32],
+    /// The file's up axis; `None` takes its format's ([`UpAxis::default_for`]).
+    pub up: Option<UpAxis>,
 }
 
 /// Imports `path` (`.obj`, `.ply`, `.gltf` or `.glb`, by extension) into `b`,
@@ -43,19 +86,22 @@ pub fn import_file(
     let options = ImportOptions {
         default_material,
         overrides: Some(overrides),
-        face_materials: &[],
+        ..ImportOptions::default()
     };
     import_file_with(b, path, transform, &options)
 }
 
 /// [`import_file`] with every option, including the material list that PLY
-/// per-face `material_index` values index.
+/// per-face `material_index` values index and the file's up axis. The file is
+/// turned +z up first; `transform` then places it in the scene.
 pub fn import_file_with(
     b: &mut SceneBuilder,
     path: &Path,
     transform: Mat4,
     options: &ImportOptions,
 ) -> Result<(), SceneError> {
+    let up = options.up.unwrap_or_else(|| UpAxis::default_for(path));
+    let transform = transform * up.to_z_up();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let before = b.triangle_count();
     check_regular_file(path)?;
@@ -86,6 +132,23 @@ pub fn import_file_with(
     }
     tracing::info!("{}: {} triangles", path.display(), b.triangle_count() - before);
     Ok(())
+}
+
+/// Imports OBJ text held in memory (a model built into the program), named
+/// `name` in messages and logs; its faces take `default_material`, and its
+/// coordinates are used as they are.
+pub(crate) fn import_obj_bytes(
+    b: &mut SceneBuilder,
+    bytes: &[u8],
+    name: &Path,
+    transform: Mat4,
+    default_material: Option<u32>,
+) -> Result<(), SceneError> {
+    let options = ImportOptions {
+        default_material,
+        ..ImportOptions::default()
+    };
+    obj::import_bytes(b, bytes, name, transform, &options)
 }
 
 /// Opens a file to import, naming it in the error.
@@ -158,4 +221,4 @@ fn parse_error(path: &Path, message: impl Into<String>) -> SceneError {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

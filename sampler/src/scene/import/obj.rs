@@ -3,7 +3,7 @@
 //! `illum` 3 with black `Kd` metal; `Ks` > 0 plastic with roughness
 //! sqrt(2 / (Ns + 2)); anything else lambertian with `Kd`. Textures are ignored.
 
-use std::io::BufReader;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 use glam::{Mat4, Vec3};
@@ -21,17 +21,13 @@ pub(super) fn import(
     options: &ImportOptions,
 ) -> Result<(), SceneError> {
     let file = super::open(path)?;
-    let load = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-    };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let (models, materials) = tobj::load_obj_buf(&mut BufReader::new(file), &load, |mtl| {
+    let load_mtl = |mtl: &Path| {
         let full = dir.join(mtl);
         let result = match super::check_regular_file(&full) {
-            Ok(()) => tobj::load_mtl(&full),
+            // tobj panics on some malformed lines (one number where three
+            // belong); such a library is as broken as an unreadable one.
+            Ok(()) => std::panic::catch_unwind(|| tobj::load_mtl(&full)).unwrap_or(Err(tobj::LoadError::ReadError)),
             Err(_) => Err(tobj::LoadError::OpenFileFailed),
         };
         if let Err(e) = &result {
@@ -42,8 +38,42 @@ pub(super) fn import(
             );
         }
         result
-    })
-    .map_err(|e| parse_error(path, format!("OBJ: {e}")))?;
+    };
+    import_reader(b, &mut BufReader::new(file), path, load_mtl, transform, options)
+}
+
+/// Adds every object of OBJ text held in memory (a built-in model), named
+/// `name` in messages. It has no material libraries: its faces take the
+/// default material.
+pub(super) fn import_bytes(
+    b: &mut SceneBuilder,
+    bytes: &[u8],
+    name: &Path,
+    transform: Mat4,
+    options: &ImportOptions,
+) -> Result<(), SceneError> {
+    let no_library = |_: &Path| Err(tobj::LoadError::OpenFileFailed);
+    import_reader(b, &mut &bytes[..], name, no_library, transform, options)
+}
+
+/// Adds every object of the OBJ text `reader` gives; `path` names it in
+/// messages and `load_mtl` finds its material libraries.
+fn import_reader(
+    b: &mut SceneBuilder,
+    reader: &mut impl BufRead,
+    path: &Path,
+    load_mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
+    transform: Mat4,
+    options: &ImportOptions,
+) -> Result<(), SceneError> {
+    let load = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, materials) =
+        tobj::load_obj_buf(reader, &load, load_mtl).map_err(|e| parse_error(path, format!("OBJ: {e}")))?;
     let materials = materials.unwrap_or_default();
     let mut ids: Vec<Option<u32>> = vec![None; materials.len()];
     for model in &models {

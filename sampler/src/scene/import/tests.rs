@@ -270,6 +270,7 @@ fn import_ply_with(path: &Path, transform: Mat4) -> Result<Scene, SceneError> {
         default_material: None,
         overrides: None,
         face_materials: &[c, a],
+        up: None,
     };
     import_file_with(&mut b, path, transform, &options)?;
     Ok(b.finish())
@@ -411,13 +412,97 @@ fn gltf_parts() -> (String, Vec<u8>) {
     (json.to_string(), bin)
 }
 
+/// A glTF box 1 wide (x), 2 tall (y, glTF's up) and 3 deep (z) with its
+/// low corner at the origin, its buffer embedded.
+pub(crate) fn gltf_box() -> String {
+    let mut bin = Vec::new();
+    for k in 0..8u32 {
+        let corner = [k & 1, (k >> 1) & 1, (k >> 2) & 1];
+        for (c, size) in corner.iter().zip([1.0f32, 2.0, 3.0]) {
+            bin.extend((*c as f32 * size).to_le_bytes());
+        }
+    }
+    // Two triangles per face, wound outward.
+    let faces: [[u16; 4]; 6] = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    for [a, b, c, d] in faces {
+        for i in [a, b, c, a, c, d] {
+            bin.extend(i.to_le_bytes());
+        }
+    }
+    format!(
+        r#"{{
+      "asset": {{"version": "2.0"}},
+      "scenes": [{{"nodes": [0]}}],
+      "nodes": [{{"mesh": 0}}],
+      "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+      "buffers": [{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}],
+      "bufferViews": [
+        {{"buffer": 0, "byteOffset": 0, "byteLength": 96}},
+        {{"buffer": 0, "byteOffset": 96, "byteLength": 72}}
+      ],
+      "accessors": [
+        {{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3", "min": [0, 0, 0], "max": [1, 2, 3]}},
+        {{"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"}}
+      ]
+    }}"#,
+        bin.len(),
+        base64(&bin)
+    )
+}
+
+#[test]
+fn gltf_models_stand_up_in_the_z_up_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), "box.gltf", gltf_box());
+    let import = |up: Option<UpAxis>| {
+        let mut b = SceneBuilder::new();
+        let white = b.material("white", Material::lambertian([0.5; 3])).unwrap();
+        let options = ImportOptions {
+            default_material: Some(white),
+            up,
+            ..ImportOptions::default()
+        };
+        import_file_with(&mut b, &path, Mat4::IDENTITY, &options).unwrap();
+        let s = b.finish();
+        assert_eq!(s.triangles.len(), 12);
+        s.bounds()
+    };
+    // glTF's +y is up: the box is 1 wide, 3 deep and 2 tall, and its
+    // depth (glTF's +z, toward the viewer) runs along -y.
+    let (lo, hi) = import(None);
+    assert_eq!(hi - lo, Vec3::new(1.0, 3.0, 2.0));
+    assert_eq!((lo, hi), (Vec3::new(0.0, -3.0, 0.0), Vec3::new(1.0, 0.0, 2.0)));
+    assert_eq!(import(Some(UpAxis::Y)), (lo, hi));
+    // A file whose author used z up is taken as it is.
+    let (lo, hi) = import(Some(UpAxis::Z));
+    assert_eq!((lo, hi), (Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0)));
+}
+
+#[test]
+fn y_up_conversion_keeps_handedness_and_outward_faces() {
+    let m = UpAxis::Y.to_z_up();
+    assert_eq!(m.transform_point3(Vec3::new(1.0, 2.0, 3.0)), Vec3::new(1.0, -3.0, 2.0));
+    assert!(m.determinant() > 0.0, "a rotation, not a mirror");
+    assert_eq!(UpAxis::Z.to_z_up(), Mat4::IDENTITY);
+    assert_eq!(UpAxis::default_for(Path::new("a.GLB")), UpAxis::Y);
+    assert_eq!(UpAxis::default_for(Path::new("a.obj")), UpAxis::Z);
+}
+
 fn check_gltf_scene(s: &Scene) {
     // Each node draws 1 + 1 + 2 triangles; the line primitive is skipped.
     assert_eq!(s.triangles.len(), 8, "{:?}", s.material_names);
+    // glTF (x, y, z) lands at (x, -z, y): glTF's up is the scene's +z.
     let all: Vec<Vec3> = (0..8).flat_map(|t| s.vertices(t)).collect();
-    assert!(all.contains(&Vec3::new(1.0, 1.0, 5.0)), "parent: translated");
+    assert!(all.contains(&Vec3::new(1.0, -5.0, 1.0)), "parent: translated");
     assert!(
-        all.contains(&Vec3::new(2.0, 2.0, 5.0)),
+        all.contains(&Vec3::new(2.0, -5.0, 2.0)),
         "child: scaled, then the parent's translation"
     );
     let find = |name: &str| &s.materials[s.material_names.iter().position(|n| n == name).unwrap()];

@@ -1,0 +1,155 @@
+//! Why settings text, a control file or one of their values is refused. Each
+//! error names the value and what would be accepted instead; none of them
+//! touches a file.
+
+use holodeck_protocol::{SectionError, SectionField};
+
+/// A byte size (`64M`, `1.5G`) that does not parse.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SizeError {
+    /// A letter other than K, M, G or T after the number.
+    #[error("size {0:?} has an unknown unit (use K, M, G or T)")]
+    UnknownUnit(String),
+    /// No number before the unit.
+    #[error("size {0:?} is not a number with an optional K/M/G/T unit")]
+    NotANumber(String),
+    /// A negative, NaN or infinite number.
+    #[error("size {0:?} must be a non-negative number")]
+    Negative(String),
+    /// More bytes than 64 bits count.
+    #[error("size {0:?} is more bytes than 64 bits can count")]
+    TooLarge(String),
+}
+
+/// A duration (`90s`, `15m`, `2h`) that does not parse.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DurationError {
+    /// No number before the unit.
+    #[error("duration {0:?} is not a number with an optional s/m/h unit")]
+    NotANumber(String),
+    /// A negative, NaN or infinite number.
+    #[error("duration {0:?} must be non-negative")]
+    Negative(String),
+    /// Longer than a duration can hold (about 584 billion years).
+    #[error("duration {0:?} is too long")]
+    TooLong(String),
+}
+
+/// A section line (`interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5 grid=24,16,10`)
+/// that does not describe a valid section.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SectionTextError {
+    /// The first word is not `interior` or `exterior`.
+    #[error("section must start with interior or exterior, not {0:?}")]
+    Kind(Option<String>),
+    /// A word without `=`.
+    #[error("{0:?} is not key=value")]
+    NotKeyValue(String),
+    /// A key other than origin, x, y, z and grid.
+    #[error("unknown section field {0:?} (expected origin, x, y, z, grid)")]
+    UnknownField(String),
+    /// A value that is not three comma-separated numbers.
+    #[error("{}{text} is not three comma-separated numbers", key.text_key())]
+    NotThreeNumbers {
+        /// The key.
+        key: SectionField,
+        /// Its value as written.
+        text: String,
+    },
+    /// A grid size that is not a whole number of cells.
+    #[error("grid size {0} is not a whole number of cells")]
+    GridNotWhole(f64),
+    /// A required key is missing.
+    #[error("section has no {}", missing(*.0))]
+    Missing(SectionField),
+    /// The numbers do not make a valid section; the message names the key
+    /// the problem is in, where it is in one.
+    #[error("{key}{0}", key = .0.field().map(|f| format!("{}: ", f.text_key())).unwrap_or_default())]
+    Section(SectionError),
+}
+
+impl From<SectionError> for SectionTextError {
+    fn from(e: SectionError) -> Self {
+        SectionTextError::Section(e)
+    }
+}
+
+fn missing(key: SectionField) -> String {
+    match key {
+        SectionField::Axis(_) => format!("{} axis", key.text_key()),
+        _ => key.text_key().to_string(),
+    }
+}
+
+/// A settings value that does not parse.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ValueError {
+    /// CACHE or DISKSPACE.
+    #[error(transparent)]
+    Size(#[from] SizeError),
+    /// TIME or REPORT.
+    #[error(transparent)]
+    Duration(#[from] DurationError),
+    /// SECTION (boxed: a section error holds all its numbers).
+    #[error(transparent)]
+    Section(Box<SectionTextError>),
+    /// OBSTRUCTIONS or VDISTANCE.
+    #[error("{0:?} is not a boolean (use true or false)")]
+    Bool(String),
+    /// GRID.
+    #[error("grid length {0:?} must be a positive finite number")]
+    GridLength(String),
+    /// SCENE.
+    #[error("scene identity {0:?} must be 1-256 letters, digits or :._-+/= (a content hash)")]
+    Scene(String),
+}
+
+/// A problem in settings text or a control file, with its line where known.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SettingsError {
+    /// A line could not be understood.
+    #[error("line {line}: {message}")]
+    Line {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A value on a line of settings text does not parse.
+    #[error("line {line}: {error}")]
+    Value {
+        /// 1-based line number.
+        line: usize,
+        /// Why (part of this message, not a separate cause).
+        error: ValueError,
+    },
+    /// A value of a control file (or of settings built in code) is invalid.
+    #[error("{key}: {error}")]
+    Key {
+        /// The key, as written in a control file.
+        key: &'static str,
+        /// Why (part of this message, not a separate cause).
+        error: ValueError,
+    },
+    /// A section is invalid; the message names the control file key the
+    /// problem is in (`origin`, `axes[0]`, `grid`), where it is in one.
+    #[error("section {index}{key}: {error}", key = error.field().map(|f| format!(" {}", f.toml_key())).unwrap_or_default())]
+    Section {
+        /// Index of the section.
+        index: usize,
+        /// Why (part of this message, not a separate cause).
+        error: SectionError,
+    },
+    /// The holodeck has no section.
+    #[error("no section is defined: a holodeck needs at least one (SECTION= line, or [[section]] in a control file)")]
+    NoSections,
+    /// The TOML could not be parsed.
+    #[error("{0}")]
+    Toml(String),
+}
+
+impl From<SectionTextError> for ValueError {
+    fn from(e: SectionTextError) -> Self {
+        ValueError::Section(Box::new(e))
+    }
+}
