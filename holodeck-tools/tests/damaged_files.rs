@@ -209,3 +209,26 @@ fn of_two_commands_creating_one_file_at_once_exactly_one_wins() {
         assert_eq!(hd(&["check"], &file).status.code(), Some(0));
     }
 }
+
+#[test]
+fn serve_names_the_token_file_it_cannot_write_and_leaves_nothing_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = filled(dir.path());
+    // A directory where the token file should go: no token can be written there.
+    let token = dir.path().join("room.hdk.token");
+    fs::create_dir(&token).unwrap();
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_holodeck"));
+    cmd.arg("serve").arg(&file).args(["--listen", "127.0.0.1:0"]);
+    let o = run(&mut cmd);
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(t.contains(&format!("writing the access token to {}", token.display())), "{t}");
+    let left: Vec<_> = fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    assert_eq!(hd(&["check"], &file).status.code(), Some(0));
+}
