@@ -222,7 +222,10 @@ fn serve_names_the_token_file_it_cannot_write_and_leaves_nothing_behind() {
     let o = run(&mut cmd);
     assert!(!o.status.success());
     let t = text(&o);
-    assert!(t.contains(&format!("writing the access token to {}", token.display())), "{t}");
+    assert!(
+        t.contains(&format!("writing the access token to {}", token.display())),
+        "{t}"
+    );
     let left: Vec<_> = fs::read_dir(dir.path())
         .unwrap()
         .flatten()
