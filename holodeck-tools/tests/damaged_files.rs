@@ -93,13 +93,11 @@ fn a_damaged_newest_commit_is_refused_for_writing_until_the_loss_is_accepted() {
     assert_eq!(fs::read(&file).unwrap(), bytes);
     // The salvage keeps every beam that verifies.
     let saved = dir.path().join("saved.hdk");
-    let o = Command::new(env!("CARGO_BIN_EXE_holodeck"))
+    let o = run(Command::new(env!("CARGO_BIN_EXE_holodeck"))
         .args(["check"])
         .arg(&file)
         .arg("--repair")
-        .arg(&saved)
-        .output()
-        .unwrap();
+        .arg(&saved));
     assert!(o.status.success(), "{}", text(&o));
     assert_eq!(hd(&["check"], &saved).status.code(), Some(0));
     // With consent, writing goes on from what can be read.
@@ -135,7 +133,7 @@ fn a_missing_file_cannot_be_read_which_is_not_damage_and_errors_say_each_cause_o
     assert_eq!(t.matches("No such file or directory").count(), 1, "{t}");
     // An empty file: no rays, and no absurd bytes per ray.
     let empty = dir.path().join("empty.hdk");
-    let o = Command::new(env!("CARGO_BIN_EXE_holodeck"))
+    let o = run(Command::new(env!("CARGO_BIN_EXE_holodeck"))
         .args(["create"])
         .arg(&empty)
         .args([
@@ -143,9 +141,7 @@ fn a_missing_file_cannot_be_read_which_is_not_damage_and_errors_say_each_cause_o
             "interior origin=0,0,0 x=2,0,0 y=0,2,0 z=0,0,2",
             "--grid",
             "0.5",
-        ])
-        .output()
-        .unwrap();
+        ]));
     assert!(o.status.success(), "{}", text(&o));
     let o = hd(&["info"], &empty);
     assert!(

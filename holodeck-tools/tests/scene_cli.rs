@@ -77,11 +77,11 @@ fn the_built_in_bunny_needs_no_files_from_anywhere() {
     // development tree is next to it.
     let dir = tempfile::tempdir().unwrap();
     let run = |args: &[&str]| {
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))
-            .args(args)
-            .current_dir(dir.path())
-            .output()
-            .unwrap();
+        let o = common::process::run(
+            std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))
+                .args(args)
+                .current_dir(dir.path()),
+        );
         assert!(o.status.success(), "{args:?}: {}", text(&o));
         text(&o)
     };

@@ -314,7 +314,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     assert_eq!(open(&one), "");
     let f = HoloFile::open(&p, &OpenOptions::read_only()).unwrap();
     assert!(
-        f.open_info().repaired[0].contains("settings text copy 1"),
+        f.open_info().repaired[0].contains("settings text, copy 1"),
         "{:?}",
         f.open_info()
     );

@@ -20,6 +20,8 @@ struct Plan {
     op: Op,
     /// Calls of `op` that still succeed.
     left: u64,
+    /// A call has failed.
+    failed: bool,
 }
 
 static ARMED: AtomicBool = AtomicBool::new(false);
@@ -33,6 +35,7 @@ pub fn arm(path: &Path, op: Op, after: u64) {
             path: path.to_path_buf(),
             op,
             left: after,
+            failed: false,
         });
         ARMED.store(true, Ordering::SeqCst);
     }
@@ -61,6 +64,7 @@ pub(super) fn check(path: &Path, op: Op) -> std::io::Result<()> {
     match guard.as_mut() {
         Some(p) if p.op == op && p.path == path => {
             if p.left == 0 {
+                p.failed = true;
                 return Err(std::io::Error::from_raw_os_error(libc::EIO));
             }
             p.left -= 1;

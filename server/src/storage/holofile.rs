@@ -180,7 +180,7 @@ impl HoloFile {
             let mut touched: Vec<bool> = (0..beams.len()).map(|c| self.store.chunk_changed(c)).collect();
             let mut writes = 0u64;
             for key in self.cache.dirty_keys() {
-                let c = self.store.chunk_index(key);
+                let c = self.store.chunk_of(key);
                 let total = self.beam_len(key).unwrap_or(0);
                 if self.entry(key).count == 0 {
                     filled[c] += 1;
@@ -217,7 +217,7 @@ impl HoloFile {
             0
         };
         let after = self.store.write_growth_bound(key, len + n);
-        Charge::new(self.store.chunk_index(key), len == 0, after.saturating_sub(before))
+        Charge::new(self.store.chunk_of(key), len == 0, after.saturating_sub(before))
     }
 
     /// Makes sure the file has room for `n` more rays in `key`, flushing first

@@ -63,17 +63,17 @@ fn all_keys(file: &HoloFile) -> Vec<BeamKey> {
 /// Verifies every copy of the header and metadata and every beam's checksum.
 /// `progress` receives bytes verified so far and the total.
 pub fn check(path: &Path, progress: impl FnMut(u64, u64)) -> Result<CheckReport> {
-    salvage(path, progress, |_, _| Ok(()))
+    let mut file = HoloFile::open(path, &OpenOptions::read_only())?;
+    salvage(&mut file, progress, |_, _| Ok(()))
 }
 
-/// Opens `path` for reading what can be read, and hands every beam that
-/// verifies to `keep`; reports the rest.
+/// Verifies every beam of `file` (opened for reading what can be read),
+/// handing each that verifies to `keep`; reports the rest.
 fn salvage(
-    path: &Path,
+    file: &mut HoloFile,
     mut progress: impl FnMut(u64, u64),
     mut keep: impl FnMut(BeamKey, &[holodeck_protocol::RayRecord]) -> Result<()>,
 ) -> Result<CheckReport> {
-    let mut file = HoloFile::open(path, &OpenOptions::read_only())?;
     let info = file.open_info().clone();
     let mut report = CheckReport {
         generation: info.generation,
@@ -84,7 +84,7 @@ fn salvage(
     };
     let total = file.summary().ray_bytes;
     let mut done = 0u64;
-    let mut keys = all_keys(&file);
+    let mut keys = all_keys(file);
     let mut corrupt = Vec::new();
     file.scan_disk(&mut keys, |r| {
         match r {
@@ -134,21 +134,10 @@ pub fn repair(src: &Path, dest: &Path) -> Result<RepairReport> {
             path: dest.to_path_buf(),
         });
     }
-    let settings = HoloFile::open(src, &OpenOptions::read_only())?.settings().clone();
-    let mut out = SequentialWriter::create(dest, &settings)?;
-    let mut beams = Vec::new();
-    let check = salvage(
-        src,
-        |_, _| {},
-        |key, rays| {
-            beams.push((key, rays.to_vec()));
-            Ok(())
-        },
-    )?;
-    beams.sort_by_key(|(k, _)| *k);
-    for (key, rays) in &beams {
-        out.push_beam(*key, rays)?;
-    }
+    let mut file = HoloFile::open(src, &OpenOptions::read_only())?;
+    let mut out = SequentialWriter::create(dest, file.settings())?;
+    // Beams are copied as they are read, in the source's file order.
+    let check = salvage(&mut file, |_, _| {}, |key, rays| out.push_beam(key, rays))?;
     out.finish()?;
     Ok(RepairReport {
         beams: check.beams_ok,

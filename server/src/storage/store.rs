@@ -235,7 +235,7 @@ impl Store {
             .collect();
         let repaired = !sv.repaired.is_empty() || !sv.torn.is_empty() || sv.uneven_slots.iter().any(|&u| u);
         let newest_uneven = sv.uneven_slots[sv.side];
-        let store = Store {
+        let mut store = Store {
             path: path.to_path_buf(),
             file,
             writable,
@@ -266,7 +266,6 @@ impl Store {
             poisoned: false,
             limit: u64::MAX,
         };
-        let mut store = store;
         if writable {
             store.restore_headers(&sv.settings, sv.bad_header)?;
             if store.has_changes() {
@@ -308,8 +307,8 @@ impl Store {
         self.sync()
     }
 
-    /// The chunk holding a beam.
-    fn chunk_of(&self, key: BeamKey) -> usize {
+    /// The directory chunk holding a beam.
+    pub(crate) fn chunk_of(&self, key: BeamKey) -> usize {
         self.chunk_start[key.section as usize] + (key.beam / DIR_CHUNK_BEAMS) as usize
     }
 
@@ -322,11 +321,6 @@ impl Store {
                 (c.beams, d.iter().filter(|e| e.count > 0).count() as u64)
             })
             .collect()
-    }
-
-    /// The chunk index of a beam, for the space bound.
-    pub(crate) fn chunk_index(&self, key: BeamKey) -> usize {
-        self.chunk_of(key)
     }
 
     fn push_write(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {

@@ -185,8 +185,9 @@ fn find_prefix(
 }
 
 /// Reads both header copies: the settings and the text length.
-fn read_header(file: &File, path: &Path, file_len: u64, s: &mut Findings) -> Result<(Settings, u32)> {
-    let text_len = find_prefix(file, path, file_len, &mut s.bad_header, &mut s.repaired)?.text_len;
+/// Reads both header copies of a file whose prefix gives `text_len`: the
+/// settings (from either copy of the text).
+fn read_header(file: &File, path: &Path, file_len: u64, text_len: u32, s: &mut Findings) -> Result<Settings> {
     let span = format::header_span(text_len);
     if !s.bad_header[0] {
         let second = read_part(file, path, span, format::PREFIX_LEN, file_len, "file prefix")?;
@@ -205,37 +206,33 @@ fn read_header(file: &File, path: &Path, file_len: u64, s: &mut Findings) -> Res
             }
         }
     }
-    let mut text = None;
-    let mut errors = Vec::new();
-    for copy in 0..COPIES {
-        let at = format::text_offset(text_len, copy);
-        let got = read_part(file, path, at, u64::from(text_len) + 4, file_len, "settings text")?
-            .and_then(|b| format::decode_text(&b, at));
-        match got {
-            Ok(t) if text.is_none() => text = Some(t),
-            Ok(_) => {}
-            Err(e) => {
-                s.bad_header[copy] = true;
-                errors.push(format!("copy {}: {e}", copy + 1));
-            }
-        }
+    let copies: Vec<Extent> = (0..COPIES)
+        .map(|copy| Extent {
+            offset: format::text_offset(text_len, copy),
+            len: u64::from(text_len) + 4,
+        })
+        .collect();
+    let (text, errors) = first_good_copy(file, path, &copies, file_len, "settings text", |b, e| {
+        format::decode_text(b, e.offset)
+    })?;
+    for (copy, _) in &errors {
+        s.bad_header[*copy] = true;
     }
-    let Some(text) = text else {
-        let source = FormatError::Invalid {
-            what: "settings text".into(),
-            at: format::text_offset(text_len, 0),
-            detail: format!("no copy verifies ({})", errors.join("; ")),
-        };
-        return Err(format_err(path, source));
-    };
-    for e in errors {
-        s.repaired.push(format!("settings text {e}; the other copy verifies"));
-    }
+    let text = settle(text, errors, "settings text", "settings text", &mut s.repaired).map_err(|detail| {
+        format_err(
+            path,
+            FormatError::Invalid {
+                what: "settings text".into(),
+                at: format::text_offset(text_len, 0),
+                detail,
+            },
+        )
+    })?;
     let settings = Settings::from_text(&text).map_err(|source| StorageError::Settings {
         path: path.to_path_buf(),
         source,
     })?;
-    Ok((settings, text_len))
+    Ok(settings)
 }
 
 /// Notes gathered while surveying.
@@ -338,6 +335,53 @@ fn read_slots(file: &File, path: &Path, text_len: u32, file_len: u64, s: &mut Fi
     Ok(good)
 }
 
+/// What [`first_good_copy`] found: the first copy that verifies, if any, and
+/// for each copy that does not, its index and why.
+type Copies<T> = (Option<T>, Vec<(usize, String)>);
+
+/// Reads and decodes every copy at `copies`; returns the first that
+/// verifies, and for each copy that does not, its index and why.
+fn first_good_copy<T>(
+    file: &File,
+    path: &Path,
+    copies: &[Extent],
+    file_len: u64,
+    what: &str,
+    mut decode: impl FnMut(&[u8], Extent) -> std::result::Result<T, FormatError>,
+) -> Result<Copies<T>> {
+    let mut found = None;
+    let mut errors = Vec::new();
+    // Every copy is read, even after one verified: a damaged twin is reported.
+    for (copy, &e) in copies.iter().enumerate() {
+        match read_part(file, path, e.offset, e.len, file_len, what)?.and_then(|b| decode(&b, e)) {
+            Ok(t) if found.is_none() => found = Some(t),
+            Ok(_) => {}
+            Err(err) => errors.push((copy, format!("copy {}: {err}", copy + 1))),
+        }
+    }
+    Ok((found, errors))
+}
+
+/// What [`first_good_copy`] found: the value, with a note per damaged copy
+/// (nothing lost) in `notes`; or, when no copy verifies, why, as a problem
+/// that names `lost`.
+fn settle<T>(
+    found: Option<T>,
+    errors: Vec<(usize, String)>,
+    label: &str,
+    lost: &str,
+    notes: &mut Vec<String>,
+) -> std::result::Result<T, String> {
+    let errors: Vec<String> = errors.into_iter().map(|(_, e)| e).collect();
+    match found {
+        Some(t) => {
+            notes.extend(errors.iter().map(|e| format!("{label}, {e}; the other copy verifies")));
+            Ok(t)
+        }
+        None => Err(format!("{lost}: no copy verifies ({})", errors.join("; "))),
+    }
+}
+
 /// The root of `slot`, from whichever copy verifies; records damaged copies.
 fn read_root(
     file: &File,
@@ -347,44 +391,21 @@ fn read_root(
     file_len: u64,
     notes: &mut Vec<String>,
 ) -> Result<std::result::Result<Vec<ChunkRef>, String>> {
-    let mut errors = Vec::new();
-    let mut found = None;
-    for (copy, e) in slot.root_copies().iter().enumerate() {
-        let what = format!("root of commit {} copy {}", slot.generation, copy + 1);
-        let got = read_part(file, path, e.offset, e.len, file_len, &what)?.and_then(|b| {
-            let crc = crc32c::crc32c(&b);
-            if crc != slot.root_crc {
-                return Err(FormatError::Checksum {
-                    what: what.clone(),
-                    start: e.offset,
-                    end: e.end(),
-                    stored: slot.root_crc,
-                    computed: crc,
-                });
-            }
-            format::decode_root(&b, e.offset, slot.generation, beams)
-        });
-        match got {
-            Ok(c) if found.is_none() => found = Some(c),
-            Ok(_) => {}
-            Err(e) => errors.push(format!("copy {}: {e}", copy + 1)),
+    let label = format!("root of commit {}", slot.generation);
+    let (found, errors) = first_good_copy(file, path, &slot.root_copies(), file_len, &label, |b, e| {
+        let computed = crc32c::crc32c(b);
+        if computed != slot.root_crc {
+            return Err(FormatError::Checksum {
+                what: label.clone(),
+                start: e.offset,
+                end: e.end(),
+                stored: slot.root_crc,
+                computed,
+            });
         }
-    }
-    match found {
-        Some(chunks) => {
-            notes.extend(
-                errors
-                    .into_iter()
-                    .map(|e| format!("root of commit {}, {e}; the other copy verifies", slot.generation)),
-            );
-            Ok(Ok(chunks))
-        }
-        None => Ok(Err(format!(
-            "root of commit {}: no copy verifies ({})",
-            slot.generation,
-            errors.join("; ")
-        ))),
-    }
+        format::decode_root(b, e.offset, slot.generation, beams)
+    })?;
+    Ok(settle(found, errors, &label, &label, notes))
 }
 
 /// The entries of one chunk, from whichever copy of its block verifies.
@@ -396,48 +417,27 @@ fn read_chunk(
     file_len: u64,
     notes: &mut Vec<String>,
 ) -> Result<std::result::Result<Vec<BeamEntry>, String>> {
-    let mut errors = Vec::new();
-    let mut found = None;
-    let too_long = c.len > format::max_directory_len(c.beams);
-    for (copy, e) in c.extents().iter().enumerate() {
-        let what = format!(
-            "directory of section {} beams {}..{}",
-            c.section,
-            c.first,
-            c.first + c.beams
-        );
-        let got = if too_long {
-            Err(FormatError::Invalid {
-                what,
-                at: e.offset,
-                detail: format!("a block of {} bytes is too long for {} beams", c.len, c.beams),
-            })
-        } else {
-            read_part(file, path, e.offset, e.len, file_len, &what)?
-                .and_then(|b| format::decode_directory(&b, e.offset, c.section, c.first, c.beams, data_start))
-        };
-        match got {
-            Ok(d) if found.is_none() => found = Some(d),
-            Ok(_) => {}
-            Err(e) => errors.push(format!("copy {}: {e}", copy + 1)),
-        }
-    }
-    let range = format!("section {} beams {}..{}", c.section, c.first, c.first + c.beams);
-    match found {
-        Some(d) => {
-            notes.extend(
-                errors
-                    .into_iter()
-                    .map(|e| format!("directory of {range}, {e}; the other copy verifies")),
-            );
-            Ok(Ok(d))
-        }
-        None => Ok(Err(format!(
-            "directory of {range} ({} rays): no copy verifies ({})",
-            c.rays,
-            errors.join("; ")
-        ))),
-    }
+    let label = format!(
+        "directory of section {} beams {}..{}",
+        c.section,
+        c.first,
+        c.first + c.beams
+    );
+    let (found, errors) = if c.len > format::max_directory_len(c.beams) {
+        let why = format!("a block of {} bytes is too long for {} beams", c.len, c.beams);
+        (None, vec![(0, why)])
+    } else {
+        first_good_copy(file, path, &c.extents(), file_len, &label, |b, e| {
+            format::decode_directory(b, e.offset, c.section, c.first, c.beams, data_start)
+        })?
+    };
+    Ok(settle(
+        found,
+        errors,
+        &label,
+        &format!("{label} ({} rays)", c.rays),
+        notes,
+    ))
 }
 
 /// Who claims some bytes, in the order that wins an overlap.
@@ -454,11 +454,12 @@ enum Claim {
 pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
     let file_len = io::file_len(file, path)?;
     let mut f = Findings::default();
-    let prefix = find_prefix(file, path, file_len, &mut [false; COPIES], &mut Vec::new())?;
+    let prefix = find_prefix(file, path, file_len, &mut f.bad_header, &mut f.repaired)?;
     if prefix.version < format::FORMAT_VERSION {
         return super::legacy::survey_v1(file, path, file_len, prefix.text_len);
     }
-    let (settings, text_len) = read_header(file, path, file_len, &mut f)?;
+    let text_len = prefix.text_len;
+    let settings = read_header(file, path, file_len, text_len, &mut f)?;
     let data_start = format::data_start(text_len);
     let beams: Vec<u32> = settings.sections.iter().map(|s| s.beam_count()).collect();
     let slots = read_slots(file, path, text_len, file_len, &mut f)?;
