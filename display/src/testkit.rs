@@ -167,3 +167,136 @@ pub(crate) fn time_driver(make: impl Fn(Viewport) -> Box<dyn Driver>) {
 pub(crate) fn rmse(a: &Picture, b: &Picture) -> f64 {
     a.mse(b).unwrap().sqrt()
 }
+
+/// The process's GPU (a real one or Mesa's lavapipe). Without one the
+/// GPU tests fail, saying what to install: they never pass silently.
+pub(crate) fn gpu() -> std::sync::Arc<crate::gpu::GpuContext> {
+    match crate::gpu::GpuContext::shared() {
+        Ok(g) => g,
+        Err(e) => panic!("the GPU tests need a GPU or Mesa's software Vulkan: {e}"),
+    }
+}
+
+/// The radiance of the occluder of [`occluded_scene`].
+pub(crate) const OCCLUDER_COLOR: [f32; 3] = [1.5, 0.1, 0.05];
+
+/// The test plane with a square occluder in front of it, 2 m from the
+/// eye (x in -0.6..0.6, z in -0.45..0.45 at y = 2): the nearest hit of a ray.
+pub(crate) fn occluded_hit(origin: DVec3, dir: DVec3) -> Option<(DVec3, [f32; 3])> {
+    if dir.y > 1e-9 {
+        let t = (2.0 - origin.y) / dir.y;
+        let p = origin + dir * t;
+        if t > 0.0 && p.x.abs() <= 0.6 && p.z.abs() <= 0.45 {
+            return Some((p, OCCLUDER_COLOR));
+        }
+    }
+    hit_plane(origin, dir).map(|p| (p, plane_color(p)))
+}
+
+/// The occluded scene's triangles (occluder and a large piece of plane).
+pub(crate) fn occluded_triangles() -> Vec<[glam::Vec3; 3]> {
+    use glam::Vec3;
+    let quad = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [[a, b, c], [a, c, d]];
+    let mut t = Vec::new();
+    t.extend(quad(
+        Vec3::new(-0.6, 2.0, -0.45),
+        Vec3::new(0.6, 2.0, -0.45),
+        Vec3::new(0.6, 2.0, 0.45),
+        Vec3::new(-0.6, 2.0, 0.45),
+    ));
+    let p = |x: f32, z: f32| Vec3::new(x, 4.0 + 0.3 * x, z);
+    t.extend(quad(p(-20.0, -20.0), p(20.0, -20.0), p(20.0, 20.0), p(-20.0, 20.0)));
+    t
+}
+
+/// The occluded scene as the eye sees it through each pixel center.
+pub(crate) fn occluded_truth(vp: &Viewport) -> Picture {
+    let (w, h) = (vp.width as usize, vp.height as usize);
+    let mut pixels = Vec::with_capacity(w * h);
+    for row in 0..h {
+        for col in 0..w {
+            let (x, y) = ((col as f64 + 0.5) / w as f64, 1.0 - (row as f64 + 0.5) / h as f64);
+            let c = vp
+                .view
+                .ray(x, y)
+                .and_then(|(o, d)| occluded_hit(o, d))
+                .map_or([0.0; 3], |h| h.1);
+            pixels.push(glam::Vec3::from_array(c));
+        }
+    }
+    Picture {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+/// `n` samples of the occluded scene: rays from points up to `spread`
+/// beside the eye through random image points, so some of them hit the
+/// plane behind the occluder's edge (the paper's multidepth samples).
+pub(crate) fn occluded_samples(view: &View, n: usize, spread: f64, seed: u64) -> Vec<Sample> {
+    let mut rng = Rng(seed | 1);
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let (x, y) = (rng.next(), rng.next());
+        let Some((eye, dir)) = view.ray(x, y) else { continue };
+        let origin = eye + DVec3::new(rng.next() - 0.5, 0.0, rng.next() - 0.5) * spread;
+        // Aim at what the eye's ray would hit on the plane, from beside it.
+        let Some(target) = hit_plane(eye, dir) else { continue };
+        let d = (target - origin).normalize();
+        if let Some((hit, color)) = occluded_hit(origin, d) {
+            out.push(Sample {
+                origin,
+                direction: d,
+                hit: Some(hit),
+                color,
+            });
+        }
+    }
+    out
+}
+
+/// Pixels within `radius` of a place where the truth changes by more than
+/// `step` in luminance: the band around silhouettes.
+pub(crate) fn edge_band(truth: &Picture, radius: usize, step: f32) -> Vec<bool> {
+    let (w, h) = (truth.width, truth.height);
+    let lum = |i: usize| {
+        let c = truth.pixels[i];
+        0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    };
+    let mut edge = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let right = x + 1 < w && (lum(i) - lum(i + 1)).abs() > step;
+            let down = y + 1 < h && (lum(i) - lum(i + w)).abs() > step;
+            edge[i] = right || down;
+        }
+    }
+    let mut band = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            if edge[y * w + x] {
+                for yy in y.saturating_sub(radius)..=(y + radius).min(h - 1) {
+                    for xx in x.saturating_sub(radius)..=(x + radius).min(w - 1) {
+                        band[yy * w + xx] = true;
+                    }
+                }
+            }
+        }
+    }
+    band
+}
+
+/// Root-mean-square difference per channel over the pixels in `mask`.
+pub(crate) fn masked_rmse(a: &Picture, b: &Picture, mask: &[bool]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for ((p, q), &m) in a.pixels.iter().zip(&b.pixels).zip(mask) {
+        if m {
+            let d = *p - *q;
+            sum += f64::from(d.dot(d));
+            n += 3;
+        }
+    }
+    (sum / n.max(1) as f64).sqrt()
+}

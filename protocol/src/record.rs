@@ -54,7 +54,7 @@ impl RayRecord {
     }
     /// Copies records out of bytes; `None` unless the length is a multiple of 10.
     pub fn vec_from_bytes(bytes: &[u8]) -> Option<Vec<RayRecord>> {
-        if bytes.len() % RAY_RECORD_BYTES != 0 {
+        if !bytes.len().is_multiple_of(RAY_RECORD_BYTES) {
             return None;
         }
         Some(

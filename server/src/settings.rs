@@ -99,7 +99,7 @@ pub fn parse_size(s: &str) -> Result<u64, SizeError> {
 /// Formats a byte size compactly, exactly (`64M`, `1536K`, `1000`).
 pub fn format_size(bytes: u64) -> String {
     for (unit, shift) in [("T", 40), ("G", 30), ("M", 20), ("K", 10)] {
-        if bytes != 0 && bytes % (1u64 << shift) == 0 {
+        if bytes != 0 && bytes.is_multiple_of(1u64 << shift) {
             return format!("{}{unit}", bytes >> shift);
         }
     }

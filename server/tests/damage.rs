@@ -68,7 +68,7 @@ fn every_single_bit_flip_in_metadata_is_detected_and_loses_nothing() {
                 assert_eq!(report.rays_ok, total, "{where_}: rays lost");
                 // Every eighth flip: a writable open needs no consent, and
                 // restores the damaged copy so the file checks clean again.
-                if flips % 8 == 0 {
+                if flips.is_multiple_of(8) {
                     HoloFile::open(&bad, &writable())
                         .unwrap_or_else(|e| panic!("{where_}: {e}"))
                         .close()

@@ -102,7 +102,7 @@ fn fill(limit: u64, cache: u64, flush_every: u64, seed: u64) -> (f64, f64) {
             "{} bytes on disk, bound {bound}",
             disk_len(&path)
         );
-        if appends % flush_every == 0 {
+        if appends.is_multiple_of(flush_every) {
             f.flush().unwrap();
             assert!(disk_len(&path) <= limit);
         }

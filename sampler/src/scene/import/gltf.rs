@@ -141,7 +141,7 @@ impl Context<'_, '_> {
                 }
                 None => (0..positions.len() as u32).collect(),
             };
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 return Err(parse_error(
                     self.path,
                     format!("{what}: {} indices is not a triangle list", indices.len()),

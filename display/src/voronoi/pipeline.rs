@@ -1,0 +1,401 @@
+//! The Voronoi driver's GPU side: the geometry distance pass and the cone
+//! pass, their buffers and targets.
+
+use std::sync::Arc;
+
+use wgpu::util::DeviceExt;
+
+use super::cones::{Cone, FANS};
+use crate::geometry::Geometry;
+use crate::gpu::target::{COLOR_FORMAT, DEPTH_FORMAT, DISTANCE_FORMAT};
+use crate::gpu::view::PROJECT_WGSL;
+use crate::gpu::{GpuContext, GpuError, Target, TargetKind, ViewUniform};
+
+/// The cone pass's constants.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct ConeUniform {
+    size: [f32; 4],
+    params: [f32; 4],
+}
+
+/// What one frame of cones is drawn from.
+#[derive(Clone, Copy, Debug)]
+pub struct ConeFrame<'a> {
+    /// The view (for the geometry pass).
+    pub viewport: &'a crate::Viewport,
+    /// Target width in pixels.
+    pub width: u32,
+    /// Target height in pixels.
+    pub height: u32,
+    /// The cones, ordered by fan size.
+    pub cones: &'a [Cone],
+    /// How many cones each fan size has.
+    pub by_fan: [u32; 4],
+    /// Relative depth tolerance of the culling.
+    pub tolerance: f32,
+    /// The largest cone radius (sets the depth scale).
+    pub largest: f32,
+}
+
+/// Scene geometry on the GPU.
+#[derive(Debug)]
+struct GeometryBuffers {
+    vertices: wgpu::Buffer,
+    count: u32,
+    origin: glam::DVec3,
+}
+
+/// Targets of one frame size.
+#[derive(Debug)]
+struct Frame {
+    color: Target,
+    distance: Target,
+    cone_bind: wgpu::BindGroup,
+}
+
+/// Pipelines, buffers and targets of a Voronoi driver.
+#[derive(Debug)]
+pub struct ConePipeline {
+    gpu: Arc<GpuContext>,
+    cones: wgpu::RenderPipeline,
+    cone_layout: wgpu::BindGroupLayout,
+    cone_uniform: wgpu::Buffer,
+    geometry_pipeline: wgpu::RenderPipeline,
+    geometry_bind: wgpu::BindGroup,
+    view_uniform: wgpu::Buffer,
+    geometry: Option<GeometryBuffers>,
+    instances: wgpu::Buffer,
+    frame: Option<Frame>,
+}
+
+impl ConePipeline {
+    /// Pipelines on `gpu`, with `geometry` uploaded when given.
+    pub fn new(gpu: Arc<GpuContext>, geometry: Option<&Geometry>) -> ConePipeline {
+        let device = &gpu.device;
+        let cone_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("voronoi cones"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("cones.wgsl").into()),
+        });
+        let geometry_source = format!("{PROJECT_WGSL}\n{}", include_str!("geometry.wgsl"));
+        let geometry_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("voronoi geometry"),
+            source: wgpu::ShaderSource::Wgsl(geometry_source.into()),
+        });
+        let cone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cones"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let view_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("view"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let cone_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cone constants"),
+            size: std::mem::size_of::<ConeUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let view_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("view"),
+            size: std::mem::size_of::<ViewUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let geometry_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("view"),
+            layout: &view_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: view_uniform.as_entire_binding(),
+            }],
+        });
+        let cone_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cones"),
+            bind_group_layouts: &[Some(&cone_layout)],
+            immediate_size: 0,
+        });
+        let geometry_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("geometry"),
+            bind_group_layouts: &[Some(&view_layout)],
+            immediate_size: 0,
+        });
+        let cone_attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4];
+        let cones = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("cones"),
+            layout: Some(&cone_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &cone_module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Cone>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &cone_attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &cone_module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(COLOR_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let geometry_attributes = wgpu::vertex_attr_array![0 => Float32x3];
+        let geometry_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("geometry distances"),
+            layout: Some(&geometry_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &geometry_module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 12,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &geometry_attributes,
+                })],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &geometry_module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(DISTANCE_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let geometry = geometry.filter(|g| !g.triangles.is_empty()).map(|g| {
+            let flat: Vec<[f32; 3]> = g.triangles.iter().flatten().map(|p| p.to_array()).collect();
+            GeometryBuffers {
+                vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("scene geometry"),
+                    contents: bytemuck::cast_slice(&flat),
+                    usage: wgpu::BufferUsages::VERTEX,
+                }),
+                count: flat.len() as u32,
+                origin: g.origin,
+            }
+        });
+        let instances = instance_buffer(device, 1 << 12);
+        ConePipeline {
+            cones,
+            cone_layout,
+            cone_uniform,
+            geometry_pipeline,
+            geometry_bind,
+            view_uniform,
+            geometry,
+            instances,
+            frame: None,
+            gpu,
+        }
+    }
+
+    /// True when scene geometry culls the estimates.
+    pub fn has_geometry(&self) -> bool {
+        self.geometry.is_some()
+    }
+
+    /// Draws `frame`'s cones and reads the frame back as RGBA floats.
+    pub fn draw(&mut self, frame: &ConeFrame<'_>) -> Result<Vec<f32>, GpuError> {
+        let ConeFrame {
+            viewport,
+            width,
+            height,
+            cones,
+            by_fan,
+            tolerance,
+            largest,
+        } = *frame;
+        let gpu = Arc::clone(&self.gpu);
+        let (device, queue) = (&gpu.device, &gpu.queue);
+        if self
+            .frame
+            .as_ref()
+            .is_none_or(|f| f.color.width != width || f.color.height != height)
+        {
+            let color = Target::new(&gpu, width, height, TargetKind::Color);
+            let distance = Target::new(&gpu, width, height, TargetKind::Distance);
+            let cone_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("cones"),
+                layout: &self.cone_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.cone_uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(&distance.color_view),
+                    },
+                ],
+            });
+            self.frame = Some(Frame {
+                color,
+                distance,
+                cone_bind,
+            });
+        }
+        let bytes = std::mem::size_of_val(cones) as u64;
+        if bytes > self.instances.size() {
+            self.instances = instance_buffer(device, (bytes / std::mem::size_of::<Cone>() as u64).next_power_of_two());
+        }
+        if !cones.is_empty() {
+            queue.write_buffer(&self.instances, 0, bytemuck::cast_slice(cones));
+        }
+        let culling = self.geometry.is_some();
+        let uniform = ConeUniform {
+            size: [
+                width as f32,
+                height as f32,
+                largest * 1.5 + 8.0,
+                if culling { 1.0 } else { 0.0 },
+            ],
+            params: [tolerance, 0.0, 0.0, 0.0],
+        };
+        queue.write_buffer(&self.cone_uniform, 0, bytemuck::bytes_of(&uniform));
+        let Some(frame) = self.frame.as_ref() else {
+            return Err(GpuError::Readback("no frame".into()));
+        };
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voronoi") });
+        {
+            // The distance pass runs without geometry too: it clears the
+            // texture the cone pass binds to "no geometry here".
+            if let Some(g) = &self.geometry {
+                let view = ViewUniform::new(viewport, g.origin, width, height);
+                queue.write_buffer(&self.view_uniform, 0, bytemuck::bytes_of(&view));
+            }
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("geometry distances"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &frame.distance.color_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: -1.0,
+                            g: 0.0,
+                            b: 0.0,
+                            a: 0.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &frame.distance.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if let Some(g) = &self.geometry {
+                pass.set_pipeline(&self.geometry_pipeline);
+                pass.set_bind_group(0, &self.geometry_bind, &[]);
+                pass.set_vertex_buffer(0, g.vertices.slice(..));
+                pass.draw(0..g.count, 0..1);
+            }
+        }
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("cones"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &frame.color.color_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &frame.color.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.cones);
+            pass.set_bind_group(0, &frame.cone_bind, &[]);
+            pass.set_vertex_buffer(0, self.instances.slice(..));
+            let mut first = 0u32;
+            for (fan, &n) in FANS.iter().zip(&by_fan) {
+                if n > 0 {
+                    pass.draw(0..fan * 3, first..first + n);
+                }
+                first += n;
+            }
+        }
+        frame.color.copy_out(&mut encoder);
+        queue.submit([encoder.finish()]);
+        frame.color.read(&gpu)
+    }
+}
+
+fn instance_buffer(device: &wgpu::Device, cones: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("cones"),
+        size: cones.max(1) * std::mem::size_of::<Cone>() as u64,
+        usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
