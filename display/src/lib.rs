@@ -14,11 +14,13 @@ pub mod driver;
 pub mod geometry;
 pub mod gpu;
 pub mod image_io;
+pub mod mesh;
 pub mod output;
 pub mod project;
 pub mod quadtree;
 pub mod request;
 pub mod sample;
+pub mod sphere;
 pub mod splat;
 pub mod store;
 #[cfg(test)]
@@ -86,8 +88,7 @@ pub fn make_driver(name: &str, viewport: Viewport, setup: DriverSetup<'_>) -> Re
         }
         "mesh" => {
             let gpu = gpu::GpuContext::shared().map_err(|e| DriverError::Gpu(e.to_string()))?;
-            let _ = gpu;
-            Err(DriverError::Unknown("mesh".into())) // MESH-PENDING
+            Ok(Box::new(mesh::MeshDriver::new(gpu, viewport, options)))
         }
         _ => Err(DriverError::Unknown(name.to_string())),
     }

@@ -194,6 +194,48 @@ pub fn downsample(rgba: &[f32], width: u32, height: u32, sub: u32) -> Picture {
     }
 }
 
+/// Gives every pixel that nothing was drawn on (alpha 0) the value of the
+/// nearest pixel that was (4-connected distance, breadth-first from all
+/// drawn pixels at once), as the quadtree fills its empty leaves: the
+/// regions past the outermost samples (outside the mesh's hull, beyond the
+/// largest cones) show the nearest sample instead of black. Filled pixels
+/// get alpha 0.5. A frame with nothing drawn stays black.
+pub fn fill_holes(rgba: &mut [f32], width: u32, height: u32) {
+    let (w, h) = (width as usize, height as usize);
+    if rgba.len() < w * h * 4 {
+        return;
+    }
+    let mut queue: std::collections::VecDeque<usize> = (0..w * h).filter(|&i| rgba[i * 4 + 3] > 0.0).collect();
+    if queue.is_empty() || queue.len() == w * h {
+        return;
+    }
+    while let Some(i) = queue.pop_front() {
+        let (x, y) = (i % w, i / w);
+        let mut visit = |j: usize| {
+            if rgba[j * 4 + 3] == 0.0 {
+                let (src, dst) = (i * 4, j * 4);
+                for c in 0..3 {
+                    rgba[dst + c] = rgba[src + c];
+                }
+                rgba[dst + 3] = 0.5;
+                queue.push_back(j);
+            }
+        };
+        if x > 0 {
+            visit(i - 1);
+        }
+        if x + 1 < w {
+            visit(i + 1);
+        }
+        if y > 0 {
+            visit(i - w);
+        }
+        if y + 1 < h {
+            visit(i + w);
+        }
+    }
+}
+
 /// An all-black picture: what a GPU driver shows when its frame could not
 /// be drawn (the error is logged).
 pub fn black(width: u32, height: u32) -> Picture {

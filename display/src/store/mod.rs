@@ -85,7 +85,13 @@ struct Aggregate {
     point: DVec3,
     escaped: bool,
     estimate: Estimate,
+    /// The slot it had before the view change ([`NO_SLOT`] when parked).
+    from: u32,
 }
+
+/// "No slot": in [`Store::moved_from`], an estimate that was not on the
+/// frame before the last view change.
+pub const NO_SLOT: u32 = u32::MAX;
 
 /// A projected ray waiting in a batch: everything insertion needs, so that
 /// inserting in index order never reads the rays out of order.
@@ -153,6 +159,9 @@ pub struct Store<I> {
     /// The nearest depth of any estimate or ray in each pixel, by the
     /// index's block numbers ([`PixelIndex::block`]).
     near: Vec<f32>,
+    /// For each slot made by the last view change, the slot its estimate
+    /// had before (see [`Store::moved_from`]).
+    moved_from: Vec<u32>,
 }
 
 /// What [`Store::update_colors`] works in: kept between frames.
@@ -191,6 +200,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             spare: Vec::new(),
             frame: FrameScratch::default(),
             near,
+            moved_from: Vec::new(),
         }
     }
 
@@ -213,6 +223,15 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// The estimates, by slot.
     pub fn entries(&self) -> &[Entry] {
         &self.entries
+    }
+
+    /// For each slot the last [`Store::set_view`] made, the slot the same
+    /// estimate had before it, or [`NO_SLOT`] (it was parked off the
+    /// frame). Slots made by later [`Store::add`] calls are past its end.
+    /// Drivers that keep their own per-estimate state (the mesh) carry it
+    /// across a view change with this instead of rebuilding it.
+    pub fn moved_from(&self) -> &[u32] {
+        &self.moved_from
     }
 
     /// How rays combine.
@@ -244,7 +263,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             + self.frame.colors.capacity() * std::mem::size_of::<Vec3>()
             + self.frame.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
             + (self.frame.sums.capacity() + self.frame.across.capacity()) * std::mem::size_of::<[f32; 2]>()
-            + self.near.capacity() * std::mem::size_of::<f32>()
+            + (self.near.capacity() + self.moved_from.capacity()) * std::mem::size_of::<f32>()
     }
 
     /// Adds rays: the body of [`crate::Driver::add`].
@@ -425,7 +444,7 @@ impl<I: PixelIndex + Sync> Store<I> {
         // Visible estimates first, so the most recently seen are parked
         // first when the limit bites.
         let (index, entries, ratio) = (&self.index, &self.entries, self.options.firefly_ratio);
-        let aggregate = |e: &Entry| -> Option<Aggregate> {
+        let aggregate = |(slot, e): (usize, &Entry)| -> Option<Aggregate> {
             let (col, row) = index.pixel(e.key);
             let (origin, dir) = old.ray(col, row, e.estimate.centroid())?;
             let depth = e.estimate.depth();
@@ -437,25 +456,31 @@ impl<I: PixelIndex + Sync> Store<I> {
                     point: origin + dir * f64::from(depth),
                     escaped: false,
                     estimate,
+                    from: slot as u32,
                 }
             } else {
                 Aggregate {
                     point: dir,
                     escaped: true,
                     estimate,
+                    from: slot as u32,
                 }
             })
         };
         let mut moving: Vec<Aggregate> = if entries.len() >= PARALLEL_MIN {
-            entries.par_iter().filter_map(aggregate).collect()
+            entries.par_iter().enumerate().filter_map(aggregate).collect()
         } else {
-            entries.iter().filter_map(aggregate).collect()
+            entries.iter().enumerate().filter_map(aggregate).collect()
         };
+        for p in &mut self.parked {
+            p.from = NO_SLOT;
+        }
         moving.append(&mut self.parked);
         self.viewport = viewport;
         self.index.reset(grid.width, grid.height);
         self.grid = grid;
         self.entries.clear();
+        self.moved_from.clear();
         if turn > CACHE_DROP_DEGREES {
             if !moving.is_empty() {
                 self.stats.cache_drops += 1;
@@ -508,6 +533,7 @@ impl<I: PixelIndex + Sync> Store<I> {
                         key,
                         estimate: incoming,
                     });
+                    self.moved_from.push(moving[i as usize].from);
                     self.index.fill(at, slot);
                 }
                 Spot::Taken(slot) => {
@@ -515,7 +541,10 @@ impl<I: PixelIndex + Sync> Store<I> {
                     let (near, far) = incoming.depth_range();
                     match e.fit(near, far, tolerance) {
                         Fit::Joins => e.merge(&incoming),
-                        Fit::Nearer => *e = incoming,
+                        Fit::Nearer => {
+                            *e = incoming;
+                            self.moved_from[slot as usize] = moving[i as usize].from;
+                        }
                         Fit::Behind => {}
                     }
                 }
@@ -526,6 +555,7 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// Forgets every estimate; the counters of what was seen stay.
     pub fn clear(&mut self) {
         self.entries.clear();
+        self.moved_from.clear();
         self.parked.clear();
         self.index.reset(self.grid.width, self.grid.height);
         self.rebuild_near();

@@ -22,7 +22,7 @@ use holodeck_protocol::Picture;
 
 use crate::driver::{Driver, DriverStats, Viewport};
 use crate::geometry::Geometry;
-use crate::gpu::target::{black, downsample};
+use crate::gpu::target::{black, downsample, fill_holes};
 use crate::gpu::GpuContext;
 use crate::sample::Sample;
 use crate::splat::Grid;
@@ -116,7 +116,10 @@ impl Driver for VoronoiDriver {
             largest,
         };
         match self.pipeline.draw(&frame) {
-            Ok(rgba) => downsample(&rgba, vp.width, vp.height, sub),
+            Ok(mut rgba) => {
+                fill_holes(&mut rgba, gw, gh);
+                downsample(&rgba, vp.width, vp.height, sub)
+            }
             Err(e) => {
                 tracing::error!("voronoi: {e}");
                 black(vp.width, vp.height)

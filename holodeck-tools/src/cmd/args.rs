@@ -6,7 +6,8 @@ use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use holodeck_display::EstimatorOptions;
+use holodeck_display::geometry::{Geometry, DEFAULT_BUDGET};
+use holodeck_display::{make_driver, Driver, DriverSetup, EstimatorOptions, Viewport};
 use holodeck_protocol::{check_picture_size, MAX_PICTURE_SIDE};
 
 /// Pixels along one side of a picture (the whole picture is checked by
@@ -96,14 +97,86 @@ pub struct FrameArgs {
     /// Frame height.
     #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     pub height: u32,
-    /// Display driver: quadtree, or splat (plain points, the baseline).
+    /// Display driver: quadtree (CPU), splat (plain points, the baseline), voronoi (GPU
+    /// cones) or mesh (GPU spherical Delaunay mesh). The GPU drivers run on Mesa's software
+    /// Vulkan where there is no GPU.
     #[arg(long, default_value = "quadtree")]
     pub driver: String,
+    /// Scene whose geometry the voronoi driver culls samples by and stops cones at
+    /// (a scene file or builtin:NAME; the scene the holodeck was filled from).
+    #[arg(long, value_name = "SCENE")]
+    pub geometry: Option<String>,
+    /// Most triangles of --geometry drawn: larger scenes are simplified to it.
+    #[arg(long, default_value_t = DEFAULT_BUDGET as u64, value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
+    pub geometry_budget: u64,
     /// Tone mapping for PNG: camera, human, exposure:X or exposure:auto.
     #[arg(long, default_value = "camera")]
     pub tone: String,
     #[command(flatten)]
     pub estimator: EstimatorArgs,
+}
+
+impl FrameArgs {
+    /// The driver these flags choose, with its geometry loaded.
+    pub fn driver_choice(&self) -> Result<DriverChoice> {
+        let geometry = match &self.geometry {
+            Some(spec) => Some(std::sync::Arc::new(load_geometry(spec, self.geometry_budget as usize)?)),
+            None => None,
+        };
+        Ok(DriverChoice {
+            name: self.driver.clone(),
+            options: self.estimator.options()?,
+            geometry,
+        })
+    }
+}
+
+/// Loads a scene's triangles for a display, simplified to `budget`.
+pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
+    let scene = super::render::load(spec, None)?;
+    let triangles: Vec<[glam::Vec3; 3]> = (0..scene.triangles.len()).map(|t| scene.vertices(t)).collect();
+    let g = Geometry::new(&triangles, budget, None);
+    tracing::info!(
+        "display geometry: {} of {} triangles of {spec}",
+        g.triangles.len(),
+        g.source_triangles
+    );
+    Ok(g)
+}
+
+/// A display driver as chosen on the command line: its name, how it
+/// combines rays and the scene geometry it may cull by.
+#[derive(Clone, Debug)]
+pub struct DriverChoice {
+    /// The driver's name.
+    pub name: String,
+    /// How pixels combine rays.
+    pub options: EstimatorOptions,
+    /// Simplified scene geometry, for the Voronoi driver.
+    pub geometry: Option<std::sync::Arc<Geometry>>,
+}
+
+impl DriverChoice {
+    /// The driver `name` with `options` and no geometry.
+    pub fn plain(name: &str, options: EstimatorOptions) -> DriverChoice {
+        DriverChoice {
+            name: name.to_string(),
+            options,
+            geometry: None,
+        }
+    }
+
+    /// Makes a fresh driver for `viewport`.
+    pub fn make(&self, viewport: Viewport) -> Result<Box<dyn Driver>> {
+        Ok(make_driver(
+            &self.name,
+            viewport,
+            DriverSetup {
+                options: self.options,
+                geometry: self.geometry.as_deref(),
+            },
+        )?)
+    }
 }
 
 /// How a display combines the rays of a pixel (see docs/DISPLAY.md).

@@ -180,7 +180,13 @@ impl AccuracyBench {
             )),
         };
         fill(tracer, &mut file, &o, &|_| {})?;
-        let (picture, _, _) = super::pict::draw(&mut file, self.viewport(view)?, "quadtree", self.estimator, 2, seed)?;
+        let (picture, _, _) = super::pict::draw(
+            &mut file,
+            self.viewport(view)?,
+            &super::args::DriverChoice::plain("quadtree", self.estimator),
+            2,
+            seed,
+        )?;
         let secs = start.elapsed().as_secs_f64();
         file.close()?;
         if !self.keep {

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use glam::DVec3;
-use holodeck_display::{new_driver, Sample, Viewport};
+use holodeck_display::{new_driver, Driver, Sample, Viewport};
 use holodeck_protocol::{BeamKey, View};
 use holodeck_sampler::shade::Rng;
 use holodeck_sampler::{TraceOptions, Tracer};
@@ -79,6 +79,81 @@ fn time_driver(name: &str, viewport: &Viewport, samples: &[Sample], batch: usize
     ))
 }
 
+/// A driver holding `samples`, its best frame time (ms) of three, and the
+/// time (ms) from a 5-degree turn to the complete frame.
+fn frame_and_turn(name: &str, viewport: &Viewport, samples: &[Sample]) -> Result<(Box<dyn Driver>, f64, f64)> {
+    let mut d = new_driver(name, viewport.clone())?;
+    d.add(samples);
+    // The first frame pays for pipelines and buffers.
+    std::hint::black_box(d.render());
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let start = Instant::now();
+        std::hint::black_box(d.render());
+        best = best.min(start.elapsed().as_secs_f64() * 1e3);
+    }
+    let mut turned = viewport.view.clone();
+    let (right, _) = turned.basis();
+    turned.direction = (turned.direction.normalize() + right * 5f64.to_radians().tan()).normalize();
+    let start = Instant::now();
+    d.set_view(Viewport::new(turned, viewport.width, viewport.height)?);
+    std::hint::black_box(d.render());
+    let turn = start.elapsed().as_secs_f64() * 1e3;
+    Ok((d, best, turn))
+}
+
+/// The GPU drivers against the quadtree on the same samples: frame time,
+/// cones per second, mesh insertions, and a view change to a full frame.
+fn gpu_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
+    let gpu = holodeck_display::gpu::GpuContext::shared()?;
+    eprintln!("GPU drivers on {}", gpu.describe());
+    let (_, q_frame, q_turn) = frame_and_turn("quadtree", viewport, samples)?;
+    let n = count(samples.len() as u64);
+    for name in ["voronoi", "mesh"] {
+        let (d, frame, turn) = frame_and_turn(name, viewport, samples)?;
+        let kept = d.stats().kept;
+        row(
+            &format!(
+                "{name}: frame at 1024x768 with {n} samples ({} estimates), {}",
+                count(kept),
+                gpu.describe()
+            ),
+            format!("{frame:.1} ms"),
+            format!("quadtree {q_frame:.1} ms"),
+            frame / q_frame,
+        );
+        row(
+            &format!("{name}: 5-degree turn to a complete frame from cached samples"),
+            format!("{turn:.1} ms"),
+            format!("quadtree {q_turn:.1} ms"),
+            turn / q_turn,
+        );
+        if name == "voronoi" {
+            row(
+                "voronoi: cones drawn per second (one cone per estimate, frame above)",
+                format!("{:.2} M/s", kept as f64 / frame * 1e-3),
+                format!("quadtree estimates per second {:.2} M/s", kept as f64 / q_frame * 1e-3),
+                q_frame / frame,
+            );
+        }
+    }
+    let (random, stats) = holodeck_display::sphere::bench_insertions(1_000_000, false, 1);
+    let (coherent, _) = holodeck_display::sphere::bench_insertions(1_000_000, true, 1);
+    row(
+        &format!(
+            "mesh: spherical Delaunay insertions per second, one core, 1M random directions ({:.2} flips each)",
+            stats.flips_per_insertion()
+        ),
+        format!("{:.2} M/s", 1.0 / random),
+        format!(
+            "the same in frame order {:.2} M/s; the paper's O2 0.01 M/s",
+            1.0 / coherent
+        ),
+        coherent / random,
+    );
+    Ok(())
+}
+
 fn row(what: &str, result: String, baseline: String, ratio: f64) {
     println!("| {what} | {result} | {baseline} | {ratio:.2} |");
 }
@@ -126,6 +201,8 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
         );
     }
 
+    gpu_rows(&viewport, &s)?;
+
     // pict: a holodeck filled only for this view, so that the view's beams hold many rays.
     std::fs::create_dir_all(dir)?;
     let path = dir.join("pict-bench.hdk");
@@ -147,8 +224,20 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     for driver in ["quadtree", "splat"] {
         let mut file = HoloFile::open(&path, &OpenOptions::read_only())?;
         // Warm: the first call reads the file into the cache.
-        super::pict::draw(&mut file, vp.clone(), driver, Default::default(), 2, 0)?;
-        let (_, _, st) = super::pict::draw(&mut file, vp.clone(), driver, Default::default(), 2, 0)?;
+        super::pict::draw(
+            &mut file,
+            vp.clone(),
+            &super::args::DriverChoice::plain(driver, Default::default()),
+            2,
+            0,
+        )?;
+        let (_, _, st) = super::pict::draw(
+            &mut file,
+            vp.clone(),
+            &super::args::DriverChoice::plain(driver, Default::default()),
+            2,
+            0,
+        )?;
         let drawn = st.samples as f64 / st.recall.as_secs_f64();
         // The same beams read and decoded, not drawn.
         let request = holodeck_display::request::BeamRequest::for_viewport(

@@ -9,11 +9,12 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
-use holodeck_display::{new_driver_with, output, DriverStats, EstimatorOptions, Sample, SampleDecoder, Viewport};
+use holodeck_display::{output, DriverStats, Sample, SampleDecoder, Viewport};
 use holodeck_protocol::{BeamKey, RayRecord, View};
 use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
 
+use super::args::DriverChoice;
 use crate::human::count;
 
 /// Fills decode slots before decoding overwrites them (not finite: a slot
@@ -78,8 +79,7 @@ pub struct FrameStats {
 pub fn draw(
     file: &mut HoloFile,
     viewport: Viewport,
-    driver: &str,
-    estimator: EstimatorOptions,
+    driver: &DriverChoice,
     stride: u32,
     seed: u64,
 ) -> Result<(holodeck_protocol::Picture, Histogram, FrameStats)> {
@@ -92,7 +92,7 @@ pub fn draw(
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
     let decoder = SampleDecoder::new(sections);
-    let mut d = new_driver_with(driver, viewport, estimator)?;
+    let mut d = driver.make(viewport)?;
     let mut samples = 0u64;
     let start = Instant::now();
     // Beams are gathered into chunks and decoded in parallel; while the
@@ -206,7 +206,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         None => vec![View::parse(&a.view).context("--view")?],
     };
-    let estimator = a.frame.estimator.options()?;
+    let driver = a.frame.driver_choice()?;
     let mut file =
         HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;
     for (i, view) in views.into_iter().enumerate() {
@@ -216,7 +216,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             a.output.clone()
         };
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
-        let (picture, hist, s) = draw(&mut file, viewport, &a.frame.driver, estimator, a.stride, i as u64)?;
+        let (picture, hist, s) = draw(&mut file, viewport, &driver, a.stride, i as u64)?;
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, &hist, mode, &out)?;
         let secs = s.recall.as_secs_f64();

@@ -201,10 +201,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let driver = match a.output.as_str() {
         "none" => None,
         d if holodeck_display::DRIVERS.contains(&d) => Some(d.to_string()),
-        d if holodeck_display::GPU_DRIVERS.contains(&d) => bail!(
-            "the {} driver needs the GPU front end, which is not built yet; use -o quadtree",
-            a.output
-        ),
         d => bail!(
             "unknown display driver {d:?} (known: none, {})",
             holodeck_display::DRIVERS.join(", ")
@@ -308,6 +304,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 .arg("-o")
                 .arg(&a.frames)
                 .args(["--driver", driver, "--wait", &wait, "--steps", "2"])
+                .args(if driver == "voronoi" {
+                    vec!["--geometry", a.scene.as_str()]
+                } else {
+                    vec![]
+                })
                 .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
                 .stderr(Stdio::inherit());
             Some(Child::spawn("display", cmd)?)

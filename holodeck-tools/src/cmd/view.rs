@@ -10,7 +10,7 @@ use anyhow::{bail, Context, Result};
 use holodeck_display::client::DisplaySession;
 use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use holodeck_display::tonemap::Histogram;
-use holodeck_display::{new_driver_with, output, Sample, Viewport};
+use holodeck_display::{output, Sample, Viewport};
 use holodeck_protocol::View;
 use holodeck_server::settings::parse_duration;
 
@@ -102,7 +102,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
-    let mut driver = new_driver_with(&a.frame.driver, first, a.frame.estimator.options()?)?;
+    let mut driver = a.frame.driver_choice()?.make(first)?;
     let mut hist = Histogram::new();
     let save = |driver: &mut dyn holodeck_display::Driver,
                 hist: &Histogram,

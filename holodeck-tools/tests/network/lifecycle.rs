@@ -262,11 +262,9 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
         "-o",
         "mesh",
     ]);
-    assert!(
-        !o.status.success() && text(&o).contains("GPU front end"),
-        "{}",
-        text(&o)
-    );
+    // The GPU drivers draw too (on Mesa's software Vulkan without a GPU).
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("pixel estimates"), "{}", text(&o));
 }
 
 /// A REPORT line, strictly: `progress: R rays, S rays/s, F of B beams hold
