@@ -16,6 +16,7 @@ pub mod project;
 pub mod quadtree;
 pub mod request;
 pub mod sample;
+pub mod sphere;
 pub mod splat;
 pub mod store;
 #[cfg(test)]
