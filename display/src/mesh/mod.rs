@@ -357,6 +357,7 @@ impl Driver for MeshDriver {
     }
 
     fn render(&mut self) -> Picture {
+        let start = std::time::Instant::now();
         self.store.update_colors();
         self.sync();
         self.visible_triangles();
@@ -365,10 +366,19 @@ impl Driver for MeshDriver {
         let (gw, gh) = (vp.width * sub, vp.height * sub);
         let canonical = self.canonical.unwrap_or(vp.view.position);
         let view = ViewUniform::new(&vp, canonical, gw, gh);
+        let prepared = start.elapsed();
         match self.pipeline.draw(&view, gw, gh, &self.vertices, &self.indices) {
             Ok(mut rgba) => {
+                let drawn = start.elapsed();
                 fill_holes(&mut rgba, gw, gh);
-                downsample(&rgba, vp.width, vp.height, sub)
+                let picture = downsample(&rgba, vp.width, vp.height, sub);
+                tracing::debug!(
+                    "mesh frame: prepared and drawn in {:.1} ms ({:.1} ms on the GPU and reading back), finished in {:.1} ms",
+                    drawn.as_secs_f64() * 1e3,
+                    (drawn - prepared).as_secs_f64() * 1e3,
+                    start.elapsed().as_secs_f64() * 1e3
+                );
+                picture
             }
             Err(e) => {
                 tracing::error!("mesh: {e}");

@@ -92,7 +92,7 @@ impl SphereMesh {
                 3 * nt
             ));
         }
-        if nt % 2 != 0 || nt + 4 != 2 * nv {
+        if !nt.is_multiple_of(2) || nt + 4 != 2 * nv {
             return Err(format!("{nv} vertices and {nt} triangles: a sphere has F = 2V - 4"));
         }
         let edges = 3 * nt / 2;

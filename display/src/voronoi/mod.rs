@@ -93,6 +93,7 @@ impl Driver for VoronoiDriver {
     }
 
     fn render(&mut self) -> Picture {
+        let start = std::time::Instant::now();
         self.store.update_colors();
         let vp = self.store.viewport().clone();
         let sub = self.store.subpixels();
@@ -115,10 +116,19 @@ impl Driver for VoronoiDriver {
             tolerance: DEPTH_TOLERANCE,
             largest,
         };
+        let prepared = start.elapsed();
         match self.pipeline.draw(&frame) {
             Ok(mut rgba) => {
+                let drawn = start.elapsed();
                 fill_holes(&mut rgba, gw, gh);
-                downsample(&rgba, vp.width, vp.height, sub)
+                let picture = downsample(&rgba, vp.width, vp.height, sub);
+                tracing::debug!(
+                    "voronoi frame: prepared and drawn in {:.1} ms ({:.1} ms on the GPU and reading back), finished in {:.1} ms",
+                    drawn.as_secs_f64() * 1e3,
+                    (drawn - prepared).as_secs_f64() * 1e3,
+                    start.elapsed().as_secs_f64() * 1e3
+                );
+                picture
             }
             Err(e) => {
                 tracing::error!("voronoi: {e}");
