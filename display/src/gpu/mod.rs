@@ -6,6 +6,7 @@
 //! software Vulkan (lavapipe) where there is none, so the same drivers and
 //! tests run on a laptop, a cluster node and a CI machine.
 
+pub mod build;
 pub mod context;
 pub mod target;
 pub mod view;

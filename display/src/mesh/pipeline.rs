@@ -3,7 +3,8 @@
 use std::sync::Arc;
 
 use super::MeshVertex;
-use crate::gpu::target::{COLOR_FORMAT, DEPTH_FORMAT};
+use crate::gpu::build::{clearing_pass, pipeline, uniform_buffer, uniform_entry, PipelineSpec};
+use crate::gpu::target::COLOR_FORMAT;
 use crate::gpu::view::PROJECT_WGSL;
 use crate::gpu::{GpuContext, GpuError, Target, TargetKind, ViewUniform};
 
@@ -29,23 +30,9 @@ impl MeshPipeline {
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("mesh view"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX)],
         });
-        let view = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("mesh view"),
-            size: std::mem::size_of::<ViewUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let view = uniform_buffer(device, "mesh view", std::mem::size_of::<ViewUniform>());
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("mesh view"),
             layout: &layout,
@@ -54,43 +41,22 @@ impl MeshPipeline {
                 resource: view.as_entire_binding(),
             }],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("mesh"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
         let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4];
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("mesh"),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState {
+        let pipeline = pipeline(
+            device,
+            &PipelineSpec {
+                label: "mesh",
                 module: &module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
+                groups: &[Some(&layout)],
+                buffer: wgpu::VertexBufferLayout {
                     array_stride: std::mem::size_of::<MeshVertex>() as u64,
                     step_mode: wgpu::VertexStepMode::Vertex,
                     attributes: &attributes,
-                })],
+                },
+                depth_compare: wgpu::CompareFunction::Greater,
+                format: COLOR_FORMAT,
             },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(COLOR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
         let vertices = buffer(device, 1 << 16, wgpu::BufferUsages::VERTEX);
         let indices = buffer(device, 1 << 16, wgpu::BufferUsages::INDEX);
         MeshPipeline {
@@ -143,29 +109,14 @@ impl MeshPipeline {
         };
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("mesh") });
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("mesh"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &target.color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &target.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = clearing_pass(
+                &mut encoder,
+                "mesh",
+                &target.color_view,
+                wgpu::Color::TRANSPARENT,
+                &target.depth_view,
+                0.0,
+            );
             if !indices.is_empty() {
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &self.bind, &[]);

@@ -7,7 +7,8 @@ use wgpu::util::DeviceExt;
 
 use super::cones::{Cone, FANS};
 use crate::geometry::Geometry;
-use crate::gpu::target::{COLOR_FORMAT, DEPTH_FORMAT, DISTANCE_FORMAT};
+use crate::gpu::build::{clearing_pass, pipeline, uniform_buffer, uniform_entry, PipelineSpec};
+use crate::gpu::target::{COLOR_FORMAT, DISTANCE_FORMAT};
 use crate::gpu::view::PROJECT_WGSL;
 use crate::gpu::{GpuContext, GpuError, Target, TargetKind, ViewUniform};
 
@@ -85,16 +86,7 @@ impl ConePipeline {
         let cone_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cones"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT),
                 wgpu::BindGroupLayoutEntry {
                     binding: 1,
                     visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -109,29 +101,10 @@ impl ConePipeline {
         });
         let view_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("view"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[uniform_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT)],
         });
-        let cone_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cone constants"),
-            size: std::mem::size_of::<ConeUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let view_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("view"),
-            size: std::mem::size_of::<ViewUniform>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let cone_uniform = uniform_buffer(device, "cone constants", std::mem::size_of::<ConeUniform>());
+        let view_uniform = uniform_buffer(device, "view", std::mem::size_of::<ViewUniform>());
         let geometry_bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("view"),
             layout: &view_layout,
@@ -140,80 +113,38 @@ impl ConePipeline {
                 resource: view_uniform.as_entire_binding(),
             }],
         });
-        let cone_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("cones"),
-            bind_group_layouts: &[Some(&cone_layout)],
-            immediate_size: 0,
-        });
-        let geometry_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("geometry"),
-            bind_group_layouts: &[Some(&view_layout)],
-            immediate_size: 0,
-        });
         let cone_attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4];
-        let cones = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("cones"),
-            layout: Some(&cone_pipeline_layout),
-            vertex: wgpu::VertexState {
+        let cones = pipeline(
+            device,
+            &PipelineSpec {
+                label: "cones",
                 module: &cone_module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
+                groups: &[Some(&cone_layout)],
+                buffer: wgpu::VertexBufferLayout {
                     array_stride: std::mem::size_of::<Cone>() as u64,
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &cone_attributes,
-                })],
+                },
+                depth_compare: wgpu::CompareFunction::Less,
+                format: COLOR_FORMAT,
             },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &cone_module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(COLOR_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
         let geometry_attributes = wgpu::vertex_attr_array![0 => Float32x3];
-        let geometry_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("geometry distances"),
-            layout: Some(&geometry_pipeline_layout),
-            vertex: wgpu::VertexState {
+        let geometry_pipeline = pipeline(
+            device,
+            &PipelineSpec {
+                label: "geometry distances",
                 module: &geometry_module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
+                groups: &[Some(&view_layout)],
+                buffer: wgpu::VertexBufferLayout {
                     array_stride: 12,
                     step_mode: wgpu::VertexStepMode::Vertex,
                     attributes: &geometry_attributes,
-                })],
+                },
+                depth_compare: wgpu::CompareFunction::Greater,
+                format: DISTANCE_FORMAT,
             },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &geometry_module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(DISTANCE_FORMAT.into())],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        );
         let geometry = geometry.filter(|g| !g.triangles.is_empty()).map(|g| {
             let flat: Vec<[f32; 3]> = g.triangles.iter().flatten().map(|p| p.to_array()).collect();
             GeometryBuffers {
@@ -315,34 +246,19 @@ impl ConePipeline {
                 let view = ViewUniform::new(viewport, g.origin, width, height);
                 queue.write_buffer(&self.view_uniform, 0, bytemuck::bytes_of(&view));
             }
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("geometry distances"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &frame.distance.color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: -1.0,
-                            g: 0.0,
-                            b: 0.0,
-                            a: 0.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &frame.distance.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = clearing_pass(
+                &mut encoder,
+                "geometry distances",
+                &frame.distance.color_view,
+                wgpu::Color {
+                    r: -1.0,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 0.0,
+                },
+                &frame.distance.depth_view,
+                0.0,
+            );
             if let Some(g) = &self.geometry {
                 pass.set_pipeline(&self.geometry_pipeline);
                 pass.set_bind_group(0, &self.geometry_bind, &[]);
@@ -351,29 +267,14 @@ impl ConePipeline {
             }
         }
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("cones"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &frame.color.color_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &frame.color.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = clearing_pass(
+                &mut encoder,
+                "cones",
+                &frame.color.color_view,
+                wgpu::Color::TRANSPARENT,
+                &frame.color.depth_view,
+                1.0,
+            );
             pass.set_pipeline(&self.cones);
             pass.set_bind_group(0, &frame.cone_bind, &[]);
             pass.set_vertex_buffer(0, self.instances.slice(..));
