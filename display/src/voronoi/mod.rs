@@ -54,7 +54,13 @@ impl VoronoiDriver {
     ) -> VoronoiDriver {
         let pipeline = ConePipeline::new(gpu, geometry);
         if !pipeline.has_geometry() {
-            tracing::info!("voronoi: no scene geometry, so estimates are not depth-culled and cones cross silhouettes");
+            // Once per process: `pict --views` makes a driver per view.
+            static SAID: std::sync::Once = std::sync::Once::new();
+            SAID.call_once(|| {
+                tracing::info!(
+                    "voronoi: no scene geometry (--geometry), so estimates are not depth-culled and cones cross silhouettes"
+                );
+            });
         }
         VoronoiDriver {
             store: Store::new(viewport, Grid::default(), false, options),
