@@ -80,6 +80,12 @@ pub(crate) fn random_plane_samples(view: &View, n: usize, seed: u64) -> Vec<Samp
 
 /// The analytic picture: the plane's color through each pixel center.
 pub(crate) fn analytic(vp: &Viewport) -> Picture {
+    truth(vp, |o, d| hit_plane(o, d).map(|p| (p, plane_color(p))))
+}
+
+/// What `scene` (nearest hit and its radiance of a ray) shows through each
+/// pixel center of `vp`, black where nothing.
+pub(crate) fn truth(vp: &Viewport, scene: impl Fn(DVec3, DVec3) -> Option<(DVec3, [f32; 3])>) -> Picture {
     let (w, h) = (vp.width as usize, vp.height as usize);
     let mut pixels = Vec::with_capacity(w * h);
     for row in 0..h {
@@ -88,8 +94,8 @@ pub(crate) fn analytic(vp: &Viewport) -> Picture {
             let c = vp
                 .view
                 .ray(x, y)
-                .and_then(|(o, d)| hit_plane(o, d))
-                .map_or([0.0; 3], plane_color);
+                .and_then(|(o, d)| scene(o, d))
+                .map_or([0.0; 3], |h| h.1);
             pixels.push(glam::Vec3::from_array(c));
         }
     }
@@ -211,24 +217,7 @@ pub(crate) fn occluded_triangles() -> Vec<[glam::Vec3; 3]> {
 
 /// The occluded scene as the eye sees it through each pixel center.
 pub(crate) fn occluded_truth(vp: &Viewport) -> Picture {
-    let (w, h) = (vp.width as usize, vp.height as usize);
-    let mut pixels = Vec::with_capacity(w * h);
-    for row in 0..h {
-        for col in 0..w {
-            let (x, y) = ((col as f64 + 0.5) / w as f64, 1.0 - (row as f64 + 0.5) / h as f64);
-            let c = vp
-                .view
-                .ray(x, y)
-                .and_then(|(o, d)| occluded_hit(o, d))
-                .map_or([0.0; 3], |h| h.1);
-            pixels.push(glam::Vec3::from_array(c));
-        }
-    }
-    Picture {
-        width: w,
-        height: h,
-        pixels,
-    }
+    truth(vp, occluded_hit)
 }
 
 /// `n` samples of the occluded scene: rays from points up to `spread`
@@ -290,13 +279,5 @@ pub(crate) fn edge_band(truth: &Picture, radius: usize, step: f32) -> Vec<bool> 
 
 /// Root-mean-square difference per channel over the pixels in `mask`.
 pub(crate) fn masked_rmse(a: &Picture, b: &Picture, mask: &[bool]) -> f64 {
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for ((p, q), &m) in a.pixels.iter().zip(&b.pixels).zip(mask) {
-        if m {
-            let d = *p - *q;
-            sum += f64::from(d.dot(d));
-            n += 3;
-        }
-    }
-    (sum / n.max(1) as f64).sqrt()
+    crate::compare::rmse_masked(a, b, mask).unwrap()
 }
