@@ -112,6 +112,9 @@ pub trait Driver: Send {
     fn clear(&mut self);
     /// Heap bytes held: bounded by the frame size, not by the rays received.
     fn heap_bytes(&self) -> usize;
+    /// The world point seen at pixel (`col`, `row`) (top row first), or
+    /// `None` where the frame shows sky or nothing near that pixel.
+    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3>;
     /// How many more rays each pixel wants for `density` rays per pixel on
     /// average, spent where they reduce the error most (row-major, top row
     /// first); see [`crate::store::Store::needs`].

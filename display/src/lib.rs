@@ -27,6 +27,7 @@ pub mod store;
 pub(crate) mod testkit;
 pub mod tonemap;
 pub mod voronoi;
+pub mod window;
 
 pub use driver::{Driver, DriverError, DriverStats, Viewport, MAX_VIEWPORT_PIXELS};
 pub use sample::{Sample, SampleDecoder};

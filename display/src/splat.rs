@@ -12,7 +12,7 @@ use holodeck_protocol::Picture;
 
 use crate::driver::{Driver, DriverStats, Viewport};
 use crate::sample::Sample;
-use crate::store::{Entry, EstimatorOptions, PixelIndex, Spot, Store};
+use crate::store::{Entry, EstimatorOptions, PixelIndex, Spot, Store, POINT_REACH};
 
 /// A pixel without an estimate.
 const EMPTY: u32 = u32::MAX;
@@ -163,6 +163,10 @@ impl Driver for SplatDriver {
 
     fn needs(&self, density: f32) -> Vec<f32> {
         self.store.needs(density)
+    }
+
+    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
+        self.store.point_near(col, row, POINT_REACH)
     }
 
     fn heap_bytes(&self) -> usize {

@@ -30,7 +30,7 @@ use crate::project::Projector;
 use crate::sample::Sample;
 use crate::sphere::{Insert, SphereMesh, VertexId};
 use crate::splat::Grid;
-use crate::store::{EstimatorOptions, PixelIndex, Store, NO_SLOT};
+use crate::store::{EstimatorOptions, PixelIndex, Store, NO_SLOT, POINT_REACH};
 use pipeline::MeshPipeline;
 
 /// Where escaped rays' vertices are put: this far from the canonical eye
@@ -406,5 +406,9 @@ impl Driver for MeshDriver {
 
     fn needs(&self, density: f32) -> Vec<f32> {
         self.store.needs(density)
+    }
+
+    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
+        self.store.point_near(col, row, POINT_REACH)
     }
 }

@@ -17,7 +17,7 @@ use holodeck_protocol::Picture;
 
 use crate::driver::{Driver, DriverStats, Viewport};
 use crate::sample::Sample;
-use crate::store::{EstimatorOptions, Store};
+use crate::store::{EstimatorOptions, Store, POINT_REACH};
 use tree::Node;
 
 /// The CPU quadtree display driver of the paper's section 2.4.3.
@@ -209,6 +209,10 @@ impl Driver for QuadtreeDriver {
 
     fn needs(&self, density: f32) -> Vec<f32> {
         self.store.needs(density)
+    }
+
+    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
+        self.store.point_near(col, row, POINT_REACH)
     }
 
     fn heap_bytes(&self) -> usize {

@@ -89,6 +89,10 @@ struct Aggregate {
     from: u32,
 }
 
+/// How far from a pixel (in pixels) [`crate::Driver::point_at`] looks for
+/// a surface: a cursor between sparse samples still finds the one beside it.
+pub const POINT_REACH: u32 = 4;
+
 /// "No slot": in [`Store::moved_from`], an estimate that was not on the
 /// frame before the last view change.
 pub const NO_SLOT: u32 = u32::MAX;
@@ -232,6 +236,36 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// across a view change with this instead of rebuilding it.
     pub fn moved_from(&self) -> &[u32] {
         &self.moved_from
+    }
+
+    /// The world point seen at pixel (`col`, `row`) of the frame: the
+    /// surface of the estimate nearest the pixel's center, within `reach`
+    /// pixels, or `None` where only sky or nothing is near (the point under
+    /// a cursor, which motion keeps fixed on screen).
+    pub fn point_near(&self, col: u32, row: u32, reach: u32) -> Option<DVec3> {
+        let sub = f64::from(self.options.subpixels.max(1));
+        let (cx, cy) = ((f64::from(col) + 0.5) * sub, (f64::from(row) + 0.5) * sub);
+        let limit = (f64::from(reach) + 0.5) * sub;
+        let mut best: Option<(f64, &Entry)> = None;
+        for e in &self.entries {
+            if !e.estimate.depth().is_finite() {
+                continue;
+            }
+            let (c, r) = self.index.pixel(e.key);
+            let [ax, ay] = e.estimate.centroid();
+            let (dx, dy) = (f64::from(c) + f64::from(ax) - cx, f64::from(r) + f64::from(ay) - cy);
+            if dx.abs() > limit || dy.abs() > limit {
+                continue;
+            }
+            let d2 = dx * dx + dy * dy;
+            if best.is_none_or(|(b, _)| d2 < b) {
+                best = Some((d2, e));
+            }
+        }
+        let (_, e) = best?;
+        let (c, r) = self.index.pixel(e.key);
+        let (origin, dir) = self.projector.ray(c, r, e.estimate.centroid())?;
+        Some(origin + dir * f64::from(e.estimate.depth()))
     }
 
     /// How rays combine.

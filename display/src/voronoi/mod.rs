@@ -26,7 +26,7 @@ use crate::gpu::target::{black, downsample, fill_holes};
 use crate::gpu::GpuContext;
 use crate::sample::Sample;
 use crate::splat::Grid;
-use crate::store::{EstimatorOptions, Store};
+use crate::store::{EstimatorOptions, Store, POINT_REACH};
 use cones::Cone;
 use pipeline::{ConeFrame, ConePipeline};
 
@@ -157,5 +157,9 @@ impl Driver for VoronoiDriver {
 
     fn needs(&self, density: f32) -> Vec<f32> {
         self.store.needs(density)
+    }
+
+    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
+        self.store.point_near(col, row, POINT_REACH)
     }
 }

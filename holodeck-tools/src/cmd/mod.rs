@@ -20,3 +20,4 @@ pub mod sample;
 pub mod scene;
 pub mod serve;
 pub mod view;
+pub mod window;

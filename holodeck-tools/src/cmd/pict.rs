@@ -40,7 +40,12 @@ With --views, every line of the file is one frame and OUTPUT holds %d or %04d fo
 Examples:
   holodeck pict room.hdk -o room.png
   holodeck pict room.hdk --view '-vtv -vp 1 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45' -o v.hdr
-  holodeck pict room.hdk --views walk.vf -o frames/walk_%04d.png --tone human")]
+  holodeck pict room.hdk --views walk.vf -o frames/walk_%04d.png --tone human
+  holodeck pict room.hdk --window --driver quadtree     # walk through it, no server
+
+With --window there is no output file: the view opens in a window with the walkthrough's input
+model (see `holodeck view --help`), and every view's beams are read from FILE as motion stops.
+Nothing is traced, so it runs on machines with no GPU and no samplers.")]
 pub struct Args {
     /// The holodeck file.
     file: PathBuf,
@@ -56,8 +61,14 @@ pub struct Args {
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(super::args::SIDE))]
     stride: u32,
     /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
-    #[arg(short, long)]
-    output: PathBuf,
+    #[arg(short, long, required_unless_present = "window")]
+    output: Option<PathBuf>,
+    /// Open a window and walk through the file (display-only replay).
+    #[arg(long, conflicts_with = "output")]
+    window: bool,
+    /// Read window commands from standard input (see `holodeck view --help`).
+    #[arg(short = 'i', long, requires = "window")]
+    script: bool,
 }
 
 /// What drawing one frame took.
@@ -206,14 +217,27 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         None => vec![View::parse(&a.view).context("--view")?],
     };
-    let driver = a.frame.driver_choice()?;
     let mut file =
         HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;
+    if a.window {
+        let view = views.into_iter().next().context("no view")?;
+        let source = super::window::FileSource::new(file, a.file.display().to_string());
+        let args = super::window::WindowArgs {
+            script: a.script,
+            stride: a.stride,
+        };
+        super::window::open(Box::new(source), view, &a.frame, &args, Default::default())?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    let Some(output) = &a.output else {
+        bail!("-o is needed without --window");
+    };
+    let driver = a.frame.driver_choice()?;
     for (i, view) in views.into_iter().enumerate() {
         let out = if a.views.is_some() {
-            numbered(&a.output, i + 1)?
+            numbered(output, i + 1)?
         } else {
-            a.output.clone()
+            output.clone()
         };
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
         let (picture, hist, s) = draw(&mut file, viewport, &driver, a.stride, i as u64)?;

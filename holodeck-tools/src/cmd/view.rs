@@ -1,4 +1,5 @@
-//! `holodeck view`: a display client. Headless for now: it walks a file of
+//! `holodeck view`: a display client. In a window, a person walks through
+//! the holodeck (the paper's input model); headless, it walks a file of
 //! views, asks the server for each view's beams, draws the frame after the
 //! immediate transfer and again as traced samples arrive, and saves them.
 
@@ -19,7 +20,16 @@ use crate::human::count;
 /// Arguments of `holodeck view`.
 #[derive(clap::Args)]
 #[command(after_help = "\
-Connects to a holodeck server as a display. For every view in --views it requests the beams
+Connects to a holodeck server as a display and opens a window on it: the left button moves
+toward what is under the cursor, the right backs away, the middle turns, shift orbits; keys
+and -i commands as below. New beams are asked for when motion stops; while the view stays,
+the samples it asks for per pixel double as they arrive (up to --max-density).
+
+Keys: l last view, v print view, f frame the focus rectangle (ctrl+shift drag), p pause,
+Enter resume, ctrl+R redraw, ctrl+L refresh from server, K kill samplers, R restart,
+C clobber, h/H fix/release head height, t re-tone-map, q quit.
+
+With --headless there is no window: for every view in --views it requests the beams
 the view sees (new samples are traced near the eye, in the frame), draws the frame as soon as
 the stored samples are in, then keeps drawing as traced samples arrive for --wait, in --steps
 frames. While a view stays, the samples it asks for per pixel double each time most of them
@@ -29,6 +39,8 @@ Frames go to DIR as view0001_00.png, view0001_01.png, ... (or .hdr with --format
 Against a server with no samplers this replays the holodeck file.
 
 Examples:
+  holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token --driver mesh
+  echo where | holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token.viewer -i
   holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token --headless \\
       --views walk.vf -o frames --wait 5s --steps 5
   holodeck view --connect unix:/tmp/room.sock --token-file room.hdk.token --headless \\
@@ -39,15 +51,17 @@ pub struct Args {
     connect: String,
     #[command(flatten)]
     token: super::args::TokenArgs,
-    /// Run without a window (the only front end so far).
-    #[arg(long)]
+    /// Run without a window: walk --views and write frames into -o.
+    #[arg(long, requires_all = ["views", "output"])]
     headless: bool,
-    /// A file of views, one per line.
+    /// A file of views, one per line (in a window: the first is where it starts).
     #[arg(long)]
-    views: PathBuf,
-    /// Directory for the frames.
+    views: Option<PathBuf>,
+    /// Directory for the frames (headless).
     #[arg(short, long)]
-    output: PathBuf,
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    window: super::window::WindowArgs,
     #[command(flatten)]
     frame: super::args::FrameArgs,
     /// Frame format: png or hdr.
@@ -82,23 +96,22 @@ const QUIET: Duration = Duration::from_secs(1);
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     a.frame.check()?;
-    if !a.headless {
-        bail!("the windowed display is not built yet: add --headless to draw frames into files");
-    }
-    if a.format != "png" && a.format != "hdr" {
-        bail!("--format must be png or hdr, not {:?}", a.format);
-    }
     if !(a.density.is_finite() && a.density > 0.0 && a.max_density.is_finite()) {
         bail!("--density and --max-density must be positive numbers");
     }
+    if !a.headless {
+        return windowed(a);
+    }
+    let (Some(views_path), Some(output)) = (a.views.clone(), a.output.clone()) else {
+        bail!("--headless needs --views and -o");
+    };
+    if a.format != "png" && a.format != "hdr" {
+        bail!("--format must be png or hdr, not {:?}", a.format);
+    }
     let token = a.token.token()?;
     let wait = parse_duration(&a.wait, 1.0).context("--wait")?;
-    let text = std::fs::read_to_string(&a.views).with_context(|| format!("reading {}", a.views.display()))?;
-    let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", a.views.display()))?;
-    if views.is_empty() {
-        bail!("{} holds no views", a.views.display());
-    }
-    std::fs::create_dir_all(&a.output).with_context(|| format!("creating {}", a.output.display()))?;
+    let views = read_views(&views_path)?;
+    std::fs::create_dir_all(&output).with_context(|| format!("creating {}", output.display()))?;
     let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
@@ -114,7 +127,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let start = Instant::now();
         let picture = driver.render();
         let render = start.elapsed();
-        let path = a.output.join(name);
+        let path = output.join(name);
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, hist, mode, &path)?;
         println!(
@@ -202,5 +215,41 @@ pub fn run(a: Args) -> Result<ExitCode> {
             save(driver.as_mut(), &hist, name(step), new, received, start.elapsed())?;
         }
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The views of a view file (at least one).
+fn read_views(path: &std::path::Path) -> Result<Vec<View>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
+    if views.is_empty() {
+        bail!("{} holds no views", path.display());
+    }
+    Ok(views)
+}
+
+/// The window on a live session.
+fn windowed(a: Args) -> Result<ExitCode> {
+    let token = a.token.token()?;
+    let session = DisplaySession::connect(&a.connect, &token, a.read_only)
+        .with_context(|| format!("connecting to {}", a.connect))?;
+    let view = match &a.views {
+        Some(path) => read_views(path)?.remove(0),
+        None => {
+            let first = session.sections().first().context("the holodeck has no sections")?;
+            View::parse(&super::window::default_view(first))?
+        }
+    };
+    let source = holodeck_display::window::ServerSource::new(session, a.connect.clone());
+    let walk = holodeck_display::window::WalkOptions {
+        density: a.density,
+        max_density: a.max_density,
+        request: RequestOptions {
+            eye_radius: a.eye_radius,
+            ..RequestOptions::default()
+        },
+        ..Default::default()
+    };
+    super::window::open(Box::new(source), view, &a.frame, &a.window, walk)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -3,6 +3,8 @@
 use std::process::{Command, Output};
 
 pub mod process;
+#[allow(dead_code)]
+pub mod screen;
 
 /// Runs `holodeck` with `args` to the end (within [`process::DEADLINE`]);
 /// the process is killed if the test fails first.

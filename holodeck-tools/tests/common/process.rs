@@ -147,6 +147,19 @@ impl Proc {
         }
     }
 
+    /// Writes `line` and a newline to the child's standard input.
+    #[allow(dead_code)]
+    pub fn say(&mut self, line: &str) {
+        use std::io::Write as _;
+        let stdin = self
+            .stdin
+            .as_mut()
+            .expect("standard input is open until the guard drops");
+        writeln!(stdin, "{line}")
+            .and_then(|()| stdin.flush())
+            .unwrap_or_else(|e| panic!("telling {} {line:?}: {e}\n{}", self.name, self.tail()));
+    }
+
     /// The child's process id.
     pub fn id(&self) -> u32 {
         self.child.id()

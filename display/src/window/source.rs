@@ -1,0 +1,126 @@
+//! Where a walkthrough's samples come from: a holodeck server (a live
+//! session, whose samplers trace what the view asks for) or a holodeck file
+//! read directly (display-only replay, no server). The window works the same
+//! over both.
+
+use std::time::Instant;
+
+use holodeck_protocol::wire::Control;
+use holodeck_protocol::{BeamKey, Section};
+
+use crate::client::{ClientError, DisplaySession};
+use crate::request::BeamRequest;
+use crate::sample::Sample;
+
+/// Why a source failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// The server connection failed.
+    #[error(transparent)]
+    Client(#[from] ClientError),
+    /// Reading a holodeck file failed (the message names the file).
+    #[error("{0}")]
+    File(String),
+    /// The command needs a server and there is none.
+    #[error("{0} needs a server: this is a replay of a file")]
+    NoServer(String),
+}
+
+/// What the server says about itself, for the status line.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ServerStatus {
+    /// Rays stored in the holodeck.
+    pub rays: u64,
+    /// Rays stored per second lately.
+    pub rays_per_second: f64,
+    /// Samplers connected.
+    pub samplers: u32,
+    /// The samplers are paused.
+    pub paused: bool,
+}
+
+/// A supplier of samples for the views a display walks through.
+pub trait Source {
+    /// The holodeck's sections.
+    fn sections(&self) -> &[Section];
+    /// Asks for a view's beams (replacing the last request) and hands the
+    /// stored samples not sent before (all of them with `resend`) to `sink`;
+    /// returns how many.
+    fn request(
+        &mut self,
+        request: &BeamRequest,
+        resend: bool,
+        sink: &mut dyn FnMut(&[Sample]),
+    ) -> Result<u64, SourceError>;
+    /// Raises the counts of the current view's beams (more samples wanted).
+    fn raise(&mut self, request: &BeamRequest) -> Result<(), SourceError>;
+    /// Hands newly traced samples to `sink` until `deadline`; returns how many.
+    fn poll(&mut self, deadline: Instant, sink: &mut dyn FnMut(&[Sample])) -> Result<u64, SourceError>;
+    /// Samples of `key` received (since the last resend).
+    fn received(&self, key: BeamKey) -> u64;
+    /// Sends a command to the server.
+    fn control(&mut self, control: Control) -> Result<(), SourceError>;
+    /// The server's last report, if it sends them.
+    fn status(&self) -> Option<ServerStatus>;
+    /// Messages for the user that came since the last call (answers to
+    /// commands, refusals).
+    fn notices(&mut self) -> Vec<String>;
+    /// A short name for the window's title.
+    fn name(&self) -> String;
+}
+
+/// A live session with a holodeck server.
+pub struct ServerSource {
+    session: DisplaySession,
+    name: String,
+}
+
+impl ServerSource {
+    /// Wraps a connected session; `name` is the server's address.
+    pub fn new(session: DisplaySession, name: String) -> ServerSource {
+        ServerSource { session, name }
+    }
+}
+
+impl Source for ServerSource {
+    fn sections(&self) -> &[Section] {
+        self.session.sections()
+    }
+
+    fn request(
+        &mut self,
+        request: &BeamRequest,
+        resend: bool,
+        sink: &mut dyn FnMut(&[Sample]),
+    ) -> Result<u64, SourceError> {
+        Ok(self.session.request(request, resend, sink)?.samples)
+    }
+
+    fn raise(&mut self, request: &BeamRequest) -> Result<(), SourceError> {
+        Ok(self.session.raise(request)?)
+    }
+
+    fn poll(&mut self, deadline: Instant, sink: &mut dyn FnMut(&[Sample])) -> Result<u64, SourceError> {
+        Ok(self.session.refine(deadline, sink)?)
+    }
+
+    fn received(&self, key: BeamKey) -> u64 {
+        self.session.received(key)
+    }
+
+    fn control(&mut self, control: Control) -> Result<(), SourceError> {
+        Ok(self.session.control(control)?)
+    }
+
+    fn status(&self) -> Option<ServerStatus> {
+        None
+    }
+
+    fn notices(&mut self) -> Vec<String> {
+        Vec::new()
+    }
+
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+}

@@ -1,0 +1,132 @@
+//! The walkthrough window on a virtual X screen (Xvfb) and software Vulkan:
+//! real X input events (xdotool) move the view as the holodeck paper's input
+//! model says, and the window's pixels (read back with xwd) match a headless
+//! picture of the same view.
+
+mod common;
+
+use std::process::Command;
+
+use common::process::Proc;
+use common::screen::Screen;
+use glam::DVec3;
+use holodeck_display::compare::relative_rmse_masked;
+use holodeck_display::image_io::read_picture;
+use holodeck_protocol::View;
+
+/// Window size: small, so that software rendering stays quick.
+const W: u32 = 320;
+const H: u32 = 240;
+
+/// Rows of the status line at the bottom of the window (left out of
+/// picture comparisons).
+const STATUS_ROWS: usize = holodeck_display::window::overlay::STATUS_HEIGHT as usize;
+
+fn view_of(line: &str) -> Option<View> {
+    line.strip_prefix("VIEW= ")
+        .map(|v| View::parse(v).expect("the window prints views it can read back"))
+}
+
+fn moved(line: &str) -> Option<(u32, DVec3)> {
+    let rest = line.strip_prefix("moved: ")?;
+    let words: Vec<&str> = rest.split_whitespace().collect();
+    let steps = words.first()?.parse().ok()?;
+    let p = DVec3::new(
+        words.get(3)?.parse().ok()?,
+        words.get(4)?.parse().ok()?,
+        words.get(5)?.parse().ok()?,
+    );
+    Some((steps, p))
+}
+
+#[test]
+fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_headless_picture() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let o = common::holodeck(&["fill", "builtin:room", f, "--rays", "60K", "--bounces", "1"]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let screen = Screen::start();
+    let (w, h) = (W.to_string(), H.to_string());
+    let mut window = Proc::start(
+        Command::new(env!("CARGO_BIN_EXE_holodeck"))
+            .args(["pict", f, "--window", "-i", "--stride", "2", "-x", &w, "-y", &h])
+            .env("DISPLAY", &screen.display)
+            .env("NO_COLOR", "1"),
+    );
+    let mut at = 0;
+    window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
+    window.say("where");
+    let start = window.wait_line("the first view", &mut at, view_of);
+    let id = screen.window("^holodeck: ");
+
+    // Hold the left button over the middle of the window for a while.
+    screen.tool("xdotool", &["mousemove", "--window", &id, "160", "120"]);
+    screen.tool("xdotool", &["mousedown", "1"]);
+    std::thread::sleep(std::time::Duration::from_millis(400));
+    screen.tool("xdotool", &["mouseup", "1"]);
+    let (steps, target) = window.wait_line("the end of the motion", &mut at, moved);
+    window.say("where");
+    let end = window.wait_line("the view after the motion", &mut at, view_of);
+
+    // Each step left 90% of the distance to the point, along the line to it:
+    // the direction is unchanged and the point stays under the cursor.
+    assert!(steps >= 1, "no motion step in 0.4 s");
+    let (d0, d1) = (target - start.position, target - end.position);
+    let left = d1.length() / d0.length();
+    assert!(
+        (left - 0.9f64.powi(steps as i32)).abs() < 1e-9,
+        "{steps} steps left {left} of the distance"
+    );
+    assert!(
+        d0.normalize().dot(d1.normalize()) > 1.0 - 1e-12,
+        "the eye left the line to the point"
+    );
+    assert!(end.direction.distance(start.direction) < 1e-12);
+    let (x, y, _) = start.project(target).expect("the point is in view");
+    let (col, row) = (x * f64::from(W), (1.0 - y) * f64::from(H));
+    assert!(
+        (col - 160.5).abs() <= 5.0 && (row - 120.5).abs() <= 5.0,
+        "the point is at pixel ({col}, {row}), not under the cursor"
+    );
+
+    // Everything again from the file, tone mapped from what is on screen:
+    // then the window shows what `holodeck pict` draws for the same view.
+    window.say("refresh");
+    window.say("tone");
+    window.say("sync");
+    window.wait_line("the redrawn frame", &mut at, |l| (l == "sync").then_some(()));
+    let shown = screen.capture(&id);
+    assert_eq!((shown.width, shown.height), (W as usize, H as usize));
+    let reference = dir.path().join("ref.png");
+    let o = common::holodeck(&[
+        "pict",
+        f,
+        "--view",
+        &end.to_spec(),
+        "--stride",
+        "2",
+        "-x",
+        &w,
+        "-y",
+        &h,
+        "-o",
+        reference.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let reference = read_picture(&reference).unwrap();
+    let mask: Vec<bool> = (0..shown.pixels.len())
+        .map(|i| i / (W as usize) < H as usize - STATUS_ROWS)
+        .collect();
+    let error = relative_rmse_masked(&shown, &reference, &mask).unwrap();
+    assert!(
+        error < 0.02,
+        "the window differs from the headless picture: relative RMSE {error}"
+    );
+    // And it is a picture, not a blank window.
+    let lit = shown.pixels.iter().filter(|p| p.max_element() > 0.05).count();
+    assert!(lit > shown.pixels.len() / 2, "only {lit} pixels lit");
+
+    window.say("quit");
+    assert!(window.wait().success(), "{}", window.text());
+}
