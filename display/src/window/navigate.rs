@@ -79,7 +79,8 @@ pub fn step(view: &View, target: DVec3, step: Step, head_fixed: bool) -> Option<
         }
         Step::OrbitOver(n) => {
             let axis = to_target.cross(up).try_normalize()?;
-            let spin = DQuat::from_axis_angle(axis, (ORBIT_DEGREES * n).to_radians());
+            // Positive steps swing the eye up over the point.
+            let spin = DQuat::from_axis_angle(axis, -(ORBIT_DEGREES * n).to_radians());
             v.position = target - spin * to_target;
             v.direction = (spin * v.direction).normalize();
         }

@@ -200,8 +200,13 @@ mod tests {
         c.status("|");
         // The bar of '|' is in the middle columns of the first glyph.
         let top = h - STATUS_HEIGHT + 2;
-        assert_eq!(&rgba[(((top + 3) * w + 4 + 3) * 4) as usize..][..3], &[230, 230, 230]);
-        assert_eq!(&rgba[(((top + 3) * w + 4 + 6) * 4) as usize..][..3], &[50, 50, 50]);
+        assert_eq!(&rgba[(((top + 2) * w + 4 + 3) * 4) as usize..][..3], &[230, 230, 230]);
+        assert_eq!(&rgba[(((top + 2) * w + 4 + 6) * 4) as usize..][..3], &[50, 50, 50]);
+        assert_eq!(
+            &rgba[(((top + 3) * w + 4 + 3) * 4) as usize..][..3],
+            &[50, 50, 50],
+            "the gap in the broken bar"
+        );
         assert_eq!(&rgba[0..3], &[200, 200, 200], "above the band untouched");
     }
 
