@@ -88,7 +88,12 @@ fn init_logging(verbose: u8, quiet: bool) {
         _ => "trace",
     };
     let filter = tracing_subscriber::EnvFilter::try_from_env("HOLODECK_LOG")
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(level));
+        // winit warns about harmless things of virtual screens (no XSETTINGS,
+        // a 0 mm display): only with -vv.
+        .unwrap_or_else(|_| {
+            let windows = if verbose >= 2 { "" } else { ",winit=error" };
+            tracing_subscriber::EnvFilter::new(format!("{level}{windows}"))
+        });
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)

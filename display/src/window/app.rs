@@ -77,6 +77,11 @@ struct Held {
     target: Option<(DVec3, (f64, f64))>,
     steps: u32,
     last_step: Option<Instant>,
+    pressed: Instant,
+    /// From the press to the first frame that showed a step.
+    first_shown: Option<Duration>,
+    /// Times of the frames drawn during the motion.
+    frames: Vec<Duration>,
 }
 
 struct App {
@@ -97,6 +102,8 @@ struct App {
     frame_time: Duration,
     /// The last frame's tone-mapped picture, without overlays (for `save`).
     shown: Option<super::walk::Frame>,
+    /// When the last motion stopped, until the next frame is drawn.
+    settled_at: Option<(Instant, u64)>,
     error: Option<WindowError>,
 }
 
@@ -132,6 +139,7 @@ pub fn run(walk: Walkthrough, options: WindowOptions) -> Result<(), WindowError>
         last_frame: Instant::now(),
         frame_time: Duration::ZERO,
         shown: None,
+        settled_at: None,
         error: None,
     };
     event_loop
@@ -229,6 +237,20 @@ impl App {
                 save(&path, &frame)?;
                 tell(script, format!("saved {}", path.display()));
             }
+            Command::Bench(n) => {
+                let mut times = Vec::with_capacity(n as usize);
+                for _ in 0..n {
+                    let start = Instant::now();
+                    self.draw()?;
+                    times.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+                let mean = times.iter().sum::<f64>() / f64::from(n);
+                let (min, max) = times.iter().fold((f64::MAX, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+                say(&format!(
+                    "frames: {n} drawn, {mean:.1} ms mean ({:.1} frames/s), {min:.1} to {max:.1} ms",
+                    1e3 / mean.max(1e-9)
+                ));
+            }
             Command::Sync => {
                 // What a script does next (a screenshot, say) sees every
                 // earlier command on screen.
@@ -315,6 +337,9 @@ impl App {
             target: None,
             steps: 0,
             last_step: None,
+            pressed: Instant::now(),
+            first_shown: None,
+            frames: Vec::new(),
         });
         self.redraw();
     }
@@ -337,13 +362,23 @@ impl App {
                         None => say(&format!("moved: {} steps", held.steps)),
                     }
                 }
+                let frames = held.frames.len().max(1) as f64;
+                let per_frame = held.frames.iter().sum::<Duration>().as_secs_f64() / frames;
+                let report = format!(
+                    "motion: {} frames, {:.1} ms per frame ({:.1} frames/s), first step on screen {:.0} ms after the press",
+                    held.frames.len(),
+                    per_frame * 1e3,
+                    1.0 / per_frame.max(1e-9),
+                    held.first_shown.unwrap_or_default().as_secs_f64() * 1e3
+                );
+                if self.options.script {
+                    say(&report);
+                } else {
+                    tracing::debug!("{report}");
+                }
                 let start = Instant::now();
                 let n = self.walk.settle()?;
-                tracing::debug!(
-                    "motion of {} steps ended: {n} samples in {:.0} ms",
-                    held.steps,
-                    start.elapsed().as_secs_f64() * 1e3
-                );
+                self.settled_at = Some((start, n));
                 self.dirty = true;
                 self.redraw();
             }
@@ -386,6 +421,22 @@ impl App {
         self.frame_time = start.elapsed();
         self.last_frame = Instant::now();
         self.dirty = false;
+        if let Some(held) = &mut self.held {
+            held.frames.push(self.frame_time);
+            if held.steps > 0 && held.first_shown.is_none() {
+                held.first_shown = Some(held.pressed.elapsed());
+            }
+        } else if let Some((at, n)) = self.settled_at.take() {
+            let report = format!(
+                "refined: first frame {:.0} ms after the motion stopped, with {n} samples sent at once",
+                at.elapsed().as_secs_f64() * 1e3
+            );
+            if self.options.script {
+                say(&report);
+            } else {
+                tracing::debug!("{report}");
+            }
+        }
         Ok(())
     }
 

@@ -43,13 +43,15 @@ pub enum Command {
     Save(PathBuf),
     /// Print `sync` once every earlier command is done (for scripts).
     Sync,
+    /// Draw this many frames back to back and print their times.
+    Bench(u32),
 }
 
 /// A text command that does not parse.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum CommandError {
     /// Not a command.
-    #[error("unknown command {0:?} (commands: view options, last, where, frame, pause, resume, redraw, refresh, kill, restart, clobber, quit, head fix|release, tone, save FILE, sync)")]
+    #[error("unknown command {0:?} (commands: view options, last, where, frame, pause, resume, redraw, refresh, kill, restart, clobber, quit, head fix|release, tone, save FILE, sync, bench N)")]
     Unknown(String),
     /// A command with wrong arguments.
     #[error("{command}: {why}")]
@@ -122,6 +124,15 @@ pub fn parse(line: &str) -> Result<Option<Command>, CommandError> {
             _ => Err(bad("needs one file name")),
         },
         "sync" => none(Command::Sync),
+        "bench" => match rest.as_slice() {
+            [n] => n
+                .parse::<u32>()
+                .ok()
+                .filter(|n| (1..=10_000).contains(n))
+                .map(|n| Some(Command::Bench(n)))
+                .ok_or_else(|| bad("needs a number of frames from 1 to 10000")),
+            _ => Err(bad("needs a number of frames")),
+        },
         _ => Err(CommandError::Unknown(first.to_string())),
     }
 }
@@ -197,6 +208,8 @@ mod tests {
         assert!(e.to_string().contains("from 0 to 1"), "{e}");
         assert!(parse("quit now").is_err());
         assert!(parse("save").is_err());
+        assert_eq!(parse("bench 20").unwrap(), Some(Command::Bench(20)));
+        assert!(parse("bench 0").is_err());
     }
 
     #[test]

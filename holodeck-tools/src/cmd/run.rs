@@ -25,13 +25,17 @@ Starts `holodeck serve` on a free local port and WORKERS `holodeck sample` proce
 children stop with `run` however it ends (even killed), the server flushing its file.
 If the server, a sampler or the display dies by a signal or fails, `run` says which and
 how, stops the rest, and exits with status 1. With
--o DRIVER, a headless display (`holodeck view`) also walks --views, sharing --time among
-them; the samplers trace what it asks for first, and its frames go to --frames.
+-o DRIVER, a display (`holodeck view`) opens a window on the session where there is a screen
+(DISPLAY or WAYLAND_DISPLAY set): walk through the holodeck as the samplers fill it, with
+the samplers tracing what the window looks at first; closing it (q) ends the run. With
+--headless, or without a screen, the display instead walks --views, sharing --time among
+them, and its frames go to --frames.
 For workers on other hosts, start `holodeck serve` and `holodeck sample` yourself.
 
 Examples:
   holodeck run builtin:room room.hdk -n 2 --time 30s
-  holodeck run builtin:room room.hdk -n 2 --time 20s -o quadtree --views walk.vf --frames out
+  holodeck run builtin:room room.hdk -n 2 --time 1h -o mesh              # a window
+  holodeck run builtin:room room.hdk -n 2 --time 20s -o quadtree --headless --views walk.vf --frames out
   holodeck run scenes/room.toml room.hdk -n 16 --time 2h")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
@@ -48,8 +52,12 @@ pub struct Args {
     /// display that walks --views, drawing frames into --frames.
     #[arg(short = 'o', long, default_value = "none")]
     output: String,
-    /// Views for the display (a file of Radiance views, one per line); default:
-    /// one view from the middle of the first section.
+    /// Draw frames into --frames instead of opening a window.
+    #[arg(long)]
+    headless: bool,
+    /// Views for the display (a file of Radiance views, one per line; a
+    /// window starts at the first); default: one view from the middle of
+    /// the first section.
     #[arg(long)]
     views: Option<PathBuf>,
     /// Directory for the display's frames.
@@ -288,7 +296,33 @@ pub fn run(a: Args) -> Result<ExitCode> {
         time
     );
     let start = Instant::now();
+    let screen = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+    let windowed = display.is_some() && screen && !a.headless;
     let mut viewer = match &display {
+        Some((driver, views)) if windowed => {
+            let mut cmd = me()?;
+            cmd.args([
+                "view",
+                "--connect",
+                &addr,
+                "--token-file",
+                &token_file,
+                "--driver",
+                driver,
+            ])
+            .arg("--views")
+            .arg(views)
+            .args(if driver == "voronoi" {
+                vec!["--geometry", a.scene.as_str()]
+            } else {
+                vec![]
+            })
+            .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
+            .stderr(Stdio::inherit());
+            Some(Child::spawn("window", cmd)?)
+        }
         Some((driver, views)) => {
             let count = std::fs::read_to_string(views)
                 .with_context(|| format!("reading {}", views.display()))?
@@ -352,7 +386,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     bar.finish_and_clear();
     if let Some(v) = viewer.as_mut().filter(|v| !v.done) {
-        failures.extend(v.finish(Duration::from_secs(30)));
+        if windowed {
+            // TIME is up with the window still open: close it.
+            let _ = v.process.kill();
+            let _ = v.process.wait();
+            v.done = true;
+        } else {
+            failures.extend(v.finish(Duration::from_secs(30)));
+        }
     }
     let secs = start.elapsed().as_secs_f64();
     if !server_stopped {

@@ -239,6 +239,7 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
         "1",
         "-o",
         "quadtree",
+        "--headless",
         "-x",
         "64",
         "-y",
@@ -261,6 +262,7 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
         "1s",
         "-o",
         "mesh",
+        "--headless",
     ]);
     // The GPU drivers draw too (on Mesa's software Vulkan without a GPU).
     assert!(o.status.success(), "{}", text(&o));

@@ -1,0 +1,79 @@
+//! A walkthrough window on a live server, driven by commands on its
+//! standard input: view lines move it, `where` prints the view, `last` goes
+//! back, and `pause`/`resume` reach the server.
+
+use holodeck_protocol::wire::Control;
+use holodeck_protocol::View;
+
+use crate::common::process::Proc;
+use crate::common::screen::Screen;
+use crate::harness::{bin, carried_out, small_room, start_server};
+
+fn view_of(line: &str) -> Option<View> {
+    line.strip_prefix("VIEW= ")
+        .map(|v| View::parse(v).expect("the window prints views it can read back"))
+}
+
+#[test]
+fn standard_input_commands_drive_a_window_on_a_server() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", "secret");
+    let screen = Screen::start();
+    let mut window = Proc::start(
+        bin()
+            .args([
+                "view",
+                "--connect",
+                &addr,
+                "--token",
+                "secret",
+                "-i",
+                "-x",
+                "160",
+                "-y",
+                "120",
+            ])
+            .env("DISPLAY", &screen.display)
+            .env("NO_COLOR", "1"),
+    );
+    let mut at = 0;
+    window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
+    window.say("where");
+    let first = window.wait_line("the first view", &mut at, view_of);
+
+    // A view line changes what it gives and keeps the rest.
+    window.say("-vp 1.2 2.5 1.4 -vh 60");
+    window.say("where");
+    let second = window.wait_line("the second view", &mut at, view_of);
+    assert_eq!(second.position.to_array(), [1.2, 2.5, 1.4]);
+    assert_eq!(second.horizontal, 60.0);
+    assert_eq!((second.direction, second.up), (first.direction, first.up));
+
+    // `last` goes back, and again to where it was.
+    window.say("last");
+    window.say("where");
+    let back = window.wait_line("the view after last", &mut at, view_of);
+    assert_eq!(back.position, first.position);
+    assert_eq!(back.horizontal, first.horizontal);
+    window.say("last");
+    window.say("where");
+    let again = window.wait_line("the view after last again", &mut at, view_of);
+    assert_eq!(again.position, second.position);
+
+    // A bad line is answered, and the window goes on.
+    window.say("fly to the moon");
+    window.wait_line("the answer to a bad command", &mut at, |l| {
+        l.starts_with("error: unknown command").then_some(())
+    });
+
+    // Pause and resume are carried out by the server.
+    let mut log = 0;
+    window.say("pause");
+    carried_out(&server, &mut log, Control::Pause);
+    window.say("resume");
+    carried_out(&server, &mut log, Control::Resume);
+
+    window.say("quit");
+    assert!(window.wait().success(), "{}", window.text());
+}
