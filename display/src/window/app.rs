@@ -593,10 +593,17 @@ impl ApplicationHandler<UserEvent> for App {
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
-        if self.held.is_some() {
-            // Keep stepping while the button is held.
-            self.redraw();
-            event_loop.set_control_flow(ControlFlow::Poll);
+        if let Some(held) = &self.held {
+            // A frame per motion step while the button is held.
+            let next = held
+                .last_step
+                .map_or_else(Instant::now, |t| t + Duration::from_secs_f64(1.0 / STEP_RATE));
+            if Instant::now() >= next {
+                self.redraw();
+                event_loop.set_control_flow(ControlFlow::Poll);
+            } else {
+                event_loop.set_control_flow(ControlFlow::WaitUntil(next));
+            }
             return;
         }
         match self.walk.poll(Instant::now() + POLL) {
