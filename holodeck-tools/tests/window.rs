@@ -130,3 +130,59 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
     window.say("quit");
     assert!(window.wait().success(), "{}", window.text());
 }
+
+#[test]
+fn every_driver_draws_into_the_window_what_it_draws_headless() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let o = common::holodeck(&["fill", "builtin:room", f, "--rays", "30K", "--bounces", "1"]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let screen = Screen::start();
+    let (w, h) = (W.to_string(), H.to_string());
+    for driver in ["splat", "voronoi", "mesh"] {
+        let mut args = vec![
+            "pict", f, "--window", "-i", "--stride", "2", "-x", &w, "-y", &h, "--driver", driver,
+        ];
+        if driver == "voronoi" {
+            args.extend(["--geometry", "builtin:room"]);
+        }
+        let mut window = Proc::start(
+            Command::new(env!("CARGO_BIN_EXE_holodeck"))
+                .args(&args)
+                .env("DISPLAY", &screen.display)
+                .env("NO_COLOR", "1"),
+        );
+        let mut at = 0;
+        window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
+        window.say("where");
+        let view = window.wait_line("the view", &mut at, view_of);
+        window.say("tone");
+        window.say("sync");
+        window.wait_line("the frame", &mut at, |l| (l == "sync").then_some(()));
+        let id = screen.window(&format!("^holodeck: .*\\({driver}\\)"));
+        let shown = screen.capture(&id);
+        let reference = dir.path().join(format!("{driver}.png"));
+        let spec = view.to_spec();
+        let mut args = vec![
+            "pict", f, "--view", &spec, "--stride", "2", "-x", &w, "-y", &h, "--driver", driver,
+        ];
+        if driver == "voronoi" {
+            args.extend(["--geometry", "builtin:room"]);
+        }
+        args.extend(["-o", reference.to_str().unwrap()]);
+        let o = common::holodeck(&args);
+        assert!(o.status.success(), "{}", common::text(&o));
+        let reference = read_picture(&reference).unwrap();
+        let mask: Vec<bool> = (0..shown.pixels.len())
+            .map(|i| i / (W as usize) < H as usize - STATUS_ROWS)
+            .collect();
+        let error = relative_rmse_masked(&shown, &reference, &mask).unwrap();
+        assert!(
+            error < 0.02,
+            "{driver}: the window differs from the headless picture: relative RMSE {error}"
+        );
+        window.say("quit");
+        assert!(window.wait().success(), "{driver}: {}", window.text());
+    }
+}
