@@ -127,6 +127,31 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
     let lit = shown.pixels.iter().filter(|p| p.max_element() > 0.05).count();
     assert!(lit > shown.pixels.len() / 2, "only {lit} pixels lit");
 
+    // A ctrl+shift drag marks a focus rectangle; the `f` key frames it: the
+    // rectangle's center becomes the view's center, and the field narrows.
+    // Keys go where the input focus is (there is no window manager to give it).
+    screen.tool("xdotool", &["windowfocus", "--sync", &id]);
+    screen.tool("xdotool", &["mousemove", "--window", &id, "200", "60"]);
+    screen.tool("xdotool", &["keydown", "ctrl+shift", "mousedown", "1"]);
+    screen.tool("xdotool", &["mousemove", "--window", &id, "280", "140"]);
+    screen.tool("xdotool", &["mouseup", "1", "keyup", "ctrl+shift"]);
+    screen.tool("xdotool", &["key", "f"]);
+    // `v` prints the view, as `where` does.
+    screen.tool("xdotool", &["key", "v"]);
+    let framed = window.wait_line("the framed view", &mut at, view_of);
+    let center = (
+        (200.5 + 280.5) / 2.0 / f64::from(W),
+        1.0 - (60.5 + 140.5) / 2.0 / f64::from(H),
+    );
+    let (_, toward) = end.ray(center.0, center.1).unwrap();
+    assert!(
+        framed.direction.distance(toward) < 1e-9,
+        "framed {:?}, the rectangle's center is along {toward:?}",
+        framed.direction
+    );
+    assert!(framed.horizontal < end.horizontal / 2.0, "{}", framed.horizontal);
+    assert_eq!(framed.position, end.position);
+
     window.say("quit");
     assert!(window.wait().success(), "{}", window.text());
 }
