@@ -4,12 +4,12 @@
 //! keeps drawing.
 
 use std::collections::HashMap;
-use std::io::{Read, Write};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, LinkError, Message, Role, PROTOCOL_VERSION};
-use holodeck_protocol::{BeamKey, Section, SectionError};
+use holodeck_protocol::wire::client::{self, ClientStream};
+use holodeck_protocol::wire::{Control, Frame, FrameLink, LinkError, Message, Role};
+use holodeck_protocol::{BeamKey, Section};
 
 use crate::request::BeamRequest;
 use crate::sample::{Sample, SampleDecoder};
@@ -17,7 +17,10 @@ use crate::sample::{Sample, SampleDecoder};
 /// Why a display session failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
-    /// Connecting or talking to the server failed.
+    /// Connecting failed, or the server refused this display.
+    #[error(transparent)]
+    Connect(#[from] client::ClientError),
+    /// Talking to the server failed.
     #[error("server {addr}: {source}")]
     Link {
         /// The server.
@@ -25,52 +28,12 @@ pub enum ClientError {
         /// Why.
         source: LinkError,
     },
-    /// The server refused this display.
-    #[error("the server refused this display: {0}")]
-    Refused(String),
     /// The server sent something out of turn.
     #[error("protocol error: {0}")]
     Protocol(String),
-    /// A section the server described is invalid.
-    #[error("section from the server: {0}")]
-    Section(#[from] SectionError),
     /// The server closed the connection.
     #[error("the server closed the connection")]
     Closed,
-}
-
-/// Both directions of a socket, splittable into a reader and a writer.
-trait Duplex: Read + Write + Send {
-    fn split(&self) -> std::io::Result<Box<dyn Duplex>>;
-    /// Closes both directions, for every handle of the socket.
-    fn close(&self);
-}
-
-impl Duplex for std::net::TcpStream {
-    fn split(&self) -> std::io::Result<Box<dyn Duplex>> {
-        Ok(Box::new(self.try_clone()?))
-    }
-    fn close(&self) {
-        let _ = self.shutdown(std::net::Shutdown::Both);
-    }
-}
-
-impl Duplex for std::os::unix::net::UnixStream {
-    fn split(&self) -> std::io::Result<Box<dyn Duplex>> {
-        Ok(Box::new(self.try_clone()?))
-    }
-    fn close(&self) {
-        let _ = self.shutdown(std::net::Shutdown::Both);
-    }
-}
-
-fn connect(addr: &str) -> std::io::Result<Box<dyn Duplex>> {
-    if let Some(path) = addr.strip_prefix("unix:") {
-        return Ok(Box::new(std::os::unix::net::UnixStream::connect(path)?));
-    }
-    let s = std::net::TcpStream::connect(addr)?;
-    let _ = s.set_nodelay(true);
-    Ok(Box::new(s))
 }
 
 /// What one immediate transfer brought.
@@ -89,7 +52,7 @@ pub struct Transfer {
 /// A connected display.
 pub struct DisplaySession {
     addr: String,
-    writer: FrameLink<Box<dyn Duplex>>,
+    writer: FrameLink<ClientStream>,
     frames: Receiver<Result<Frame, LinkError>>,
     decoder: SampleDecoder,
     scratch: Vec<Sample>,
@@ -101,29 +64,18 @@ impl Drop for DisplaySession {
     fn drop(&mut self) {
         // The reader thread holds its own handle of the socket: shut it down,
         // so the server sees this display leave now, not at its next frame.
-        self.writer.stream().close();
+        self.writer.stream().shutdown();
     }
 }
 
 impl DisplaySession {
     /// Connects to `addr` (`host:port` or `unix:PATH`) as a display.
     pub fn connect(addr: &str, token: &str, read_only: bool) -> Result<DisplaySession, ClientError> {
-        let link_err = |source: LinkError| ClientError::Link {
+        let (writer, welcome) = client::open(addr, client::hello(Role::Display, token, "", read_only))?;
+        let reader = writer.stream().try_clone().map_err(|e| ClientError::Link {
             addr: addr.to_string(),
-            source,
-        };
-        let stream = connect(addr).map_err(|e| link_err(LinkError::Io(e)))?;
-        let reader = stream.split().map_err(|e| link_err(LinkError::Io(e)))?;
-        let mut writer = FrameLink::new(stream);
-        let hello = Hello {
-            version: PROTOCOL_VERSION,
-            role: Role::Display,
-            scene: String::new(),
-            token: token.into(),
-            read_only,
-        };
-        writer.write(&Frame::Message(Message::Hello(hello))).map_err(link_err)?;
-        writer.flush().map_err(link_err)?;
+            source: LinkError::Io(e),
+        })?;
         let (tx, frames) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
             let mut link = FrameLink::new(reader);
@@ -142,23 +94,14 @@ impl DisplaySession {
                 }
             }
         });
-        let mut session = DisplaySession {
+        Ok(DisplaySession {
             addr: addr.to_string(),
             writer,
             frames,
-            decoder: SampleDecoder::new(Vec::new()),
+            decoder: SampleDecoder::new(welcome.sections),
             scratch: Vec::new(),
             received: HashMap::new(),
-        };
-        match session.next(None)? {
-            Some(Frame::Message(Message::Welcome { sections, .. })) => {
-                let sections: Vec<Section> = sections.into_iter().map(Section::try_from).collect::<Result<_, _>>()?;
-                session.decoder = SampleDecoder::new(sections);
-                Ok(session)
-            }
-            Some(Frame::Message(Message::Refused { reason })) => Err(ClientError::Refused(reason)),
-            other => Err(ClientError::Protocol(format!("expected Welcome, got {other:?}"))),
-        }
+        })
     }
 
     /// The holodeck's sections.

@@ -5,7 +5,8 @@
 //! ([`RayRecord`]) with its RGBE color ([`Rgbe`]) and 16-bit depth code
 //! ([`DepthCode`]). It is pure data and arithmetic: it must never touch files,
 //! sockets or clocks, so that the storage engine, the samplers and the displays
-//! all agree on the same bits.
+//! all agree on the same bits. The one exception is [`wire::client`], the
+//! blocking client socket every peer connects with.
 
 pub mod beam;
 pub mod depth;

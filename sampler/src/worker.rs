@@ -3,11 +3,11 @@
 //! Blocking I/O on one connection per worker thread: tracing, not the network,
 //! is what takes the time.
 
-use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::wire::{Frame, FrameLink, Hello, LinkError, Message, Role, MAX_PACKET_RAYS, PROTOCOL_VERSION};
-use holodeck_protocol::{Section, SectionError};
+use holodeck_protocol::wire::client::{self, ClientError, ClientStream};
+use holodeck_protocol::wire::{Frame, FrameLink, LinkError, Message, Role, MAX_PACKET_RAYS};
+use holodeck_protocol::SectionError;
 
 use crate::beam::trace_beam;
 use crate::shade::{Rng, Tracer};
@@ -15,7 +15,10 @@ use crate::shade::{Rng, Tracer};
 /// Why a worker stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum WorkerError {
-    /// The connection failed.
+    /// Connecting or the handshake failed (the server refused this sampler, say).
+    #[error(transparent)]
+    Connect(#[from] ClientError),
+    /// The connection failed after the handshake.
     #[error("connection to {addr}: {source}")]
     Io {
         /// The server.
@@ -23,9 +26,6 @@ pub enum WorkerError {
         /// Why.
         source: LinkError,
     },
-    /// The server refused this worker.
-    #[error("the server refused this sampler: {0}")]
-    Refused(String),
     /// The server broke the protocol.
     #[error("protocol error: {0}")]
     Protocol(String),
@@ -40,23 +40,8 @@ pub enum WorkerError {
         /// How long connecting was retried.
         retried: Duration,
         /// Why the last attempt failed (part of this message).
-        error: Box<LinkError>,
+        error: Box<ClientError>,
     },
-}
-
-/// A byte stream to the server.
-pub trait ServerStream: Read + Write + Send {}
-
-impl<T: Read + Write + Send> ServerStream for T {}
-
-/// Connects to `addr`: `host:port` for TCP, `unix:PATH` for a Unix socket.
-pub fn connect(addr: &str) -> std::io::Result<Box<dyn ServerStream>> {
-    if let Some(path) = addr.strip_prefix("unix:") {
-        return Ok(Box::new(std::os::unix::net::UnixStream::connect(path)?));
-    }
-    let s = std::net::TcpStream::connect(addr)?;
-    let _ = s.set_nodelay(true);
-    Ok(Box::new(s))
 }
 
 /// Finished rays wait at most this long before they are sent, so displays
@@ -70,29 +55,9 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
         addr: addr.to_string(),
         source,
     };
-    let stream = connect(addr).map_err(|e| io(LinkError::Io(e)))?;
-    let mut link = FrameLink::new(stream);
-    let hello = Hello {
-        version: PROTOCOL_VERSION,
-        role: Role::Sampler,
-        scene: scene.into(),
-        token: token.into(),
-        read_only: true,
-    };
-    link.write(&Frame::Message(Message::Hello(hello))).map_err(io)?;
-    let (sections, obstructions) = match link.read().map_err(io)? {
-        Some(Frame::Message(Message::Welcome { sections, obstructions })) => {
-            let sections: Vec<Section> = sections.into_iter().map(Section::try_from).collect::<Result<_, _>>()?;
-            (sections, obstructions)
-        }
-        Some(Frame::Message(Message::Refused { reason })) => return Err(WorkerError::Refused(reason)),
-        Some(_) => return Err(WorkerError::Protocol("expected Welcome or Refused".into())),
-        None => {
-            return Err(WorkerError::Protocol(
-                "the server closed the connection during the handshake".into(),
-            ))
-        }
-    };
+    let (mut link, welcome): (FrameLink<ClientStream>, _) =
+        client::open(addr, client::hello(Role::Sampler, token, scene, false))?;
+    let (sections, obstructions) = (welcome.sections, welcome.obstructions);
     let mut traced = 0u64;
     let mut n = 0u64;
     let mut last_send = Instant::now();
@@ -181,7 +146,8 @@ pub fn run_worker_retrying(
                 }
                 None
             }
-            Err(WorkerError::Io { source, .. }) => Some(source),
+            Err(WorkerError::Io { addr, source }) => Some(ClientError::Link { addr, source }),
+            Err(WorkerError::Connect(e)) if e.is_unreachable() => Some(e),
             Err(e) => return Err(e),
         };
         round += 1;
@@ -226,7 +192,11 @@ mod tests {
         else {
             panic!("{e:?}")
         };
-        let LinkError::Io(io) = error.as_ref() else {
+        let ClientError::Link {
+            source: LinkError::Io(io),
+            ..
+        } = error.as_ref()
+        else {
             panic!("{e:?}")
         };
         assert_eq!((at.as_str(), *retried), (addr.as_str(), Duration::ZERO));

@@ -7,7 +7,6 @@
 //! - 16 light synthetic samplers and 8 displays at once: throughput, request
 //!   latency, and the server's memory.
 
-use std::net::TcpStream;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -15,7 +14,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, SamplingMode, PROTOCOL_VERSION};
+use holodeck_protocol::wire::client::{self, ClientStream};
+use holodeck_protocol::wire::{Control, Frame, FrameLink, Message, Role, SamplingMode};
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::schedule::BatchSchedule;
@@ -82,25 +82,13 @@ fn run_rate(dir: &Path, workers: usize, seconds: f64) -> Result<f64> {
 
 /// A raw peer over TCP (no decoding: the server's rate is what is measured).
 struct Peer {
-    link: FrameLink<TcpStream>,
+    link: FrameLink<ClientStream>,
 }
 
 impl Peer {
     fn connect(addr: &str, role: Role, scene: &str) -> Result<Peer> {
-        let s = TcpStream::connect(addr)?;
-        let _ = s.set_nodelay(true);
-        let mut link = FrameLink::new(s);
-        link.write(&Frame::Message(Message::Hello(Hello {
-            version: PROTOCOL_VERSION,
-            role,
-            scene: scene.into(),
-            token: "bench".into(),
-            read_only: false,
-        })))?;
-        match link.read()? {
-            Some(Frame::Message(Message::Welcome { .. })) => Ok(Peer { link }),
-            other => bail!("not welcomed: {other:?}"),
-        }
+        let (link, _) = client::open(addr, client::hello(role, "bench", scene, false))?;
+        Ok(Peer { link })
     }
 
     /// Requests beams; returns rays received up to Delivered and the time taken.
@@ -189,9 +177,7 @@ fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
 }
 
 fn quit(addr: &str, mut child: Child) -> Result<()> {
-    let mut admin = Peer::connect(addr, Role::Admin, "")?;
-    admin.link.write(&Frame::Message(Message::Control(Control::Quit)))?;
-    admin.link.flush()?;
+    client::send_control(addr, "bench", Control::Quit)?;
     child.wait()?;
     Ok(())
 }

@@ -8,8 +8,7 @@ use std::process::{Command, ExitCode, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
-use holodeck_sampler::worker::connect;
+use holodeck_protocol::wire::{client, Control};
 use holodeck_server::settings::parse_duration;
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -171,24 +170,7 @@ fn how(status: ExitStatus) -> String {
 
 /// Asks the server at `addr` to flush and quit.
 pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
-    let mut link = FrameLink::new(connect(addr)?);
-    let hello = Hello {
-        version: PROTOCOL_VERSION,
-        role: Role::Admin,
-        scene: String::new(),
-        token: token.into(),
-        read_only: false,
-    };
-    link.write(&Frame::Message(Message::Hello(hello)))?;
-    match link.read()? {
-        Some(Frame::Message(Message::Welcome { .. })) => {}
-        Some(Frame::Message(Message::Refused { reason })) => bail!("the server refused: {reason}"),
-        other => bail!("unexpected answer from the server: {other:?}"),
-    }
-    link.write(&Frame::Message(Message::Control(Control::Quit)))?;
-    link.flush()?;
-    // The server closes the connection once it has the command.
-    let _ = link.read();
+    client::send_control(addr, token, Control::Quit)?;
     Ok(())
 }
 

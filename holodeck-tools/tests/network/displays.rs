@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use holodeck_protocol::wire::{EyePoint, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{client, EyePoint, Frame, Message, Role};
 use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -45,10 +45,7 @@ fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
     let worker = sampler(&unix, token, &["builtin:room"]);
 
     let (mut display, welcome) = Client::connect(&unix, Role::Display, token);
-    let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
-        panic!("{welcome:?}")
-    };
-    let sections: Vec<Section> = sections.into_iter().map(|s| Section::try_from(s).unwrap()).collect();
+    let sections: Vec<Section> = welcome.sections;
     let s = &sections[0];
     let eye = s.origin() + (s.axes()[0] + s.axes()[1] + s.axes()[2]) * 0.5;
     let view = View::parse(&format!(
@@ -225,7 +222,7 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
         other => panic!("{other:?}"),
     }
     // Before its Hello, a peer may not send a big frame.
-    let mut raw = Socket::connect(&addr);
+    let mut raw = socket(&addr);
     let mut big = vec![0u8; 5 + (100 << 10)];
     big[..4].copy_from_slice(&((100u32 << 10) + 1).to_le_bytes());
     let _ = std::io::Write::write_all(&mut raw, &big);
@@ -341,15 +338,7 @@ fn a_sampler_that_stops_answering_is_dropped_and_its_work_traced_by_another() {
         &["--no-fill", "--stall-timeout", "1s"],
     );
     // A "sampler" that takes packets and never answers (a stopped process).
-    let mut silent = Client::raw(&addr);
-    silent.send(&Frame::Message(Message::Hello(Hello {
-        version: PROTOCOL_VERSION,
-        role: Role::Sampler,
-        scene,
-        token: token.into(),
-        read_only: true,
-    })));
-    assert!(matches!(silent.recv(), Frame::Message(Message::Welcome { .. })));
+    let (mut silent, _) = Client::greet(&addr, client::hello(Role::Sampler, token, &scene, false)).unwrap();
     let (mut display, _) = Client::connect(&addr, Role::Display, token);
     let want: Vec<(BeamKey, u32)> = (0..4).map(|b| (BeamKey::new(0, 3000 + 11 * b), 50)).collect();
     let base: HashMap<BeamKey, usize> = display.request(&want, None).into_iter().collect();

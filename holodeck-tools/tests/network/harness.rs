@@ -1,15 +1,14 @@
 //! What the network tests share: the `holodeck` processes they start (each
-//! under a [`Proc`] guard, waited on for what it prints), a raw protocol
-//! client whose reads time out, and checks of what a server leaves on disk.
+//! under a [`Proc`] guard, waited on for what it prints), a protocol client
+//! whose reads time out (raw, for the tests that send malformed bytes), and
+//! checks of what a server leaves on disk.
 
 use std::collections::HashMap;
-use std::io::{Read, Write};
-use std::net::TcpStream;
-use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use holodeck_protocol::wire::client::{self, ClientError, ClientStream, Welcome};
 use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
 use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::{HoloFile, OpenOptions};
@@ -81,12 +80,7 @@ pub fn start_server_with(f: &str, addr: &str, token: &str, extra: &[&str]) -> (P
 
 /// Asks the server at `addr` to flush and quit, as an admin.
 pub fn quit(addr: &str, token: &str) {
-    let (mut admin, welcome) = Client::connect(addr, Role::Admin, token);
-    assert!(
-        matches!(welcome, Frame::Message(Message::Welcome { .. })),
-        "{welcome:?}"
-    );
-    admin.send(&Frame::Message(Message::Control(Control::Quit)));
+    client::send_control(addr, token, Control::Quit).unwrap();
 }
 
 /// The rays a server's REPORT line says are stored (`progress: N rays, ...`):
@@ -186,103 +180,65 @@ pub fn assert_clean(file: &Path) -> u64 {
     report.rays_ok
 }
 
-/// A stream to the server whose reads time out.
-pub enum Socket {
-    /// Over TCP.
-    Tcp(TcpStream),
-    /// Over a Unix socket.
-    Unix(UnixStream),
+/// Connects to `host:port` or `unix:PATH`; reads time out after [`DEADLINE`].
+pub fn socket(addr: &str) -> ClientStream {
+    let s = client::connect(addr).unwrap();
+    s.set_read_timeout(Some(DEADLINE)).unwrap();
+    s
 }
 
-impl Socket {
-    /// Connects to `host:port` or `unix:PATH`; reads time out after [`DEADLINE`].
-    pub fn connect(addr: &str) -> Socket {
-        let s = match addr.strip_prefix("unix:") {
-            Some(path) => Socket::Unix(UnixStream::connect(path).unwrap()),
-            None => Socket::Tcp(TcpStream::connect(addr).unwrap()),
-        };
-        s.set_read_timeout(DEADLINE);
-        s
-    }
-
-    /// How long a read may wait before it fails.
-    pub fn set_read_timeout(&self, d: Duration) {
-        match self {
-            Socket::Tcp(s) => s.set_read_timeout(Some(d)),
-            Socket::Unix(s) => s.set_read_timeout(Some(d)),
-        }
-        .unwrap();
-    }
-}
-
-impl Read for Socket {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        match self {
-            Socket::Tcp(s) => s.read(buf),
-            Socket::Unix(s) => s.read(buf),
-        }
-    }
-}
-
-impl Write for Socket {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        match self {
-            Socket::Tcp(s) => s.write(buf),
-            Socket::Unix(s) => s.write(buf),
-        }
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        match self {
-            Socket::Tcp(s) => s.flush(),
-            Socket::Unix(s) => s.flush(),
-        }
-    }
-}
-
-/// A raw client: handshake as some role, then exchange frames.
+/// A protocol client: handshake as some role, then exchange frames.
 pub struct Client {
     /// The framed connection.
-    pub link: FrameLink<Socket>,
+    pub link: FrameLink<ClientStream>,
 }
 
 impl Client {
-    /// Connects and says hello as `role`; returns the server's answer too.
-    pub fn connect(addr: &str, role: Role, token: &str) -> (Client, Frame) {
+    /// Connects and says hello as `role`; returns what the server's welcome
+    /// said too. Fails the test if the server refuses.
+    pub fn connect(addr: &str, role: Role, token: &str) -> (Client, Welcome) {
         Client::hello(addr, role, token, PROTOCOL_VERSION, false)
+            .unwrap_or_else(|e| panic!("connecting as {role:?}: {e}"))
     }
 
     /// A display that may not change the server's state.
     pub fn read_only_display(addr: &str, token: &str) -> Client {
-        let (c, welcome) = Client::hello(addr, Role::Display, token, PROTOCOL_VERSION, true);
-        assert!(
-            matches!(welcome, Frame::Message(Message::Welcome { .. })),
-            "{welcome:?}"
-        );
-        c
+        Client::hello(addr, Role::Display, token, PROTOCOL_VERSION, true)
+            .unwrap_or_else(|e| panic!("connecting a read-only display: {e}"))
+            .0
     }
 
-    /// Connects and says hello with every field chosen.
-    pub fn hello(addr: &str, role: Role, token: &str, version: u32, read_only: bool) -> (Client, Frame) {
+    /// Connects and says hello with every field chosen; the server's answer.
+    pub fn hello(
+        addr: &str,
+        role: Role,
+        token: &str,
+        version: u32,
+        read_only: bool,
+    ) -> Result<(Client, Welcome), ClientError> {
+        Client::greet(
+            addr,
+            Hello {
+                version,
+                ..client::hello(role, token, "", read_only)
+            },
+        )
+    }
+
+    /// Connects and sends `hello`; the server's answer.
+    pub fn greet(addr: &str, hello: Hello) -> Result<(Client, Welcome), ClientError> {
         let mut c = Client::raw(addr);
-        let hello = Hello {
-            version,
-            role,
-            scene: String::new(),
-            token: token.into(),
-            read_only,
-        };
-        c.send(&Frame::Message(Message::Hello(hello)));
-        let answer = c.recv();
-        (c, answer)
+        let welcome = client::handshake(&mut c.link, addr, hello)?;
+        Ok((c, welcome))
     }
 
     /// Connects without a handshake.
     pub fn raw(addr: &str) -> Client {
-        Client::over(Socket::connect(addr))
+        Client::over(socket(addr))
     }
 
     /// A client on a connected socket.
-    pub fn over(socket: Socket) -> Client {
+    pub fn over(socket: ClientStream) -> Client {
         Client {
             link: FrameLink::new(socket),
         }
@@ -307,7 +263,10 @@ impl Client {
     /// A frame already sent to us, if there is one (waits a moment only for
     /// bytes in flight on loopback).
     pub fn pending(&mut self) -> Option<Frame> {
-        self.link.stream().set_read_timeout(Duration::from_millis(50));
+        self.link
+            .stream()
+            .set_read_timeout(Some(Duration::from_millis(50)))
+            .unwrap();
         let got = match self.link.read() {
             Ok(f) => f,
             Err(holodeck_protocol::wire::LinkError::Io(e))
@@ -317,7 +276,7 @@ impl Client {
             }
             Err(e) => panic!("reading from the server: {e}"),
         };
-        self.link.stream().set_read_timeout(DEADLINE);
+        self.link.stream().set_read_timeout(Some(DEADLINE)).unwrap();
         got
     }
 

@@ -5,6 +5,7 @@
 use std::io::Write;
 use std::net::TcpStream;
 
+use holodeck_protocol::wire::client::ClientError;
 use holodeck_protocol::wire::{Frame, Message, Role, PROTOCOL_VERSION};
 use holodeck_protocol::{BeamKey, Section};
 use holodeck_server::{HoloFile, OpenOptions, StorageError};
@@ -47,12 +48,12 @@ fn server_samplers_display_and_quit() {
 
     // A future protocol version and an oversized frame are refused too.
     {
-        let (_, answer) = Client::hello(&addr, Role::Display, token, PROTOCOL_VERSION + 1, false);
-        match answer {
-            Frame::Message(Message::Refused { reason }) => assert!(reason.contains("protocol version"), "{reason}"),
-            other => panic!("{other:?}"),
+        match Client::hello(&addr, Role::Display, token, PROTOCOL_VERSION + 1, false) {
+            Err(ClientError::Refused { reason, .. }) => assert!(reason.contains("protocol version"), "{reason}"),
+            Err(e) => panic!("{e}"),
+            Ok(_) => panic!("a future protocol version was welcomed"),
         }
-        let mut raw = Socket::connect(&addr);
+        let mut raw = socket(&addr);
         raw.write_all(&[0xff, 0xff, 0xff, 0x7f, 0]).unwrap();
         match Client::over(raw).recv() {
             Frame::Message(Message::Refused { reason }) => assert!(reason.contains("larger than"), "{reason}"),
@@ -72,9 +73,7 @@ fn server_samplers_display_and_quit() {
 
     // A display asks for beams and gets them.
     let (mut display, welcome) = Client::connect(&addr, Role::Display, token);
-    let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
-        panic!("{welcome:?}")
-    };
+    let sections: Vec<_> = welcome.sections.iter().map(Section::spec).collect();
     assert_eq!(sections, specs, "the display is told the file's sections");
     let keys: Vec<(BeamKey, u32)> = (0..50).map(|b| (BeamKey::new(0, b * 97), 10)).collect();
     let got = display.request(&keys, None);
@@ -190,10 +189,7 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
     let token = std::fs::read_to_string(&token_file).unwrap().trim().to_string();
     let beams: Vec<(BeamKey, u32)> = {
         let (_, welcome) = Client::connect(&addr, Role::Display, &token);
-        let Frame::Message(Message::Welcome { sections, .. }) = welcome else {
-            panic!("{welcome:?}")
-        };
-        let n = Section::try_from(sections[0].clone()).unwrap().beam_count();
+        let n = welcome.sections[0].beam_count();
         (0..n).map(|b| (BeamKey::new(0, b), 0)).collect()
     };
     let (mut display, _) = Client::connect(&addr, Role::Display, &token);

@@ -1,8 +1,10 @@
 //! The wire protocol between the server and its peers (samplers, displays,
 //! admin tools): typed messages in length-prefixed frames. Control messages are
-//! postcard-encoded; ray payloads travel as raw 10-byte records. Pure encoding:
-//! no sockets here. Every decoder takes untrusted bytes and never panics.
+//! postcard-encoded; ray payloads travel as raw 10-byte records. Encoding is
+//! pure; [`client`] alone opens sockets, for the blocking peers' side of the
+//! handshake. Every decoder takes untrusted bytes and never panics.
 
+pub mod client;
 mod frame;
 mod link;
 mod message;

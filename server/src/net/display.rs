@@ -14,15 +14,14 @@
 //! what it already sent. A display that stops reading holds back only its own
 //! task, and its memory stays bounded by the beams it asked for.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use holodeck_protocol::wire::{Control, Frame, Message, MAX_FRAME};
 use holodeck_protocol::{BeamKey, RAY_RECORD_BYTES};
-use tokio::sync::Notify;
 
 use super::connection::{Connection, ConnectionError};
-use super::service::Shared;
+use super::state::{DisplayLink, Shared};
 use crate::storage::StorageError;
 
 /// Beams read from the store per round trip to the storage thread: bounds the
@@ -31,25 +30,6 @@ const READ_CHUNK: usize = 2048;
 
 /// Most records in one beam frame (a frame holds at most [`MAX_FRAME`] bytes).
 const MAX_FRAME_RAYS: usize = (MAX_FRAME - 64) / RAY_RECORD_BYTES;
-
-/// A display's mailbox: beams with new rays, and a wake-up.
-#[derive(Default)]
-pub(super) struct DisplayLink {
-    dirty: std::sync::Mutex<HashSet<BeamKey>>,
-    wake: Notify,
-}
-
-impl DisplayLink {
-    /// Notes that `key` has new rays.
-    pub fn mark(&self, key: BeamKey) {
-        self.dirty.lock().unwrap_or_else(|p| p.into_inner()).insert(key);
-        self.wake.notify_one();
-    }
-
-    fn take(&self) -> HashSet<BeamKey> {
-        std::mem::take(&mut *self.dirty.lock().unwrap_or_else(|p| p.into_inner()))
-    }
-}
 
 /// A display reading beams while samplers may be adding to them: the
 /// scheduler notes which beams got rays meanwhile, until the watch ends.

@@ -15,7 +15,7 @@ use holodeck_protocol::BeamKey;
 use tokio::sync::mpsc;
 
 use super::connection::{Connection, ConnectionError};
-use super::service::Shared;
+use super::state::Shared;
 use crate::schedule::Work;
 
 /// Most rays queued to one sampler, however fast it claims to be.

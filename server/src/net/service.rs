@@ -16,71 +16,17 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use holodeck_protocol::wire::{Control, Frame, Hello, Message, Role, PROTOCOL_VERSION};
-use holodeck_protocol::{BeamKey, Section};
+use holodeck_protocol::wire::{Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::Section;
 use tokio::sync::{mpsc, watch, Notify};
 
+use super::config::ServerConfig;
 use super::connection::{Connection, ConnectionError, Stream};
-use super::display::DisplayLink;
 use super::listener::Listener;
+use super::state::Shared;
 use super::store::Store;
-use crate::schedule::{BatchSchedule, Scheduler};
+use crate::schedule::Scheduler;
 use crate::storage::{HoloFile, StorageError};
-
-/// What a batch fill covers when no display wants anything.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Fill {
-    /// Every beam, by volume.
-    All,
-    /// Only beams some views see, weighted by the view rays in each.
-    Views(Vec<(BeamKey, u32)>),
-    /// Nothing: samplers trace only what displays request.
-    Off,
-}
-
-/// How the server runs.
-#[derive(Clone, Debug)]
-pub struct ServerConfig {
-    /// The token every peer must present.
-    pub token: String,
-    /// Rays per batch-fill packet (one beam each).
-    pub packet: u32,
-    /// Most rays in a packet for a display's request.
-    pub request_packet: u32,
-    /// Rays queued to a sampler before its speed is known.
-    pub initial_queue: u32,
-    /// Each sampler's queue is sized to drain within this long.
-    pub latency: Duration,
-    /// The batch fill.
-    pub fill: Fill,
-    /// Stop (flushing) after this long (the TIME setting).
-    pub time: Option<Duration>,
-    /// Print a progress line this often (the REPORT setting).
-    pub report: Option<Duration>,
-    /// Stop once the file refuses rays (DISKSPACE reached, or a write failed) and no display is connected.
-    pub stop_when_full: bool,
-    /// A sampler that returns nothing for this long while it holds work is
-    /// dropped and its work given back.
-    pub stall: Duration,
-}
-
-impl ServerConfig {
-    /// Defaults for a server with this token.
-    pub fn new(token: String) -> ServerConfig {
-        ServerConfig {
-            token,
-            packet: 4,
-            request_packet: 32,
-            initial_queue: 256,
-            latency: Duration::from_millis(250),
-            fill: Fill::All,
-            time: None,
-            report: None,
-            stop_when_full: true,
-            stall: Duration::from_secs(30),
-        }
-    }
-}
 
 /// Why the server stopped with an error.
 #[derive(Debug, thiserror::Error)]
@@ -94,107 +40,6 @@ pub enum ServeError {
     /// No listening socket was given.
     #[error("no socket to listen on")]
     NoListener,
-}
-
-/// State every connection task shares.
-pub(super) struct Shared {
-    pub config: ServerConfig,
-    pub obstructions: bool,
-    pub scene: Option<String>,
-    pub sections: Vec<Section>,
-    pub scheduler: std::sync::Mutex<Scheduler>,
-    pub store: Store,
-    pub next_id: AtomicU64,
-    /// Wakes samplers waiting for work (new requests, resume, restart).
-    pub work: Notify,
-    /// Connected displays, by id, for forwarding new rays.
-    pub displays: std::sync::Mutex<HashMap<u64, Arc<DisplayLink>>>,
-    /// Bumped to disconnect every sampler.
-    pub kill_samplers: watch::Sender<u64>,
-    /// False after KillSamplers until Restart: samplers are refused.
-    pub samplers_allowed: AtomicBool,
-    /// Bumped by Clobber: displays then count their beams from the start.
-    pub generation: AtomicU64,
-    pub shutdown: watch::Sender<bool>,
-}
-
-impl Shared {
-    pub fn lock_scheduler(&self) -> std::sync::MutexGuard<'_, Scheduler> {
-        // A panic while holding the lock leaves consistent-enough counts: keep serving.
-        self.scheduler.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
-    pub fn lock_displays(&self) -> std::sync::MutexGuard<'_, HashMap<u64, Arc<DisplayLink>>> {
-        self.displays.lock().unwrap_or_else(|p| p.into_inner())
-    }
-
-    pub fn id(&self) -> u64 {
-        self.next_id.fetch_add(1, Ordering::Relaxed)
-    }
-
-    /// The batch list for the configured fill, from the rays stored now.
-    pub fn batch(&self, lens: &[Vec<u64>]) -> Result<Option<BatchSchedule>, holodeck_protocol::SectionError> {
-        let stored = |k: BeamKey| {
-            lens.get(k.section as usize)
-                .and_then(|s| s.get(k.beam as usize))
-                .copied()
-                .unwrap_or(0)
-        };
-        Ok(match &self.config.fill {
-            Fill::All => Some(BatchSchedule::new(&self.sections, stored)?),
-            Fill::Views(seen) => Some(BatchSchedule::for_views(&self.sections, seen, stored)),
-            Fill::Off => None,
-        })
-    }
-
-    /// Carries out a control command from a writable display or an admin.
-    pub async fn control(&self, c: Control) -> Result<(), ControlError> {
-        match c {
-            Control::Pause => self.lock_scheduler().set_paused(true),
-            Control::Resume => {
-                self.lock_scheduler().set_paused(false);
-                self.work.notify_waiters();
-            }
-            Control::KillSamplers => {
-                self.samplers_allowed.store(false, Ordering::SeqCst);
-                self.kill_samplers.send_modify(|n| *n += 1);
-            }
-            Control::Restart => {
-                let lens = self.store.lens().await?;
-                let batch = self.batch(&lens)?;
-                self.lock_scheduler().restart(batch);
-                self.samplers_allowed.store(true, Ordering::SeqCst);
-                self.work.notify_waiters();
-            }
-            Control::Clobber => {
-                self.store.clobber().await?;
-                self.generation.fetch_add(1, Ordering::SeqCst);
-                let lens = self.store.lens().await?;
-                let batch = self.batch(&lens)?;
-                let mut scheduler = self.lock_scheduler();
-                scheduler.restart(batch);
-                scheduler.requests().forget_stored();
-                drop(scheduler);
-                self.work.notify_waiters();
-            }
-            Control::Quit => {
-                let _ = self.shutdown.send(true);
-            }
-        }
-        tracing::info!("control: {c:?}");
-        Ok(())
-    }
-}
-
-/// Why a control command could not be carried out.
-#[derive(Debug, thiserror::Error)]
-pub enum ControlError {
-    /// The file could not be read or written.
-    #[error(transparent)]
-    Storage(#[from] StorageError),
-    /// A new schedule could not be made from the file's sections.
-    #[error(transparent)]
-    Schedule(#[from] holodeck_protocol::SectionError),
 }
 
 /// Serves `file` on `listeners` until an admin says quit, TIME is up, or the

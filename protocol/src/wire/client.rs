@@ -1,0 +1,247 @@
+//! The blocking client side of a connection, shared by every peer (sampler
+//! workers, displays, admin tools, benchmarks): connect by address, say
+//! hello, and read the server's answer as a typed [`Welcome`] or a typed
+//! refusal. This is the one module of the crate that opens sockets; it never
+//! reads files or clocks, and it leaves what happens after the handshake to
+//! its caller.
+
+use std::io::{Read, Write};
+use std::net::{Shutdown, TcpStream};
+use std::os::unix::net::UnixStream;
+use std::time::Duration;
+
+use super::link::{FrameLink, LinkError};
+use super::message::{Control, Hello, Message, MessageError, Role};
+use super::{Frame, PROTOCOL_VERSION};
+use crate::section::{Section, SectionError};
+
+/// A connected socket to a server: TCP or a Unix socket.
+#[derive(Debug)]
+pub enum ClientStream {
+    /// Over TCP (with Nagle's algorithm off: frames are small and waited for).
+    Tcp(TcpStream),
+    /// Over a Unix socket.
+    Unix(UnixStream),
+}
+
+impl ClientStream {
+    /// A second handle of the same socket (for a reader thread).
+    pub fn try_clone(&self) -> std::io::Result<ClientStream> {
+        Ok(match self {
+            ClientStream::Tcp(s) => ClientStream::Tcp(s.try_clone()?),
+            ClientStream::Unix(s) => ClientStream::Unix(s.try_clone()?),
+        })
+    }
+
+    /// Closes both directions for every handle of the socket: a thread
+    /// blocked reading it wakes up, and the server sees the peer leave now.
+    pub fn shutdown(&self) {
+        let _ = match self {
+            ClientStream::Tcp(s) => s.shutdown(Shutdown::Both),
+            ClientStream::Unix(s) => s.shutdown(Shutdown::Both),
+        };
+    }
+
+    /// How long a read may wait before it fails (`None`: forever).
+    pub fn set_read_timeout(&self, d: Option<Duration>) -> std::io::Result<()> {
+        match self {
+            ClientStream::Tcp(s) => s.set_read_timeout(d),
+            ClientStream::Unix(s) => s.set_read_timeout(d),
+        }
+    }
+}
+
+impl Read for ClientStream {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self {
+            ClientStream::Tcp(s) => s.read(buf),
+            ClientStream::Unix(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for ClientStream {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            ClientStream::Tcp(s) => s.write(buf),
+            ClientStream::Unix(s) => s.write(buf),
+        }
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            ClientStream::Tcp(s) => s.flush(),
+            ClientStream::Unix(s) => s.flush(),
+        }
+    }
+}
+
+/// Why a connection or its handshake failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    /// The server could not be reached, or the connection failed.
+    #[error("server {addr}: {source}")]
+    Link {
+        /// The server's address.
+        addr: String,
+        /// Why.
+        source: LinkError,
+    },
+    /// The server refused this peer.
+    #[error("the server {addr} refused this {role}: {reason}")]
+    Refused {
+        /// The server's address.
+        addr: String,
+        /// The role this peer asked for, in words.
+        role: &'static str,
+        /// The server's reason.
+        reason: String,
+    },
+    /// The server answered out of turn.
+    #[error("server {addr}: protocol error: {what}")]
+    Protocol {
+        /// The server's address.
+        addr: String,
+        /// What came instead.
+        what: String,
+    },
+    /// The server described an invalid holodeck.
+    #[error("server {addr}: {source}")]
+    Invalid {
+        /// The server's address.
+        addr: String,
+        /// What is wrong with it.
+        source: MessageError,
+    },
+    /// The server closed the connection before answering.
+    #[error("server {addr} closed the connection {when}")]
+    Closed {
+        /// The server's address.
+        addr: String,
+        /// During what.
+        when: &'static str,
+    },
+}
+
+impl ClientError {
+    /// True when the server could not be reached or went away (closed, reset,
+    /// refused the connection): trying again later may work.
+    pub fn is_unreachable(&self) -> bool {
+        match self {
+            ClientError::Link { source, .. } => match source {
+                LinkError::Io(_) | LinkError::Truncated => true,
+                LinkError::Frame(_) => false,
+            },
+            ClientError::Closed { .. } => true,
+            _ => false,
+        }
+    }
+}
+
+/// What the server's `Welcome` said, checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Welcome {
+    /// The holodeck's sections, in index order.
+    pub sections: Vec<Section>,
+    /// Sections may contain geometry: samplers trace from the entry wall.
+    pub obstructions: bool,
+}
+
+/// Connects to `addr`: `host:port` for TCP (Nagle off), `unix:PATH` for a
+/// Unix socket.
+pub fn connect(addr: &str) -> Result<ClientStream, ClientError> {
+    let link = |e: std::io::Error| ClientError::Link {
+        addr: addr.to_string(),
+        source: LinkError::Io(e),
+    };
+    if let Some(path) = addr.strip_prefix("unix:") {
+        return Ok(ClientStream::Unix(UnixStream::connect(path).map_err(link)?));
+    }
+    let s = TcpStream::connect(addr).map_err(link)?;
+    let _ = s.set_nodelay(true);
+    Ok(ClientStream::Tcp(s))
+}
+
+/// A `Hello` of this protocol version.
+pub fn hello(role: Role, token: &str, scene: &str, read_only: bool) -> Hello {
+    Hello {
+        version: PROTOCOL_VERSION,
+        role,
+        scene: scene.into(),
+        token: token.into(),
+        read_only,
+    }
+}
+
+fn role_name(role: Role) -> &'static str {
+    match role {
+        Role::Sampler => "sampler",
+        Role::Display => "display",
+        Role::Admin => "admin",
+    }
+}
+
+/// Sends `hello` on `link` and reads the answer: the checked `Welcome`, or
+/// why not. `addr` names the server in errors.
+pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: Hello) -> Result<Welcome, ClientError> {
+    let role = hello.role;
+    let io = |source: LinkError| ClientError::Link {
+        addr: addr.to_string(),
+        source,
+    };
+    link.write(&Frame::Message(Message::Hello(hello))).map_err(io)?;
+    let answer = link.read().map_err(io)?;
+    match answer {
+        Some(Frame::Message(Message::Welcome { sections, obstructions })) => {
+            let sections = sections
+                .into_iter()
+                .enumerate()
+                .map(|(index, s)| {
+                    Section::try_from(s).map_err(|error: SectionError| ClientError::Invalid {
+                        addr: addr.to_string(),
+                        source: MessageError::Section { index, error },
+                    })
+                })
+                .collect::<Result<_, _>>()?;
+            Ok(Welcome { sections, obstructions })
+        }
+        Some(Frame::Message(Message::Refused { reason })) => Err(ClientError::Refused {
+            addr: addr.to_string(),
+            role: role_name(role),
+            reason,
+        }),
+        Some(other) => Err(ClientError::Protocol {
+            addr: addr.to_string(),
+            what: format!("expected Welcome or Refused, got {other:?}"),
+        }),
+        None => Err(ClientError::Closed {
+            addr: addr.to_string(),
+            when: "during the handshake",
+        }),
+    }
+}
+
+/// Connects to `addr` and says `hello`: the framed link, ready for what the
+/// role does next, and what the server's `Welcome` said.
+pub fn open(addr: &str, hello: Hello) -> Result<(FrameLink<ClientStream>, Welcome), ClientError> {
+    let mut link = FrameLink::new(connect(addr)?);
+    let welcome = handshake(&mut link, addr, hello)?;
+    Ok((link, welcome))
+}
+
+/// Connects to `addr` as an admin with `token`, sends `control`, and waits
+/// until the server has taken it (it closes the connection after `Quit`).
+pub fn send_control(addr: &str, token: &str, control: Control) -> Result<(), ClientError> {
+    let (mut link, _) = open(addr, hello(Role::Admin, token, "", false))?;
+    let io = |source: LinkError| ClientError::Link {
+        addr: addr.to_string(),
+        source,
+    };
+    let quit = control == Control::Quit;
+    link.write(&Frame::Message(Message::Control(control))).map_err(io)?;
+    link.flush().map_err(io)?;
+    if quit {
+        // The server closes the connection once it has the command.
+        let _ = link.read();
+    }
+    Ok(())
+}

@@ -1,0 +1,139 @@
+//! The state every connection task shares (mini-redis's `db.rs`): the
+//! scheduler, the storage handle, the connected displays' mailboxes, and the
+//! control commands that change them. No socket in sight: the tasks in
+//! [`super::service`], [`super::display`] and [`super::sampler`] hold a
+//! `&Shared`, and this module imports none of them.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+
+use holodeck_protocol::wire::Control;
+use holodeck_protocol::{BeamKey, Section};
+use tokio::sync::{watch, Notify};
+
+use super::config::{Fill, ServerConfig};
+use super::store::Store;
+use crate::schedule::{BatchSchedule, Scheduler};
+use crate::storage::StorageError;
+
+/// A display's mailbox: beams with new rays, and a wake-up.
+#[derive(Default)]
+pub(super) struct DisplayLink {
+    dirty: std::sync::Mutex<HashSet<BeamKey>>,
+    pub wake: Notify,
+}
+
+impl DisplayLink {
+    /// Notes that `key` has new rays.
+    pub fn mark(&self, key: BeamKey) {
+        self.dirty.lock().unwrap_or_else(|p| p.into_inner()).insert(key);
+        self.wake.notify_one();
+    }
+
+    /// The beams marked since the last take.
+    pub fn take(&self) -> HashSet<BeamKey> {
+        std::mem::take(&mut *self.dirty.lock().unwrap_or_else(|p| p.into_inner()))
+    }
+}
+
+/// State every connection task shares.
+pub(super) struct Shared {
+    pub config: ServerConfig,
+    pub obstructions: bool,
+    pub scene: Option<String>,
+    pub sections: Vec<Section>,
+    pub scheduler: std::sync::Mutex<Scheduler>,
+    pub store: Store,
+    pub next_id: AtomicU64,
+    /// Wakes samplers waiting for work (new requests, resume, restart).
+    pub work: Notify,
+    /// Connected displays, by id, for forwarding new rays.
+    pub displays: std::sync::Mutex<HashMap<u64, Arc<DisplayLink>>>,
+    /// Bumped to disconnect every sampler.
+    pub kill_samplers: watch::Sender<u64>,
+    /// False after KillSamplers until Restart: samplers are refused.
+    pub samplers_allowed: AtomicBool,
+    /// Bumped by Clobber: displays then count their beams from the start.
+    pub generation: AtomicU64,
+    pub shutdown: watch::Sender<bool>,
+}
+
+impl Shared {
+    pub fn lock_scheduler(&self) -> std::sync::MutexGuard<'_, Scheduler> {
+        // A panic while holding the lock leaves consistent-enough counts: keep serving.
+        self.scheduler.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn lock_displays(&self) -> std::sync::MutexGuard<'_, HashMap<u64, Arc<DisplayLink>>> {
+        self.displays.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn id(&self) -> u64 {
+        self.next_id.fetch_add(1, Ordering::Relaxed)
+    }
+
+    /// The batch list for the configured fill, from the rays stored now.
+    pub fn batch(&self, lens: &[Vec<u64>]) -> Result<Option<BatchSchedule>, holodeck_protocol::SectionError> {
+        let stored = |k: BeamKey| {
+            lens.get(k.section as usize)
+                .and_then(|s| s.get(k.beam as usize))
+                .copied()
+                .unwrap_or(0)
+        };
+        Ok(match &self.config.fill {
+            Fill::All => Some(BatchSchedule::new(&self.sections, stored)?),
+            Fill::Views(seen) => Some(BatchSchedule::for_views(&self.sections, seen, stored)),
+            Fill::Off => None,
+        })
+    }
+
+    /// Carries out a control command from a writable display or an admin.
+    pub async fn control(&self, c: Control) -> Result<(), ControlError> {
+        match c {
+            Control::Pause => self.lock_scheduler().set_paused(true),
+            Control::Resume => {
+                self.lock_scheduler().set_paused(false);
+                self.work.notify_waiters();
+            }
+            Control::KillSamplers => {
+                self.samplers_allowed.store(false, Ordering::SeqCst);
+                self.kill_samplers.send_modify(|n| *n += 1);
+            }
+            Control::Restart => {
+                let lens = self.store.lens().await?;
+                let batch = self.batch(&lens)?;
+                self.lock_scheduler().restart(batch);
+                self.samplers_allowed.store(true, Ordering::SeqCst);
+                self.work.notify_waiters();
+            }
+            Control::Clobber => {
+                self.store.clobber().await?;
+                self.generation.fetch_add(1, Ordering::SeqCst);
+                let lens = self.store.lens().await?;
+                let batch = self.batch(&lens)?;
+                let mut scheduler = self.lock_scheduler();
+                scheduler.restart(batch);
+                scheduler.requests().forget_stored();
+                drop(scheduler);
+                self.work.notify_waiters();
+            }
+            Control::Quit => {
+                let _ = self.shutdown.send(true);
+            }
+        }
+        tracing::info!("control: {c:?}");
+        Ok(())
+    }
+}
+
+/// Why a control command could not be carried out.
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    /// The file could not be read or written.
+    #[error(transparent)]
+    Storage(#[from] StorageError),
+    /// A new schedule could not be made from the file's sections.
+    #[error(transparent)]
+    Schedule(#[from] holodeck_protocol::SectionError),
+}
