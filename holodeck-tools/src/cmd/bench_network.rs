@@ -76,7 +76,9 @@ fn run_rate(dir: &Path, workers: usize, seconds: f64) -> Result<f64> {
         .and_then(|s| s.trim().parse::<f64>().ok())
         .with_context(|| format!("no rate in {text:?}"))?;
     let _ = std::fs::remove_file(&file);
-    let _ = std::fs::remove_file(dir.join(format!("net-fill-{workers}.hdk.token")));
+    for level in ["", ".writer", ".viewer"] {
+        let _ = std::fs::remove_file(dir.join(format!("net-fill-{workers}.hdk{level}.token")));
+    }
     Ok(rate)
 }
 
@@ -355,6 +357,9 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
     );
     if !keep {
         let _ = std::fs::remove_file(&path);
+        for level in ["writer", "viewer"] {
+            let _ = std::fs::remove_file(dir.join(format!("net-recall.hdk.{level}.token")));
+        }
     }
     Ok(())
 }

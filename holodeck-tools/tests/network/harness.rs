@@ -9,7 +9,9 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::client::{self, ClientError, ClientStream, Welcome};
-use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{
+    Control, ControlOutcome, ControlReply, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION,
+};
 use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -278,6 +280,22 @@ impl Client {
         };
         self.link.stream().set_read_timeout(Some(DEADLINE)).unwrap();
         got
+    }
+
+    /// Sends a control command and returns the server's answer to it (rays
+    /// streamed for earlier requests meanwhile are passed over).
+    pub fn command(&mut self, c: Control) -> ControlOutcome {
+        self.send(&Frame::Message(Message::Control(c)));
+        loop {
+            match self.recv() {
+                Frame::Message(Message::ControlReply(ControlReply { control, outcome })) => {
+                    assert_eq!(control, c, "the answer names the command");
+                    return outcome;
+                }
+                Frame::Beam { .. } => {}
+                other => panic!("expected the answer to {c:?}, got {other:?}"),
+            }
+        }
     }
 
     /// Asks for beams (replacing earlier requests) and collects every
