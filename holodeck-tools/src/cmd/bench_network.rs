@@ -108,6 +108,7 @@ impl Peer {
             match self.link.read()? {
                 Some(Frame::Beam { records, .. }) => rays += records.len() as u64,
                 Some(Frame::Message(Message::Delivered { .. })) => return Ok((rays, start.elapsed())),
+                Some(Frame::Message(Message::Progress(_))) => {}
                 other => bail!("unexpected {other:?}"),
             }
         }

@@ -315,6 +315,9 @@ mod tests {
                 file_bytes: 100,
                 beams_filled: 3,
                 beams: 30,
+                samplers: 4,
+                displays: 2,
+                paused: true,
             })),
             Frame::Message(Message::Control(Control::Quit)),
             Frame::Message(Message::ControlReply(ControlReply {

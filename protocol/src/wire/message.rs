@@ -167,8 +167,9 @@ pub struct ControlReply {
     pub outcome: ControlOutcome,
 }
 
-/// The server's periodic report.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// The server's report, sent to every display about once a second (and
+/// once at once when it connects).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Progress {
     /// Rays stored in the file.
     pub rays: u64,
@@ -180,6 +181,12 @@ pub struct Progress {
     pub beams_filled: u64,
     /// All beams.
     pub beams: u64,
+    /// Samplers connected.
+    pub samplers: u32,
+    /// Displays connected (admin connections not counted).
+    pub displays: u32,
+    /// True while an admin or writer has paused the fill.
+    pub paused: bool,
 }
 
 /// Every message except ray payloads.

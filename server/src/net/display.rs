@@ -117,6 +117,9 @@ async fn display_loop(
     link: &DisplayLink,
 ) -> Result<(), ConnectionError> {
     let mut stop = shared.shutdown.subscribe();
+    let mut progress = shared.progress.subscribe();
+    // The report there is now goes out at once.
+    progress.mark_changed();
     // Rays of each requested beam this display has been sent.
     let mut sent: HashMap<BeamKey, u64> = HashMap::new();
     let mut generation = shared.generation.load(std::sync::atomic::Ordering::SeqCst);
@@ -151,6 +154,11 @@ async fn display_loop(
                 continue;
             }
             _ = stop.changed() => return Ok(()),
+            Ok(()) = progress.changed() => {
+                let p = *progress.borrow_and_update();
+                conn.write(&Frame::Message(Message::Progress(p))).await?;
+                continue;
+            }
         };
         let Some(frame) = frame else { return Ok(()) };
         match frame {

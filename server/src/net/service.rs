@@ -14,18 +14,18 @@
 //! nothing is stored twice and nothing is lost.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use holodeck_protocol::wire::{Access, Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{Access, Frame, Hello, Message, Progress, Role, PROTOCOL_VERSION};
 use holodeck_protocol::Section;
 use tokio::sync::{mpsc, watch, Notify};
 
 use super::config::ServerConfig;
 use super::connection::{Connection, ConnectionError, Stream};
 use super::listener::Listener;
-use super::state::Shared;
+use super::state::{Counted, Shared};
 use super::store::Store;
 use crate::schedule::Scheduler;
 use crate::storage::{HoloFile, StorageError};
@@ -69,6 +69,9 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         samplers_allowed: AtomicBool::new(true),
         generation: AtomicU64::new(0),
         shutdown,
+        samplers: AtomicU32::new(0),
+        display_count: AtomicU32::new(0),
+        progress: watch::channel(Progress::default()).0,
     });
     let lens = store.lens().await?;
     let batch = shared.batch(&lens)?;
@@ -84,6 +87,23 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
                     Ok(rays) => tracing::debug!("periodic flush: {rays} rays durable"),
                     Err(e) => tracing::error!("periodic flush: {e}"),
                 }
+            }
+        })
+    };
+    // Displays get the first report as they connect, and a new one each second.
+    let first = shared.progress_now(None).await;
+    shared.progress.send_replace(first);
+    let reports = {
+        let shared = Arc::clone(&shared);
+        tokio::spawn(async move {
+            let mut tick = tokio::time::interval(PROGRESS_EVERY);
+            tick.tick().await;
+            let mut last = (first.rays, std::time::Instant::now());
+            loop {
+                tick.tick().await;
+                let p = shared.progress_now(Some(last)).await;
+                last = (p.rays, std::time::Instant::now());
+                shared.progress.send_replace(p);
             }
         })
     };
@@ -170,11 +190,15 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     tasks.shutdown().await;
     tracing::info!("shutting down: flushing the file");
     flusher.abort();
+    reports.abort();
     if let Some(r) = reporter {
         r.abort();
     }
     let flushed = store.flush().await;
     drop(store);
+    // The report task held the shared state (and a storage handle): gone
+    // before the storage thread is waited for.
+    let _ = reports.await;
     drop(shared);
     drop(acceptors);
     // The storage thread exits once every handle is gone; wait for it even
@@ -232,6 +256,9 @@ async fn terminate() {
 async fn terminate() {
     std::future::pending::<()>().await
 }
+
+/// How often displays get a progress report.
+const PROGRESS_EVERY: Duration = Duration::from_secs(1);
 
 /// Frames a peer may send before its Hello is checked.
 const HANDSHAKE_FRAME: usize = 64 << 10;
@@ -308,7 +335,14 @@ async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), Connecti
     }))
     .await?;
     match hello.role {
-        Role::Sampler => super::sampler::serve_sampler(conn, shared).await,
-        Role::Display | Role::Admin => super::display::serve_display(conn, shared, access).await,
+        Role::Sampler => {
+            let _counted = Counted::new(&shared.samplers);
+            super::sampler::serve_sampler(conn, shared).await
+        }
+        Role::Display => {
+            let _counted = Counted::new(&shared.display_count);
+            super::display::serve_display(conn, shared, access).await
+        }
+        Role::Admin => super::display::serve_display(conn, shared, access).await,
     }
 }
