@@ -8,7 +8,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::client::{self, ClientStream};
-use holodeck_protocol::wire::{Control, Frame, FrameLink, LinkError, Message, Role};
+use holodeck_protocol::wire::{Access, Control, ControlReply, Frame, FrameLink, LinkError, Message, Progress, Role};
 use holodeck_protocol::{BeamKey, Section};
 
 use crate::request::BeamRequest;
@@ -58,6 +58,12 @@ pub struct DisplaySession {
     scratch: Vec<Sample>,
     /// Rays received per beam (since the last request that asked to resend).
     received: HashMap<BeamKey, u64>,
+    /// What the server lets this session do.
+    access: Access,
+    /// Answers to control commands not yet taken by the caller.
+    notices: Vec<ControlReply>,
+    /// The server's latest report.
+    progress: Option<Progress>,
 }
 
 impl Drop for DisplaySession {
@@ -101,12 +107,44 @@ impl DisplaySession {
             decoder: SampleDecoder::new(welcome.sections),
             scratch: Vec::new(),
             received: HashMap::new(),
+            access: welcome.access,
+            notices: Vec::new(),
+            progress: None,
         })
     }
 
     /// The holodeck's sections.
     pub fn sections(&self) -> &[Section] {
         self.decoder.sections()
+    }
+
+    /// What the server lets this session do (its token, lowered to viewer
+    /// access if it connected read-only).
+    pub fn access(&self) -> Access {
+        self.access
+    }
+
+    /// The server's answers to control commands that came since the last
+    /// call, oldest first: each says whether its command was carried out,
+    /// refused (and why) or failed. A refusal is news for the user, not an
+    /// error of the session.
+    pub fn take_notices(&mut self) -> Vec<ControlReply> {
+        std::mem::take(&mut self.notices)
+    }
+
+    /// The server's latest report (sent about once a second), if one came.
+    pub fn progress(&self) -> Option<&Progress> {
+        self.progress.as_ref()
+    }
+
+    /// Keeps what the server says besides beam data; false for any other frame.
+    fn note(&mut self, f: &Frame) -> bool {
+        match f {
+            Frame::Message(Message::ControlReply(r)) => self.notices.push(r.clone()),
+            Frame::Message(Message::Progress(p)) => self.progress = Some(*p),
+            _ => return false,
+        }
+        true
     }
 
     /// The next frame, waiting at most until `deadline` (`None`: forever).
@@ -160,7 +198,11 @@ impl DisplaySession {
         }))?;
         let mut t = Transfer::default();
         loop {
-            match self.next(None)? {
+            let f = self.next(None)?;
+            if f.as_ref().is_some_and(|f| self.note(f)) {
+                continue;
+            }
+            match f {
                 Some(Frame::Beam { key, records }) => {
                     t.beams += 1;
                     t.samples += records.len() as u64;
@@ -193,6 +235,9 @@ impl DisplaySession {
     pub fn refine(&mut self, deadline: Instant, sink: &mut dyn FnMut(&[Sample])) -> Result<u64, ClientError> {
         let mut n = 0u64;
         while let Some(f) = self.next(Some(deadline))? {
+            if self.note(&f) {
+                continue;
+            }
             match f {
                 Frame::Beam { key, records } => {
                     n += records.len() as u64;
@@ -200,7 +245,7 @@ impl DisplaySession {
                 }
                 Frame::Message(Message::Error { message }) => return Err(ClientError::Protocol(message)),
                 // The end of the (empty) immediate transfer of a raise.
-                Frame::Message(Message::Progress(_) | Message::Delivered { .. }) => {}
+                Frame::Message(Message::Delivered { .. }) => {}
                 other => return Err(ClientError::Protocol(format!("unexpected {other:?}"))),
             }
         }
@@ -226,7 +271,9 @@ impl DisplaySession {
         bad
     }
 
-    /// Sends a control command (a read-only session may only pause and resume).
+    /// Sends a control command. The server answers every one (see
+    /// [`DisplaySession::take_notices`]); it carries out only those
+    /// [`DisplaySession::access`] allows (see [`Control::needs`]).
     pub fn control(&mut self, c: Control) -> Result<(), ClientError> {
         self.send(&Frame::Message(Message::Control(c)))
     }

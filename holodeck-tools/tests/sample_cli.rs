@@ -5,7 +5,7 @@ use std::net::TcpListener;
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use holodeck_protocol::wire::{Frame, FrameLink, Message, SamplingMode, TracePacket};
+use holodeck_protocol::wire::{Access, Frame, FrameLink, Message, SamplingMode, TracePacket};
 use holodeck_protocol::{BeamKey, Section, SectionKind};
 
 mod common;
@@ -100,6 +100,7 @@ fn a_sampler_whose_server_quits_after_its_work_exits_zero() {
         let welcome = Message::Welcome {
             sections: vec![section.spec()],
             obstructions: false,
+            access: Access::Writer,
         };
         link.write(&Frame::Message(welcome)).unwrap();
         let packet = TracePacket {

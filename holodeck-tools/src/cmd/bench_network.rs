@@ -76,7 +76,9 @@ fn run_rate(dir: &Path, workers: usize, seconds: f64) -> Result<f64> {
         .and_then(|s| s.trim().parse::<f64>().ok())
         .with_context(|| format!("no rate in {text:?}"))?;
     let _ = std::fs::remove_file(&file);
-    let _ = std::fs::remove_file(dir.join(format!("net-fill-{workers}.hdk.token")));
+    for level in ["", ".writer", ".viewer"] {
+        let _ = std::fs::remove_file(dir.join(format!("net-fill-{workers}.hdk{level}.token")));
+    }
     Ok(rate)
 }
 
@@ -106,6 +108,7 @@ impl Peer {
             match self.link.read()? {
                 Some(Frame::Beam { records, .. }) => rays += records.len() as u64,
                 Some(Frame::Message(Message::Delivered { .. })) => return Ok((rays, start.elapsed())),
+                Some(Frame::Message(Message::Progress(_))) => {}
                 other => bail!("unexpected {other:?}"),
             }
         }
@@ -355,6 +358,9 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
     );
     if !keep {
         let _ = std::fs::remove_file(&path);
+        for level in ["writer", "viewer"] {
+            let _ = std::fs::remove_file(dir.join(format!("net-recall.hdk.{level}.token")));
+        }
     }
     Ok(())
 }

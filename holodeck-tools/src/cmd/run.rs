@@ -237,6 +237,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("the server did not start: {why}");
     };
     let token_file = format!("{file}.token");
+    // Samplers need no more than writer access.
+    let writer_token_file = format!("{file}.writer.token");
     let token = std::fs::read_to_string(&token_file)
         .with_context(|| format!("reading {token_file}"))?
         .trim()
@@ -252,7 +254,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 "--connect",
                 &addr,
                 "--token-file",
-                &token_file,
+                &writer_token_file,
                 "-j",
                 "1",
             ])

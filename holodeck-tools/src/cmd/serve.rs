@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
-use holodeck_server::net::{serve, Fill, Listener, ServerConfig};
+use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tokens};
 use holodeck_server::settings::{parse_duration, parse_size};
 use holodeck_server::{HoloFile, OpenOptions};
 use rand::Rng;
@@ -16,8 +16,12 @@ use rand::Rng;
 #[derive(clap::Args)]
 #[command(after_help = "\
 Serves FILE to samplers (which fill it) and displays (which read it) over TCP, and over a
-Unix socket with --unix. Every peer must present the access token: given with --token, or
-generated into FILE.token, readable by the owner only. Display requests are traced first;
+Unix socket with --unix. Every peer presents one of three access tokens, each generated into
+a file readable by the owner only unless given on the command line:
+  FILE.token         admin (--token): everything, control commands included
+  FILE.writer.token  writer (--writer-token): samplers, and pause/resume
+  FILE.viewer.token  viewer (--viewer-token): displays that only read
+Display requests are traced first;
 otherwise samplers fill every beam by volume (or only what --views see; none with --no-fill).
 Stops, flushing everything, on SIGINT/SIGTERM, an admin's quit, TIME, or a full DISKSPACE.
 
@@ -36,9 +40,15 @@ pub struct Args {
     /// Also listen on this Unix socket (peers connect to unix:PATH).
     #[arg(long)]
     unix: Option<PathBuf>,
-    /// Access token; generated into FILE.token if omitted.
+    /// Admin access token; generated into FILE.token if omitted.
     #[arg(long)]
     token: Option<String>,
+    /// Writer access token (samplers, pause, resume); generated into FILE.writer.token if omitted.
+    #[arg(long)]
+    writer_token: Option<String>,
+    /// Viewer access token (read-only displays); generated into FILE.viewer.token if omitted.
+    #[arg(long)]
+    viewer_token: Option<String>,
     /// Rays per batch-fill packet.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     packet: u32,
@@ -75,10 +85,32 @@ pub struct Args {
     accept_loss: bool,
 }
 
-fn token_path(file: &Path) -> PathBuf {
+/// Where the token of one access level goes: `FILE.token` (admin),
+/// `FILE.writer.token`, `FILE.viewer.token`.
+pub(crate) fn token_path(file: &Path, level: &str) -> PathBuf {
     let mut name = file.file_name().unwrap_or_default().to_os_string();
+    if level != "admin" {
+        name.push(format!(".{level}"));
+    }
     name.push(".token");
     file.with_file_name(name)
+}
+
+/// The given token, or a new random one written to its file.
+fn token_for(given: Option<String>, file: &Path, level: &str) -> Result<String> {
+    if let Some(t) = given {
+        if t.trim().is_empty() {
+            anyhow::bail!("the {level} token must not be empty");
+        }
+        return Ok(t);
+    }
+    let t: String = (0..32)
+        .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
+        .collect();
+    let path = token_path(file, level);
+    write_token(&path, &t)?;
+    eprintln!("{level} access token written to {}", path.display());
+    Ok(t)
 }
 
 /// Writes the token readable by the owner only, to a temporary name first so
@@ -120,19 +152,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ..OpenOptions::default()
         },
     )?;
-    // The token is written once the file is open: a file that cannot be served keeps its old token.
-    let token = match a.token {
-        Some(t) => t,
-        None => {
-            let t: String = (0..32)
-                .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
-                .collect();
-            let path = token_path(&a.file);
-            write_token(&path, &t)?;
-            eprintln!("access token written to {}", path.display());
-            t
-        }
+    // Tokens are written once the file is open: a file that cannot be served keeps its old tokens.
+    let tokens = Tokens {
+        admin: token_for(a.token, &a.file, "admin")?,
+        writer: Some(token_for(a.writer_token, &a.file, "writer")?),
+        viewer: Some(token_for(a.viewer_token, &a.file, "viewer")?),
     };
+    if tokens.writer.as_ref() == Some(&tokens.admin)
+        || tokens.viewer.as_ref() == Some(&tokens.admin)
+        || tokens.viewer == tokens.writer
+    {
+        anyhow::bail!("the admin, writer and viewer tokens must differ from one another");
+    }
     if let Some(d) = &a.diskspace {
         let bytes = parse_size(d).context("--diskspace")?;
         file.set_size_limit((bytes > 0).then_some(bytes));
@@ -163,7 +194,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         time,
         report,
         stall: parse_duration(&a.stall_timeout, 1.0).context("--stall-timeout")?,
-        ..ServerConfig::new(token)
+        tokens,
+        ..ServerConfig::new(String::new())
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;
     runtime.block_on(async {

@@ -1,13 +1,14 @@
 //! Control commands: what admins may do to a running server (pause, resume,
-//! kill samplers, restart, clobber, quit), what a read-only display may not,
-//! and DISKSPACE stopping the fill by itself.
+//! kill samplers, restart, clobber, quit), what writers and viewers may not,
+//! the tokens that decide which is which, and DISKSPACE stopping the fill by
+//! itself.
 
 use std::collections::HashMap;
 
-use holodeck_protocol::wire::{Control, Frame, Message, Role};
+use holodeck_protocol::wire::{Access, Control, ControlOutcome, Frame, Message, Role};
 use holodeck_protocol::BeamKey;
 
-use crate::common::process::{wait_for, DEADLINE};
+use crate::common::process::{wait_for, Proc, DEADLINE};
 use crate::common::text;
 use crate::harness::*;
 
@@ -61,7 +62,8 @@ fn admins_pause_resume_kill_restart_and_clobber() {
     let all: Vec<(BeamKey, u32)> = (0..beams).map(|b| (BeamKey::new(0, b), 0)).collect();
     let before = display.stored(&all);
     assert!(before > initial, "the fill had stored rays ({initial} -> {before})");
-    admin.send(&Frame::Message(Message::Control(Control::Clobber)));
+    let (mut clobberer, _) = Client::connect(&addr, Role::Admin, token);
+    assert_eq!(clobberer.command(Control::Clobber), ControlOutcome::Done);
     carried_out(&server, &mut log, Control::Clobber);
     assert_eq!(
         display.stored(&all),
@@ -118,26 +120,46 @@ fn diskspace_stops_the_fill_within_its_limit() {
     assert_eq!(assert_clean(&file), rays);
 }
 
+/// The reason the server gives for refusing `c` to a connection with `held` access.
+fn refusal(c: Control, held: &str) -> ControlOutcome {
+    ControlOutcome::Refused {
+        reason: format!("{c:?} needs {} access; this connection has {held} access", c.needs()),
+    }
+}
+
 #[test]
-fn a_read_only_display_is_refused_quit_kill_restart_and_clobber() {
+fn viewers_may_not_quit_kill_restart_clobber_or_pause() {
     let dir = tempfile::tempdir().unwrap();
     let file = small_room(dir.path());
     let f = file.to_str().unwrap();
     let initial = rays_in(&file);
     let token = "t";
-    let (mut server, addr) = start_server_with(f, "127.0.0.1:0", token, &["--report", "0.2s"]);
-    let mut worker = sampler(&addr, token, &["builtin:room"]);
+    let (mut server, addr) = start_server_with(
+        f,
+        "127.0.0.1:0",
+        token,
+        &["--report", "0.2s", "--writer-token", "w", "--viewer-token", "v"],
+    );
+    let mut worker = sampler(&addr, "w", &["builtin:room"]);
     let mut log = 0;
     reported_above(&server, &mut log, initial, "the fill to start");
 
-    let mut display = Client::read_only_display(&addr, token);
-    for c in [Control::Quit, Control::KillSamplers, Control::Restart, Control::Clobber] {
-        display.send(&Frame::Message(Message::Control(c)));
-        match display.recv() {
-            Frame::Message(Message::Error { message }) => {
-                assert_eq!(message, format!("{c:?} is not allowed for a read-only display"))
-            }
-            other => panic!("{c:?}: {other:?}"),
+    // A viewer's token, claiming not to be read-only, and the admin's token
+    // asking to be read-only: both are viewers, and refused every command.
+    let (mut viewer, welcome) = Client::connect(&addr, Role::Display, "v");
+    assert_eq!(welcome.access, Access::Viewer);
+    let mut lowered = Client::read_only_display(&addr, token);
+    let all = [
+        Control::Quit,
+        Control::KillSamplers,
+        Control::Restart,
+        Control::Clobber,
+        Control::Pause,
+        Control::Resume,
+    ];
+    for display in [&mut viewer, &mut lowered] {
+        for c in all {
+            assert_eq!(display.command(c), refusal(c, "viewer"), "{c:?}");
         }
     }
     // None was carried out: the sampler is still connected and the fill goes
@@ -146,8 +168,9 @@ fn a_read_only_display_is_refused_quit_kill_restart_and_clobber() {
     reported_above(&server, &mut log, refused_at + 1_000, "the fill after the refusals");
     assert!(worker.try_wait().is_none(), "the sampler was not killed");
     let keys: Vec<(BeamKey, u32)> = (0..20).map(|b| (BeamKey::new(0, b * 1009), 1)).collect();
-    let got = display.request(&keys, None);
+    let got = viewer.request(&keys, None);
     assert!(got.iter().all(|(k, _)| keys.iter().any(|w| w.0 == *k)), "{got:?}");
+    assert!(!got.is_empty(), "the viewer reads the rays stored");
     assert!(!server.text().contains("control: "), "{}", server.text());
     let reported = reports(&server);
     assert!(
@@ -162,4 +185,86 @@ fn a_read_only_display_is_refused_quit_kill_restart_and_clobber() {
     let closed = rays_at_close(&server);
     assert!(reported.iter().all(|r| *r <= closed), "{reported:?}, {closed} at close");
     assert_eq!(rays_in(&file), closed);
+}
+
+#[test]
+fn writers_pause_and_resume_but_only_admins_clobber_and_viewers_cannot_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let f = file.to_str().unwrap();
+    let beams = beams_of(&file);
+    let initial = rays_in(&file);
+    // No token given: the server makes all three, readable by the owner only.
+    let mut server = Proc::start(
+        bin()
+            .args(["serve", f, "--listen", "127.0.0.1:0", "--report", "0.2s"])
+            .env("HOLODECK_LOG", "info,holodeck_server=debug")
+            .env("NO_COLOR", "1"),
+    );
+    let addr = server.wait_line("the address the server listens on", &mut 0, |l| {
+        l.strip_prefix("listening on ").map(str::to_string)
+    });
+    let read = |suffix: &str| {
+        use std::os::unix::fs::PermissionsExt;
+        let path = format!("{f}{suffix}");
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600, "{path} is readable by the owner only");
+        let t = std::fs::read_to_string(&path).unwrap().trim().to_string();
+        assert_eq!(t.len(), 32, "{path}: {t:?}");
+        t
+    };
+    let (admin, writer, viewer) = (read(".token"), read(".writer.token"), read(".viewer.token"));
+    assert!(admin != writer && writer != viewer && viewer != admin);
+
+    // A viewer's token cannot connect a sampler; a writer's can.
+    let refused = sampler(&addr, &viewer, &["builtin:room"]).finish();
+    assert!(
+        !refused.status.success()
+            && text(&refused).contains("a sampler needs writer access; this connection has viewer access"),
+        "{}",
+        text(&refused)
+    );
+    let worker = sampler(&addr, &writer, &["builtin:room"]);
+    let mut log = 0;
+    reported_above(&server, &mut log, initial, "the writer's sampler at work");
+
+    // A writer pauses and resumes, and may not clobber.
+    let (mut w, welcome) = Client::connect(&addr, Role::Display, &writer);
+    assert_eq!(welcome.access, Access::Writer);
+    assert_eq!(w.command(Control::Pause), ControlOutcome::Done);
+    carried_out(&server, &mut log, Control::Pause);
+    let all: Vec<(BeamKey, u32)> = (0..beams).map(|b| (BeamKey::new(0, b), 0)).collect();
+    let before = w.stored(&all);
+    assert_eq!(w.command(Control::Clobber), refusal(Control::Clobber, "writer"));
+    assert_eq!(
+        w.command(Control::KillSamplers),
+        refusal(Control::KillSamplers, "writer")
+    );
+    let kept = w.stored(&all);
+    assert!(
+        kept >= before && before > 1_000,
+        "the writer's clobber emptied nothing ({before} rays before it, {kept} after)"
+    );
+    assert!(!server.text().contains("control: Clobber"), "{}", server.text());
+    assert_eq!(w.command(Control::Resume), ControlOutcome::Done);
+    carried_out(&server, &mut log, Control::Resume);
+
+    // The admin's clobber empties the file (after pausing, so nothing lands after it).
+    let (mut a, welcome) = Client::connect(&addr, Role::Admin, &admin);
+    assert_eq!(welcome.access, Access::Admin);
+    assert_eq!(a.command(Control::Pause), ControlOutcome::Done);
+    carried_out(&server, &mut log, Control::Pause);
+    steady(&server, &mut log, 2, "the fill to stop while paused");
+    assert_eq!(a.command(Control::Clobber), ControlOutcome::Done);
+    carried_out(&server, &mut log, Control::Clobber);
+    assert_eq!(
+        w.stored(&all),
+        0,
+        "the admin's clobber empties every beam ({kept} rays before)"
+    );
+    assert_eq!(a.command(Control::Quit), ControlOutcome::Done);
+    assert!(server.wait().success(), "{}", server.text());
+    let out = worker.finish();
+    assert!(out.status.success(), "{}", text(&out));
+    assert_eq!(rays_in(&file), 0);
 }

@@ -1,10 +1,11 @@
 //! Displays: requests traced near the eye and streamed (over a Unix
 //! socket), a file replayed by a server with no fill, still views that keep
-//! converging, and work a stalled sampler held given to another.
+//! converging, work a stalled sampler held given to another, and the
+//! progress reports every display gets.
 
 use std::collections::HashMap;
 
-use holodeck_protocol::wire::{client, EyePoint, Frame, Message, Role};
+use holodeck_protocol::wire::{client, Control, ControlOutcome, EyePoint, Frame, Message, Role};
 use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -363,6 +364,45 @@ fn a_sampler_that_stops_answering_is_dropped_and_its_work_traced_by_another() {
     let held = collect_until(&mut display, &want, &mut have, &base);
     assert!(held.values().all(|n| *n == 50), "exactly the rays asked for: {held:?}");
     quit(&addr, token);
+    assert!(server.wait().success(), "{}", server.text());
+    let w = worker.finish();
+    assert!(w.status.success(), "{}", text(&w));
+}
+
+#[test]
+fn displays_get_a_progress_report_with_connections_pause_and_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let initial = rays_in(&file);
+    let beams = u64::from(beams_of(&file));
+    let token = "t";
+    let (mut server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", token);
+    let (mut display, _) = Client::connect(&addr, Role::Display, token);
+    // The first report comes at once: the file as it is, nobody tracing
+    // (made before this display came, the next one counts it).
+    let first = display.progress_where("the first report", |_| true);
+    assert_eq!(
+        (first.rays, first.beams, first.samplers, first.paused),
+        (initial, beams, 0, false)
+    );
+    assert!(first.beams_filled > 0 && first.beams_filled <= beams, "{first:?}");
+    display.progress_where("this display counted", |p| p.displays == 1);
+    // A sampler and a second display are counted (an admin is not), and the
+    // rays it stores show in the count and the rate.
+    let worker = sampler(&addr, token, &["builtin:room"]);
+    let (mut other, _) = Client::connect(&addr, Role::Display, token);
+    let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
+    let busy = display.progress_where("a sampler at work and two displays", |p| {
+        p.samplers == 1 && p.displays == 2 && p.rays > initial && p.rays_per_second > 0.0
+    });
+    assert!(busy.file_bytes > 0 && !busy.paused, "{busy:?}");
+    // Pausing shows too, on every display.
+    assert_eq!(admin.command(Control::Pause), ControlOutcome::Done);
+    let paused = other.progress_where("the pause", |p| p.paused);
+    assert_eq!((paused.samplers, paused.displays), (1, 2));
+    drop(other);
+    display.progress_where("the second display gone", |p| p.displays == 1 && p.paused);
+    assert_eq!(admin.command(Control::Quit), ControlOutcome::Done);
     assert!(server.wait().success(), "{}", server.text());
     let w = worker.finish();
     assert!(w.status.success(), "{}", text(&w));

@@ -9,7 +9,9 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::client::{self, ClientError, ClientStream, Welcome};
-use holodeck_protocol::wire::{Control, Frame, FrameLink, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{
+    Control, ControlOutcome, ControlReply, Frame, FrameLink, Hello, Message, Progress, Role, PROTOCOL_VERSION,
+};
 use holodeck_protocol::{BeamKey, RayRecord};
 use holodeck_server::{HoloFile, OpenOptions};
 
@@ -191,6 +193,8 @@ pub fn socket(addr: &str) -> ClientStream {
 pub struct Client {
     /// The framed connection.
     pub link: FrameLink<ClientStream>,
+    /// The latest progress report read.
+    pub progress: Option<Progress>,
 }
 
 impl Client {
@@ -241,6 +245,7 @@ impl Client {
     pub fn over(socket: ClientStream) -> Client {
         Client {
             link: FrameLink::new(socket),
+            progress: None,
         }
     }
 
@@ -250,34 +255,79 @@ impl Client {
         self.link.flush().unwrap();
     }
 
-    /// The next frame; fails if the server closes the connection or says
+    /// The next frame other than a progress report (the latest is kept in
+    /// `progress`); fails if the server closes the connection or says
     /// nothing for [`DEADLINE`].
     pub fn recv(&mut self) -> Frame {
-        match self.link.read() {
-            Ok(Some(f)) => f,
-            Ok(None) => panic!("the server closed the connection"),
-            Err(e) => panic!("no frame from the server (waited up to {DEADLINE:?}): {e}"),
+        loop {
+            match self.link.read() {
+                Ok(Some(Frame::Message(Message::Progress(p)))) => self.progress = Some(p),
+                Ok(Some(f)) => return f,
+                Ok(None) => panic!("the server closed the connection"),
+                Err(e) => panic!("no frame from the server (waited up to {DEADLINE:?}): {e}"),
+            }
         }
     }
 
-    /// A frame already sent to us, if there is one (waits a moment only for
-    /// bytes in flight on loopback).
+    /// A frame other than a progress report already sent to us, if there is
+    /// one (waits a moment only for bytes in flight on loopback).
     pub fn pending(&mut self) -> Option<Frame> {
         self.link
             .stream()
             .set_read_timeout(Some(Duration::from_millis(50)))
             .unwrap();
-        let got = match self.link.read() {
-            Ok(f) => f,
-            Err(holodeck_protocol::wire::LinkError::Io(e))
-                if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
-            {
-                None
+        let got = loop {
+            match self.link.read() {
+                Ok(Some(Frame::Message(Message::Progress(p)))) => self.progress = Some(p),
+                Ok(f) => break f,
+                Err(holodeck_protocol::wire::LinkError::Io(e))
+                    if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+                {
+                    break None
+                }
+                Err(e) => panic!("reading from the server: {e}"),
             }
-            Err(e) => panic!("reading from the server: {e}"),
         };
         self.link.stream().set_read_timeout(Some(DEADLINE)).unwrap();
         got
+    }
+
+    /// Waits for a progress report that `accept` takes; returns it.
+    pub fn progress_where(&mut self, what: &str, mut accept: impl FnMut(&Progress) -> bool) -> Progress {
+        let start = Instant::now();
+        loop {
+            assert!(
+                start.elapsed() < DEADLINE,
+                "waited {DEADLINE:?} for a report of {what}, in vain"
+            );
+            match self.link.read() {
+                Ok(Some(Frame::Message(Message::Progress(p)))) => {
+                    self.progress = Some(p);
+                    if accept(&p) {
+                        return p;
+                    }
+                }
+                Ok(Some(_)) => {}
+                Ok(None) => panic!("the server closed the connection while we waited for {what}"),
+                Err(e) => panic!("no report of {what} (waited up to {DEADLINE:?}): {e}"),
+            }
+        }
+    }
+
+    /// Sends a control command and returns the server's answer to it (rays
+    /// streamed for earlier requests meanwhile are passed over).
+    pub fn command(&mut self, c: Control) -> ControlOutcome {
+        self.send(&Frame::Message(Message::Control(c)));
+        loop {
+            match self.recv() {
+                Frame::Message(Message::ControlReply(ControlReply { control, outcome })) => {
+                    assert_eq!(control, c, "the answer names the command");
+                    return outcome;
+                }
+                Frame::Beam { .. } => {}
+                other => panic!("expected the answer to {c:?}, got {other:?}"),
+            }
+        }
     }
 
     /// Asks for beams (replacing earlier requests) and collects every

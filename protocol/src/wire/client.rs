@@ -11,7 +11,7 @@ use std::os::unix::net::UnixStream;
 use std::time::Duration;
 
 use super::link::{FrameLink, LinkError};
-use super::message::{Control, Hello, Message, MessageError, Role};
+use super::message::{Access, Control, ControlOutcome, ControlReply, Hello, Message, MessageError, Role};
 use super::{Frame, PROTOCOL_VERSION};
 use crate::section::{Section, SectionError};
 
@@ -112,6 +112,16 @@ pub enum ClientError {
         /// What is wrong with it.
         source: MessageError,
     },
+    /// The server did not carry out a control command: not allowed, or failed.
+    #[error("server {addr}: {control:?} {outcome}")]
+    Control {
+        /// The server's address.
+        addr: String,
+        /// The command.
+        control: Control,
+        /// What the server said.
+        outcome: ControlOutcome,
+    },
     /// The server closed the connection before answering.
     #[error("server {addr} closed the connection {when}")]
     Closed {
@@ -144,6 +154,8 @@ pub struct Welcome {
     pub sections: Vec<Section>,
     /// Sections may contain geometry: samplers trace from the entry wall.
     pub obstructions: bool,
+    /// What this connection may do.
+    pub access: Access,
 }
 
 /// Connects to `addr`: `host:port` for TCP (Nagle off), `unix:PATH` for a
@@ -191,7 +203,11 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
     link.write(&Frame::Message(Message::Hello(hello))).map_err(io)?;
     let answer = link.read().map_err(io)?;
     match answer {
-        Some(Frame::Message(Message::Welcome { sections, obstructions })) => {
+        Some(Frame::Message(Message::Welcome {
+            sections,
+            obstructions,
+            access,
+        })) => {
             let sections = sections
                 .into_iter()
                 .enumerate()
@@ -202,7 +218,11 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
                     })
                 })
                 .collect::<Result<_, _>>()?;
-            Ok(Welcome { sections, obstructions })
+            Ok(Welcome {
+                sections,
+                obstructions,
+                access,
+            })
         }
         Some(Frame::Message(Message::Refused { reason })) => Err(ClientError::Refused {
             addr: addr.to_string(),
@@ -228,20 +248,52 @@ pub fn open(addr: &str, hello: Hello) -> Result<(FrameLink<ClientStream>, Welcom
     Ok((link, welcome))
 }
 
-/// Connects to `addr` as an admin with `token`, sends `control`, and waits
-/// until the server has taken it (it closes the connection after `Quit`).
-pub fn send_control(addr: &str, token: &str, control: Control) -> Result<(), ClientError> {
-    let (mut link, _) = open(addr, hello(Role::Admin, token, "", false))?;
-    let io = |source: LinkError| ClientError::Link {
-        addr: addr.to_string(),
-        source,
-    };
-    let quit = control == Control::Quit;
-    link.write(&Frame::Message(Message::Control(control))).map_err(io)?;
-    link.flush().map_err(io)?;
-    if quit {
-        // The server closes the connection once it has the command.
-        let _ = link.read();
+/// Reads frames until the server's answer to a control command (reports
+/// that come meanwhile are passed over): `Ok` when it was carried out.
+pub fn await_reply<S: Read + Write>(link: &mut FrameLink<S>, addr: &str) -> Result<ControlReply, ClientError> {
+    loop {
+        match link.read() {
+            Ok(Some(Frame::Message(Message::ControlReply(reply)))) => {
+                return match reply.outcome {
+                    ControlOutcome::Done => Ok(reply),
+                    outcome => Err(ClientError::Control {
+                        addr: addr.to_string(),
+                        control: reply.control,
+                        outcome,
+                    }),
+                }
+            }
+            Ok(Some(Frame::Message(Message::Progress(_)))) => {}
+            Ok(Some(other)) => {
+                return Err(ClientError::Protocol {
+                    addr: addr.to_string(),
+                    what: format!("expected the answer to a command, got {other:?}"),
+                })
+            }
+            Ok(None) => {
+                return Err(ClientError::Closed {
+                    addr: addr.to_string(),
+                    when: "before answering the command",
+                })
+            }
+            Err(source) => {
+                return Err(ClientError::Link {
+                    addr: addr.to_string(),
+                    source,
+                })
+            }
+        }
     }
-    Ok(())
+}
+
+/// Connects to `addr` as an admin with `token`, sends `control`, and waits
+/// for the server's answer: `Ok` once it was carried out.
+pub fn send_control(addr: &str, token: &str, control: Control) -> Result<ControlReply, ClientError> {
+    let (mut link, _) = open(addr, hello(Role::Admin, token, "", false))?;
+    link.write(&Frame::Message(Message::Control(control)))
+        .map_err(|source| ClientError::Link {
+            addr: addr.to_string(),
+            source,
+        })?;
+    await_reply(&mut link, addr)
 }

@@ -256,7 +256,9 @@ mod tests {
     use crate::depth::DepthCode;
     use crate::rgbe::Rgbe;
     use crate::section::{Section, SectionKind};
-    use crate::wire::message::{Control, EyePoint, Hello, Progress, Role, SamplingMode, TracePacket};
+    use crate::wire::message::{
+        Access, Control, ControlOutcome, ControlReply, EyePoint, Hello, Progress, Role, SamplingMode, TracePacket,
+    };
     use proptest::prelude::*;
 
     fn samples() -> Vec<Frame> {
@@ -281,6 +283,7 @@ mod tests {
             Frame::Message(Message::Welcome {
                 sections: vec![section.spec()],
                 obstructions: true,
+                access: Access::Writer,
             }),
             Frame::Message(Message::Refused {
                 reason: "wrong token".into(),
@@ -312,8 +315,17 @@ mod tests {
                 file_bytes: 100,
                 beams_filled: 3,
                 beams: 30,
+                samplers: 4,
+                displays: 2,
+                paused: true,
             })),
             Frame::Message(Message::Control(Control::Quit)),
+            Frame::Message(Message::ControlReply(ControlReply {
+                control: Control::Clobber,
+                outcome: ControlOutcome::Refused {
+                    reason: "Clobber needs admin access".into(),
+                },
+            })),
             Frame::Beam {
                 key: BeamKey::new(0, 3),
                 records: recs.clone(),

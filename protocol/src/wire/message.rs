@@ -17,6 +17,35 @@ pub enum Role {
     Admin,
 }
 
+/// What a connection may do, from the token it presented: the server issues
+/// one token per level. Ordered: each level may do all the one below may.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum Access {
+    /// Reads beams; sends no control command.
+    Viewer,
+    /// Also traces (samplers), and pauses and resumes the fill.
+    Writer,
+    /// Also kills and restarts samplers, clobbers, adopts a new scene, quits.
+    Admin,
+}
+
+impl Access {
+    /// The level in words, as messages name it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Access::Viewer => "viewer",
+            Access::Writer => "writer",
+            Access::Admin => "admin",
+        }
+    }
+}
+
+impl std::fmt::Display for Access {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The first message of every connection, from the peer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Hello {
@@ -26,9 +55,10 @@ pub struct Hello {
     pub role: Role,
     /// Content hash of the scene the peer has (samplers) or expects.
     pub scene: String,
-    /// The server's access token.
+    /// One of the server's access tokens: it decides the [`Access`].
     pub token: String,
-    /// A display that may not clobber, kill or quit.
+    /// Asks for viewer access whatever the token allows (a display that
+    /// promises to change nothing). It can only lower the access, never raise it.
     pub read_only: bool,
 }
 
@@ -73,7 +103,7 @@ pub struct TracePacket {
     pub mode: SamplingMode,
 }
 
-/// Commands an admin (or a writable display) may send.
+/// Commands to the server, each allowed from [`Control::needs`] up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Control {
     /// Stop handing out packets.
@@ -90,8 +120,56 @@ pub enum Control {
     Quit,
 }
 
-/// The server's periodic report.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+impl Control {
+    /// The access a connection needs to send this command.
+    pub fn needs(&self) -> Access {
+        match self {
+            Control::Pause | Control::Resume => Access::Writer,
+            Control::KillSamplers | Control::Restart | Control::Clobber | Control::Quit => Access::Admin,
+        }
+    }
+}
+
+/// How the server answered a control command.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ControlOutcome {
+    /// Carried out.
+    Done,
+    /// Not allowed for this connection; the reason names the command and the
+    /// access held.
+    Refused {
+        /// Why.
+        reason: String,
+    },
+    /// Allowed, but it failed (the file could not be written, say).
+    Failed {
+        /// What went wrong.
+        error: String,
+    },
+}
+
+impl std::fmt::Display for ControlOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ControlOutcome::Done => f.write_str("was carried out"),
+            ControlOutcome::Refused { reason } => write!(f, "was refused: {reason}"),
+            ControlOutcome::Failed { error } => write!(f, "failed: {error}"),
+        }
+    }
+}
+
+/// The server's answer to one control command.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ControlReply {
+    /// The command answered.
+    pub control: Control,
+    /// What became of it.
+    pub outcome: ControlOutcome,
+}
+
+/// The server's report, sent to every display about once a second (and
+/// once at once when it connects).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Progress {
     /// Rays stored in the file.
     pub rays: u64,
@@ -103,6 +181,12 @@ pub struct Progress {
     pub beams_filled: u64,
     /// All beams.
     pub beams: u64,
+    /// Samplers connected.
+    pub samplers: u32,
+    /// Displays connected (admin connections not counted).
+    pub displays: u32,
+    /// True while an admin or writer has paused the fill.
+    pub paused: bool,
 }
 
 /// Every message except ray payloads.
@@ -116,6 +200,8 @@ pub enum Message {
         sections: Vec<SectionSpec>,
         /// Sections may contain geometry: trace from the entry wall.
         obstructions: bool,
+        /// What this connection may do.
+        access: Access,
     },
     /// The server refuses the peer, and says why.
     Refused {
@@ -151,6 +237,8 @@ pub enum Message {
     Progress(Progress),
     /// A command.
     Control(Control),
+    /// The answer to a command, sent for every one.
+    ControlReply(ControlReply),
     /// Something went wrong with the last message.
     Error {
         /// What.

@@ -11,10 +11,13 @@ mod message;
 
 pub use frame::{decode_frame, encode_frame, Frame, FrameBuffer, FrameError, FRAME_HEADER, MAX_FRAME};
 pub use link::{FrameLink, LinkError};
-pub use message::{Control, EyePoint, Hello, Message, MessageError, Progress, Role, SamplingMode, TracePacket};
+pub use message::{
+    Access, Control, ControlOutcome, ControlReply, EyePoint, Hello, Message, MessageError, Progress, Role,
+    SamplingMode, TracePacket,
+};
 
 /// Most rays one trace packet may ask for; samplers trace at most this many.
 pub const MAX_PACKET_RAYS: u32 = 1 << 16;
 
 /// Version of the protocol; peers with another version are refused.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;

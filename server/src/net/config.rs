@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use holodeck_protocol::wire::Access;
 use holodeck_protocol::BeamKey;
 
 /// What a batch fill covers when no display wants anything.
@@ -16,11 +17,54 @@ pub enum Fill {
     Off,
 }
 
+/// The credentials the server issues, one per access level. A peer's token
+/// decides what it may do; a level without a token cannot be had (except by
+/// an admin asking for less).
+#[derive(Clone, Debug)]
+pub struct Tokens {
+    /// Everything: control commands included.
+    pub admin: String,
+    /// Samplers, and pausing and resuming.
+    pub writer: Option<String>,
+    /// Reading beams only.
+    pub viewer: Option<String>,
+}
+
+impl Tokens {
+    /// The access `presented` gives, if any. Every token is compared in
+    /// full, so the time taken says nothing about which one nearly matched.
+    pub fn access(&self, presented: &str) -> Option<Access> {
+        let admin = same_secret(presented, &self.admin);
+        let writer = self.writer.as_deref().is_some_and(|t| same_secret(presented, t));
+        let viewer = self.viewer.as_deref().is_some_and(|t| same_secret(presented, t));
+        // A token given for two levels counts as the higher.
+        if admin {
+            Some(Access::Admin)
+        } else if writer {
+            Some(Access::Writer)
+        } else if viewer {
+            Some(Access::Viewer)
+        } else {
+            None
+        }
+    }
+}
+
+/// Compares two secrets in time that does not depend on where they differ.
+fn same_secret(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    let mut diff = u8::from(a.len() != b.len());
+    for i in 0..a.len().max(b.len()) {
+        diff |= a.get(i).copied().unwrap_or(0) ^ b.get(i).copied().unwrap_or(0);
+    }
+    diff == 0
+}
+
 /// How the server runs.
 #[derive(Clone, Debug)]
 pub struct ServerConfig {
-    /// The token every peer must present.
-    pub token: String,
+    /// The tokens peers present.
+    pub tokens: Tokens,
     /// Rays per batch-fill packet (one beam each).
     pub packet: u32,
     /// Most rays in a packet for a display's request.
@@ -43,10 +87,14 @@ pub struct ServerConfig {
 }
 
 impl ServerConfig {
-    /// Defaults for a server with this token.
+    /// Defaults for a server whose only token is this admin's.
     pub fn new(token: String) -> ServerConfig {
         ServerConfig {
-            token,
+            tokens: Tokens {
+                admin: token,
+                writer: None,
+                viewer: None,
+            },
             packet: 4,
             request_packet: 32,
             initial_queue: 256,
@@ -57,5 +105,27 @@ impl ServerConfig {
             stop_when_full: true,
             stall: Duration::from_secs(30),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_token_gives_its_level_and_no_other() {
+        let tokens = Tokens {
+            admin: "a".repeat(32),
+            writer: Some("w".repeat(32)),
+            viewer: Some("v".repeat(32)),
+        };
+        assert_eq!(tokens.access(&"a".repeat(32)), Some(Access::Admin));
+        assert_eq!(tokens.access(&"w".repeat(32)), Some(Access::Writer));
+        assert_eq!(tokens.access(&"v".repeat(32)), Some(Access::Viewer));
+        assert_eq!(tokens.access(&"v".repeat(31)), None);
+        assert_eq!(tokens.access(""), None);
+        let admin_only = ServerConfig::new("t".into()).tokens;
+        assert_eq!(admin_only.access("t"), Some(Access::Admin));
+        assert_eq!(admin_only.access(""), None, "no viewer token: an empty one is no key");
     }
 }

@@ -17,7 +17,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use holodeck_protocol::wire::{Control, Frame, Message, MAX_FRAME};
+use holodeck_protocol::wire::{Access, Control, ControlOutcome, ControlReply, Frame, Message, MAX_FRAME};
 use holodeck_protocol::{BeamKey, RAY_RECORD_BYTES};
 
 use super::connection::{Connection, ConnectionError};
@@ -64,11 +64,11 @@ impl Drop for Watch<'_> {
     }
 }
 
-pub(super) async fn serve_display(conn: Connection, shared: &Shared, read_only: bool) -> Result<(), ConnectionError> {
+pub(super) async fn serve_display(conn: Connection, shared: &Shared, access: Access) -> Result<(), ConnectionError> {
     let id = shared.id();
     let link = Arc::new(DisplayLink::default());
     shared.lock_displays().insert(id, Arc::clone(&link));
-    let result = display_loop(conn, shared, read_only, id, &link).await;
+    let result = display_loop(conn, shared, access, id, &link).await;
     shared.lock_displays().remove(&id);
     shared.lock_scheduler().requests().drop_display(id);
     result
@@ -112,11 +112,14 @@ async fn send_beams(
 async fn display_loop(
     mut conn: Connection,
     shared: &Shared,
-    read_only: bool,
+    access: Access,
     id: u64,
     link: &DisplayLink,
 ) -> Result<(), ConnectionError> {
     let mut stop = shared.shutdown.subscribe();
+    let mut progress = shared.progress.subscribe();
+    // The report there is now goes out at once.
+    progress.mark_changed();
     // Rays of each requested beam this display has been sent.
     let mut sent: HashMap<BeamKey, u64> = HashMap::new();
     let mut generation = shared.generation.load(std::sync::atomic::Ordering::SeqCst);
@@ -151,6 +154,11 @@ async fn display_loop(
                 continue;
             }
             _ = stop.changed() => return Ok(()),
+            Ok(()) = progress.changed() => {
+                let p = *progress.borrow_and_update();
+                conn.write(&Frame::Message(Message::Progress(p))).await?;
+                continue;
+            }
         };
         let Some(frame) = frame else { return Ok(()) };
         match frame {
@@ -246,19 +254,27 @@ async fn display_loop(
                 }
                 shared.work.notify_waiters();
             }
-            Frame::Message(Message::Control(c)) if !read_only || matches!(c, Control::Pause | Control::Resume) => {
+            Frame::Message(Message::Control(c)) => {
                 let quit = c == Control::Quit;
-                if let Err(e) = shared.control(c).await {
-                    let message = e.to_string();
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
-                }
-                if quit {
+                let allowed = access >= c.needs();
+                let outcome = if !allowed {
+                    ControlOutcome::Refused {
+                        reason: format!("{c:?} needs {} access; this connection has {access} access", c.needs()),
+                    }
+                } else {
+                    match shared.control(c).await {
+                        Ok(()) => ControlOutcome::Done,
+                        Err(e) => ControlOutcome::Failed { error: e.to_string() },
+                    }
+                };
+                conn.write(&Frame::Message(Message::ControlReply(ControlReply {
+                    control: c,
+                    outcome,
+                })))
+                .await?;
+                if quit && allowed {
                     return Ok(());
                 }
-            }
-            Frame::Message(Message::Control(c)) => {
-                let message = format!("{c:?} is not allowed for a read-only display");
-                conn.write(&Frame::Message(Message::Error { message })).await?;
             }
             _ => {
                 let message = "displays send beam requests and control commands".to_string();

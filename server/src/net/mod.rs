@@ -15,7 +15,7 @@ pub mod service;
 mod state;
 pub mod store;
 
-pub use config::{Fill, ServerConfig};
+pub use config::{Fill, ServerConfig, Tokens};
 pub use listener::Listener;
 pub use service::serve;
 pub use state::ControlError;

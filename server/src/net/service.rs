@@ -5,25 +5,27 @@
 //!   ([`super::sampler`]);
 //! - displays send beam requests and get the beams' rays streamed back, stored
 //!   rays at once and new ones as they are traced ([`super::display`]);
-//! - admins (and writable displays) send control commands.
+//! - admins and displays send control commands, each carried out only if the
+//!   token the peer presented allows it (see [`super::config::Tokens`]), and
+//!   each answered.
 //!
 //! No task waits on another peer: a stalled display or sampler only slows
 //! itself. Work a sampler never finished is given back to the schedule:
 //! nothing is stored twice and nothing is lost.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use holodeck_protocol::wire::{Frame, Hello, Message, Role, PROTOCOL_VERSION};
+use holodeck_protocol::wire::{Access, Frame, Hello, Message, Progress, Role, PROTOCOL_VERSION};
 use holodeck_protocol::Section;
 use tokio::sync::{mpsc, watch, Notify};
 
 use super::config::ServerConfig;
 use super::connection::{Connection, ConnectionError, Stream};
 use super::listener::Listener;
-use super::state::Shared;
+use super::state::{Counted, Shared};
 use super::store::Store;
 use crate::schedule::Scheduler;
 use crate::storage::{HoloFile, StorageError};
@@ -67,6 +69,9 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         samplers_allowed: AtomicBool::new(true),
         generation: AtomicU64::new(0),
         shutdown,
+        samplers: AtomicU32::new(0),
+        display_count: AtomicU32::new(0),
+        progress: watch::channel(Progress::default()).0,
     });
     let lens = store.lens().await?;
     let batch = shared.batch(&lens)?;
@@ -82,6 +87,23 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
                     Ok(rays) => tracing::debug!("periodic flush: {rays} rays durable"),
                     Err(e) => tracing::error!("periodic flush: {e}"),
                 }
+            }
+        })
+    };
+    // Displays get the first report as they connect, and a new one each second.
+    let first = shared.progress_now(None).await;
+    shared.progress.send_replace(first);
+    let reports = {
+        let shared = Arc::clone(&shared);
+        tokio::spawn(async move {
+            let mut tick = tokio::time::interval(PROGRESS_EVERY);
+            tick.tick().await;
+            let mut last = (first.rays, std::time::Instant::now());
+            loop {
+                tick.tick().await;
+                let p = shared.progress_now(Some(last)).await;
+                last = (p.rays, std::time::Instant::now());
+                shared.progress.send_replace(p);
             }
         })
     };
@@ -168,11 +190,15 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     tasks.shutdown().await;
     tracing::info!("shutting down: flushing the file");
     flusher.abort();
+    reports.abort();
     if let Some(r) = reporter {
         r.abort();
     }
     let flushed = store.flush().await;
     drop(store);
+    // The report task held the shared state (and a storage handle): gone
+    // before the storage thread is waited for.
+    let _ = reports.await;
     drop(shared);
     drop(acceptors);
     // The storage thread exits once every handle is gone; wait for it even
@@ -231,40 +257,44 @@ async fn terminate() {
     std::future::pending::<()>().await
 }
 
-/// Compares two secrets in time that does not depend on where they differ.
-fn same_secret(a: &str, b: &str) -> bool {
-    let (a, b) = (a.as_bytes(), b.as_bytes());
-    let mut diff = u8::from(a.len() != b.len());
-    for i in 0..a.len().max(b.len()) {
-        diff |= a.get(i).copied().unwrap_or(0) ^ b.get(i).copied().unwrap_or(0);
-    }
-    diff == 0
-}
+/// How often displays get a progress report.
+const PROGRESS_EVERY: Duration = Duration::from_secs(1);
 
 /// Frames a peer may send before its Hello is checked.
 const HANDSHAKE_FRAME: usize = 64 << 10;
 
-/// Why a peer is refused, if it is.
-fn check(hello: &Hello, shared: &Shared) -> Option<String> {
+/// What the peer may do, or why it is refused.
+fn check(hello: &Hello, shared: &Shared) -> Result<Access, String> {
     if hello.version != PROTOCOL_VERSION {
-        return Some(format!(
+        return Err(format!(
             "protocol version {} is not this server's {PROTOCOL_VERSION}",
             hello.version
         ));
     }
-    if !same_secret(&hello.token, &shared.config.token) {
-        return Some("wrong access token".into());
+    let Some(mut access) = shared.config.tokens.access(&hello.token) else {
+        return Err("wrong access token".into());
+    };
+    if hello.read_only {
+        access = access.min(Access::Viewer);
     }
-    match (&shared.scene, hello.role) {
-        (None, Role::Sampler) => Some("the holodeck file records no scene, so no sampler can prove it matches".into()),
-        (Some(s), Role::Sampler) if *s != hello.scene => {
-            Some(format!("scene {} does not match the holodeck's scene {s}", hello.scene))
+    if hello.role == Role::Sampler {
+        if access < Access::Writer {
+            return Err(format!(
+                "a sampler needs writer access; this connection has {access} access"
+            ));
         }
-        (_, Role::Sampler) if !shared.samplers_allowed.load(Ordering::SeqCst) => {
-            Some("samplers were stopped by an admin; a restart command lets them in again".into())
+        match &shared.scene {
+            None => return Err("the holodeck file records no scene, so no sampler can prove it matches".into()),
+            Some(s) if *s != hello.scene => {
+                return Err(format!("scene {} does not match the holodeck's scene {s}", hello.scene))
+            }
+            Some(_) if !shared.samplers_allowed.load(Ordering::SeqCst) => {
+                return Err("samplers were stopped by an admin; a restart command lets them in again".into())
+            }
+            Some(_) => {}
         }
-        _ => None,
     }
+    Ok(access)
 }
 
 async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), ConnectionError> {
@@ -287,18 +317,32 @@ async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), Connecti
             return Ok(());
         }
     };
-    if let Some(reason) = check(&hello, shared) {
-        tracing::warn!("refused a {:?}: {reason}", hello.role);
-        conn.write(&Frame::Message(Message::Refused { reason })).await?;
-        return Ok(());
-    }
+    let access = match check(&hello, shared) {
+        Ok(a) => a,
+        Err(reason) => {
+            tracing::warn!("refused a {:?}: {reason}", hello.role);
+            conn.write(&Frame::Message(Message::Refused { reason })).await?;
+            return Ok(());
+        }
+    };
     conn.set_max_frame(holodeck_protocol::wire::MAX_FRAME);
     let sections = shared.sections.iter().map(Section::spec).collect();
     let obstructions = shared.obstructions;
-    conn.write(&Frame::Message(Message::Welcome { sections, obstructions }))
-        .await?;
+    conn.write(&Frame::Message(Message::Welcome {
+        sections,
+        obstructions,
+        access,
+    }))
+    .await?;
     match hello.role {
-        Role::Sampler => super::sampler::serve_sampler(conn, shared).await,
-        Role::Display | Role::Admin => super::display::serve_display(conn, shared, hello.read_only).await,
+        Role::Sampler => {
+            let _counted = Counted::new(&shared.samplers);
+            super::sampler::serve_sampler(conn, shared).await
+        }
+        Role::Display => {
+            let _counted = Counted::new(&shared.display_count);
+            super::display::serve_display(conn, shared, access).await
+        }
+        Role::Admin => super::display::serve_display(conn, shared, access).await,
     }
 }

@@ -5,10 +5,10 @@
 //! `&Shared`, and this module imports none of them.
 
 use std::collections::{HashMap, HashSet};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 
-use holodeck_protocol::wire::Control;
+use holodeck_protocol::wire::{Control, Progress};
 use holodeck_protocol::{BeamKey, Section};
 use tokio::sync::{watch, Notify};
 
@@ -57,6 +57,30 @@ pub(super) struct Shared {
     /// Bumped by Clobber: displays then count their beams from the start.
     pub generation: AtomicU64,
     pub shutdown: watch::Sender<bool>,
+    /// Samplers connected now.
+    pub samplers: AtomicU32,
+    /// Displays connected now (admin connections not counted).
+    pub display_count: AtomicU32,
+    /// The latest report, renewed about once a second; displays send each
+    /// new one on.
+    pub progress: watch::Sender<Progress>,
+}
+
+/// Counts a connection in `counter` while it lives (however its task ends).
+pub(super) struct Counted<'a>(&'a AtomicU32);
+
+impl<'a> Counted<'a> {
+    /// Counts one more.
+    pub fn new(counter: &'a AtomicU32) -> Counted<'a> {
+        counter.fetch_add(1, Ordering::SeqCst);
+        Counted(counter)
+    }
+}
+
+impl Drop for Counted<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
 }
 
 impl Shared {
@@ -67,6 +91,37 @@ impl Shared {
 
     pub fn lock_displays(&self) -> std::sync::MutexGuard<'_, HashMap<u64, Arc<DisplayLink>>> {
         self.displays.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// A report of the file and the connections now; `last` (the previous
+    /// report and when it was made) gives the rate.
+    pub async fn progress_now(&self, last: Option<(u64, std::time::Instant)>) -> Progress {
+        let summary = self.store.summary().await;
+        let rays = summary.as_ref().map_or(0, |s| s.rays());
+        let now = std::time::Instant::now();
+        let rays_per_second = last.map_or(0.0, |(r, t)| {
+            let secs = now.duration_since(t).as_secs_f64();
+            if secs > 0.0 {
+                rays.saturating_sub(r) as f64 / secs
+            } else {
+                0.0
+            }
+        });
+        let (beams_filled, beams) = summary.as_ref().map_or((0, 0), |s| {
+            s.sections
+                .iter()
+                .fold((0, 0), |(f, b), x| (f + u64::from(x.1), b + u64::from(x.0)))
+        });
+        Progress {
+            rays,
+            rays_per_second,
+            file_bytes: summary.map_or(0, |s| s.file_bytes),
+            beams_filled,
+            beams,
+            samplers: self.samplers.load(Ordering::SeqCst),
+            displays: self.display_count.load(Ordering::SeqCst),
+            paused: self.lock_scheduler().paused(),
+        }
     }
 
     pub fn id(&self) -> u64 {
