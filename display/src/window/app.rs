@@ -36,6 +36,9 @@ pub const STEP_RATE: f64 = 30.0;
 /// How long one poll for new samples may hold the event loop.
 const POLL: Duration = Duration::from_millis(15);
 
+/// How long the server's answer to a command stays on the status line.
+const NOTICE: Duration = Duration::from_secs(4);
+
 /// Frames of a still view are drawn at most this often.
 const STILL_FRAME: Duration = Duration::from_millis(100);
 
@@ -102,6 +105,8 @@ struct App {
     frame_time: Duration,
     /// The last frame's tone-mapped picture, without overlays (for `save`).
     shown: Option<super::walk::Frame>,
+    /// The server's last answer, and when it came.
+    notice: Option<(String, Instant)>,
     /// When the last motion stopped, until the next frame is drawn.
     settled_at: Option<(Instant, u64)>,
     error: Option<WindowError>,
@@ -140,6 +145,7 @@ pub fn run(walk: Walkthrough, options: WindowOptions) -> Result<(), WindowError>
         frame_time: Duration::ZERO,
         shown: None,
         settled_at: None,
+        notice: None,
         error: None,
     };
     event_loop
@@ -183,9 +189,9 @@ impl App {
         };
         let script = self.options.script;
         let control = |app: &mut App, name: &str, c: Control| -> Result<(), WindowError> {
-            match app.walk.control(c) {
-                Ok(()) => tell(script, format!("{name}: sent")),
-                Err(e) => tell(script, format!("{name}: {e}")),
+            // The server's answer comes later, among its notices.
+            if let Err(e) = app.walk.control(c) {
+                tell(script, format!("{name}: {e}"));
             }
             Ok(())
         };
@@ -440,12 +446,25 @@ impl App {
         Ok(())
     }
 
-    fn status_line(&mut self) -> String {
+    /// Passes on what the server answered: printed for scripts, logged,
+    /// and shown on the status line for a while.
+    fn take_notices(&mut self) {
         for n in self.walk.notices() {
             if self.options.script {
                 say(&n);
             } else {
                 tracing::info!("server: {n}");
+            }
+            self.notice = Some((n, Instant::now()));
+            self.dirty = true;
+        }
+    }
+
+    fn status_line(&mut self) -> String {
+        self.take_notices();
+        if let Some((n, at)) = &self.notice {
+            if at.elapsed() < NOTICE {
+                return n.clone();
             }
         }
         let (received, rate) = self.walk.received();
@@ -609,6 +628,12 @@ impl ApplicationHandler<UserEvent> for App {
         match self.walk.poll(Instant::now() + POLL) {
             Ok(n) => self.dirty |= n > 0,
             Err(e) => return self.fail(event_loop, e),
+        }
+        self.take_notices();
+        if self.notice.as_ref().is_some_and(|(_, at)| at.elapsed() >= NOTICE) {
+            // Back to the figures.
+            self.notice = None;
+            self.dirty = true;
         }
         if self.dirty && self.last_frame.elapsed() >= STILL_FRAME {
             self.redraw();

@@ -113,14 +113,35 @@ impl Source for ServerSource {
     }
 
     fn status(&self) -> Option<ServerStatus> {
-        None
+        self.session.progress().map(|p| ServerStatus {
+            rays: p.rays,
+            rays_per_second: p.rays_per_second,
+            samplers: p.samplers,
+            paused: p.paused,
+        })
     }
 
     fn notices(&mut self) -> Vec<String> {
-        Vec::new()
+        self.session
+            .take_notices()
+            .into_iter()
+            .map(|r| format!("{}: {}", command_name(&r.control), r.outcome))
+            .collect()
     }
 
     fn name(&self) -> String {
-        self.name.clone()
+        format!("{} ({})", self.name, self.session.access())
+    }
+}
+
+/// A control command as the window's commands name it.
+pub fn command_name(c: &Control) -> &'static str {
+    match c {
+        Control::Pause => "pause",
+        Control::Resume => "resume",
+        Control::KillSamplers => "kill",
+        Control::Restart => "restart",
+        Control::Clobber => "clobber",
+        Control::Quit => "quit",
     }
 }

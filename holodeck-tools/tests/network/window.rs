@@ -7,7 +7,7 @@ use holodeck_protocol::View;
 
 use crate::common::process::Proc;
 use crate::common::screen::Screen;
-use crate::harness::{bin, carried_out, small_room, start_server};
+use crate::harness::{bin, carried_out, quit, rays_at_close, small_room, start_server};
 
 fn view_of(line: &str) -> Option<View> {
     line.strip_prefix("VIEW= ")
@@ -67,13 +67,56 @@ fn standard_input_commands_drive_a_window_on_a_server() {
         l.starts_with("error: unknown command").then_some(())
     });
 
-    // Pause and resume are carried out by the server.
+    // Pause and resume are carried out by the server, which says so.
     let mut log = 0;
     window.say("pause");
     carried_out(&server, &mut log, Control::Pause);
+    window.wait_line("the answer to pause", &mut at, |l| {
+        (l == "pause: was carried out").then_some(())
+    });
     window.say("resume");
     carried_out(&server, &mut log, Control::Resume);
+    window.wait_line("the answer to resume", &mut at, |l| {
+        (l == "resume: was carried out").then_some(())
+    });
+
+    // A window on a viewer's token may look but not clobber: the server
+    // refuses, the window says so and goes on, and the rays stay.
+    let viewer_token = std::fs::read_to_string(format!("{}.viewer.token", file.display())).unwrap();
+    let mut viewer = Proc::start(
+        bin()
+            .args([
+                "view",
+                "--connect",
+                &addr,
+                "--token",
+                viewer_token.trim(),
+                "-i",
+                "-x",
+                "160",
+                "-y",
+                "120",
+            ])
+            .env("DISPLAY", &screen.display)
+            .env("NO_COLOR", "1"),
+    );
+    let mut vat = 0;
+    viewer.wait_line("the viewer's window", &mut vat, |l| {
+        l.starts_with("ready:").then_some(())
+    });
+    for command in ["clobber", "kill", "pause"] {
+        viewer.say(command);
+        viewer.wait_line("the refusal", &mut vat, |l| {
+            l.starts_with(&format!("{command}: was refused")).then_some(())
+        });
+    }
+    viewer.say("where");
+    viewer.wait_line("a view: the window goes on", &mut vat, view_of);
+    viewer.say("quit");
+    assert!(viewer.wait().success(), "{}", viewer.text());
 
     window.say("quit");
     assert!(window.wait().success(), "{}", window.text());
+    quit(&addr, "secret");
+    assert!(rays_at_close(&server) > 0, "the viewer's clobber was refused");
 }
