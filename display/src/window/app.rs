@@ -563,6 +563,11 @@ impl ApplicationHandler<UserEvent> for App {
                     Ok(())
                 }
             }
+            // A release that happens elsewhere never comes: the motion ends here.
+            WindowEvent::Focused(false) => match self.held.as_ref().map(|h| h.button) {
+                Some(button) => self.release(button),
+                None => Ok(()),
+            },
             WindowEvent::ModifiersChanged(m) => {
                 self.mods = m.state();
                 Ok(())
