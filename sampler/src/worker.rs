@@ -9,7 +9,7 @@ use holodeck_protocol::wire::client::{self, ClientError, ClientStream};
 use holodeck_protocol::wire::{Frame, FrameLink, LinkError, Message, Role, MAX_PACKET_RAYS};
 use holodeck_protocol::SectionError;
 
-use crate::beam::trace_beam;
+use crate::beam::{trace_beam_under, FileRules};
 use crate::shade::{Rng, Tracer};
 
 /// Why a worker stopped.
@@ -57,7 +57,12 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
     };
     let (mut link, welcome): (FrameLink<ClientStream>, _) =
         client::open(addr, client::hello(Role::Sampler, token, scene, false))?;
-    let (sections, obstructions) = (welcome.sections, welcome.obstructions);
+    let sections = welcome.sections;
+    // The file's settings, not this process's options, decide how it is filled.
+    let rules = FileRules {
+        obstructions: welcome.obstructions,
+        vdistance: welcome.vdistance,
+    };
     let mut traced = 0u64;
     let mut n = 0u64;
     let mut last_send = Instant::now();
@@ -83,15 +88,7 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
         let mut rng = Rng::new(seed, n);
         n += 1;
         let count = packet.rays.min(MAX_PACKET_RAYS) as usize;
-        let records = trace_beam(
-            tracer,
-            section,
-            obstructions,
-            packet.key.beam,
-            count,
-            packet.mode,
-            &mut rng,
-        )?;
+        let records = trace_beam_under(tracer, section, rules, packet.key.beam, count, packet.mode, &mut rng)?;
         let rays = records.len() as u64;
         let sent = link
             .write(&Frame::Finished {

@@ -11,3 +11,4 @@ mod admin;
 mod displays;
 mod harness;
 mod lifecycle;
+mod scenes;

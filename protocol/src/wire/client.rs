@@ -154,6 +154,8 @@ pub struct Welcome {
     pub sections: Vec<Section>,
     /// Sections may contain geometry: samplers trace from the entry wall.
     pub obstructions: bool,
+    /// Samplers record virtual distances through flat mirrors and glass.
+    pub vdistance: bool,
     /// What this connection may do.
     pub access: Access,
 }
@@ -206,6 +208,7 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
         Some(Frame::Message(Message::Welcome {
             sections,
             obstructions,
+            vdistance,
             access,
         })) => {
             let sections = sections
@@ -221,6 +224,7 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
             Ok(Welcome {
                 sections,
                 obstructions,
+                vdistance,
                 access,
             })
         }

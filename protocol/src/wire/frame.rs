@@ -283,6 +283,7 @@ mod tests {
             Frame::Message(Message::Welcome {
                 sections: vec![section.spec()],
                 obstructions: true,
+                vdistance: true,
                 access: Access::Writer,
             }),
             Frame::Message(Message::Refused {

@@ -194,12 +194,15 @@ pub struct Progress {
 pub enum Message {
     /// Peer's greeting.
     Hello(Hello),
-    /// The server accepts: here are the holodeck's sections.
+    /// The server accepts: here are the holodeck's sections, and the file's
+    /// settings samplers must obey.
     Welcome {
         /// The sections, in index order.
         sections: Vec<SectionSpec>,
         /// Sections may contain geometry: trace from the entry wall.
         obstructions: bool,
+        /// Record virtual distances through flat mirrors and thin glass (VDISTANCE).
+        vdistance: bool,
         /// What this connection may do.
         access: Access,
     },

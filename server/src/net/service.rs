@@ -53,11 +53,13 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     let sections = file.sections().to_vec();
     let scene = file.settings().scene.clone();
     let obstructions = file.settings().obstructions;
+    let vdistance = file.settings().vdistance;
     let (store, thread) = Store::spawn(file);
     let (shutdown, mut stopped) = watch::channel(false);
     let shared = Arc::new(Shared {
         config,
         obstructions,
+        vdistance,
         scene,
         sections,
         scheduler: std::sync::Mutex::new(Scheduler::new(None)),
@@ -331,6 +333,7 @@ async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), Connecti
     conn.write(&Frame::Message(Message::Welcome {
         sections,
         obstructions,
+        vdistance: shared.vdistance,
         access,
     }))
     .await?;

@@ -41,6 +41,8 @@ impl DisplayLink {
 pub(super) struct Shared {
     pub config: ServerConfig,
     pub obstructions: bool,
+    /// The file's VDISTANCE setting, which samplers must obey.
+    pub vdistance: bool,
     pub scene: Option<String>,
     pub sections: Vec<Section>,
     pub scheduler: std::sync::Mutex<Scheduler>,
