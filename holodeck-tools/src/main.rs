@@ -43,7 +43,8 @@ Examples:
   holodeck fill builtin:room room.hdk --rays 2M
   holodeck run builtin:room room.hdk -n 2 --time 30s
   holodeck serve room.hdk --listen 0.0.0.0:7777
-  holodeck sample builtin:room --connect host:7777 --token-file room.hdk.token";
+  holodeck sample builtin:room --connect host:7777 --token-file room.hdk.writer.token
+  holodeck admin --connect host:7777 --token-file room.hdk.token status";
 
 #[derive(Subcommand)]
 enum Command {
@@ -77,6 +78,8 @@ enum Command {
     View(cmd::view::Args),
     /// Trace packets for a holodeck server (a sampler worker; any host).
     Sample(cmd::sample::Args),
+    /// Send a command to a running server: pause, kill, adopt an edited scene, status...
+    Admin(cmd::admin::Args),
 }
 
 fn init_logging(verbose: u8, quiet: bool) {
@@ -122,6 +125,7 @@ fn main() -> ExitCode {
         Command::Compare(a) => cmd::compare::run(a),
         Command::View(a) => cmd::view::run(a),
         Command::Sample(a) => cmd::sample::run(a),
+        Command::Admin(a) => cmd::admin::run(a),
     };
     match result {
         Ok(code) => code,

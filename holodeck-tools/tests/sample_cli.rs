@@ -100,6 +100,7 @@ fn a_sampler_whose_server_quits_after_its_work_exits_zero() {
         let welcome = Message::Welcome {
             sections: vec![section.spec()],
             obstructions: false,
+            vdistance: false,
             access: Access::Writer,
         };
         link.write(&Frame::Message(welcome)).unwrap();

@@ -3,13 +3,14 @@
 //! Blocking I/O on one connection per worker thread: tracing, not the network,
 //! is what takes the time.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::client::{self, ClientError, ClientStream};
 use holodeck_protocol::wire::{Frame, FrameLink, LinkError, Message, Role, MAX_PACKET_RAYS};
 use holodeck_protocol::SectionError;
 
-use crate::beam::trace_beam;
+use crate::beam::{trace_beam_under, FileRules};
 use crate::shade::{Rng, Tracer};
 
 /// Why a worker stopped.
@@ -51,13 +52,24 @@ const SEND_EVERY: Duration = Duration::from_millis(20);
 /// Traces packets from the server at `addr` until it closes the connection;
 /// returns the rays traced. `scene` is the content hash of `tracer`'s scene.
 pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<u64, WorkerError> {
+    run_session(addr, tracer, scene, token, seed).map(|(traced, _)| traced)
+}
+
+/// One connection's work: the rays traced, and whether it ended because an
+/// admin stopped the samplers (rather than the server closing).
+fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<(u64, bool), WorkerError> {
     let io = |source: LinkError| WorkerError::Io {
         addr: addr.to_string(),
         source,
     };
     let (mut link, welcome): (FrameLink<ClientStream>, _) =
         client::open(addr, client::hello(Role::Sampler, token, scene, false))?;
-    let (sections, obstructions) = (welcome.sections, welcome.obstructions);
+    let sections = welcome.sections;
+    // The file's settings, not this process's options, decide how it is filled.
+    let rules = FileRules {
+        obstructions: welcome.obstructions,
+        vdistance: welcome.vdistance,
+    };
     let mut traced = 0u64;
     let mut n = 0u64;
     let mut last_send = Instant::now();
@@ -75,6 +87,18 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
                 tracing::warn!("server: {message}");
                 continue;
             }
+            Frame::Message(Message::Refused { reason, retry }) => {
+                if retry {
+                    tracing::warn!("{addr}: {reason}");
+                    return Ok((traced, true));
+                }
+                return Err(WorkerError::Connect(ClientError::Refused {
+                    addr: addr.to_string(),
+                    role: client::role_name(Role::Sampler),
+                    reason,
+                    retry,
+                }));
+            }
             _ => return Err(WorkerError::Protocol("expected trace packets".into())),
         };
         let section = sections
@@ -83,15 +107,7 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
         let mut rng = Rng::new(seed, n);
         n += 1;
         let count = packet.rays.min(MAX_PACKET_RAYS) as usize;
-        let records = trace_beam(
-            tracer,
-            section,
-            obstructions,
-            packet.key.beam,
-            count,
-            packet.mode,
-            &mut rng,
-        )?;
+        let records = trace_beam_under(tracer, section, rules, packet.key.beam, count, packet.mode, &mut rng)?;
         let rays = records.len() as u64;
         let sent = link
             .write(&Frame::Finished {
@@ -114,19 +130,24 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
         }
     }
     tracing::info!("{addr}: the server closed the connection after {traced} rays");
-    Ok(traced)
+    Ok((traced, false))
 }
+
+/// What a worker traces: a tracer of the scene, and the scene's content hash.
+pub type SceneSource<'a> = dyn Fn() -> (Arc<Tracer>, String) + Sync + 'a;
 
 /// Runs [`run_worker`] and reconnects with growing delays while the server is
 /// away (restarting, say), for up to `retry_for` after it was last seen
-/// working; a refusal or a protocol error ends it at once. Returns the rays
-/// traced. A worker that never reached a server fails with
-/// [`WorkerError::Unreachable`]; one whose server went away after it was
-/// reached ends normally.
+/// working. While an admin has stopped the samplers (the server says
+/// trying again makes sense), it keeps trying, however long that takes;
+/// `scene` is asked for the scene before every attempt, so that one edited
+/// meanwhile is the one proved next. Any other refusal, or a protocol
+/// error, ends it at once. Returns the rays traced. A worker that never
+/// reached a server fails with [`WorkerError::Unreachable`]; one whose server
+/// went away after it was reached ends normally.
 pub fn run_worker_retrying(
     addr: &str,
-    tracer: &Tracer,
-    scene: &str,
+    scene: &SceneSource<'_>,
     token: &str,
     seed: u64,
     retry_for: Duration,
@@ -136,21 +157,36 @@ pub fn run_worker_retrying(
     let mut lost_since: Option<Instant> = None;
     loop {
         let round_seed = seed.wrapping_add(round.wrapping_mul(0x9E37_79B9));
-        let failure = match run_worker(addr, tracer, scene, token, round_seed) {
-            Ok(n) => {
+        let (tracer, hash) = scene();
+        let (failure, stopped) = match run_session(addr, &tracer, &hash, token, round_seed) {
+            Ok((n, stopped)) => {
                 reached = true;
                 total += n;
                 if n > 0 {
                     delay = Duration::from_millis(250);
                     lost_since = None;
                 }
-                None
+                (None, stopped)
             }
-            Err(WorkerError::Io { addr, source }) => Some(ClientError::Link { addr, source }),
-            Err(WorkerError::Connect(e)) if e.is_unreachable() => Some(e),
+            Err(WorkerError::Connect(ClientError::Refused {
+                reason, retry: true, ..
+            })) => {
+                tracing::warn!("{addr}: refused for now ({reason}); retrying");
+                reached = true;
+                (None, true)
+            }
+            Err(WorkerError::Io { addr, source }) => (Some(ClientError::Link { addr, source }), false),
+            Err(WorkerError::Connect(e)) if e.is_unreachable() => (Some(e), false),
             Err(e) => return Err(e),
         };
         round += 1;
+        if stopped {
+            // The server is there and says to wait: no deadline.
+            lost_since = None;
+            std::thread::sleep(delay);
+            delay = (delay * 2).min(MAX_STOPPED_DELAY);
+            continue;
+        }
         let since = *lost_since.get_or_insert_with(Instant::now);
         if since.elapsed() >= retry_for {
             return match failure {
@@ -168,6 +204,10 @@ pub fn run_worker_retrying(
     }
 }
 
+/// Longest wait between attempts while samplers are stopped: a restart lets
+/// them in again within this.
+const MAX_STOPPED_DELAY: Duration = Duration::from_secs(2);
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,14 +216,15 @@ mod tests {
 
     #[test]
     fn a_worker_that_never_reaches_a_server_says_where_it_looked() {
-        let tracer = Tracer::new(Scene::default(), TraceOptions::default());
+        let tracer = Arc::new(Tracer::new(Scene::default(), TraceOptions::default()));
         // A port that was just free: nothing listens there.
         let addr = std::net::TcpListener::bind("127.0.0.1:0")
             .unwrap()
             .local_addr()
             .unwrap()
             .to_string();
-        let e = run_worker_retrying(&addr, &tracer, "scene", "token", 1, Duration::ZERO).unwrap_err();
+        let scene = || (Arc::clone(&tracer), "scene".to_string());
+        let e = run_worker_retrying(&addr, &scene, "token", 1, Duration::ZERO).unwrap_err();
         let WorkerError::Unreachable {
             addr: at,
             retried,

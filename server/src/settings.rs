@@ -38,6 +38,9 @@ pub struct Settings {
     pub report: Duration,
     /// Content hash of the scene the rays were traced in, if known.
     pub scene: Option<String>,
+    /// Some rays were traced in an older version of the scene: an admin
+    /// adopted an edited scene and kept them (STALE).
+    pub stale: bool,
 }
 
 impl Default for Settings {
@@ -52,6 +55,7 @@ impl Default for Settings {
             time: Duration::ZERO,
             report: Duration::ZERO,
             scene: None,
+            stale: false,
         }
     }
 }
@@ -66,6 +70,7 @@ const KEYS: &[&str] = &[
     "TIME",
     "REPORT",
     "SCENE",
+    "STALE",
 ];
 
 /// Parses a byte size such as `64M`, `1.5G`, `4096` or `0`.
@@ -282,6 +287,10 @@ impl Settings {
         if let Some(h) = &self.scene {
             let _ = writeln!(t, "SCENE={h}");
         }
+        // Written only when set: the text of every other file stays as it was.
+        if self.stale {
+            let _ = writeln!(t, "STALE=true");
+        }
         t
     }
 
@@ -316,6 +325,7 @@ impl Settings {
                 "TIME" => s.time = parse_duration(value, 3600.0).map_err(|e| bad(e.into()))?,
                 "REPORT" => s.report = parse_duration(value, 60.0).map_err(|e| bad(e.into()))?,
                 "SCENE" => s.scene = Some(check_scene(value).map_err(bad)?.to_string()),
+                "STALE" => s.stale = parse_bool(value).map_err(bad)?,
                 other => {
                     return Err(err(format!(
                         "unknown setting {other:?}; known settings are {}",
@@ -456,6 +466,7 @@ mod tests {
             time: Duration::from_secs(5400),
             report: Duration::from_secs(60),
             scene: Some("blake3:0123abcd".into()),
+            stale: true,
             ..Settings::default()
         }
     }

@@ -85,6 +85,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         st.report,
         st.scene.as_ref().map(|h| format!(" SCENE={h}")).unwrap_or_default()
     );
+    if st.stale {
+        println!(
+            "  note: STALE: some rays were traced in an older version of the scene (kept when an edited scene was adopted); `holodeck admin ... clobber` drops them"
+        );
+    }
     Ok(if info.damage.is_some() {
         ExitCode::from(2)
     } else {

@@ -1,5 +1,6 @@
 //! One module per subcommand: argument definitions and a `run` that calls the libraries.
 
+pub mod admin;
 pub mod args;
 pub mod bench;
 pub mod bench_accuracy;

@@ -1,6 +1,8 @@
 //! `holodeck sample`: a sampler worker for a holodeck server on any host.
 
 use std::process::ExitCode;
+use std::sync::{Arc, Mutex};
+use std::time::SystemTime;
 
 use anyhow::{bail, Context, Result};
 use holodeck_sampler::scene::hash::content_hash;
@@ -16,7 +18,9 @@ use crate::human::{count, count_in};
 #[command(after_help = "\
 Loads the scene, proves to the server that it is the same scene (content hash), and traces
 the packets the server hands out until the server stops. If the server goes away (a restart,
-say), each worker retries with growing delays for --retry-for before ending. A sampler
+say), each worker retries with growing delays for --retry-for before ending. While an admin
+has stopped the samplers (`holodeck admin ... kill`), workers wait to be let in again, and
+reload the scene file first if it changed (for `holodeck admin ... adopt` after an edit). A sampler
 that never reached the server in that time fails, naming the address. Workers are stateless: start and
 stop them at any time, on any host that can reach the server.
 
@@ -51,17 +55,55 @@ pub struct Args {
     retry_for: String,
 }
 
+/// A loaded scene, and when its file was last modified.
+struct Loaded {
+    tracer: Arc<Tracer>,
+    hash: String,
+    modified: Option<SystemTime>,
+}
+
+/// When the scene file was last modified (`None` for builtin scenes, which never change).
+fn modified(spec: &str) -> Option<SystemTime> {
+    if spec.starts_with("builtin:") {
+        return None;
+    }
+    std::fs::metadata(spec).and_then(|m| m.modified()).ok()
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let token = a.token.token()?;
-    let scene = super::render::load(&a.scene, a.triangles)?;
-    let hash = content_hash(&scene);
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,
         ..TraceOptions::default()
     };
-    let tracer = Tracer::new(scene, options);
+    let load = || -> Result<Loaded> {
+        let modified = modified(&a.scene);
+        let scene = super::render::load(&a.scene, a.triangles)?;
+        let hash = content_hash(&scene);
+        Ok(Loaded {
+            tracer: Arc::new(Tracer::new(scene, options)),
+            hash,
+            modified,
+        })
+    };
+    let loaded = Mutex::new(load()?);
+    // Before each connection: the scene file as it is now (an admin may have
+    // stopped the samplers to let the scene be edited).
+    let scene = || {
+        let mut l = loaded.lock().unwrap_or_else(|p| p.into_inner());
+        if modified(&a.scene) != l.modified {
+            match load() {
+                Ok(new) => {
+                    tracing::warn!("{}: the scene changed; now {}", a.scene, new.hash);
+                    *l = new;
+                }
+                Err(e) => tracing::warn!("{}: keeping the scene loaded before: {e:#}", a.scene),
+            }
+        }
+        (Arc::clone(&l.tracer), l.hash.clone())
+    };
     let retry_for = parse_duration(&a.retry_for, 1.0).context("--retry-for")?;
     let jobs = a.jobs.map_or_else(
         || std::thread::available_parallelism().map_or(1, |n| n.get()),
@@ -70,12 +112,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let results: Vec<Option<Result<u64, WorkerError>>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..jobs)
             .map(|j| {
-                let (tracer, hash, token, addr) = (&tracer, &hash, &token, &a.connect);
+                let (scene, token, addr) = (&scene, &token, &a.connect);
                 s.spawn(move || {
                     run_worker_retrying(
                         addr,
-                        tracer,
-                        hash,
+                        scene,
                         token,
                         a.seed.wrapping_mul(1000).wrapping_add(j as u64),
                         retry_for,

@@ -21,7 +21,7 @@ fn admins_pause_resume_kill_restart_and_clobber() {
     let beams = beams_of(&file);
     let token = "t";
     let (mut server, addr) = start_server_with(f, "127.0.0.1:0", token, &["--report", "0.2s"]);
-    let worker = sampler(&addr, token, &["builtin:room"]);
+    let mut worker = sampler(&addr, token, &["builtin:room"]);
     let (mut admin, _) = Client::connect(&addr, Role::Admin, token);
     let mut log = 0;
     reported_above(&server, &mut log, initial, "the fill to start");
@@ -45,17 +45,23 @@ fn admins_pause_resume_kill_restart_and_clobber() {
     let held = collect_until(&mut display, &want, &mut have, &base);
     assert!(want.iter().all(|(k, n)| held[k] >= *n as usize), "{held:?}");
 
-    // KillSamplers disconnects them and keeps new ones out until Restart.
+    // KillSamplers disconnects them and keeps new ones out until Restart:
+    // they wait (and would reload an edited scene) rather than end.
     admin.send(&Frame::Message(Message::Control(Control::KillSamplers)));
-    let out = worker.finish();
-    assert!(out.status.success(), "{}", text(&out));
     carried_out(&server, &mut log, Control::KillSamplers);
-    let refused = sampler(&addr, token, &["builtin:room"]).finish();
+    let stopped = "samplers were stopped by an admin; a restart command lets them in again";
+    worker.wait_line("the killed sampler told why", &mut 0, |l| {
+        l.contains(stopped).then_some(())
+    });
+    let mut waiting = sampler(&addr, token, &["builtin:room"]);
+    waiting.wait_line("a new sampler refused for now", &mut 0, |l| {
+        (l.contains("refused for now") && l.contains(stopped)).then_some(())
+    });
     assert!(
-        !refused.status.success() && text(&refused).contains("restart"),
-        "{}",
-        text(&refused)
+        worker.try_wait().is_none(),
+        "the killed sampler waits to be let in again"
     );
+    assert!(waiting.try_wait().is_none(), "the refused sampler waits to be let in");
 
     // Clobber empties the file (no sampler is running to refill it).
     // Every beam, wanting nothing more: the answer is everything stored.
@@ -71,15 +77,16 @@ fn admins_pause_resume_kill_restart_and_clobber() {
         "clobber empties every beam ({before} rays before)"
     );
 
-    // Restart lets samplers in again, and the fill goes on.
+    // Restart lets the waiting samplers in again, and the fill goes on.
     admin.send(&Frame::Message(Message::Control(Control::Restart)));
     carried_out(&server, &mut log, Control::Restart);
-    let again = sampler(&addr, token, &["builtin:room"]);
     stored_above(&mut display, &all, 0, "the fill after a restart");
     admin.send(&Frame::Message(Message::Control(Control::Quit)));
     assert!(server.wait().success(), "{}", server.text());
-    let again = again.finish();
-    assert!(again.status.success(), "{}", text(&again));
+    for w in [worker, waiting] {
+        let out = w.finish();
+        assert!(out.status.success(), "{}", text(&out));
+    }
     let after_clobber = rays_in(&file);
     assert!(after_clobber > 0);
     assert_eq!(after_clobber, rays_at_close(&server));
@@ -121,7 +128,7 @@ fn diskspace_stops_the_fill_within_its_limit() {
 }
 
 /// The reason the server gives for refusing `c` to a connection with `held` access.
-fn refusal(c: Control, held: &str) -> ControlOutcome {
+fn refusal(c: &Control, held: &str) -> ControlOutcome {
     ControlOutcome::Refused {
         reason: format!("{c:?} needs {} access; this connection has {held} access", c.needs()),
     }
@@ -158,8 +165,8 @@ fn viewers_may_not_quit_kill_restart_clobber_or_pause() {
         Control::Resume,
     ];
     for display in [&mut viewer, &mut lowered] {
-        for c in all {
-            assert_eq!(display.command(c), refusal(c, "viewer"), "{c:?}");
+        for c in &all {
+            assert_eq!(display.command(c.clone()), refusal(c, "viewer"), "{c:?}");
         }
     }
     // None was carried out: the sampler is still connected and the fill goes
@@ -235,10 +242,10 @@ fn writers_pause_and_resume_but_only_admins_clobber_and_viewers_cannot_sample() 
     carried_out(&server, &mut log, Control::Pause);
     let all: Vec<(BeamKey, u32)> = (0..beams).map(|b| (BeamKey::new(0, b), 0)).collect();
     let before = w.stored(&all);
-    assert_eq!(w.command(Control::Clobber), refusal(Control::Clobber, "writer"));
+    assert_eq!(w.command(Control::Clobber), refusal(&Control::Clobber, "writer"));
     assert_eq!(
         w.command(Control::KillSamplers),
-        refusal(Control::KillSamplers, "writer")
+        refusal(&Control::KillSamplers, "writer")
     );
     let kept = w.stored(&all);
     assert!(

@@ -228,7 +228,7 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
     big[..4].copy_from_slice(&((100u32 << 10) + 1).to_le_bytes());
     let _ = std::io::Write::write_all(&mut raw, &big);
     match Client::over(raw).recv() {
-        Frame::Message(Message::Refused { reason }) => assert!(reason.contains("65536 allowed"), "{reason}"),
+        Frame::Message(Message::Refused { reason, .. }) => assert!(reason.contains("65536 allowed"), "{reason}"),
         other => panic!("{other:?}"),
     }
     quit(&addr, "t");
@@ -379,7 +379,7 @@ fn displays_get_a_progress_report_with_connections_pause_and_rate() {
     let (mut server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", token);
     let (mut display, _) = Client::connect(&addr, Role::Display, token);
     // The first report comes at once: the file as it is, nobody tracing
-    // (made before this display came, the next one counts it).
+    // and counting this display.
     let first = display.progress_where("the first report", |_| true);
     assert_eq!(
         (first.rays, first.beams, first.samplers, first.paused),

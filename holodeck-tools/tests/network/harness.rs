@@ -317,7 +317,7 @@ impl Client {
     /// Sends a control command and returns the server's answer to it (rays
     /// streamed for earlier requests meanwhile are passed over).
     pub fn command(&mut self, c: Control) -> ControlOutcome {
-        self.send(&Frame::Message(Message::Control(c)));
+        self.send(&Frame::Message(Message::Control(c.clone())));
         loop {
             match self.recv() {
                 Frame::Message(Message::ControlReply(ControlReply { control, outcome })) => {

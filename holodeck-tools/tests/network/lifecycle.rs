@@ -56,7 +56,7 @@ fn server_samplers_display_and_quit() {
         let mut raw = socket(&addr);
         raw.write_all(&[0xff, 0xff, 0xff, 0x7f, 0]).unwrap();
         match Client::over(raw).recv() {
-            Frame::Message(Message::Refused { reason }) => assert!(reason.contains("larger than"), "{reason}"),
+            Frame::Message(Message::Refused { reason, .. }) => assert!(reason.contains("larger than"), "{reason}"),
             other => panic!("{other:?}"),
         }
     }

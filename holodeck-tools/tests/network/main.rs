@@ -11,4 +11,5 @@ mod admin;
 mod displays;
 mod harness;
 mod lifecycle;
+mod scenes;
 mod window;

@@ -95,6 +95,8 @@ pub enum ClientError {
         role: &'static str,
         /// The server's reason.
         reason: String,
+        /// The server says trying again later makes sense.
+        retry: bool,
     },
     /// The server answered out of turn.
     #[error("server {addr}: protocol error: {what}")]
@@ -154,6 +156,8 @@ pub struct Welcome {
     pub sections: Vec<Section>,
     /// Sections may contain geometry: samplers trace from the entry wall.
     pub obstructions: bool,
+    /// Samplers record virtual distances through flat mirrors and glass.
+    pub vdistance: bool,
     /// What this connection may do.
     pub access: Access,
 }
@@ -184,7 +188,8 @@ pub fn hello(role: Role, token: &str, scene: &str, read_only: bool) -> Hello {
     }
 }
 
-fn role_name(role: Role) -> &'static str {
+/// The role in words, as messages name it.
+pub fn role_name(role: Role) -> &'static str {
     match role {
         Role::Sampler => "sampler",
         Role::Display => "display",
@@ -206,6 +211,7 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
         Some(Frame::Message(Message::Welcome {
             sections,
             obstructions,
+            vdistance,
             access,
         })) => {
             let sections = sections
@@ -221,13 +227,15 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
             Ok(Welcome {
                 sections,
                 obstructions,
+                vdistance,
                 access,
             })
         }
-        Some(Frame::Message(Message::Refused { reason })) => Err(ClientError::Refused {
+        Some(Frame::Message(Message::Refused { reason, retry })) => Err(ClientError::Refused {
             addr: addr.to_string(),
             role: role_name(role),
             reason,
+            retry,
         }),
         Some(other) => Err(ClientError::Protocol {
             addr: addr.to_string(),

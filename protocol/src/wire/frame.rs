@@ -283,10 +283,12 @@ mod tests {
             Frame::Message(Message::Welcome {
                 sections: vec![section.spec()],
                 obstructions: true,
+                vdistance: true,
                 access: Access::Writer,
             }),
             Frame::Message(Message::Refused {
                 reason: "wrong token".into(),
+                retry: true,
             }),
             Frame::Message(Message::BeamRequest {
                 beams: vec![(BeamKey::new(0, 7), 40), (BeamKey::new(1, 2), 3)],
@@ -320,6 +322,10 @@ mod tests {
                 paused: true,
             })),
             Frame::Message(Message::Control(Control::Quit)),
+            Frame::Message(Message::Control(Control::Adopt {
+                scene: "blake3:cd".into(),
+                keep: true,
+            })),
             Frame::Message(Message::ControlReply(ControlReply {
                 control: Control::Clobber,
                 outcome: ControlOutcome::Refused {

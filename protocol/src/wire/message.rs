@@ -104,7 +104,7 @@ pub struct TracePacket {
 }
 
 /// Commands to the server, each allowed from [`Control::needs`] up.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Control {
     /// Stop handing out packets.
     Pause,
@@ -118,6 +118,16 @@ pub enum Control {
     Clobber,
     /// Flush and stop the server.
     Quit,
+    /// The scene was edited (paper 2.4.1): disconnect the samplers of the old
+    /// scene, delete its rays (or keep them, marked stale, with `keep`),
+    /// record the new scene's hash in the file durably, and let samplers of
+    /// the new scene in (a restart).
+    Adopt {
+        /// Content hash of the new scene, as its samplers prove it.
+        scene: String,
+        /// Keep the old scene's rays (the file then says they are stale).
+        keep: bool,
+    },
 }
 
 impl Control {
@@ -125,7 +135,9 @@ impl Control {
     pub fn needs(&self) -> Access {
         match self {
             Control::Pause | Control::Resume => Access::Writer,
-            Control::KillSamplers | Control::Restart | Control::Clobber | Control::Quit => Access::Admin,
+            Control::KillSamplers | Control::Restart | Control::Clobber | Control::Quit | Control::Adopt { .. } => {
+                Access::Admin
+            }
         }
     }
 }
@@ -194,19 +206,26 @@ pub struct Progress {
 pub enum Message {
     /// Peer's greeting.
     Hello(Hello),
-    /// The server accepts: here are the holodeck's sections.
+    /// The server accepts: here are the holodeck's sections, and the file's
+    /// settings samplers must obey.
     Welcome {
         /// The sections, in index order.
         sections: Vec<SectionSpec>,
         /// Sections may contain geometry: trace from the entry wall.
         obstructions: bool,
+        /// Record virtual distances through flat mirrors and thin glass (VDISTANCE).
+        vdistance: bool,
         /// What this connection may do.
         access: Access,
     },
-    /// The server refuses the peer, and says why.
+    /// The server refuses the peer, and says why; also sent to samplers as
+    /// an admin disconnects them.
     Refused {
         /// Why.
         reason: String,
+        /// Trying again later makes sense: samplers are stopped by an admin
+        /// for now, and a restart (or adopting a new scene) lets them in.
+        retry: bool,
     },
     /// A display's beams with the sample counts it wants. The server sends the
     /// rays it has at once, then new rays of these beams as they are traced.

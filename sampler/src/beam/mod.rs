@@ -57,6 +57,16 @@ pub fn trace_start(kind: SectionKind, obstructions: bool, ray: &BeamRay) -> f64 
     }
 }
 
+/// The settings of a holodeck file that every sampler filling it must obey,
+/// whatever its own tracer options say.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FileRules {
+    /// Sections may contain geometry: trace from the entry wall.
+    pub obstructions: bool,
+    /// Record virtual distances through flat mirrors and thin glass.
+    pub vdistance: bool,
+}
+
 /// Traces one beam sample and encodes it: radiance and the distance from the
 /// entry wall to the first hit (or infinity).
 pub fn trace_sample(
@@ -66,9 +76,24 @@ pub fn trace_sample(
     s: &BeamSample,
     rng: &mut Rng,
 ) -> RayRecord {
-    let start = trace_start(section.kind(), obstructions, &s.ray);
+    let rules = FileRules {
+        obstructions,
+        vdistance: tracer.options.vdistance,
+    };
+    trace_sample_under(tracer, section, rules, s, rng)
+}
+
+/// [`trace_sample`] under a file's rules.
+pub fn trace_sample_under(
+    tracer: &Tracer,
+    section: &Section,
+    rules: FileRules,
+    s: &BeamSample,
+    rng: &mut Rng,
+) -> RayRecord {
+    let start = trace_start(section.kind(), rules.obstructions, &s.ray);
     let origin: DVec3 = s.ray.origin + s.ray.direction * start;
-    let sample = tracer.trace(origin.as_vec3(), s.ray.direction.as_vec3(), rng);
+    let sample = tracer.trace_measuring(origin.as_vec3(), s.ray.direction.as_vec3(), rules.vdistance, rng);
     let depth = if sample.distance.is_finite() {
         DepthCode::encode(start + f64::from(sample.distance), section.diagonal())
     } else {
@@ -88,6 +113,24 @@ pub fn trace_beam(
     mode: SamplingMode,
     rng: &mut Rng,
 ) -> Result<Vec<RayRecord>, SectionError> {
+    let rules = FileRules {
+        obstructions,
+        vdistance: tracer.options.vdistance,
+    };
+    trace_beam_under(tracer, section, rules, beam, n, mode, rng)
+}
+
+/// [`trace_beam`] under a file's rules (a networked sampler's, from the
+/// server's welcome).
+pub fn trace_beam_under(
+    tracer: &Tracer,
+    section: &Section,
+    rules: FileRules,
+    beam: BeamIndex,
+    n: usize,
+    mode: SamplingMode,
+    rng: &mut Rng,
+) -> Result<Vec<RayRecord>, SectionError> {
     let samples = match mode {
         SamplingMode::Uniform => uniform_rays(section, beam, n, rng)?,
         SamplingMode::NearEye { eye, radius, frustum } => {
@@ -96,7 +139,7 @@ pub fn trace_beam(
     };
     Ok(samples
         .iter()
-        .map(|s| trace_sample(tracer, section, obstructions, s, rng))
+        .map(|s| trace_sample_under(tracer, section, rules, s, rng))
         .collect())
 }
 

@@ -120,6 +120,13 @@ impl Tracer {
 
     /// One radiance estimate along the ray from `origin` in unit direction `dir`.
     pub fn trace(&self, origin: Vec3, dir: Vec3, rng: &mut Rng) -> Sample {
+        self.trace_measuring(origin, dir, self.options.vdistance, rng)
+    }
+
+    /// [`Tracer::trace`] with VDISTANCE chosen per call rather than by the
+    /// options: a sampler obeys the setting of the holodeck file it serves,
+    /// which it learns only once connected.
+    pub fn trace_measuring(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng) -> Sample {
         if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0) {
             self.non_finite.fetch_add(1, Ordering::Relaxed);
             return Sample {
@@ -128,10 +135,10 @@ impl Tracer {
             };
         }
         let dir = dir.normalize();
-        let (mut radiance, distance) = self.estimate(origin, dir, rng);
+        let (mut radiance, distance) = self.estimate(origin, dir, vdistance, rng);
         let n = self.options.samples.max(1);
         for _ in 1..n {
-            radiance += self.estimate(origin, dir, rng).0;
+            radiance += self.estimate(origin, dir, vdistance, rng).0;
         }
         radiance /= n as f32;
         // A NaN distance (it cannot arise from finite input, but is never passed on) reads as "escaped".
@@ -147,7 +154,7 @@ impl Tracer {
         }
     }
 
-    fn estimate(&self, origin: Vec3, dir: Vec3, rng: &mut Rng) -> (Vec3, f32) {
+    fn estimate(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng) -> (Vec3, f32) {
         let scene = &self.scene;
         let mut ray = Ray::new(origin, dir);
         let (mut l, mut beta) = (Vec3::ZERO, Vec3::ONE);
@@ -184,7 +191,7 @@ impl Tracer {
             if measuring {
                 path += hit.t;
                 distance = path;
-                measuring = self.options.vdistance && flat_specular(m);
+                measuring = vdistance && flat_specular(m);
             }
             travelled += hit.t;
             let wo_world = -ray.dir;

@@ -118,8 +118,9 @@ async fn display_loop(
 ) -> Result<(), ConnectionError> {
     let mut stop = shared.shutdown.subscribe();
     let mut progress = shared.progress.subscribe();
-    // The report there is now goes out at once.
-    progress.mark_changed();
+    // A report goes out at once: the latest, with the connections as they are now.
+    let now = shared.progress_now_counts(*progress.borrow_and_update());
+    conn.write(&Frame::Message(Message::Progress(now))).await?;
     // Rays of each requested beam this display has been sent.
     let mut sent: HashMap<BeamKey, u64> = HashMap::new();
     let mut generation = shared.generation.load(std::sync::atomic::Ordering::SeqCst);
@@ -262,7 +263,7 @@ async fn display_loop(
                         reason: format!("{c:?} needs {} access; this connection has {access} access", c.needs()),
                     }
                 } else {
-                    match shared.control(c).await {
+                    match shared.control(&c).await {
                         Ok(()) => ControlOutcome::Done,
                         Err(e) => ControlOutcome::Failed { error: e.to_string() },
                     }

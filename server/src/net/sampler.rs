@@ -23,6 +23,9 @@ const MAX_QUEUE: u64 = 1 << 18;
 /// Fewest rays queued (so the measurement has something to measure).
 const MIN_QUEUE: u64 = 16;
 
+/// How long a killed sampler has to hang up after being told why.
+const KILL_GRACE: Duration = Duration::from_secs(5);
+
 /// A batch that cannot be written within this long ends the connection.
 const WRITE_TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -92,7 +95,7 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
     // sampler's results keep being read, so neither side can block the other
     // with full socket buffers. One batch waits at most.
     let (batches, mut to_write) = mpsc::channel::<Vec<Frame>>(1);
-    let writing = tokio::spawn(async move {
+    let mut writing = tokio::spawn(async move {
         while let Some(frames) = to_write.recv().await {
             match tokio::time::timeout(WRITE_TIMEOUT, writer.write_all(&frames)).await {
                 Ok(Ok(())) => {}
@@ -113,6 +116,7 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
     // frame would cost more than the frame.
     let mut idle = tokio::time::interval(Duration::from_millis(250));
     let mut watchdog = tokio::time::interval(Duration::from_secs(1));
+    let mut killed = false;
     let result = loop {
         if *stop.borrow() {
             break Ok(());
@@ -169,7 +173,10 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
                 continue;
             }
             _ = stop.changed() => Ok(None),
-            _ = kill.changed() => Ok(None),
+            _ = kill.changed() => {
+                killed = true;
+                Ok(None)
+            }
         };
         // That frame and every one that came with it, before looking for more work.
         let end = loop {
@@ -207,6 +214,18 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
             break end;
         }
     };
+    if killed {
+        // Tell it why, so that it waits to be let in again rather than ends
+        // (a server that quits just closes the connection).
+        let reason = "samplers were stopped by an admin; a restart command lets them in again".to_string();
+        let notice = vec![Frame::Message(Message::Refused { reason, retry: true })];
+        let _ = tokio::time::timeout(Duration::from_secs(1), batches.send(notice)).await;
+        drop(batches);
+        let _ = tokio::time::timeout(Duration::from_secs(1), &mut writing).await;
+        // Closing with its results unread would reset the connection and
+        // could lose the notice: read (and drop) them until it hangs up.
+        let _ = tokio::time::timeout(KILL_GRACE, async { while let Ok(Some(_)) = reader.read().await {} }).await;
+    }
     writing.abort();
     // Whatever the sampler still had is traced again by someone else.
     let mut scheduler = shared.lock_scheduler();

@@ -53,12 +53,14 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     let sections = file.sections().to_vec();
     let scene = file.settings().scene.clone();
     let obstructions = file.settings().obstructions;
+    let vdistance = file.settings().vdistance;
     let (store, thread) = Store::spawn(file);
     let (shutdown, mut stopped) = watch::channel(false);
     let shared = Arc::new(Shared {
         config,
         obstructions,
-        scene,
+        vdistance,
+        scene: std::sync::Mutex::new(scene),
         sections,
         scheduler: std::sync::Mutex::new(Scheduler::new(None)),
         store: store.clone(),
@@ -263,35 +265,60 @@ const PROGRESS_EVERY: Duration = Duration::from_secs(1);
 /// Frames a peer may send before its Hello is checked.
 const HANDSHAKE_FRAME: usize = 64 << 10;
 
+/// Why a peer is refused.
+enum Refusal {
+    /// For good (as far as this server can tell).
+    Final(String),
+    /// For now: samplers are stopped by an admin.
+    Retry(String),
+}
+
 /// What the peer may do, or why it is refused.
-fn check(hello: &Hello, shared: &Shared) -> Result<Access, String> {
+fn check(hello: &Hello, shared: &Shared) -> Result<Access, Refusal> {
     if hello.version != PROTOCOL_VERSION {
-        return Err(format!(
+        return Err(Refusal::Final(format!(
             "protocol version {} is not this server's {PROTOCOL_VERSION}",
             hello.version
-        ));
+        )));
     }
     let Some(mut access) = shared.config.tokens.access(&hello.token) else {
-        return Err("wrong access token".into());
+        return Err(Refusal::Final("wrong access token".into()));
     };
     if hello.read_only {
         access = access.min(Access::Viewer);
     }
     if hello.role == Role::Sampler {
         if access < Access::Writer {
-            return Err(format!(
+            return Err(Refusal::Final(format!(
                 "a sampler needs writer access; this connection has {access} access"
-            ));
+            )));
         }
-        match &shared.scene {
-            None => return Err("the holodeck file records no scene, so no sampler can prove it matches".into()),
-            Some(s) if *s != hello.scene => {
-                return Err(format!("scene {} does not match the holodeck's scene {s}", hello.scene))
+        let stopped = !shared.samplers_allowed.load(Ordering::SeqCst);
+        match (shared.scene(), stopped) {
+            (None, _) => {
+                return Err(Refusal::Final(
+                    "the holodeck file records no scene, so no sampler can prove it matches".into(),
+                ))
             }
-            Some(_) if !shared.samplers_allowed.load(Ordering::SeqCst) => {
-                return Err("samplers were stopped by an admin; a restart command lets them in again".into())
+            (Some(s), true) if s != hello.scene => {
+                return Err(Refusal::Retry(format!(
+                    "samplers were stopped by an admin, and scene {} is not the holodeck's scene {s}; \
+                     adopting this scene lets its samplers in",
+                    hello.scene
+                )))
             }
-            Some(_) => {}
+            (Some(_), true) => {
+                return Err(Refusal::Retry(
+                    "samplers were stopped by an admin; a restart command lets them in again".into(),
+                ))
+            }
+            (Some(s), false) if s != hello.scene => {
+                return Err(Refusal::Final(format!(
+                    "scene {} does not match the holodeck's scene {s}",
+                    hello.scene
+                )))
+            }
+            (Some(_), false) => {}
         }
     }
     Ok(access)
@@ -307,21 +334,29 @@ async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), Connecti
         Ok(Ok(None)) => return Ok(()),
         Ok(Err(e)) => {
             let _ = conn
-                .write(&Frame::Message(Message::Refused { reason: e.to_string() }))
+                .write(&Frame::Message(Message::Refused {
+                    reason: e.to_string(),
+                    retry: false,
+                }))
                 .await;
             return Err(e);
         }
         Ok(Ok(Some(_))) | Err(_) => {
             let reason = "expected a Hello message first".to_string();
-            conn.write(&Frame::Message(Message::Refused { reason })).await?;
+            conn.write(&Frame::Message(Message::Refused { reason, retry: false }))
+                .await?;
             return Ok(());
         }
     };
     let access = match check(&hello, shared) {
         Ok(a) => a,
-        Err(reason) => {
+        Err(refusal) => {
+            let (reason, retry) = match refusal {
+                Refusal::Final(r) => (r, false),
+                Refusal::Retry(r) => (r, true),
+            };
             tracing::warn!("refused a {:?}: {reason}", hello.role);
-            conn.write(&Frame::Message(Message::Refused { reason })).await?;
+            conn.write(&Frame::Message(Message::Refused { reason, retry })).await?;
             return Ok(());
         }
     };
@@ -331,6 +366,7 @@ async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), Connecti
     conn.write(&Frame::Message(Message::Welcome {
         sections,
         obstructions,
+        vdistance: shared.vdistance,
         access,
     }))
     .await?;

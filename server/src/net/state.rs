@@ -41,7 +41,10 @@ impl DisplayLink {
 pub(super) struct Shared {
     pub config: ServerConfig,
     pub obstructions: bool,
-    pub scene: Option<String>,
+    /// The file's VDISTANCE setting, which samplers must obey.
+    pub vdistance: bool,
+    /// The scene samplers must prove they have (an admin may adopt another).
+    pub scene: std::sync::Mutex<Option<String>>,
     pub sections: Vec<Section>,
     pub scheduler: std::sync::Mutex<Scheduler>,
     pub store: Store,
@@ -124,6 +127,16 @@ impl Shared {
         }
     }
 
+    /// `report` with the connections and the pause as they are now.
+    pub fn progress_now_counts(&self, report: Progress) -> Progress {
+        Progress {
+            samplers: self.samplers.load(Ordering::SeqCst),
+            displays: self.display_count.load(Ordering::SeqCst),
+            paused: self.lock_scheduler().paused(),
+            ..report
+        }
+    }
+
     pub fn id(&self) -> u64 {
         self.next_id.fetch_add(1, Ordering::Relaxed)
     }
@@ -143,8 +156,25 @@ impl Shared {
         })
     }
 
-    /// Carries out a control command from a writable display or an admin.
-    pub async fn control(&self, c: Control) -> Result<(), ControlError> {
+    /// The scene samplers must prove they have, if the file records one.
+    pub fn scene(&self) -> Option<String> {
+        self.scene.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// Starts the batch list afresh from what the file holds now.
+    async fn restart_schedule(&self, forget: bool) -> Result<(), ControlError> {
+        let lens = self.store.lens().await?;
+        let batch = self.batch(&lens)?;
+        let mut scheduler = self.lock_scheduler();
+        scheduler.restart(batch);
+        if forget {
+            scheduler.requests().forget_stored();
+        }
+        Ok(())
+    }
+
+    /// Carries out a control command (the caller checked it is allowed).
+    pub async fn control(&self, c: &Control) -> Result<(), ControlError> {
         match c {
             Control::Pause => self.lock_scheduler().set_paused(true),
             Control::Resume => {
@@ -156,21 +186,27 @@ impl Shared {
                 self.kill_samplers.send_modify(|n| *n += 1);
             }
             Control::Restart => {
-                let lens = self.store.lens().await?;
-                let batch = self.batch(&lens)?;
-                self.lock_scheduler().restart(batch);
+                self.restart_schedule(false).await?;
                 self.samplers_allowed.store(true, Ordering::SeqCst);
                 self.work.notify_waiters();
             }
             Control::Clobber => {
                 self.store.clobber().await?;
                 self.generation.fetch_add(1, Ordering::SeqCst);
-                let lens = self.store.lens().await?;
-                let batch = self.batch(&lens)?;
-                let mut scheduler = self.lock_scheduler();
-                scheduler.restart(batch);
-                scheduler.requests().forget_stored();
-                drop(scheduler);
+                self.restart_schedule(true).await?;
+                self.work.notify_waiters();
+            }
+            Control::Adopt { scene, keep } => {
+                // No sampler of the old scene may add to the file from here on.
+                self.samplers_allowed.store(false, Ordering::SeqCst);
+                self.kill_samplers.send_modify(|n| *n += 1);
+                self.store.adopt(scene.clone(), *keep).await?;
+                if !keep {
+                    self.generation.fetch_add(1, Ordering::SeqCst);
+                }
+                *self.scene.lock().unwrap_or_else(|p| p.into_inner()) = Some(scene.clone());
+                self.restart_schedule(!keep).await?;
+                self.samplers_allowed.store(true, Ordering::SeqCst);
                 self.work.notify_waiters();
             }
             Control::Quit => {

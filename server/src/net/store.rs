@@ -19,6 +19,7 @@ enum Request {
     Read(Vec<(BeamKey, u64)>, oneshot::Sender<Result<Beams>>),
     Lens(oneshot::Sender<Vec<Vec<u64>>>),
     Clobber(oneshot::Sender<Result<()>>),
+    Adopt(String, bool, oneshot::Sender<Result<()>>),
     Len(BeamKey, oneshot::Sender<u64>),
     Flush(oneshot::Sender<Result<u64>>),
     Summary(oneshot::Sender<FileSummary>),
@@ -84,6 +85,21 @@ impl Store {
                     Request::Clobber(reply) => {
                         let r = file.clobber();
                         if r.is_ok() {
+                            refused.store(false, Ordering::SeqCst);
+                            if let Ok(mut r) = reason.lock() {
+                                *r = None;
+                            }
+                        }
+                        let _ = reply.send(r);
+                    }
+                    Request::Adopt(scene, keep, reply) => {
+                        let r = if keep {
+                            let stale = file.summary().rays() > 0;
+                            file.flush().and_then(|()| file.set_scene(&scene, stale))
+                        } else {
+                            file.clobber().and_then(|()| file.set_scene(&scene, false))
+                        };
+                        if r.is_ok() && !keep {
                             refused.store(false, Ordering::SeqCst);
                             if let Ok(mut r) = reason.lock() {
                                 *r = None;
@@ -163,6 +179,18 @@ impl Store {
     pub async fn clobber(&self) -> Result<()> {
         let (tx, rx) = oneshot::channel();
         self.tx.send(Request::Clobber(tx)).await.map_err(|_| Store::gone())?;
+        rx.await.map_err(|_| Store::gone())?
+    }
+
+    /// Makes the file the holodeck of the scene with content hash `scene`,
+    /// durably: its rays are deleted first, or with `keep` kept and marked
+    /// stale.
+    pub async fn adopt(&self, scene: String, keep: bool) -> Result<()> {
+        let (tx, rx) = oneshot::channel();
+        self.tx
+            .send(Request::Adopt(scene, keep, tx))
+            .await
+            .map_err(|_| Store::gone())?;
         rx.await.map_err(|_| Store::gone())?
     }
 

@@ -132,6 +132,16 @@ pub enum StorageError {
         /// The file.
         path: PathBuf,
     },
+    /// New settings would need a larger header than the file has room for.
+    #[error("{path}: the new settings take {need} bytes, more than the {room} the header has room for")]
+    SettingsTooLong {
+        /// The file.
+        path: PathBuf,
+        /// Bytes of settings text the header holds at most.
+        room: u64,
+        /// Bytes the new settings take.
+        need: u64,
+    },
 }
 
 /// Result type of the storage engine.

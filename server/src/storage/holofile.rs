@@ -419,6 +419,7 @@ impl HoloFile {
 
     /// Deletes every ray in the file, durably (rays appended and not yet
     /// flushed are dropped too). A crash midway leaves the file as it was.
+    /// With no rays left, none is stale any more.
     pub fn clobber(&mut self) -> Result<()> {
         if !self.store.writable {
             return Err(StorageError::ReadOnly {
@@ -427,7 +428,40 @@ impl HoloFile {
         }
         self.cache = BeamCache::new(self.cache.budget());
         self.store.clear_all()?;
-        self.flush()
+        self.flush()?;
+        if self.settings.stale {
+            let settings = Settings {
+                stale: false,
+                ..self.settings.clone()
+            };
+            self.set_settings(settings)?;
+        }
+        Ok(())
+    }
+
+    /// Records that the file's rays are now for the scene with content hash
+    /// `scene`, durably (fsynced). With `stale_rays`, the rays it holds are
+    /// marked as traced in an older scene (see [`Settings::stale`]); without,
+    /// the mark stays as it was (a clobber clears it).
+    pub fn set_scene(&mut self, scene: &str, stale_rays: bool) -> Result<()> {
+        let settings = Settings {
+            scene: Some(scene.to_string()),
+            stale: self.settings.stale || stale_rays,
+            ..self.settings.clone()
+        };
+        self.set_settings(settings)
+    }
+
+    /// Replaces the settings in the header, durably; the sections may not change.
+    fn set_settings(&mut self, settings: Settings) -> Result<()> {
+        settings.validate().map_err(|source| StorageError::Settings {
+            path: self.store.path.clone(),
+            source,
+        })?;
+        debug_assert_eq!(settings.sections, self.settings.sections);
+        self.store.rewrite_settings(&settings)?;
+        self.settings = settings;
+        Ok(())
     }
 
     /// Flushes and closes, reporting any error (dropping flushes too, but can only log).

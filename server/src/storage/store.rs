@@ -307,6 +307,49 @@ impl Store {
         self.sync()
     }
 
+    /// Replaces the settings text in both header copies, durably. The header
+    /// cannot grow (beam runs follow it), so the new text must fit in the
+    /// room the old one's copies span. Copy 2 is written and synced first:
+    /// a crash before copy 1 is done leaves copy 1 whole (the old settings,
+    /// read first) or torn (then copy 2, the new ones, is read).
+    pub(crate) fn rewrite_settings(&mut self, settings: &Settings) -> Result<()> {
+        if !self.writable {
+            return Err(StorageError::ReadOnly {
+                path: self.path.clone(),
+            });
+        }
+        self.check_usable()?;
+        let text = settings.to_text();
+        let span = format::header_span(self.text_len);
+        let room = span - format::TEXT_IN_HEADER - 4;
+        let fits = u32::try_from(text.len())
+            .ok()
+            .filter(|&len| format::header_span(len) == span);
+        let Some(len) = fits else {
+            return Err(StorageError::SettingsTooLong {
+                path: self.path.clone(),
+                room,
+                need: text.len() as u64,
+            });
+        };
+        self.flush_writes()?;
+        for copy in [1, 0] {
+            let base = copy as u64 * span;
+            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(len)).and_then(|()| {
+                io::write_at(
+                    &self.file,
+                    &self.path,
+                    format::text_offset(len, copy),
+                    &format::encode_text(&text),
+                )
+            });
+            self.poison_on_error(r)?;
+            self.sync()?;
+        }
+        self.text_len = len;
+        Ok(())
+    }
+
     /// The directory chunk holding a beam.
     pub(crate) fn chunk_of(&self, key: BeamKey) -> usize {
         self.chunk_start[key.section as usize] + (key.beam / DIR_CHUNK_BEAMS) as usize
