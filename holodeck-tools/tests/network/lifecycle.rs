@@ -259,10 +259,13 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
         "-o",
         "mesh",
         "--headless",
+        "--frames",
+        dir.path().join("mesh").to_str().unwrap(),
     ]);
     // The GPU drivers draw too (on Mesa's software Vulkan without a GPU).
     assert!(o.status.success(), "{}", text(&o));
     assert!(text(&o).contains("pixel estimates"), "{}", text(&o));
+    assert!(dir.path().join("mesh/view0001_00.png").exists());
 }
 
 /// A REPORT line, strictly: `progress: R rays, S rays/s, F of B beams hold
