@@ -143,5 +143,6 @@ pub fn command_name(c: &Control) -> &'static str {
         Control::Restart => "restart",
         Control::Clobber => "clobber",
         Control::Quit => "quit",
+        Control::Adopt { .. } => "adopt",
     }
 }
