@@ -24,7 +24,7 @@ use super::connection::{Connection, ConnectionError, Stream};
 use super::display::DisplayLink;
 use super::listener::Listener;
 use super::store::Store;
-use crate::schedule::{BatchSchedule, Scheduler};
+use crate::schedule::{BatchSchedule, Scheduler, Share};
 use crate::storage::{HoloFile, StorageError};
 
 /// What a batch fill covers when no display wants anything.
@@ -62,6 +62,8 @@ pub struct ServerConfig {
     /// A sampler that returns nothing for this long while it holds work is
     /// dropped and its work given back.
     pub stall: Duration,
+    /// How display requests divide the samplers' rays.
+    pub share: Share,
 }
 
 impl ServerConfig {
@@ -78,6 +80,7 @@ impl ServerConfig {
             report: None,
             stop_when_full: true,
             stall: Duration::from_secs(30),
+            share: Share::Fair,
         }
     }
 }
@@ -225,7 +228,10 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     });
     let lens = store.lens().await?;
     let batch = shared.batch(&lens)?;
-    shared.lock_scheduler().restart(batch);
+    let mut scheduler = shared.lock_scheduler();
+    scheduler.restart(batch);
+    scheduler.requests().set_share(shared.config.share);
+    drop(scheduler);
     let flusher = {
         let store = store.clone();
         tokio::spawn(async move {
