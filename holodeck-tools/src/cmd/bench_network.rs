@@ -27,7 +27,8 @@ use rand::{Rng, SeedableRng};
 use crate::fill::trace_batch;
 use crate::human::count;
 
-fn me() -> Result<Command> {
+/// This `holodeck` executable, to start servers and samplers from.
+pub(super) fn me() -> Result<Command> {
     Ok(Command::new(
         std::env::current_exe().context("finding the holodeck executable")?,
     ))
@@ -81,12 +82,14 @@ fn run_rate(dir: &Path, workers: usize, seconds: f64) -> Result<f64> {
 }
 
 /// A raw peer over TCP (no decoding: the server's rate is what is measured).
-struct Peer {
-    link: FrameLink<TcpStream>,
+pub(super) struct Peer {
+    /// The framed connection.
+    pub(super) link: FrameLink<TcpStream>,
 }
 
 impl Peer {
-    fn connect(addr: &str, role: Role, scene: &str) -> Result<Peer> {
+    /// Connects and says hello as `role` with the bench token.
+    pub(super) fn connect(addr: &str, role: Role, scene: &str) -> Result<Peer> {
         let s = TcpStream::connect(addr)?;
         let _ = s.set_nodelay(true);
         let mut link = FrameLink::new(s);
@@ -166,7 +169,8 @@ fn random_record(rng: &mut StdRng) -> RayRecord {
     )
 }
 
-fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
+/// Starts `holodeck serve` on `path` (token `bench`); returns it and its address.
+pub(super) fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
     let mut child = me()?
         .arg("serve")
         .arg(path)
@@ -188,7 +192,8 @@ fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
     Ok((child, addr))
 }
 
-fn quit(addr: &str, mut child: Child) -> Result<()> {
+/// Tells the server at `addr` to quit and waits for it.
+pub(super) fn quit(addr: &str, mut child: Child) -> Result<()> {
     let mut admin = Peer::connect(addr, Role::Admin, "")?;
     admin.link.write(&Frame::Message(Message::Control(Control::Quit)))?;
     admin.link.flush()?;
