@@ -38,9 +38,12 @@ fn beams_seen(sections: &[Section], view: &str, columns: u32, rows: u32) -> Resu
         .collect())
 }
 
+/// A display's request: beams and the rays wanted in each.
+type Request = Vec<(BeamKey, u32)>;
+
 /// The two requests: greedy (a fisheye) and modest (a narrow view from
 /// elsewhere, without the beams the fisheye sees).
-fn requests(sections: &[Section]) -> Result<(Vec<(BeamKey, u32)>, Vec<(BeamKey, u32)>)> {
+fn requests(sections: &[Section]) -> Result<(Request, Request)> {
     let s = sections.first().context("the room has no section")?;
     let eye = |f: [f64; 3]| {
         let p = s.origin() + s.axes()[0] * f[0] + s.axes()[1] * f[1] + s.axes()[2] * f[2];
