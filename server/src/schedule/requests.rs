@@ -17,6 +17,7 @@
 //! Heap updates are lazy: every change of a beam bumps its version and
 //! pushes fresh entries; entries that no longer match are dropped when they
 //! surface, and a heap that grows past a few times its beams is rebuilt.
+//! Pure bookkeeping: no I/O, no clock.
 
 use std::cmp::{Ordering, Reverse};
 use std::collections::{BinaryHeap, HashMap, HashSet};
