@@ -33,6 +33,7 @@ Example:
   holodeck bench tracer --triangles 1M --triangles 10M
   holodeck bench display --samples 1M --rays 4M
   holodeck bench network --seconds 8
+  holodeck bench share                                     (a greedy and a modest display)
   holodeck bench accuracy                                  (one view and a 10-view walk, room)
   holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0
 
@@ -68,6 +69,9 @@ pub struct Args {
     /// Driver samples for `display` (at most 100M: about 10 GB of samples).
     #[arg(long, default_value = "1M", value_parser = count_in(1, MAX_DISPLAY_SAMPLES))]
     samples: u64,
+    /// Sampler threads for `share`.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=256))]
+    samplers: u16,
     /// Seconds per fill measurement for `network`.
     #[arg(long, default_value_t = 8.0, value_parser = positive)]
     seconds: f64,
@@ -125,6 +129,8 @@ enum Target {
     Display,
     /// The server over loopback: fill overhead, recall to displays, many peers.
     Network,
+    /// Two displays, one greedy, sharing real samplers: each display's share of the rays.
+    Share,
     /// Holodeck pictures against direct renders at equal compute: one view, a walkthrough.
     Accuracy,
 }
@@ -403,6 +409,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         Target::Network => {
             super::bench_network::run(&a.dir, a.seconds, a.keep)?;
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::Share => {
+            super::bench_share::run(&a.dir, usize::from(a.samplers))?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Accuracy => {

@@ -27,7 +27,8 @@ use rand::{Rng, SeedableRng};
 use crate::fill::trace_batch;
 use crate::human::count;
 
-fn me() -> Result<Command> {
+/// This `holodeck` executable, to start servers and samplers from.
+pub(super) fn me() -> Result<Command> {
     Ok(Command::new(
         std::env::current_exe().context("finding the holodeck executable")?,
     ))
@@ -83,12 +84,14 @@ fn run_rate(dir: &Path, workers: usize, seconds: f64) -> Result<f64> {
 }
 
 /// A raw peer over TCP (no decoding: the server's rate is what is measured).
-struct Peer {
-    link: FrameLink<ClientStream>,
+pub(super) struct Peer {
+    /// The framed connection.
+    pub(super) link: FrameLink<ClientStream>,
 }
 
 impl Peer {
-    fn connect(addr: &str, role: Role, scene: &str) -> Result<Peer> {
+    /// Connects and says hello as `role` with the bench token.
+    pub(super) fn connect(addr: &str, role: Role, scene: &str) -> Result<Peer> {
         let (link, _) = client::open(addr, client::hello(role, "bench", scene, false))?;
         Ok(Peer { link })
     }
@@ -157,7 +160,8 @@ fn random_record(rng: &mut StdRng) -> RayRecord {
     )
 }
 
-fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
+/// Starts `holodeck serve` on `path` (token `bench`); returns it and its address.
+pub(super) fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
     let mut child = me()?
         .arg("serve")
         .arg(path)
@@ -179,7 +183,8 @@ fn serve(path: &Path, extra: &[&str]) -> Result<(Child, String)> {
     Ok((child, addr))
 }
 
-fn quit(addr: &str, mut child: Child) -> Result<()> {
+/// Tells the server at `addr` to quit and waits for it.
+pub(super) fn quit(addr: &str, mut child: Child) -> Result<()> {
     client::send_control(addr, "bench", Control::Quit)?;
     child.wait()?;
     Ok(())

@@ -8,6 +8,7 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tokens};
+use holodeck_server::schedule::Share;
 use holodeck_server::settings::{parse_duration, parse_size};
 use holodeck_server::{HoloFile, OpenOptions};
 use rand::Rng;
@@ -79,10 +80,25 @@ pub struct Args {
     /// Print progress this often (e.g. 1m); default: the file's REPORT setting (0: never).
     #[arg(long)]
     report: Option<String>,
+    /// How display requests share the samplers: `fair` gives every display
+    /// with unmet requests an equal share of the rays; `merged` serves all
+    /// displays' beams in one neediest-first list (the paper's order, where
+    /// a display asking for many rays starves the others).
+    #[arg(long, value_enum, default_value_t = RequestShare::Fair)]
+    request_share: RequestShare,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
     accept_loss: bool,
+}
+
+/// Values of `--request-share`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum RequestShare {
+    /// An equal share of the rays for every display that waits.
+    Fair,
+    /// One neediest-first list over every display's beams.
+    Merged,
 }
 
 /// Where the token of one access level goes: `FILE.token` (admin),
@@ -195,6 +211,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         report,
         stall: parse_duration(&a.stall_timeout, 1.0).context("--stall-timeout")?,
         tokens,
+        share: match a.request_share {
+            RequestShare::Fair => Share::Fair,
+            RequestShare::Merged => Share::Merged,
+        },
         ..ServerConfig::new(String::new())
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;

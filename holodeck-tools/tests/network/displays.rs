@@ -1,15 +1,18 @@
 //! Displays: requests traced near the eye and streamed (over a Unix
 //! socket), a file replayed by a server with no fill, still views that keep
-//! converging, work a stalled sampler held given to another, and the
-//! progress reports every display gets.
+//! converging, work a stalled sampler held given to another, the progress
+//! reports every display gets, and a modest display served while a greedy
+//! one waits.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 use holodeck_protocol::wire::{client, Control, ControlOutcome, EyePoint, Frame, Message, Role};
 use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
 use holodeck_server::{HoloFile, OpenOptions};
 
-use crate::common::process::{Proc, DEADLINE};
+use crate::common::process::{wait_for, Proc, DEADLINE};
 use crate::common::{holodeck, text};
 use crate::harness::*;
 
@@ -406,4 +409,114 @@ fn displays_get_a_progress_report_with_connections_pause_and_rate() {
     assert!(server.wait().success(), "{}", server.text());
     let w = worker.finish();
     assert!(w.status.success(), "{}", text(&w));
+}
+
+/// The beams `view` sees in the room, from a grid of `columns` x `rows` view rays.
+fn beams_seen(sections: &[Section], view: &str, columns: u32, rows: u32) -> Vec<BeamKey> {
+    let view = View::parse(view).unwrap();
+    ViewBeams::select(sections, &view, columns, rows, 1)
+        .counts
+        .into_iter()
+        .map(|c| c.0)
+        .collect()
+}
+
+#[test]
+fn a_greedy_display_does_not_starve_a_modest_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let token = "t";
+    let (mut server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", token, &["--no-fill"]);
+    let _worker = sampler(&addr, token, &["builtin:room"]);
+    let (mut greedy, welcome) = Client::connect(&addr, Role::Display, token);
+    let sections: Vec<Section> = welcome.sections;
+    // Two windows on the room: a fisheye asking for many rays in each of
+    // its hundreds of beams, and a narrow view from elsewhere that asks for
+    // few (none of its beams shared).
+    let s = &sections[0];
+    let eye = |f: [f64; 3]| {
+        let p = s.origin() + s.axes()[0] * f[0] + s.axes()[1] * f[1] + s.axes()[2] * f[2];
+        format!("-vp {} {} {} -vu 0 0 1", p.x, p.y, p.z)
+    };
+    let wide = beams_seen(
+        &sections,
+        &format!("-vta {} -vd 1 0 0 -vh 180 -vv 180", eye([0.2, 0.3, 0.5])),
+        400,
+        300,
+    );
+    let narrow: Vec<BeamKey> = beams_seen(
+        &sections,
+        &format!("-vtv {} -vd 0.2 1 0.4 -vh 40 -vv 30", eye([0.5, 0.5, 0.9])),
+        8,
+        6,
+    )
+    .into_iter()
+    .filter(|k| !wide.contains(k))
+    .collect();
+    assert!(
+        wide.len() > 20 * narrow.len() && narrow.len() >= 10,
+        "{} and {} beams",
+        wide.len(),
+        narrow.len()
+    );
+    let want_greedy: Vec<(BeamKey, u32)> = wide.iter().map(|k| (*k, 5000)).collect();
+    let want_modest: Vec<(BeamKey, u32)> = narrow.iter().map(|k| (*k, 40)).collect();
+    let greedy_asked = 5000 * wide.len() as u64;
+
+    // The greedy display asks first and is served alone until its rays stream in.
+    greedy.request(&want_greedy, None);
+    let received = Arc::new(AtomicU64::new(0));
+    let reader = {
+        let received = Arc::clone(&received);
+        std::thread::spawn(move || {
+            let mut keys = HashSet::new();
+            loop {
+                match greedy.link.read() {
+                    Ok(Some(Frame::Beam { key, records })) => {
+                        keys.insert(key);
+                        received.fetch_add(records.len() as u64, Ordering::SeqCst);
+                    }
+                    Ok(Some(other)) => panic!("the greedy display got {other:?}"),
+                    Ok(None) => break,
+                    Err(e) if e.is_gone() => break,
+                    Err(e) => panic!("reading the greedy display's rays: {e}"),
+                }
+            }
+            keys
+        })
+    };
+    let now = || received.load(Ordering::SeqCst);
+    wait_for("the greedy display's first traced rays", DEADLINE, || {
+        (now() > 0).then_some(())
+    });
+
+    // The modest display's request is met in full while the greedy one's is far from it.
+    let (mut modest, _) = Client::connect(&addr, Role::Display, token);
+    let base: HashMap<BeamKey, usize> = modest.request(&want_modest, None).into_iter().collect();
+    let mut have = HashMap::new();
+    let held = collect_until(&mut modest, &want_modest, &mut have, &base);
+    let greedy_then = now();
+    assert!(held.values().all(|n| *n == 40), "exactly the rays asked for: {held:?}");
+    assert!(have.keys().all(|k| narrow.contains(k)), "only its own view's beams");
+    eprintln!(
+        "modest request of {} rays met; the greedy display had received {greedy_then} of {greedy_asked}",
+        40 * narrow.len()
+    );
+    // The greedy display then holds what the sampler had queued for it when
+    // the modest request came (a server queues at most 2^18 rays to a
+    // sampler) and about as much again as the modest display got; served in
+    // one neediest-first list, the modest beams would have waited until
+    // the greedy ones were 80% full.
+    assert!(
+        greedy_then < greedy_asked / 4,
+        "the modest request waited until the greedy display had {greedy_then} of its {greedy_asked} rays"
+    );
+    quit(&addr, token);
+    assert!(server.wait().success(), "{}", server.text());
+    let keys = reader.join().expect("the greedy display's reader failed");
+    assert!(keys.iter().all(|k| wide.contains(k)), "only its own view's beams");
+    assert!(
+        beam_lens(&file, &narrow).iter().all(|n| *n == 40),
+        "a met request takes no more rays"
+    );
 }

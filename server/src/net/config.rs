@@ -6,6 +6,8 @@ use std::time::Duration;
 use holodeck_protocol::wire::Access;
 use holodeck_protocol::BeamKey;
 
+use crate::schedule::Share;
+
 /// What a batch fill covers when no display wants anything.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Fill {
@@ -84,6 +86,8 @@ pub struct ServerConfig {
     /// A sampler that returns nothing for this long while it holds work is
     /// dropped and its work given back.
     pub stall: Duration,
+    /// How display requests divide the samplers' rays.
+    pub share: Share,
 }
 
 impl ServerConfig {
@@ -104,6 +108,7 @@ impl ServerConfig {
             report: None,
             stop_when_full: true,
             stall: Duration::from_secs(30),
+            share: Share::Fair,
         }
     }
 }

@@ -77,7 +77,11 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     });
     let lens = store.lens().await?;
     let batch = shared.batch(&lens)?;
-    shared.lock_scheduler().restart(batch);
+    {
+        let mut scheduler = shared.lock_scheduler();
+        scheduler.restart(batch);
+        scheduler.requests().set_share(shared.config.share);
+    }
     let flusher = {
         let store = store.clone();
         tokio::spawn(async move {

@@ -1,5 +1,6 @@
-//! What samplers trace next. Displays' requests come first, neediest first
-//! (computed / desired); when no display wants anything, the batch list keeps
+//! What samplers trace next. Displays' requests come first, shared fairly
+//! between the displays that wait and neediest first (computed / desired)
+//! within each display's request; when no display wants anything, the batch list keeps
 //! the workers busy filling the holodeck by beam volume (or for given views),
 //! so an interactive session also leaves a more useful file behind. Pure
 //! scheduling; no I/O.
@@ -8,7 +9,7 @@ mod batch;
 mod requests;
 
 pub use batch::BatchSchedule;
-pub use requests::{DisplayId, RequestList, RequestPacket};
+pub use requests::{DisplayId, RequestList, RequestPacket, Share};
 
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::BeamKey;
