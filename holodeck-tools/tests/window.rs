@@ -7,12 +7,10 @@ mod common;
 
 use std::process::Command;
 
-use common::process::Proc;
-use common::screen::Screen;
+use common::screen::{view_of, Screen};
 use glam::DVec3;
 use holodeck_display::compare::relative_rmse_masked;
 use holodeck_display::image_io::read_picture;
-use holodeck_protocol::View;
 
 /// Window size: small, so that software rendering stays quick.
 const W: u32 = 320;
@@ -21,11 +19,6 @@ const H: u32 = 240;
 /// Rows of the status line at the bottom of the window (left out of
 /// picture comparisons).
 const STATUS_ROWS: usize = holodeck_display::window::overlay::STATUS_HEIGHT as usize;
-
-fn view_of(line: &str) -> Option<View> {
-    line.strip_prefix("VIEW= ")
-        .map(|v| View::parse(v).expect("the window prints views it can read back"))
-}
 
 fn moved(line: &str) -> Option<(u32, DVec3)> {
     let rest = line.strip_prefix("moved: ")?;
@@ -48,14 +41,10 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
     assert!(o.status.success(), "{}", common::text(&o));
     let screen = Screen::start();
     let (w, h) = (W.to_string(), H.to_string());
-    let mut window = Proc::start(
+    let (mut window, mut at) = screen.open(
         Command::new(env!("CARGO_BIN_EXE_holodeck"))
-            .args(["pict", f, "--window", "-i", "--stride", "2", "-x", &w, "-y", &h])
-            .env("DISPLAY", &screen.display)
-            .env("NO_COLOR", "1"),
+            .args(["pict", f, "--window", "-i", "--stride", "2", "-x", &w, "-y", &h]),
     );
-    let mut at = 0;
-    window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
     window.say("where");
     let start = window.wait_line("the first view", &mut at, view_of);
     let id = screen.window("^holodeck: ");
@@ -172,14 +161,7 @@ fn every_driver_draws_into_the_window_what_it_draws_headless() {
         if driver == "voronoi" {
             args.extend(["--geometry", "builtin:room"]);
         }
-        let mut window = Proc::start(
-            Command::new(env!("CARGO_BIN_EXE_holodeck"))
-                .args(&args)
-                .env("DISPLAY", &screen.display)
-                .env("NO_COLOR", "1"),
-        );
-        let mut at = 0;
-        window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
+        let (mut window, mut at) = screen.open(Command::new(env!("CARGO_BIN_EXE_holodeck")).args(&args));
         window.say("where");
         let view = window.wait_line("the view", &mut at, view_of);
         window.say("tone");

@@ -174,17 +174,6 @@ pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
     Ok(())
 }
 
-/// A view from the middle of `section` along its first axis, level, 75 x 56 degrees.
-fn default_view(section: &holodeck_protocol::Section) -> String {
-    let [x, y, z] = section.axes();
-    let c = section.origin() + (x + y + z) * 0.5;
-    let d = x.normalize_or_zero();
-    format!(
-        "-vtv -vp {} {} {} -vd {} {} {} -vu 0 0 1 -vh 75 -vv 56",
-        c.x, c.y, c.z, d.x, d.y, d.z
-    )
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     frame_size(a.width, a.height)?;
@@ -202,7 +191,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let view = if a.scene == "builtin:room" {
             super::render::ROOM_VIEW.to_string()
         } else {
-            default_view(&file.sections()[0])
+            super::window::default_view(&file.sections()[0])
         };
         (file.summary().rays(), view)
     };
@@ -285,7 +274,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
     let windowed = display.is_some() && screen && !a.headless;
     let mut viewer = match &display {
-        Some((driver, views)) if windowed => {
+        Some((driver, views)) => {
             let mut cmd = me()?;
             cmd.args([
                 "view",
@@ -298,38 +287,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ])
             .arg("--views")
             .arg(views)
-            .args(if driver == "voronoi" {
-                vec!["--geometry", a.scene.as_str()]
-            } else {
-                vec![]
-            })
             .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
             .stderr(Stdio::inherit());
-            Some(Child::spawn("window", cmd)?)
-        }
-        Some((driver, views)) => {
-            let count = std::fs::read_to_string(views)
-                .with_context(|| format!("reading {}", views.display()))?
-                .lines()
-                .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
-                .count()
-                .max(1);
-            let wait = format!("{}s", time.as_secs_f64() / count as f64);
-            let mut cmd = me()?;
-            cmd.args(["view", "--connect", &addr, "--token-file", &token_file, "--headless"])
-                .arg("--views")
-                .arg(views)
-                .arg("-o")
-                .arg(&a.frames)
-                .args(["--driver", driver, "--wait", &wait, "--steps", "2"])
-                .args(if driver == "voronoi" {
-                    vec!["--geometry", a.scene.as_str()]
-                } else {
-                    vec![]
-                })
-                .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
-                .stderr(Stdio::inherit());
-            Some(Child::spawn("display", cmd)?)
+            if driver == "voronoi" {
+                cmd.args(["--geometry", a.scene.as_str()]);
+            }
+            if !windowed {
+                let count = std::fs::read_to_string(views)
+                    .with_context(|| format!("reading {}", views.display()))?
+                    .lines()
+                    .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+                    .count()
+                    .max(1);
+                let wait = format!("{}s", time.as_secs_f64() / count as f64);
+                cmd.arg("--headless")
+                    .arg("-o")
+                    .arg(&a.frames)
+                    .args(["--wait", &wait, "--steps", "2"]);
+            }
+            Some(Child::spawn(if windowed { "window" } else { "display" }, cmd)?)
         }
         None => None,
     };

@@ -40,6 +40,16 @@ impl Screen {
         }
     }
 
+    /// Starts a window command (`holodeck view -i`, `holodeck pict
+    /// --window -i`) on this screen and waits until it is ready; returns it
+    /// and where its output goes on from.
+    pub fn open(&self, command: &mut Command) -> (Proc, usize) {
+        let window = Proc::start(command.env("DISPLAY", &self.display).env("NO_COLOR", "1"));
+        let mut at = 0;
+        window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
+        (window, at)
+    }
+
     /// Runs an X tool on this screen; its standard output.
     pub fn tool(&self, program: &str, args: &[&str]) -> Vec<u8> {
         let o = super::process::run(Command::new(program).args(args).env("DISPLAY", &self.display));
@@ -105,4 +115,10 @@ pub fn parse_xwd(b: &[u8]) -> Picture {
         }
     }
     p
+}
+
+/// The view in a line the window prints for `where` (or the `v` key).
+pub fn view_of(line: &str) -> Option<holodeck_protocol::View> {
+    line.strip_prefix("VIEW= ")
+        .map(|v| holodeck_protocol::View::parse(v).expect("the window prints views it can read back"))
 }

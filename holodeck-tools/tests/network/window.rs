@@ -3,16 +3,9 @@
 //! back, and `pause`/`resume` reach the server.
 
 use holodeck_protocol::wire::Control;
-use holodeck_protocol::View;
 
-use crate::common::process::Proc;
-use crate::common::screen::Screen;
+use crate::common::screen::{view_of, Screen};
 use crate::harness::{bin, carried_out, quit, rays_at_close, small_room, start_server};
-
-fn view_of(line: &str) -> Option<View> {
-    line.strip_prefix("VIEW= ")
-        .map(|v| View::parse(v).expect("the window prints views it can read back"))
-}
 
 #[test]
 fn standard_input_commands_drive_a_window_on_a_server() {
@@ -20,25 +13,21 @@ fn standard_input_commands_drive_a_window_on_a_server() {
     let file = small_room(dir.path());
     let (server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", "secret");
     let screen = Screen::start();
-    let mut window = Proc::start(
-        bin()
-            .args([
-                "view",
-                "--connect",
-                &addr,
-                "--token",
-                "secret",
-                "-i",
-                "-x",
-                "160",
-                "-y",
-                "120",
-            ])
-            .env("DISPLAY", &screen.display)
-            .env("NO_COLOR", "1"),
-    );
-    let mut at = 0;
-    window.wait_line("the window", &mut at, |l| l.starts_with("ready:").then_some(()));
+    let window_of = |token: &str| {
+        screen.open(bin().args([
+            "view",
+            "--connect",
+            &addr,
+            "--token",
+            token,
+            "-i",
+            "-x",
+            "160",
+            "-y",
+            "120",
+        ]))
+    };
+    let (mut window, mut at) = window_of("secret");
     window.say("where");
     let first = window.wait_line("the first view", &mut at, view_of);
 
@@ -83,27 +72,7 @@ fn standard_input_commands_drive_a_window_on_a_server() {
     // A window on a viewer's token may look but not clobber: the server
     // refuses, the window says so and goes on, and the rays stay.
     let viewer_token = std::fs::read_to_string(format!("{}.viewer.token", file.display())).unwrap();
-    let mut viewer = Proc::start(
-        bin()
-            .args([
-                "view",
-                "--connect",
-                &addr,
-                "--token",
-                viewer_token.trim(),
-                "-i",
-                "-x",
-                "160",
-                "-y",
-                "120",
-            ])
-            .env("DISPLAY", &screen.display)
-            .env("NO_COLOR", "1"),
-    );
-    let mut vat = 0;
-    viewer.wait_line("the viewer's window", &mut vat, |l| {
-        l.starts_with("ready:").then_some(())
-    });
+    let (mut viewer, mut vat) = window_of(viewer_token.trim());
     for command in ["clobber", "kill", "pause"] {
         viewer.say(command);
         viewer.wait_line("the refusal", &mut vat, |l| {
