@@ -40,7 +40,7 @@ Against a server with no samplers this replays the holodeck file.
 
 Examples:
   holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token --driver mesh
-  echo where | holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token.viewer -i
+  printf 'where\\nquit\\n' | holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.viewer.token -i
   holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token --headless \\
       --views walk.vf -o frames --wait 5s --steps 5
   holodeck view --connect unix:/tmp/room.sock --token-file room.hdk.token --headless \\
