@@ -32,13 +32,27 @@ fn moved(line: &str) -> Option<(u32, DVec3)> {
     Some((steps, p))
 }
 
+/// The built-in room filled with `rays` rays of one bounce.
+fn room(dir: &std::path::Path, rays: &str) -> std::path::PathBuf {
+    let file = dir.join("room.hdk");
+    let o = common::holodeck(&[
+        "fill",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--rays",
+        rays,
+        "--bounces",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", common::text(&o));
+    file
+}
+
 #[test]
 fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_headless_picture() {
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("room.hdk");
+    let file = room(dir.path(), "60K");
     let f = file.to_str().unwrap();
-    let o = common::holodeck(&["fill", "builtin:room", f, "--rays", "60K", "--bounces", "1"]);
-    assert!(o.status.success(), "{}", common::text(&o));
     let screen = Screen::start();
     let (w, h) = (W.to_string(), H.to_string());
     let (mut window, mut at) = screen.open(
@@ -148,10 +162,8 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
 #[test]
 fn every_driver_draws_into_the_window_what_it_draws_headless() {
     let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("room.hdk");
+    let file = room(dir.path(), "30K");
     let f = file.to_str().unwrap();
-    let o = common::holodeck(&["fill", "builtin:room", f, "--rays", "30K", "--bounces", "1"]);
-    assert!(o.status.success(), "{}", common::text(&o));
     let screen = Screen::start();
     let (w, h) = (W.to_string(), H.to_string());
     for driver in ["splat", "voronoi", "mesh"] {
