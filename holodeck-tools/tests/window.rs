@@ -11,6 +11,7 @@ use common::screen::{view_of, Screen};
 use glam::DVec3;
 use holodeck_display::compare::relative_rmse_masked;
 use holodeck_display::image_io::read_picture;
+use holodeck_protocol::{Picture, View};
 
 /// Window size: small, so that software rendering stays quick.
 const W: u32 = 320;
@@ -48,6 +49,28 @@ fn room(dir: &std::path::Path, rays: &str) -> std::path::PathBuf {
     file
 }
 
+/// The relative RMSE of what a window `shown` against `holodeck pict` of
+/// `view` from `file` with `driver` (the status line left out).
+fn headless_error(file: &std::path::Path, view: &View, driver: &str, shown: &Picture) -> f64 {
+    let reference = file.with_extension(format!("{driver}.png"));
+    let (w, h, spec) = (W.to_string(), H.to_string(), view.to_spec());
+    let f = file.to_str().unwrap();
+    let mut args = vec![
+        "pict", f, "--view", &spec, "--stride", "2", "-x", &w, "-y", &h, "--driver", driver,
+    ];
+    if driver == "voronoi" {
+        args.extend(["--geometry", "builtin:room"]);
+    }
+    args.extend(["-o", reference.to_str().unwrap()]);
+    let o = common::holodeck(&args);
+    assert!(o.status.success(), "{}", common::text(&o));
+    let reference = read_picture(&reference).unwrap();
+    let mask: Vec<bool> = (0..shown.pixels.len())
+        .map(|i| i / (W as usize) < H as usize - STATUS_ROWS)
+        .collect();
+    relative_rmse_masked(shown, &reference, &mask).unwrap()
+}
+
 #[test]
 fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_headless_picture() {
     let dir = tempfile::tempdir().unwrap();
@@ -63,7 +86,9 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
     let start = window.wait_line("the first view", &mut at, view_of);
     let id = screen.window("^holodeck: ");
 
-    // Hold the left button over the middle of the window for a while.
+    // Hold the left button over the middle of the window for a while (the
+    // sleep is the input itself, how long the user holds the button; what it
+    // did is read back from the window, whatever the number of steps).
     screen.tool("xdotool", &["mousemove", "--window", &id, "160", "120"]);
     screen.tool("xdotool", &["mousedown", "1"]);
     std::thread::sleep(std::time::Duration::from_millis(400));
@@ -101,27 +126,7 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
     window.wait_line("the redrawn frame", &mut at, |l| (l == "sync").then_some(()));
     let shown = screen.capture(&id);
     assert_eq!((shown.width, shown.height), (W as usize, H as usize));
-    let reference = dir.path().join("ref.png");
-    let o = common::holodeck(&[
-        "pict",
-        f,
-        "--view",
-        &end.to_spec(),
-        "--stride",
-        "2",
-        "-x",
-        &w,
-        "-y",
-        &h,
-        "-o",
-        reference.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", common::text(&o));
-    let reference = read_picture(&reference).unwrap();
-    let mask: Vec<bool> = (0..shown.pixels.len())
-        .map(|i| i / (W as usize) < H as usize - STATUS_ROWS)
-        .collect();
-    let error = relative_rmse_masked(&shown, &reference, &mask).unwrap();
+    let error = headless_error(&file, &end, "quadtree", &shown);
     assert!(
         error < 0.02,
         "the window differs from the headless picture: relative RMSE {error}"
@@ -181,22 +186,7 @@ fn every_driver_draws_into_the_window_what_it_draws_headless() {
         window.wait_line("the frame", &mut at, |l| (l == "sync").then_some(()));
         let id = screen.window(&format!("^holodeck: .*\\({driver}\\)"));
         let shown = screen.capture(&id);
-        let reference = dir.path().join(format!("{driver}.png"));
-        let spec = view.to_spec();
-        let mut args = vec![
-            "pict", f, "--view", &spec, "--stride", "2", "-x", &w, "-y", &h, "--driver", driver,
-        ];
-        if driver == "voronoi" {
-            args.extend(["--geometry", "builtin:room"]);
-        }
-        args.extend(["-o", reference.to_str().unwrap()]);
-        let o = common::holodeck(&args);
-        assert!(o.status.success(), "{}", common::text(&o));
-        let reference = read_picture(&reference).unwrap();
-        let mask: Vec<bool> = (0..shown.pixels.len())
-            .map(|i| i / (W as usize) < H as usize - STATUS_ROWS)
-            .collect();
-        let error = relative_rmse_masked(&shown, &reference, &mask).unwrap();
+        let error = headless_error(&file, &view, driver, &shown);
         assert!(
             error < 0.02,
             "{driver}: the window differs from the headless picture: relative RMSE {error}"

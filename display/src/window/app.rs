@@ -103,8 +103,6 @@ struct App {
     dirty: bool,
     last_frame: Instant,
     frame_time: Duration,
-    /// The last frame's tone-mapped picture, without overlays (for `save`).
-    shown: Option<super::walk::Frame>,
     /// The server's last answer, and when it came.
     notice: Option<(String, Instant)>,
     /// When the last motion stopped, until the next frame is drawn.
@@ -143,7 +141,6 @@ pub fn run(walk: Walkthrough, options: WindowOptions) -> Result<(), WindowError>
         dirty: true,
         last_frame: Instant::now(),
         frame_time: Duration::ZERO,
-        shown: None,
         settled_at: None,
         notice: None,
         error: None,
@@ -393,12 +390,8 @@ impl App {
     }
 
     fn draw(&mut self) -> Result<(), WindowError> {
+        // New samples are taken between events (`about_to_wait`), not here.
         let start = Instant::now();
-        if self.held.is_none() {
-            if let Ok(n) = self.walk.poll(Instant::now()) {
-                self.dirty |= n > 0;
-            }
-        }
         let (frame, _) = self.walk.frame()?;
         let (w, h) = (frame.width, frame.height);
         let mut rgba = Vec::with_capacity(frame.rgb.len() / 3 * 4);
@@ -423,7 +416,6 @@ impl App {
         if let Some(p) = &mut self.presenter {
             p.present(&rgba, w, h)?;
         }
-        self.shown = Some(frame);
         self.frame_time = start.elapsed();
         self.last_frame = Instant::now();
         self.dirty = false;

@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use holodeck_protocol::wire::Control;
+use holodeck_protocol::wire::{Control, Progress};
 use holodeck_protocol::{BeamKey, Section};
 
 use crate::client::{ClientError, DisplaySession};
@@ -24,19 +24,6 @@ pub enum SourceError {
     /// The command needs a server and there is none.
     #[error("{0} needs a server: this is a replay of a file")]
     NoServer(String),
-}
-
-/// What the server says about itself, for the status line.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ServerStatus {
-    /// Rays stored in the holodeck.
-    pub rays: u64,
-    /// Rays stored per second lately.
-    pub rays_per_second: f64,
-    /// Samplers connected.
-    pub samplers: u32,
-    /// The samplers are paused.
-    pub paused: bool,
 }
 
 /// A supplier of samples for the views a display walks through.
@@ -61,7 +48,7 @@ pub trait Source {
     /// Sends a command to the server.
     fn control(&mut self, control: Control) -> Result<(), SourceError>;
     /// The server's last report, if it sends them.
-    fn status(&self) -> Option<ServerStatus>;
+    fn status(&self) -> Option<Progress>;
     /// Messages for the user that came since the last call (answers to
     /// commands, refusals).
     fn notices(&mut self) -> Vec<String>;
@@ -112,13 +99,8 @@ impl Source for ServerSource {
         Ok(self.session.control(control)?)
     }
 
-    fn status(&self) -> Option<ServerStatus> {
-        self.session.progress().map(|p| ServerStatus {
-            rays: p.rays,
-            rays_per_second: p.rays_per_second,
-            samplers: p.samplers,
-            paused: p.paused,
-        })
+    fn status(&self) -> Option<Progress> {
+        self.session.progress().copied()
     }
 
     fn notices(&mut self) -> Vec<String> {

@@ -12,7 +12,9 @@ use glam::DVec3;
 use holodeck_protocol::wire::Control;
 use holodeck_protocol::{Picture, View};
 
-use super::source::{ServerStatus, Source, SourceError};
+use holodeck_protocol::wire::Progress;
+
+use super::source::{Source, SourceError};
 use crate::output::parse_tone;
 use crate::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use crate::tonemap::{DisplayRange, Histogram, ToneMap};
@@ -230,11 +232,7 @@ impl Walkthrough {
             // The same selection as `holodeck pict` makes for the view.
             BeamRequest::for_viewport(self.source.sections(), &viewport, &options, 0)
         } else {
-            let want = self.driver.needs(self.options.density as f32);
-            let source = &self.source;
-            BeamRequest::refining(source.sections(), &viewport, &options, self.requests, &want, &|k| {
-                source.received(k)
-            })
+            self.refining(self.options.density)
         };
         {
             let source = &self.source;
@@ -253,6 +251,25 @@ impl Walkthrough {
         Ok(n)
     }
 
+    /// A request for `density` samples per pixel that asks each beam for
+    /// what the display holds plus its pixels' share of what they still want.
+    fn refining(&self, density: f64) -> BeamRequest {
+        let options = RequestOptions {
+            density,
+            ..self.options.request
+        };
+        let want = self.driver.needs(density as f32);
+        let source = &self.source;
+        BeamRequest::refining(
+            source.sections(),
+            self.driver.viewport(),
+            &options,
+            self.requests,
+            &want,
+            &|k| source.received(k),
+        )
+    }
+
     /// Takes the samples traced for the view until `deadline`, raising the
     /// view's density once most of what it asked for is in. Returns the
     /// samples taken.
@@ -269,15 +286,8 @@ impl Walkthrough {
         let missing = outstanding(request, &|k| source.received(k));
         if let Some(density) = self.refinement.raise(missing, self.last_arrival.elapsed() >= QUIET) {
             self.last_arrival = Instant::now();
-            let viewport = self.driver.viewport().clone();
-            let options = RequestOptions {
-                density,
-                ..self.options.request
-            };
-            let want = self.driver.needs(density as f32);
-            let request = BeamRequest::refining(source.sections(), &viewport, &options, self.requests, &want, &|k| {
-                source.received(k)
-            });
+            let request = self.refining(density);
+            let source = &self.source;
             self.refinement.asked(outstanding(&request, &|k| source.received(k)));
             tracing::debug!("asking for {density} samples per pixel");
             self.source.raise(&request)?;
@@ -340,7 +350,7 @@ impl Walkthrough {
     }
 
     /// The server's last report.
-    pub fn server(&self) -> Option<ServerStatus> {
+    pub fn server(&self) -> Option<Progress> {
         self.source.status()
     }
 

@@ -144,7 +144,7 @@ impl Source for FileSource {
         Err(SourceError::NoServer(format!("{control:?}")))
     }
 
-    fn status(&self) -> Option<window::ServerStatus> {
+    fn status(&self) -> Option<holodeck_protocol::wire::Progress> {
         None
     }
 
