@@ -110,7 +110,18 @@ impl Source for FileSource {
         if resend {
             self.sent.clear();
         }
-        let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+        // Beams already sent in full are not read again (their lengths are
+        // in the file's directory, in memory).
+        let (file, sent) = (&self.file, &self.sent);
+        let mut keys: Vec<BeamKey> = request
+            .beams
+            .iter()
+            .map(|b| b.0)
+            .filter(|&k| {
+                file.beam_len(k)
+                    .map_or(true, |n| n > sent.get(&k).copied().unwrap_or(0))
+            })
+            .collect();
         keys.sort_unstable();
         let (decoder, sent, scratch) = (&self.decoder, &mut self.sent, &mut self.scratch);
         let mut total = 0u64;
