@@ -6,6 +6,7 @@ pub mod accel;
 pub mod beam;
 pub mod error;
 pub mod geom;
+pub mod ooc;
 pub mod render;
 pub mod scene;
 pub mod shade;

@@ -5,7 +5,6 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use holodeck_protocol::wire::client::{self, ClientError};
 use holodeck_protocol::wire::{Control, Frame, Message, Progress, Role};
-use holodeck_sampler::scene::hash::content_hash;
 
 use super::args::{TokenArgs, MAX_TRIANGLES};
 use crate::human::{bytes, count, count_in};
@@ -98,9 +97,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             keep_rays,
             triangles,
         } => {
-            let loaded = super::render::load(&scene, triangles)?;
+            let loaded = super::scene_input::SceneInput::open(&scene, triangles, Some(1 << 20))?;
             Control::Adopt {
-                scene: content_hash(&loaded),
+                scene: loaded.hash(),
                 keep: keep_rays,
             }
         }

@@ -31,6 +31,7 @@ Example:
   holodeck bench storage --rays 50M --dir target/bench
   holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)
   holodeck bench tracer --triangles 1M --triangles 10M
+  holodeck bench scene-file --triangles 1M --pixels 256
   holodeck bench display --samples 1M --rays 4M
   holodeck bench network --seconds 8
   holodeck bench share                                     (a greedy and a modest display)
@@ -125,6 +126,8 @@ enum Target {
     Fill,
     /// The kd-tree and the path tracer.
     Tracer,
+    /// The out-of-core scene file against the in-core tracer: build, size, rays/s by cache budget, LOD.
+    SceneFile,
     /// Display drivers and pictures from a holodeck.
     Display,
     /// The server over loopback: fill overhead, recall to displays, many peers.
@@ -397,6 +400,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let secs = fill(file, &reference_settings(cache)?, a.rays, 1)?;
             let (peak, _) = rss();
             println!("{start} {peak} {secs}");
+            return Ok(ExitCode::SUCCESS);
+        }
+        Target::SceneFile => {
+            let n = a.triangles.first().copied().unwrap_or(1_000_000);
+            super::bench_scene_file::run(n, a.pixels, &a.dir, a.keep)?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Tracer => {

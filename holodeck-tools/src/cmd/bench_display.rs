@@ -207,7 +207,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("pict-bench.hdk");
     let _ = std::fs::remove_file(&path);
-    let (_, mut file) = super::fill::prepare("builtin:room", &path, None, false)?;
+    let (_, mut file) = super::fill::prepare("builtin:room", &path, None, None, false)?;
     let seen = ViewFill::new(file.sections(), std::slice::from_ref(&view), 0.0);
     eprintln!("filling {} rays for one view...", count(rays));
     let o = FillOptions {

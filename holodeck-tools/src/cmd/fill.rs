@@ -6,8 +6,9 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_protocol::{BeamKey, Section, View};
-use holodeck_sampler::scene::hash::content_hash;
-use holodeck_sampler::{Scene, TraceOptions, Tracer};
+use holodeck_sampler::TraceOptions;
+
+use super::scene_input::SceneInput;
 use holodeck_server::settings::{parse_duration, Settings};
 use holodeck_server::{HoloFile, OpenOptions, StorageError};
 
@@ -61,6 +62,9 @@ pub struct Args {
     /// most, as a fraction of the section diagonal (0: anywhere in the beam).
     #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = super::args::non_negative)]
     eye_radius: f64,
+    /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
+    #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
+    scene_memory: Option<u64>,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
@@ -72,15 +76,21 @@ pub struct Args {
 /// another scene, and one whose newest commit is damaged unless `accept_loss`.
 /// Of two processes creating the same file at once, one creates it and the
 /// other opens it (or is told it is in use).
-pub fn prepare(scene_spec: &str, path: &Path, triangles: Option<u64>, accept_loss: bool) -> Result<(Scene, HoloFile)> {
-    let scene = super::render::load(scene_spec, triangles)?;
-    let hash = content_hash(&scene);
+pub fn prepare(
+    scene_spec: &str,
+    path: &Path,
+    triangles: Option<u64>,
+    scene_memory: Option<u64>,
+    accept_loss: bool,
+) -> Result<(SceneInput, HoloFile)> {
+    let scene = SceneInput::open(scene_spec, triangles, scene_memory)?;
+    let hash = scene.hash();
     if !path.exists() {
-        if scene.sections.is_empty() {
+        if scene.sections().is_empty() {
             bail!("scene {scene_spec} defines no holodeck section; add [[section]] tables to it");
         }
         let settings = Settings {
-            sections: scene.sections.clone(),
+            sections: scene.sections().to_vec(),
             scene: Some(hash.clone()),
             ..Settings::default()
         };
@@ -132,14 +142,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|t| parse_duration(t, 1.0))
         .transpose()
         .context("--time")?;
-    let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles, a.accept_loss)?;
+    let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles, a.scene_memory, a.accept_loss)?;
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,
         vdistance: file.settings().vdistance,
         ..TraceOptions::default()
     };
-    let tracer = Tracer::new(scene, options);
+    let tracer = scene.tracer(options);
     let bar = indicatif::ProgressBar::new(a.rays.unwrap_or(0));
     let fill_options = FillOptions {
         rays: a.rays,

@@ -9,9 +9,10 @@ use holodeck_protocol::View;
 use holodeck_sampler::render::{self, RenderOptions};
 use holodeck_sampler::scene::file::load_scene;
 use holodeck_sampler::scene::gen::{generate, GenParams};
-use holodeck_sampler::{Scene, TraceOptions, Tracer};
+use holodeck_sampler::{Scene, TraceOptions};
 
 use super::args::{frame_size, MAX_TRIANGLES, SIDE};
+use super::scene_input::SceneInput;
 use crate::human::{count, count_in};
 
 /// A view from inside the built-in room toward its window.
@@ -56,9 +57,30 @@ pub struct Args {
     /// Triangles for builtin:landscape (K, M suffixes).
     #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
+    /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
+    #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
+    scene_memory: Option<u64>,
+    /// For a .hds scene file: pixels of error; a voxel whose projected area is
+    /// below this many pixels stands in for its subtree (0: exact triangles).
+    #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative)]
+    lod: f64,
     /// Output picture: .png (tone-mapped) or .hdr (Radiance RGBE, linear).
     #[arg(short, long)]
     output: PathBuf,
+}
+
+/// The LOD ratio C of Áfra 2012, eq. (3), for `pixels` pixels of error: a
+/// voxel of radius R at distance t stands in for its subtree when R <= t C,
+/// i.e. when its projected radius is below that of a disc of `pixels` area.
+pub fn lod_ratio(pixels: f64, view: &View, width: u32) -> f32 {
+    if pixels <= 0.0 {
+        return 0.0;
+    }
+    let r_max = (pixels / std::f64::consts::PI).sqrt();
+    // lambda = (w / 2) / tan(fov / 2): pixels per unit of tangent.
+    let half = (view.horizontal.to_radians() / 2.0).tan().max(1e-6);
+    let lambda = f64::from(width) / 2.0 / half;
+    (r_max / lambda) as f32
 }
 
 /// Loads a scene file or generates a built-in one.
@@ -86,16 +108,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if ext != "png" && ext != "hdr" {
         bail!("output {} must end in .png or .hdr", a.output.display());
     }
-    let scene = load(&a.scene, a.triangles)?;
-    let triangles = scene.triangles.len() as u64;
+    let scene = SceneInput::open(&a.scene, a.triangles, a.scene_memory)?;
+    let triangles = scene.triangles();
     let start = Instant::now();
-    let tracer = Tracer::new(
-        scene,
-        TraceOptions {
-            max_bounces: a.bounces,
-            ..TraceOptions::default()
-        },
-    );
+    let tracer = scene.tracer(TraceOptions {
+        max_bounces: a.bounces,
+        lod_primary: lod_ratio(a.lod, &view, a.width),
+        lod_secondary: 0.0,
+        ..TraceOptions::default()
+    });
     let build = start.elapsed().as_secs_f64();
     tracing::info!(
         "kd-tree over {} triangles built in {build:.2} s: {:?}",
@@ -118,6 +139,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let picture = render::render(&tracer, &view, &options, &|done, _| bar.set_position(done as u64))
         .context("-x/--width, -y/--height or --spp")?;
     bar.finish_and_clear();
+    if let Some(e) = tracer.scene_file().and_then(|f| f.cache().error()) {
+        bail!("{}: {e}", a.scene);
+    }
     let secs = start.elapsed().as_secs_f64();
     match ext.as_str() {
         "hdr" => holodeck_display::image_io::write_hdr(&picture, &a.output)?,

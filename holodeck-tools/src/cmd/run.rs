@@ -78,6 +78,9 @@ pub struct Args {
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
     accept_loss: bool,
+    /// For a .hds scene file: decompressed blocks each sampler keeps in memory (K, M, G; default: all).
+    #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
+    scene_memory: Option<u64>,
 }
 
 fn me() -> Result<Command> {
@@ -187,7 +190,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let time = parse_duration(&a.time, 1.0).context("--time")?;
     let (before, default_view) = {
-        let (_, file) = super::fill::prepare(&a.scene, &a.file, None, a.accept_loss)?;
+        let (_, file) = super::fill::prepare(&a.scene, &a.file, None, a.scene_memory, a.accept_loss)?;
         let view = if a.scene == "builtin:room" {
             super::render::ROOM_VIEW.to_string()
         } else {
@@ -259,6 +262,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ])
             .stdout(Stdio::null())
             .stderr(Stdio::inherit());
+            if let Some(m) = a.scene_memory {
+                cmd.args(["--scene-memory", &m.to_string()]);
+            }
             Child::spawn(format!("sampler {}", i + 1), cmd)
         })
         .collect::<Result<_>>()?;

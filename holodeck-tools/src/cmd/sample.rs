@@ -5,12 +5,12 @@ use std::sync::{Arc, Mutex};
 use std::time::SystemTime;
 
 use anyhow::{bail, Context, Result};
-use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::worker::{run_worker_retrying, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::settings::parse_duration;
 
 use super::args::{MAX_TRIANGLES, MAX_WORKERS};
+use super::scene_input::SceneInput;
 use crate::human::{count, count_in};
 
 /// Arguments of `holodeck sample`.
@@ -26,7 +26,8 @@ stop them at any time, on any host that can reach the server.
 
 Examples:
   holodeck sample builtin:room --connect 127.0.0.1:7777 --token-file room.hdk.token
-  holodeck sample scenes/room.toml --connect server:7777 --token 3f9c... -j 16")]
+  holodeck sample scenes/room.toml --connect server:7777 --token 3f9c... -j 16
+  holodeck sample landscape.hds --scene-memory 1G --connect server:7777 --token-file big.hdk.writer.token")]
 pub struct Args {
     /// Scene file, or builtin:NAME (must be the scene the holodeck was made for).
     scene: String,
@@ -50,6 +51,9 @@ pub struct Args {
     /// Triangles for builtin:landscape (K, M suffixes).
     #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
+    /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
+    #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
+    scene_memory: Option<u64>,
     /// After losing the server, keep trying to reconnect this long (e.g. 30s, 5m; 0s: give up at once).
     #[arg(long, default_value = "60s")]
     retry_for: String,
@@ -80,10 +84,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let load = || -> Result<Loaded> {
         let modified = modified(&a.scene);
-        let scene = super::render::load(&a.scene, a.triangles)?;
-        let hash = content_hash(&scene);
+        let scene = SceneInput::open(&a.scene, a.triangles, a.scene_memory)?;
+        let hash = scene.hash();
         Ok(Loaded {
-            tracer: Arc::new(Tracer::new(scene, options)),
+            tracer: Arc::new(scene.tracer(options)),
             hash,
             modified,
         })

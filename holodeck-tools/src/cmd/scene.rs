@@ -26,7 +26,9 @@ Examples:
   holodeck scene gen mandelbulb --resolution 256 -o bulb.toml
   holodeck scene gen bunny -o bunny.toml
   holodeck scene gen bunny --bunny my-bunny.obj -o my-bunny.toml
-  holodeck scene info scenes/room.toml")]
+  holodeck scene info scenes/room.toml
+  holodeck scene build builtin:landscape --triangles 300M --memory 2G -o landscape.hds
+  holodeck scene info landscape.hds")]
 pub struct Args {
     #[command(subcommand)]
     command: SceneCommand,
@@ -38,6 +40,46 @@ enum SceneCommand {
     Gen(GenArgs),
     /// Load a scene file; print its triangles, materials, bounds, sections and content hash.
     Info(InfoArgs),
+    /// Build a scene file for out-of-core tracing (.hds): kd-tree, LOD voxels, compressed blocks.
+    Build(BuildArgs),
+}
+
+/// Arguments of `holodeck scene build`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Builds SCENE (a scene file or builtin:NAME) into one .hds file that samplers, `render`, `fill`
+and `run` trace out of core: only the blocks rays need are decompressed, into a cache of
+--scene-memory bytes. The build itself stays within --memory: triangles are sorted into
+chunks at spatial medians on disk, and each chunk is built in memory. builtin:landscape is
+generated as a stream, so its triangles never all exist at once; other scenes are loaded
+first. A killed build can simply be run again. The file carries the scene's content hash
+(a scene file and its .hds serve the same holodecks).
+
+Examples:
+  holodeck scene build scenes/room.toml -o room.hds
+  holodeck scene build builtin:landscape --triangles 300M --memory 2G -o landscape.hds
+  holodeck scene build big.toml --memory 8G --codec zstd -o big.hds")]
+pub struct BuildArgs {
+    /// Scene file, or builtin:NAME.
+    scene: String,
+    /// The scene file to write (.hds).
+    #[arg(short, long, value_name = "HDS")]
+    output: PathBuf,
+    /// Memory the build may use (K, M, G suffixes).
+    #[arg(long, default_value = "2G", value_parser = super::scene_input::parse_scene_memory)]
+    memory: u64,
+    /// Block compression: lz4 (fast to decompress) or zstd (smaller).
+    #[arg(long, default_value = "lz4")]
+    codec: holodeck_sampler::ooc::Codec,
+    /// Decompressed block size to aim at (K, M suffixes).
+    #[arg(long, default_value = "64K", value_parser = super::scene_input::parse_scene_memory)]
+    block_size: u64,
+    /// Triangles for builtin:landscape; suffixes K, M, G as powers of 1000.
+    #[arg(long, value_parser = count_in(1, u64::from(u32::MAX)))]
+    triangles: Option<u64>,
+    /// Random seed (landscape).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
 }
 
 /// Arguments of `holodeck scene gen`.
@@ -90,6 +132,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     match a.command {
         SceneCommand::Gen(g) => generate(g),
         SceneCommand::Info(i) => info(i),
+        SceneCommand::Build(b) => build(b),
     }
 }
 
@@ -138,7 +181,111 @@ fn generate(a: GenArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn build(a: BuildArgs) -> Result<ExitCode> {
+    use holodeck_sampler::ooc::build::{build_scene_file, BuildSettings, LandscapeSource, SceneSource, TriangleSource};
+    if !holodeck_sampler::ooc::is_scene_file(&a.output) {
+        anyhow::bail!("{}: a scene file's name ends in .hds", a.output.display());
+    }
+    let params = GenParams {
+        triangles: a.triangles,
+        seed: a.seed,
+        ..GenParams::default()
+    };
+    let source: Box<dyn TriangleSource> = if a.scene == "builtin:landscape" {
+        Box::new(LandscapeSource::new(params).context("builtin:landscape")?)
+    } else {
+        let bar = spinner(format!("loading {}", a.scene));
+        let scene = if let Some(name) = a.scene.strip_prefix("builtin:") {
+            gen::generate(name, &params).map_err(flat)?
+        } else {
+            load_scene(std::path::Path::new(&a.scene)).map_err(flat)?
+        };
+        bar.finish_and_clear();
+        Box::new(SceneSource::new(scene))
+    };
+    if let Some(dir) = a.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let settings = BuildSettings {
+        memory: a.memory,
+        codec: a.codec,
+        block_bytes: usize::try_from(a.block_size)
+            .unwrap_or(64 << 10)
+            .clamp(4 << 10, 16 << 20),
+    };
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg:>12} [{bar:30}] {human_pos}/{human_len} triangles ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let progress = |phase: &str, done: u64, total: u64| {
+        if bar.message() != phase {
+            bar.set_message(phase.to_string());
+        }
+        bar.set_length(total.max(done));
+        bar.set_position(done);
+    };
+    let r = build_scene_file(source.as_ref(), &a.output, &settings, &progress)
+        .with_context(|| format!("building {}", a.output.display()))?;
+    bar.finish_and_clear();
+    println!(
+        "wrote {}: {} triangles ({} references) in {} chunks, {} blocks in {} levels; {} decompressed, {} compressed ({:.1}%, {}), file {}; {:.1} s ({:.1} s partitioning, {:.1} s building)",
+        a.output.display(),
+        count(r.triangles),
+        count(r.references),
+        r.chunks,
+        count(u64::from(r.blocks)),
+        r.levels,
+        crate::human::bytes(r.decompressed_bytes),
+        crate::human::bytes(r.compressed_bytes),
+        100.0 * r.compressed_bytes as f64 / r.decompressed_bytes.max(1) as f64,
+        a.codec.name(),
+        crate::human::bytes(r.file_bytes),
+        r.seconds,
+        r.partition_seconds,
+        r.chunk_seconds
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 fn info(a: InfoArgs) -> Result<ExitCode> {
+    if holodeck_sampler::ooc::is_scene_file(&a.file) {
+        let f = holodeck_sampler::ooc::OocScene::open(&a.file, Some(1), 0)
+            .with_context(|| format!("opening {}", a.file.display()))?;
+        let h = f.header();
+        let [lo, hi] = h.bounds;
+        println!("{:<13}{}", "triangles", count(h.triangles));
+        println!(
+            "{:<13}{} ({} per triangle)",
+            "references",
+            count(h.references),
+            format_args!("{:.2}", h.references as f64 / h.triangles.max(1) as f64)
+        );
+        println!(
+            "{:<13}{} in {} levels, {} codec",
+            "blocks",
+            count(u64::from(h.blocks)),
+            h.levels,
+            h.codec.name()
+        );
+        println!(
+            "{:<13}{} decompressed, file {}",
+            "size",
+            crate::human::bytes(h.decompressed_bytes),
+            crate::human::bytes(std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0))
+        );
+        println!(
+            "{:<13}x {:.3} .. {:.3}, y {:.3} .. {:.3}, z {:.3} .. {:.3} m",
+            "bounds", lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+        );
+        println!("{:<13}{}", "materials", h.materials.len());
+        println!("{:<13}{}", "emitters", count(h.emitters.len() as u64));
+        println!("{:<13}{}", "sky", sky(&h.sky));
+        println!("{:<13}{}", "sections", h.sections.len());
+        println!("{:<13}{}", "content hash", h.content_hash);
+        return Ok(ExitCode::SUCCESS);
+    }
     let bar = spinner(format!("loading {}", a.file.display()));
     let scene = load_scene(&a.file).map_err(flat).context("loading the scene")?;
     bar.finish_and_clear();

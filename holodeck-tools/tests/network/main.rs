@@ -11,5 +11,6 @@ mod admin;
 mod displays;
 mod harness;
 mod lifecycle;
+mod scene_file;
 mod scenes;
 mod window;

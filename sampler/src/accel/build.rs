@@ -60,20 +60,19 @@ struct Split {
 impl KdTree {
     /// Builds the tree over every triangle of the scene.
     pub fn build(scene: &Scene, options: &BuildOptions) -> KdTree {
-        let refs: Vec<Ref> = (0..scene.triangles.len())
-            .into_par_iter()
-            .map(|t| {
-                let mut b = Aabb::EMPTY;
-                for p in scene.vertices(t) {
-                    b.grow(p);
-                }
-                Ref {
-                    tri: t as u32,
-                    bounds: b,
-                }
-            })
-            .collect();
+        let refs = references(scene, None);
         let bounds = refs.iter().fold(Aabb::EMPTY, |acc, r| acc.union(&r.bounds));
+        KdTree::build_refs(scene, refs, bounds, options)
+    }
+
+    /// Builds the tree over the parts of the scene's triangles inside
+    /// `bounds`, which become the root's box (a chunk of a larger scene).
+    pub fn build_within(scene: &Scene, bounds: Aabb, options: &BuildOptions) -> KdTree {
+        let refs = references(scene, Some(&bounds));
+        KdTree::build_refs(scene, refs, bounds, options)
+    }
+
+    fn build_refs(scene: &Scene, refs: Vec<Ref>, bounds: Aabb, options: &BuildOptions) -> KdTree {
         // Bounded so the traversal stack (64 entries) can never overflow.
         let max_depth = (8 + (1.3 * (refs.len().max(1) as f32).log2()) as usize).min(60);
         let root = if refs.is_empty() {
@@ -98,6 +97,30 @@ impl KdTree {
     pub fn leaf_tris(&self) -> &[u32] {
         &self.leaf_tris
     }
+}
+
+/// One reference per triangle, its bounds clipped to `within` if given
+/// (triangles that miss it are left out).
+fn references(scene: &Scene, within: Option<&Aabb>) -> Vec<Ref> {
+    (0..scene.triangles.len())
+        .into_par_iter()
+        .filter_map(|t| {
+            let mut b = Aabb::EMPTY;
+            for p in scene.vertices(t) {
+                b.grow(p);
+            }
+            if let Some(w) = within {
+                b = b.clip(w);
+                if b.is_empty() {
+                    return None;
+                }
+            }
+            Some(Ref {
+                tri: t as u32,
+                bounds: b,
+            })
+        })
+        .collect()
 }
 
 fn flatten(node: BuildNode, at: usize, tree: &mut KdTree) {

@@ -13,6 +13,7 @@ use glam::DVec3;
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamIndex, BeamRay, DepthCode, RayRecord, Rgbe, Section, SectionError, SectionKind};
 
+use crate::ooc::Fetch;
 use crate::shade::{Rng, Tracer};
 
 /// One ray of a beam to trace: its sub-cell bytes and its world geometry.
@@ -91,9 +92,22 @@ pub fn trace_sample_under(
     s: &BeamSample,
     rng: &mut Rng,
 ) -> RayRecord {
+    trace_sample_fetching(tracer, section, rules, s, rng, &mut Fetch::load())
+}
+
+/// [`trace_sample_under`] with out-of-core data fetched as `fetch` says; a
+/// record whose `fetch.missed` comes back true must be traced again.
+pub fn trace_sample_fetching(
+    tracer: &Tracer,
+    section: &Section,
+    rules: FileRules,
+    s: &BeamSample,
+    rng: &mut Rng,
+    fetch: &mut Fetch,
+) -> RayRecord {
     let start = trace_start(section.kind(), rules.obstructions, &s.ray);
     let origin: DVec3 = s.ray.origin + s.ray.direction * start;
-    let sample = tracer.trace_measuring(origin.as_vec3(), s.ray.direction.as_vec3(), rules.vdistance, rng);
+    let sample = tracer.trace_fetching(origin.as_vec3(), s.ray.direction.as_vec3(), rules.vdistance, rng, fetch);
     let depth = if sample.distance.is_finite() {
         DepthCode::encode(start + f64::from(sample.distance), section.diagonal())
     } else {
@@ -137,10 +151,11 @@ pub fn trace_beam_under(
             proximity_rays(section, beam, n, DVec3::from(eye), radius, frustum.as_ref(), rng)?.0
         }
     };
-    Ok(samples
-        .iter()
-        .map(|s| trace_sample_under(tracer, section, rules, s, rng))
-        .collect())
+    // Out of core, a ray that met missing data is traced again: no record
+    // made from a stand-in for missing geometry is ever returned.
+    Ok(tracer.trace_batch(samples.len(), rng, |k, rng, fetch| {
+        trace_sample_fetching(tracer, section, rules, &samples[k], rng, fetch)
+    }))
 }
 
 #[cfg(test)]

@@ -109,7 +109,6 @@ pub fn silhouettes(
     check_picture_size(u64::from(width), u64::from(height))?;
     let (w, h) = (width as usize, height as usize);
     let rays = view.rays();
-    let (scene, tree) = (tracer.scene(), tracer.tree());
     Ok((0..w * h)
         .into_par_iter()
         .map(|i| {
@@ -123,11 +122,11 @@ pub fn silhouettes(
                 let Some((origin, dir)) = rays.ray((col + sx) / w as f64, 1.0 - (row + sy) / h as f64) else {
                     continue;
                 };
-                match tree.intersect(scene, &Ray::new(origin.as_vec3(), dir.as_vec3())) {
-                    Some(x) => {
+                match tracer.first_hit(&Ray::new(origin.as_vec3(), dir.as_vec3())) {
+                    Some(t) => {
                         hit = true;
-                        near = near.min(x.t);
-                        far = far.max(x.t);
+                        near = near.min(t);
+                        far = far.max(t);
                     }
                     None => escaped = true,
                 }

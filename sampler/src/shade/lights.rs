@@ -24,27 +24,38 @@ pub struct LightSample {
 /// The emissive triangles and their selection distribution.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
+    /// Triangle ids.
     tris: Vec<u32>,
+    /// Their vertices and emitted radiance.
+    shapes: Vec<([Vec3; 3], Vec3)>,
     cdf: Vec<f32>,
-    /// Selection probability divided by area, by triangle index.
+    /// Selection probability divided by area, by triangle id.
     pdf_area: HashMap<u32, f32>,
 }
 
 impl Lights {
     /// Collects the emitters of a scene.
     pub fn new(scene: &Scene) -> Lights {
-        let mut tris = Vec::new();
-        let mut weights = Vec::new();
-        for (i, t) in scene.triangles.iter().enumerate() {
+        Lights::from_emitters(scene.triangles.iter().enumerate().filter_map(|(i, t)| {
             let le = Vec3::from_array(scene.materials[t.material as usize].emission());
+            (le.max_element() > 0.0).then(|| (i as u32, scene.vertices(i), le))
+        }))
+    }
+
+    /// Lights from emissive triangles given as (id, vertices, emitted radiance).
+    pub fn from_emitters(emitters: impl Iterator<Item = (u32, [Vec3; 3], Vec3)>) -> Lights {
+        let mut tris = Vec::new();
+        let mut shapes = Vec::new();
+        let mut weights = Vec::new();
+        for (id, [a, b, c], le) in emitters {
             if le.max_element() <= 0.0 {
                 continue;
             }
-            let [a, b, c] = scene.vertices(i);
             let area = 0.5 * (b - a).cross(c - a).length();
             let w = area * luminance(le).max(1e-6);
             if w.is_finite() && w > 0.0 {
-                tris.push(i as u32);
+                tris.push(id);
+                shapes.push(([a, b, c], le));
                 weights.push(w);
             }
         }
@@ -55,14 +66,19 @@ impl Lights {
         for (k, w) in weights.iter().enumerate() {
             acc += f64::from(*w);
             cdf.push((acc / total) as f32);
-            let [a, b, c] = scene.vertices(tris[k] as usize);
+            let [a, b, c] = shapes[k].0;
             let area = 0.5 * (b - a).cross(c - a).length();
             pdf_area.insert(tris[k], (f64::from(*w) / total) as f32 / area);
         }
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
-        Lights { tris, cdf, pdf_area }
+        Lights {
+            tris,
+            shapes,
+            cdf,
+            pdf_area,
+        }
     }
 
     /// Number of emissive triangles.
@@ -80,22 +96,20 @@ impl Lights {
     }
 
     /// Samples a point on a light.
-    pub fn sample(&self, scene: &Scene, u: f32, uv: (f32, f32)) -> Option<LightSample> {
+    pub fn sample(&self, u: f32, uv: (f32, f32)) -> Option<LightSample> {
         if self.tris.is_empty() {
             return None;
         }
         let k = self.cdf.partition_point(|&c| c <= u).min(self.tris.len() - 1);
-        let tri = self.tris[k];
-        let [a, b, c] = scene.vertices(tri as usize);
+        let ([a, b, c], radiance) = self.shapes[k];
         let (b1, b2) = uniform_triangle(uv);
         let point = a * (1.0 - b1 - b2) + b * b1 + c * b2;
         let normal = (b - a).cross(c - a).normalize();
-        let m = &scene.materials[scene.triangles[tri as usize].material as usize];
         Some(LightSample {
             point,
             normal,
-            radiance: Vec3::from_array(m.emission()),
-            pdf_area: self.pdf_area(tri),
+            radiance,
+            pdf_area: self.pdf_area(self.tris[k]),
         })
     }
 }

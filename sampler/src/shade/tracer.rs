@@ -5,6 +5,8 @@
 //! distance through flat mirrors and thin glass). Never returns NaN or infinity.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
 
 use glam::Vec3;
 
@@ -15,6 +17,7 @@ use super::sampling::{power_heuristic, Frame};
 use super::sky::SkyModel;
 use crate::accel::{BuildOptions, KdTree};
 use crate::geom::{offset_origin, Ray};
+use crate::ooc::{Fetch, OnMissing, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
 
 /// Settings of the estimator.
@@ -32,6 +35,12 @@ pub struct TraceOptions {
     /// Sample lights and the sun directly (next-event estimation with MIS).
     /// Off, paths find light only by BSDF sampling: a baseline for comparisons.
     pub light_sampling: bool,
+    /// Out-of-core scenes: a voxel stands in for its subtree on the first
+    /// segment of a path when its radius is below this share of its distance
+    /// (pixels of error times the pixel's angle; 0: never).
+    pub lod_primary: f32,
+    /// The same for every later segment and shadow ray (from a solid angle).
+    pub lod_secondary: f32,
 }
 
 impl Default for TraceOptions {
@@ -42,6 +51,8 @@ impl Default for TraceOptions {
             vdistance: false,
             light_sampling: true,
             samples: 1,
+            lod_primary: 0.0,
+            lod_secondary: 0.0,
         }
     }
 }
@@ -55,10 +66,12 @@ pub struct Sample {
     pub distance: f32,
 }
 
-/// A scene ready to trace: geometry, kd-tree, lights and sky.
+/// A scene ready to trace: geometry (in memory with its kd-tree, or a scene
+/// file traced out of core), lights and sky.
 pub struct Tracer {
     scene: Scene,
     tree: KdTree,
+    ooc: Option<Arc<OocScene>>,
     lights: Lights,
     sky: SkyModel,
     /// Whether any material is a thin pane (shadow rays then look through panes).
@@ -79,6 +92,25 @@ fn pane_transmittance(m: &Material, cos: f32) -> Option<Vec3> {
     }
 }
 
+/// A hit as shading needs it.
+struct SurfaceHit {
+    t: f32,
+    /// Unit geometric normal.
+    ng: Vec3,
+    /// Triangle id (for light pdfs); `u32::MAX` for a voxel.
+    tri: u32,
+    /// Material index, or `None` for a voxel (a diffuse proxy of `color`).
+    material: Option<u32>,
+    color: Vec3,
+    /// Voxel radius (0 for triangles): later rays start beyond the voxel.
+    radius: f32,
+}
+
+/// How many rounds a batch waits for blocks before loading them itself.
+const PROXY_ROUNDS: usize = 3;
+/// How long one round waits for the fetchers.
+const ROUND_WAIT: Duration = Duration::from_secs(2);
+
 fn flat_specular(m: &Material) -> bool {
     matches!(m, Material::Mirror { .. } | Material::Glass { thin: true, .. })
         || matches!(m, Material::Metal { roughness, .. } if *roughness < 0.02)
@@ -97,6 +129,7 @@ impl Tracer {
         Tracer {
             scene,
             tree,
+            ooc: None,
             lights,
             sky,
             has_panes,
@@ -105,11 +138,112 @@ impl Tracer {
         }
     }
 
-    /// The scene.
+    /// A tracer over an open scene file: materials, sky, sections and lights
+    /// come from its header, triangles from its blocks as rays need them.
+    pub fn out_of_core(ooc: Arc<OocScene>, options: TraceOptions) -> Tracer {
+        let scene = ooc.shell();
+        let h = ooc.header();
+        let lights = Lights::from_emitters(h.emitters.iter().map(|e| {
+            let le = h.materials.get(e.material as usize).map_or([0.0; 3], |m| m.emission());
+            (e.id, e.vertices.map(Vec3::from), Vec3::from_array(le))
+        }));
+        let sky = SkyModel::new(&scene.sky);
+        let has_panes = scene
+            .materials
+            .iter()
+            .any(|m| matches!(m, Material::Glass { thin: true, .. }));
+        Tracer {
+            tree: KdTree::build(&Scene::default(), &BuildOptions::default()),
+            scene,
+            ooc: Some(ooc),
+            lights,
+            sky,
+            has_panes,
+            options,
+            non_finite: AtomicU64::new(0),
+        }
+    }
+
+    /// The scene file, for a tracer made with [`Tracer::out_of_core`].
+    pub fn scene_file(&self) -> Option<&Arc<OocScene>> {
+        self.ooc.as_ref()
+    }
+
+    /// The scene (for a scene file: its materials, sky and sections, no triangles).
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
-    /// The kd-tree.
+    /// The distance to the first surface along a ray (exact: out-of-core
+    /// data is loaded as needed).
+    pub fn first_hit(&self, ray: &Ray) -> Option<f32> {
+        self.nearest(ray, 0.0, &mut Fetch::load()).map(|h| h.t)
+    }
+
+    /// Traces `n` items with `f` (given the item, the random numbers and a
+    /// fetch state), keeping only results that no missing data stood in for.
+    /// In core, one pass. Out of core, items that met missing blocks are
+    /// traced again once the fetchers have loaded what they asked for; after a
+    /// few rounds the blocks are loaded on the spot, so every item ends exact.
+    pub fn trace_batch<T>(
+        &self,
+        n: usize,
+        rng: &mut Rng,
+        mut f: impl FnMut(usize, &mut Rng, &mut Fetch) -> T,
+    ) -> Vec<T> {
+        let Some(ooc) = &self.ooc else {
+            let mut fetch = Fetch::load();
+            return (0..n).map(|k| f(k, rng, &mut fetch)).collect();
+        };
+        let cache = ooc.cache();
+        let batch = cache.begin_batch();
+        let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+        let mut todo: Vec<usize> = (0..n).collect();
+        let mut waiting = true;
+        for round in 0..=PROXY_ROUNDS {
+            let on_missing = if round < PROXY_ROUNDS && waiting {
+                OnMissing::Proxy
+            } else {
+                OnMissing::Load
+            };
+            let mut requests = Vec::new();
+            let mut again = Vec::new();
+            for k in todo {
+                let mut fetch = Fetch {
+                    on_missing,
+                    requests: Vec::new(),
+                    missed: false,
+                };
+                let r = f(k, rng, &mut fetch);
+                if fetch.missed {
+                    requests.extend(fetch.requests);
+                    again.push(k);
+                } else {
+                    out[k] = Some(r);
+                }
+            }
+            todo = again;
+            if todo.is_empty() {
+                break;
+            }
+            // Every request counts: a block many rays missed is fetched first.
+            cache.request(&requests);
+            requests.sort_unstable();
+            requests.dedup();
+            // No use waiting where the fetchers cannot help (the blocks do not
+            // fit beside those in use): load on the spot next round.
+            waiting = cache.wait_resident(&requests, ROUND_WAIT);
+        }
+        cache.end_batch(batch);
+        if !todo.is_empty() {
+            tracing::error!(
+                "{} rays could not be traced: the scene file has unreadable blocks",
+                todo.len()
+            );
+        }
+        out.into_iter().flatten().collect()
+    }
+
+    /// The kd-tree (empty for a scene file).
     pub fn tree(&self) -> &KdTree {
         &self.tree
     }
@@ -127,6 +261,13 @@ impl Tracer {
     /// options: a sampler obeys the setting of the holodeck file it serves,
     /// which it learns only once connected.
     pub fn trace_measuring(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng) -> Sample {
+        self.trace_fetching(origin, dir, vdistance, rng, &mut Fetch::load())
+    }
+
+    /// [`Tracer::trace_measuring`] with out-of-core data fetched as `fetch`
+    /// says. When `fetch.missed` comes back true, the path stopped where data
+    /// was missing: the sample is incomplete and must not be kept.
+    pub fn trace_fetching(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng, fetch: &mut Fetch) -> Sample {
         if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0) {
             self.non_finite.fetch_add(1, Ordering::Relaxed);
             return Sample {
@@ -135,10 +276,13 @@ impl Tracer {
             };
         }
         let dir = dir.normalize();
-        let (mut radiance, distance) = self.estimate(origin, dir, vdistance, rng);
+        let (mut radiance, distance) = self.estimate(origin, dir, vdistance, rng, fetch);
         let n = self.options.samples.max(1);
         for _ in 1..n {
-            radiance += self.estimate(origin, dir, vdistance, rng).0;
+            if fetch.missed {
+                break;
+            }
+            radiance += self.estimate(origin, dir, vdistance, rng, fetch).0;
         }
         radiance /= n as f32;
         // A NaN distance (it cannot arise from finite input, but is never passed on) reads as "escaped".
@@ -154,8 +298,63 @@ impl Tracer {
         }
     }
 
-    fn estimate(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng) -> (Vec3, f32) {
-        let scene = &self.scene;
+    /// The nearest hit: a triangle, or out of core a voxel (LOD, or a proxy
+    /// for missing data, which `fetch` notes).
+    fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
+        let Some(ooc) = &self.ooc else {
+            let h = self.tree.intersect(&self.scene, ray)?;
+            let [a, b, c] = self.scene.vertices(h.tri as usize);
+            return Some(SurfaceHit {
+                t: h.t,
+                ng: (b - a).cross(c - a).normalize(),
+                tri: h.tri,
+                material: Some(self.scene.triangles[h.tri as usize].material),
+                color: Vec3::ZERO,
+                radius: 0.0,
+            });
+        };
+        let h = ooc.intersect(ray, lod, fetch)?;
+        Some(match h.surface {
+            OocSurface::Triangle {
+                id,
+                material,
+                vertices: [a, b, c],
+                ..
+            } => SurfaceHit {
+                t: h.t,
+                ng: (b - a).cross(c - a).normalize(),
+                tri: id,
+                material: Some(material),
+                color: Vec3::ZERO,
+                radius: 0.0,
+            },
+            OocSurface::Voxel { sample, radius, .. } => SurfaceHit {
+                t: h.t,
+                ng: sample.normal,
+                tri: u32::MAX,
+                material: None,
+                color: sample.color,
+                radius,
+            },
+        })
+    }
+
+    /// True if a surface for which `blocks(id, material, vertices)` says so
+    /// (or a voxel) lies within `(0, ray.t_max)`.
+    fn blocked(&self, ray: &Ray, fetch: &mut Fetch, mut blocks: impl FnMut(u32, u32, [Vec3; 3]) -> bool) -> bool {
+        match &self.ooc {
+            None => self.tree.occluded_by(&self.scene, ray, |t| {
+                blocks(
+                    t,
+                    self.scene.triangles[t as usize].material,
+                    self.scene.vertices(t as usize),
+                )
+            }),
+            Some(ooc) => ooc.occluded_by(ray, self.options.lod_secondary, fetch, blocks),
+        }
+    }
+
+    fn estimate(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng, fetch: &mut Fetch) -> (Vec3, f32) {
         let mut ray = Ray::new(origin, dir);
         let (mut l, mut beta) = (Vec3::ZERO, Vec3::ONE);
         let (mut distance, mut path, mut measuring) = (f32::INFINITY, 0.0f32, true);
@@ -166,8 +365,17 @@ impl Tracer {
         // Bounces count scattering events; crossing a pane is not one, but a
         // separate limit on segments stops any path that only crosses panes.
         let mut depth = 0u32;
-        for _segment in 0..self.options.max_bounces.saturating_add(64) {
-            let Some(hit) = self.tree.intersect(scene, &ray) else {
+        for segment in 0..self.options.max_bounces.saturating_add(64) {
+            let lod = if segment == 0 {
+                self.options.lod_primary
+            } else {
+                self.options.lod_secondary
+            };
+            let hit = self.nearest(&ray, lod, fetch);
+            if fetch.missed {
+                break;
+            }
+            let Some(hit) = hit else {
                 l += beta * self.sky.background(ray.dir);
                 let sun = self.sky.sun(ray.dir);
                 if sun.max_element() > 0.0 {
@@ -183,10 +391,15 @@ impl Tracer {
                 }
                 break;
             };
-            let tri = scene.triangles[hit.tri as usize];
-            let m = &scene.materials[tri.material as usize];
-            let [a, b, c] = scene.vertices(hit.tri as usize);
-            let ng = (b - a).cross(c - a).normalize();
+            let proxy;
+            let m = match hit.material {
+                Some(i) => &self.scene.materials[i as usize],
+                None => {
+                    proxy = Material::lambertian(hit.color.to_array());
+                    &proxy
+                }
+            };
+            let ng = hit.ng;
             let p = ray.at(hit.t);
             if measuring {
                 path += hit.t;
@@ -213,8 +426,13 @@ impl Tracer {
             let n = if transmits(m) || cos_o > 0.0 { ng } else { -ng };
             let frame = Frame::new(n);
             let wo = frame.to_local(wo_world);
+            // Rays leaving a voxel start beyond it (Áfra 2012, 6.3).
+            let skip = 2.0 * hit.radius;
             if !is_delta(m) && self.options.light_sampling {
-                l += beta * self.direct(m, p, &frame, wo, rng);
+                l += beta * self.direct(m, p, &frame, wo, skip, rng, fetch);
+                if fetch.missed {
+                    break;
+                }
             }
             let Some(s) = bsdf::sample(m, wo, [rng.f32(), rng.f32(), rng.f32()]) else {
                 break;
@@ -239,7 +457,7 @@ impl Tracer {
                 frame.to_world(s.wi).normalize()
             };
             let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
-            ray = Ray::new(offset_origin(p, side), wi);
+            ray = Ray::new(offset_origin(p, side) + wi * skip, wi);
             if !passed_pane && depth > self.options.roulette_after {
                 let q = beta.max_element().min(0.95);
                 if q.is_nan() || q <= 0.0 || rng.f32() >= q {
@@ -254,20 +472,20 @@ impl Tracer {
     /// How much light gets through along a shadow ray: 1 if nothing is in the
     /// way, the product of pane transmittances if only thin panes are, else 0.
     /// One traversal: panes are noted and skipped, the first opaque hit ends it.
-    fn visibility(&self, ray: Ray) -> Vec3 {
+    fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
         if !self.has_panes {
-            return if self.tree.occluded(&self.scene, &ray) {
-                Vec3::ZERO
-            } else {
-                Vec3::ONE
+            let blocked = match &self.ooc {
+                None => self.tree.occluded(&self.scene, &ray),
+                Some(_) => self.blocked(&ray, fetch, |_, _, _| true),
             };
+            return if blocked { Vec3::ZERO } else { Vec3::ONE };
         }
-        let mut panes: Vec<u32> = Vec::new();
-        let blocked = self.tree.occluded_by(&self.scene, &ray, |tri| {
-            let m = &self.scene.materials[self.scene.triangles[tri as usize].material as usize];
+        let mut panes: Vec<(u32, u32, Vec3)> = Vec::new();
+        let blocked = self.blocked(&ray, fetch, |tri, material, [a, b, c]| {
+            let m = &self.scene.materials[material as usize];
             if matches!(m, Material::Glass { thin: true, .. }) {
-                if !panes.contains(&tri) {
-                    panes.push(tri);
+                if !panes.iter().any(|p| p.0 == tri) {
+                    panes.push((tri, material, (b - a).cross(c - a).normalize()));
                 }
                 false
             } else {
@@ -279,10 +497,8 @@ impl Tracer {
         }
         let dir = ray.dir.normalize();
         let mut through = Vec3::ONE;
-        for tri in panes {
-            let [a, b, c] = self.scene.vertices(tri as usize);
-            let ng = (b - a).cross(c - a).normalize();
-            let m = &self.scene.materials[self.scene.triangles[tri as usize].material as usize];
+        for (_, material, ng) in panes {
+            let m = &self.scene.materials[material as usize];
             through *= pane_transmittance(m, dir.dot(ng).abs()).unwrap_or(Vec3::ZERO);
         }
         through
@@ -290,12 +506,21 @@ impl Tracer {
 
     /// Light arriving directly from one sampled point on the area lights and
     /// one on the sun, MIS-weighted against BSDF sampling.
-    fn direct(&self, m: &Material, p: Vec3, frame: &Frame, wo: Vec3, rng: &mut Rng) -> Vec3 {
-        let scene = &self.scene;
-        let origin = offset_origin(p, frame.n);
+    #[allow(clippy::too_many_arguments)]
+    fn direct(
+        &self,
+        m: &Material,
+        p: Vec3,
+        frame: &Frame,
+        wo: Vec3,
+        skip: f32,
+        rng: &mut Rng,
+        fetch: &mut Fetch,
+    ) -> Vec3 {
+        let origin = offset_origin(p, frame.n) + frame.n * skip;
         let mut l = Vec3::ZERO;
         let (u, uv) = (rng.f32(), rng.f32x2());
-        if let Some(ls) = self.lights.sample(scene, u, uv) {
+        if let Some(ls) = self.lights.sample(u, uv) {
             let to = ls.point - origin;
             let dist2 = to.length_squared();
             let wi_world = to / dist2.sqrt();
@@ -306,11 +531,14 @@ impl Tracer {
                 if e.f_cos.max_element() > 0.0 {
                     // Panes let light through here too, attenuated: BSDF paths
                     // cross them, so light sampling must see through them alike.
-                    let vis = self.visibility(Ray {
-                        origin,
-                        dir: to,
-                        t_max: 1.0 - 1e-4,
-                    });
+                    let vis = self.visibility(
+                        Ray {
+                            origin,
+                            dir: to,
+                            t_max: 1.0 - 1e-4,
+                        },
+                        fetch,
+                    );
                     if vis.max_element() > 0.0 {
                         let pdf_light = ls.pdf_area * dist2 / cos_l;
                         l += vis * e.f_cos * ls.radiance * (power_heuristic(pdf_light, e.pdf) / pdf_light);
@@ -323,7 +551,7 @@ impl Tracer {
             if wi.z > 0.0 {
                 let e = bsdf::eval(m, wo, wi);
                 if e.f_cos.max_element() > 0.0 {
-                    let vis = self.visibility(Ray::new(origin, wi_world));
+                    let vis = self.visibility(Ray::new(origin, wi_world), fetch);
                     l += vis * e.f_cos * sun * (power_heuristic(pdf_sun, e.pdf) / pdf_sun);
                 }
             }

@@ -1,0 +1,264 @@
+//! `holodeck bench scene-file`: the out-of-core scene file against the
+//! in-core tracer on the same landscape, in one run: build time and size
+//! with both codecs, decompression speed, rays per second on primary and
+//! one-bounce diffuse rays with cache budgets of 100%, 30% and 10% of the
+//! decompressed scene (cold and warm), and LOD's frame time and error for
+//! 0.5 to 8 pixels of error.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use holodeck_protocol::View;
+use holodeck_sampler::geom::{offset_origin, Ray};
+use holodeck_sampler::ooc::build::{build_scene_file, BuildSettings, SceneSource, BUILD_BYTES_PER_TRIANGLE};
+use holodeck_sampler::ooc::{Codec, Fetch, OnMissing, OocScene, OocSurface};
+use holodeck_sampler::render::{render, Picture, RenderOptions};
+use holodeck_sampler::scene::gen::{generate, GenParams};
+use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
+use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
+
+use crate::human::{bytes, count};
+
+/// Over the room and across the terrain and forest from 40 m up.
+const VIEW: &str = "-vtv -vp -20 2 40 -vd 1 0 -0.45 -vu 0 0 1 -vh 70 -vv 50";
+
+fn primary(view: &View, n: usize) -> Vec<Ray> {
+    (0..n * n)
+        .filter_map(|i| {
+            let (x, y) = ((i % n) as f64 + 0.5, (i / n) as f64 + 0.5);
+            view.ray(x / n as f64, 1.0 - y / n as f64)
+                .map(|(o, d)| Ray::new(o.as_vec3(), d.as_vec3()))
+        })
+        .collect()
+}
+
+fn bounces(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> Vec<Ray> {
+    let mut rng = Rng::new(1, 0);
+    rays.iter()
+        .filter_map(|r| {
+            let h = tree.intersect(scene, r)?;
+            let [a, b, c] = scene.vertices(h.tri as usize);
+            let mut ng = (b - a).cross(c - a).normalize();
+            if ng.dot(r.dir) > 0.0 {
+                ng = -ng;
+            }
+            let d = Frame::new(ng).to_world(cosine_hemisphere(rng.f32x2()));
+            Some(Ray::new(offset_origin(r.at(h.t), ng), d))
+        })
+        .collect()
+}
+
+/// Traces the rays as a sampler does (batches of 4096; rays that met missing
+/// blocks are traced again once fetched, loaded on the spot after 3 rounds);
+/// returns rays/s and how many hits differ from `want`.
+fn trace_ooc(file: &OocScene, rays: &[Ray], want: &[Option<f32>]) -> (f64, usize) {
+    let start = Instant::now();
+    let mut wrong = 0;
+    for (chunk, want) in rays.chunks(4096).zip(want.chunks(4096)) {
+        let cache = file.cache();
+        let batch = cache.begin_batch();
+        let mut todo: Vec<usize> = (0..chunk.len()).collect();
+        let mut waiting = true;
+        for round in 0..4 {
+            let on_missing = if round < 3 && waiting {
+                OnMissing::Proxy
+            } else {
+                OnMissing::Load
+            };
+            let mut again = Vec::new();
+            let mut requests = Vec::new();
+            for k in todo {
+                let mut fetch = Fetch {
+                    on_missing,
+                    requests: Vec::new(),
+                    missed: false,
+                };
+                let h = file.intersect(&chunk[k], 0.0, &mut fetch);
+                if fetch.missed {
+                    requests.extend(fetch.requests);
+                    again.push(k);
+                } else if h.map(|h| h.t) != want[k] {
+                    wrong += 1;
+                }
+            }
+            todo = again;
+            if todo.is_empty() {
+                break;
+            }
+            cache.request(&requests);
+            requests.sort_unstable();
+            requests.dedup();
+            waiting = cache.wait_resident(&requests, Duration::from_secs(2));
+        }
+        cache.end_batch(batch);
+    }
+    (rays.len() as f64 / start.elapsed().as_secs_f64(), wrong)
+}
+
+fn relative_rmse(a: &Picture, reference: &Picture) -> f64 {
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (x, y) in a.pixels.iter().zip(&reference.pixels) {
+        for c in 0..3 {
+            num += f64::from(x[c] - y[c]).powi(2);
+            den += f64::from(y[c]).powi(2);
+        }
+    }
+    (num / den.max(1e-30)).sqrt()
+}
+
+/// Runs the benchmark on a landscape of `triangles` triangles, files in `dir`.
+pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    println!(
+        "holodeck bench scene-file: landscape of {} triangles, {pixels} x {pixels} rays, one tracing thread",
+        count(triangles)
+    );
+    let scene = generate(
+        "landscape",
+        &GenParams {
+            triangles: Some(triangles),
+            ..GenParams::default()
+        },
+    )?;
+    let n = scene.triangles.len() as u64;
+    let t0 = Instant::now();
+    let tree = KdTree::build(&scene, &Default::default());
+    let in_core_build = t0.elapsed().as_secs_f64();
+    let tree_bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + tree.stats().bytes;
+    println!();
+    println!(
+        "| build | memory budget | chunks | time (2 cores) | decompressed | file | ratio | decompression (1 core) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    println!(
+        "| in-core kd-tree | all | 1 | {in_core_build:.2} s | {} (tree and mesh) | — | — | — |",
+        bytes(tree_bytes as u64)
+    );
+    let memory = (n / 4).max(1) * BUILD_BYTES_PER_TRIANGLE;
+    let mut lz4 = None;
+    for codec in [Codec::Lz4, Codec::Zstd] {
+        let path = dir.join(format!("landscape-{}.hds", codec.name()));
+        let settings = BuildSettings {
+            memory,
+            codec,
+            ..BuildSettings::default()
+        };
+        let r = build_scene_file(&SceneSource::new(scene.clone()), &path, &settings, &|_, _, _| {})?;
+        let file = OocScene::open(&path, Some(1), 0)?;
+        let t = Instant::now();
+        for id in 0..file.header().blocks {
+            file.cache().read(id)?;
+        }
+        let speed = r.decompressed_bytes as f64 / t.elapsed().as_secs_f64() / 1e6;
+        println!(
+            "| {} | {} (a quarter of the scene) | {} | {:.2} s | {} ({:.1} B/tri) | {} | {:.1}% | {speed:.0} MB/s |",
+            codec.name(),
+            bytes(memory),
+            r.chunks,
+            r.seconds,
+            bytes(r.decompressed_bytes),
+            r.decompressed_bytes as f64 / n as f64,
+            bytes(r.file_bytes),
+            100.0 * r.compressed_bytes as f64 / r.decompressed_bytes as f64,
+        );
+        if codec == Codec::Lz4 {
+            lz4 = Some((path, r.decompressed_bytes));
+        } else if !keep {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
+    let Some((path, decompressed)) = lz4 else { return Ok(()) };
+
+    let view = View::parse(VIEW)?;
+    let prim = primary(&view, pixels as usize);
+    let bounce = bounces(&tree, &scene, &prim);
+    println!();
+    println!("| rays | in core (baseline) | budget | cold | warm | warm / in core | hits differing |");
+    println!("|---|---|---|---|---|---|---|");
+    for (label, rays) in [("primary", &prim), ("diffuse bounce", &bounce)] {
+        let t = Instant::now();
+        let want: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(&scene, r).map(|h| h.t)).collect();
+        let base = rays.len() as f64 / t.elapsed().as_secs_f64();
+        for share in [1.0, 0.3, 0.1] {
+            let budget = ((decompressed as f64 * share) as usize).max(1 << 16);
+            let file = OocScene::open(&path, Some(budget), 2)?;
+            let (cold, w1) = trace_ooc(&file, rays, &want);
+            let (warm, w2) = trace_ooc(&file, rays, &want);
+            let st = file.cache().stats();
+            println!(
+                "| {label}, {} | {:.2} M/s | {:.0}% ({}; {} resident) | {:.2} M/s | {:.2} M/s | {:.2} | {} |",
+                count(rays.len() as u64),
+                base / 1e6,
+                share * 100.0,
+                bytes(budget as u64),
+                bytes(st.resident_bytes as u64),
+                cold / 1e6,
+                warm / 1e6,
+                warm / base,
+                w1 + w2
+            );
+        }
+    }
+
+    // LOD: frame time and error against LOD off, all blocks resident.
+    let file = Arc::new(OocScene::open(&path, None, 2)?);
+    let (w, h) = (pixels, pixels * 5 / 7);
+    let opts = RenderOptions {
+        width: w,
+        height: h,
+        spp: 4,
+        seed: 5,
+    };
+    let frame = |poe: f64| -> Result<(Picture, f64, u64)> {
+        let tracer = Tracer::out_of_core(
+            Arc::clone(&file),
+            TraceOptions {
+                max_bounces: 1,
+                lod_primary: super::render::lod_ratio(poe, &view, w),
+                lod_secondary: super::render::lod_ratio(poe, &view, w),
+                ..TraceOptions::default()
+            },
+        );
+        // Once to load every block, once to time.
+        render(&tracer, &view, &opts, &|_, _| {})?;
+        let t = Instant::now();
+        let p = render(&tracer, &view, &opts, &|_, _| {})?;
+        Ok((p, t.elapsed().as_secs_f64(), file.cache().stats().resident_bytes as u64))
+    };
+    let (exact, exact_time, _) = frame(0.0)?;
+    let voxel_hits = |poe: f64| {
+        let c = super::render::lod_ratio(poe, &view, w);
+        prim.iter()
+            .filter(|r| {
+                matches!(
+                    file.intersect(r, c, &mut Fetch::load()),
+                    Some(holodeck_sampler::ooc::OocHit {
+                        surface: OocSurface::Voxel { .. },
+                        ..
+                    })
+                )
+            })
+            .count() as f64
+            / prim.len() as f64
+    };
+    println!();
+    println!("| pixels of error | frame ({w} x {h}, 4 spp, 1 bounce, 2 threads) | frame / LOD off | relative RMSE against LOD off | primary rays ending at a voxel |");
+    println!("|---|---|---|---|---|");
+    println!("| off | {exact_time:.3} s | 1.00 | 0 | 0% |");
+    for poe in [0.5, 1.0, 2.0, 4.0, 8.0] {
+        let (p, t, _) = frame(poe)?;
+        println!(
+            "| {poe} | {t:.3} s | {:.2} | {:.4} | {:.1}% |",
+            t / exact_time,
+            relative_rmse(&p, &exact),
+            100.0 * voxel_hits(poe)
+        );
+    }
+    if !keep {
+        drop(file);
+        let _ = std::fs::remove_file(&path);
+    }
+    Ok(())
+}

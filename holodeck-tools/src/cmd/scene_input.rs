@@ -1,0 +1,82 @@
+//! What the commands that trace accept as a scene: a scene file, a built-in
+//! generator, or a built scene file (`.hds`) traced out of core through a
+//! block cache of `--scene-memory` bytes.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use holodeck_protocol::Section;
+use holodeck_sampler::ooc::{is_scene_file, OocScene};
+use holodeck_sampler::scene::hash::content_hash;
+use holodeck_sampler::{Scene, TraceOptions, Tracer};
+use holodeck_server::settings::parse_size;
+
+/// Fetcher threads that load blocks of a scene file.
+pub const FETCHERS: usize = 2;
+
+/// A scene ready to become a tracer.
+pub enum SceneInput {
+    /// Triangles in memory.
+    InCore(Box<Scene>),
+    /// An open scene file.
+    File(Arc<OocScene>),
+}
+
+/// Parses a `--scene-memory` value (K, M, G suffixes).
+pub fn parse_scene_memory(s: &str) -> Result<u64, String> {
+    parse_size(s).map_err(|e| e.to_string())
+}
+
+impl SceneInput {
+    /// Loads `spec`: a `.hds` file opens with a cache of `memory` bytes (all of
+    /// its blocks if not given); anything else loads into memory.
+    pub fn open(spec: &str, triangles: Option<u64>, memory: Option<u64>) -> Result<SceneInput> {
+        let path = Path::new(spec);
+        if !spec.starts_with("builtin:") && is_scene_file(path) {
+            let budget = memory.map(|m| usize::try_from(m).unwrap_or(usize::MAX));
+            let ooc = OocScene::open(path, budget, FETCHERS).with_context(|| format!("opening scene file {spec}"))?;
+            tracing::info!(
+                "{spec}: {} triangles in {} blocks ({} MB decompressed), cache {} MB",
+                ooc.header().triangles,
+                ooc.header().blocks,
+                ooc.header().decompressed_bytes >> 20,
+                ooc.cache().budget() >> 20
+            );
+            return Ok(SceneInput::File(Arc::new(ooc)));
+        }
+        Ok(SceneInput::InCore(Box::new(super::render::load(spec, triangles)?)))
+    }
+
+    /// The scene's content hash.
+    pub fn hash(&self) -> String {
+        match self {
+            SceneInput::InCore(s) => content_hash(s),
+            SceneInput::File(f) => f.header().content_hash.clone(),
+        }
+    }
+
+    /// The sections the scene defines.
+    pub fn sections(&self) -> &[Section] {
+        match self {
+            SceneInput::InCore(s) => &s.sections,
+            SceneInput::File(f) => &f.header().sections,
+        }
+    }
+
+    /// Triangles in the scene.
+    pub fn triangles(&self) -> u64 {
+        match self {
+            SceneInput::InCore(s) => s.triangles.len() as u64,
+            SceneInput::File(f) => f.header().triangles,
+        }
+    }
+
+    /// The tracer (builds the kd-tree of an in-core scene).
+    pub fn tracer(self, options: TraceOptions) -> Tracer {
+        match self {
+            SceneInput::InCore(s) => Tracer::new(*s, options),
+            SceneInput::File(f) => Tracer::out_of_core(f, options),
+        }
+    }
+}

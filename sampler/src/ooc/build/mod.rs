@@ -1,0 +1,510 @@
+//! Building a scene file out of core (Áfra 2012, 4.1 and 7; Wald 2004, 4):
+//! the source is streamed once to find its bounds, emitters and size, and
+//! once more to sort its triangles into chunk files at spatial medians (a
+//! triangle goes to every chunk its bounds touch); chunks still too big for
+//! the memory budget are split again. Each chunk is then built in core (the
+//! binned-SAH kd-tree, in parallel), given voxels, cut into treelets, packed
+//! into blocks and compressed in parallel. The median splits above the chunks,
+//! with empty-space cuts, become the top of the tree. The file is written
+//! beside its final name and renamed when complete; its work folder is
+//! cleared on start, so a killed build simply runs again.
+
+mod chunk;
+pub mod source;
+mod spill;
+mod top;
+
+use std::fs::{self, File};
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::block::{Block, MAX_BLOCK_ITEMS};
+use super::codec::Codec;
+use super::format::{encode_trailer, Emitter, Header, HeaderLink, IndexEntry};
+use super::treelet::{decompose, split_box};
+use super::OocError;
+use crate::geom::Aabb;
+pub use chunk::shade_color;
+use chunk::Chunk;
+pub use source::{LandscapeSource, RawTri, SceneMeta, SceneSource, StreamHash, TriangleSource};
+use spill::Spill;
+use top::{TopNode, TopTree};
+
+/// Memory the in-core build needs per triangle (scene, references, nodes and
+/// partitions at their peak), measured on the landscape.
+pub const BUILD_BYTES_PER_TRIANGLE: u64 = 400;
+/// Most chunk files written at once in the partition pass.
+const MAX_FIRST_CHUNKS: usize = 256;
+
+/// How to build.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildSettings {
+    /// Memory the build may use, bytes.
+    pub memory: u64,
+    /// Block codec.
+    pub codec: Codec,
+    /// Target decompressed block size, bytes.
+    pub block_bytes: usize,
+}
+
+impl Default for BuildSettings {
+    fn default() -> Self {
+        BuildSettings {
+            memory: 2 << 30,
+            codec: Codec::Lz4,
+            block_bytes: 64 << 10,
+        }
+    }
+}
+
+/// What a build made.
+#[derive(Clone, Debug, Default)]
+pub struct BuildReport {
+    /// Triangles.
+    pub triangles: u64,
+    /// Triangle references in leaves.
+    pub references: u64,
+    /// Chunks built in core.
+    pub chunks: usize,
+    /// Most triangles in one chunk.
+    pub largest_chunk: u64,
+    /// Blocks.
+    pub blocks: u32,
+    /// LOD levels.
+    pub levels: u32,
+    /// Decompressed bytes of all blocks.
+    pub decompressed_bytes: u64,
+    /// Compressed bytes of all blocks.
+    pub compressed_bytes: u64,
+    /// Size of the file.
+    pub file_bytes: u64,
+    /// Seconds spent streaming and partitioning.
+    pub partition_seconds: f64,
+    /// Seconds spent building chunks (trees, voxels, blocks, compression).
+    pub chunk_seconds: f64,
+    /// Seconds in all.
+    pub seconds: f64,
+}
+
+/// Progress of a build: phase name, done, total.
+pub type Progress<'a> = &'a (dyn Fn(&str, u64, u64) + Sync);
+
+struct Blocks {
+    file: BufWriter<File>,
+    path: PathBuf,
+    at: u64,
+    entries: Vec<IndexEntry>,
+    codec: Codec,
+    raw: u64,
+    references: u64,
+}
+
+impl Blocks {
+    fn add(&mut self, blocks: Vec<(u16, Block)>) -> Result<(), OocError> {
+        for (_, b) in &blocks {
+            if b.verts.len() > MAX_BLOCK_ITEMS || b.tris.len() > MAX_BLOCK_ITEMS {
+                return Err(OocError::Build(format!(
+                    "a leaf holds too many triangles for one block ({} vertices)",
+                    b.verts.len()
+                )));
+            }
+            self.references += b.list.len() as u64;
+        }
+        let codec = self.codec;
+        let packed: Vec<(u16, u32, Vec<u8>)> = blocks
+            .into_par_iter()
+            .map(|(level, b)| {
+                let raw = b.encode();
+                (level, raw.len() as u32, codec.compress(&raw))
+            })
+            .collect();
+        for (level, len, bytes) in packed {
+            self.file.write_all(&bytes).map_err(|e| OocError::io(&self.path, e))?;
+            self.entries.push(IndexEntry {
+                offset: self.at,
+                packed: bytes.len() as u32,
+                len,
+                crc: crc32c::crc32c(&bytes),
+                level,
+            });
+            self.at += bytes.len() as u64;
+            self.raw += u64::from(len);
+        }
+        Ok(())
+    }
+}
+
+fn midpoint(b: &Aabb) -> (usize, f32) {
+    let d = b.hi - b.lo;
+    let axis = if d.x >= d.y && d.x >= d.z {
+        0
+    } else if d.y >= d.z {
+        1
+    } else {
+        2
+    };
+    (axis, 0.5 * (b.lo[axis] + b.hi[axis]))
+}
+
+/// Splits node `node` (box `b`) of the top tree into `2^levels` chunk files.
+fn make_chunks(
+    top: &mut TopTree,
+    node: usize,
+    b: Aabb,
+    depth: usize,
+    levels: usize,
+    dir: &Path,
+    out: &mut Vec<Spill>,
+) -> Result<(), OocError> {
+    if levels == 0 {
+        let path = dir.join(format!("chunk-{}.tri", top.nodes.len() + out.len()));
+        out.push(Spill::create(path, b, depth, node)?);
+        return Ok(());
+    }
+    let (axis, split) = midpoint(&b);
+    let l = top.push(TopNode::Empty);
+    let r = top.push(TopNode::Empty);
+    top.nodes[node] = TopNode::Inner {
+        axis,
+        split,
+        children: [l, r],
+    };
+    let (lb, rb) = split_box(&b, axis, split);
+    make_chunks(top, l, lb, depth + 1, levels - 1, dir, out)?;
+    make_chunks(top, r, rb, depth + 1, levels - 1, dir, out)
+}
+
+/// Sends a triangle to every chunk whose box its bounds touch.
+fn route(
+    top: &TopTree,
+    spills: &mut [Spill],
+    slot_of: &[usize],
+    t: &RawTri,
+    root: usize,
+    root_box: &Aabb,
+) -> Result<(), OocError> {
+    let tb = t.bounds();
+    let mut stack = vec![(root, *root_box)];
+    while let Some((i, b)) = stack.pop() {
+        match &top.nodes[i] {
+            TopNode::Inner { axis, split, children } => {
+                let (lb, rb) = split_box(&b, *axis, *split);
+                if tb.lo[*axis] <= *split {
+                    stack.push((children[0], lb));
+                }
+                if tb.hi[*axis] >= *split {
+                    stack.push((children[1], rb));
+                }
+            }
+            _ => {
+                let s = slot_of[i];
+                if s != usize::MAX {
+                    spills[s].push(t, &tb)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Builds `out` from `source` within `settings.memory`.
+pub fn build_scene_file(
+    source: &dyn TriangleSource,
+    out: &Path,
+    settings: &BuildSettings,
+    progress: Progress<'_>,
+) -> Result<BuildReport, OocError> {
+    let start = Instant::now();
+    let meta = source.meta().clone();
+    if meta.materials.len() > usize::from(u16::MAX) {
+        return Err(OocError::Build(
+            "too many materials for a scene file (65,535 at most)".into(),
+        ));
+    }
+    let work = PathBuf::from(format!("{}.build", out.display()));
+    let partial = PathBuf::from(format!("{}.partial", out.display()));
+    // A build that was killed left these: start over.
+    let _ = fs::remove_dir_all(&work);
+    let _ = fs::remove_file(&partial);
+    fs::create_dir_all(&work).map_err(|e| OocError::io(&work, e))?;
+    let result = build_in(source, &meta, out, &work, &partial, settings, progress, start);
+    let _ = fs::remove_dir_all(&work);
+    if result.is_err() {
+        let _ = fs::remove_file(&partial);
+    }
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn build_in(
+    source: &dyn TriangleSource,
+    meta: &SceneMeta,
+    out: &Path,
+    work: &Path,
+    partial: &Path,
+    settings: &BuildSettings,
+    progress: Progress<'_>,
+    start: Instant,
+) -> Result<BuildReport, OocError> {
+    // Pass 1: size, bounds, emitters, and the hash of a stream with no other identity.
+    let mut count = 0u64;
+    let mut bounds = Aabb::EMPTY;
+    let mut emitters = Vec::new();
+    let mut hash = source.content_hash().is_none().then(StreamHash::default);
+    let emissive: Vec<bool> = meta
+        .materials
+        .iter()
+        .map(|m| m.emission().iter().any(|&e| e > 0.0))
+        .collect();
+    source.stream(&mut |batch| {
+        for t in batch {
+            if t.material as usize >= meta.materials.len() {
+                return Err(OocError::Build(format!(
+                    "triangle {} names material {} of {}",
+                    t.id,
+                    t.material,
+                    meta.materials.len()
+                )));
+            }
+            if !t.v.iter().all(|p| p.is_finite()) {
+                return Err(OocError::Build(format!(
+                    "triangle {} has a vertex that is not finite",
+                    t.id
+                )));
+            }
+            for p in t.v {
+                bounds.grow(p);
+            }
+            if emissive[t.material as usize] {
+                emitters.push(Emitter {
+                    id: t.id,
+                    vertices: t.v.map(|p| p.to_array()),
+                    material: t.material,
+                });
+            }
+        }
+        if let Some(h) = hash.as_mut() {
+            h.update(batch);
+        }
+        count += batch.len() as u64;
+        progress("scanning", count, 0);
+        Ok(())
+    })?;
+    let content_hash = match hash {
+        Some(h) => h.finish(meta),
+        None => source.content_hash().unwrap_or_default(),
+    };
+    if count == 0 {
+        bounds = Aabb {
+            lo: Vec3::ZERO,
+            hi: Vec3::ZERO,
+        };
+    }
+
+    let limit = (settings.memory / BUILD_BYTES_PER_TRIANGLE).max(1024);
+    let mut top = TopTree::default();
+    let root = top.push(TopNode::Empty);
+    let mut blocks = Blocks {
+        file: BufWriter::new(File::create(work.join("blocks")).map_err(|e| OocError::io(work, e))?),
+        path: work.join("blocks"),
+        at: 0,
+        entries: Vec::new(),
+        codec: settings.codec,
+        raw: 0,
+        references: 0,
+    };
+    let mut report = BuildReport {
+        triangles: count,
+        ..BuildReport::default()
+    };
+    let build_chunk =
+        |tris: Vec<RawTri>, b: Aabb, depth: usize, blocks: &mut Blocks| -> Result<super::Link, OocError> {
+            let chunk = Chunk::build(&tris, b, &meta.materials);
+            drop(tris);
+            let first = blocks.entries.len() as u32;
+            let d = decompose(&chunk, 0, b, first, (depth / 3 + 1) as u16, settings.block_bytes);
+            drop(chunk);
+            blocks.add(d.blocks)?;
+            Ok(d.root)
+        };
+
+    let partition_start = Instant::now();
+    if count <= limit {
+        let mut tris = Vec::with_capacity(count as usize);
+        source.stream(&mut |batch| {
+            tris.extend_from_slice(batch);
+            Ok(())
+        })?;
+        report.partition_seconds = partition_start.elapsed().as_secs_f64();
+        progress("building", 0, count);
+        let t0 = Instant::now();
+        let link = build_chunk(tris, bounds, 0, &mut blocks)?;
+        top.nodes[root] = TopNode::Chunk(link);
+        report.chunks = 1;
+        report.largest_chunk = count;
+        report.chunk_seconds = t0.elapsed().as_secs_f64();
+        progress("building", count, count);
+    } else {
+        // Pass 2: sort into chunk files at spatial medians.
+        let levels = ((count as f64 / limit as f64).log2().ceil() as usize + 1).min(MAX_FIRST_CHUNKS.ilog2() as usize);
+        let mut spills = Vec::new();
+        make_chunks(&mut top, root, bounds, 0, levels, work, &mut spills)?;
+        let mut slot_of = vec![usize::MAX; top.nodes.len()];
+        for (k, s) in spills.iter().enumerate() {
+            slot_of[s.node] = k;
+        }
+        let mut routed = 0u64;
+        source.stream(&mut |batch| {
+            for t in batch {
+                route(&top, &mut spills, &slot_of, t, root, &bounds)?;
+            }
+            routed += batch.len() as u64;
+            progress("partitioning", routed, count);
+            Ok(())
+        })?;
+        for s in &mut spills {
+            s.close()?;
+        }
+        report.partition_seconds = partition_start.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let mut queue: Vec<Spill> = spills.into_iter().rev().collect();
+        let mut built = 0u64;
+        while let Some(s) = queue.pop() {
+            if s.count > limit && s.depth < 40 {
+                // Too big for memory: split at its spatial median, unless that separates nothing.
+                let (axis, split) = midpoint(&s.bounds);
+                let (lb, rb) = split_box(&s.bounds, axis, split);
+                let l = top.push(TopNode::Empty);
+                let r = top.push(TopNode::Empty);
+                let mut halves = [
+                    Spill::create(work.join(format!("chunk-{l}.tri")), lb, s.depth + 1, l)?,
+                    Spill::create(work.join(format!("chunk-{r}.tri")), rb, s.depth + 1, r)?,
+                ];
+                spill::for_each(&s.path, |t| {
+                    let tb = t.bounds();
+                    if tb.lo[axis] <= split {
+                        halves[0].push(&t, &tb)?;
+                    }
+                    if tb.hi[axis] >= split {
+                        halves[1].push(&t, &tb)?;
+                    }
+                    Ok(())
+                })?;
+                s.remove();
+                let [mut a, mut b] = halves;
+                a.close()?;
+                b.close()?;
+                if a.count > s.count * 9 / 10 && b.count > s.count * 9 / 10 {
+                    tracing::warn!("a chunk of {} triangles does not split; building it whole", s.count);
+                    a.depth = 40;
+                    b.depth = 40;
+                }
+                top.nodes[s.node] = TopNode::Inner {
+                    axis,
+                    split,
+                    children: [l, r],
+                };
+                queue.push(b);
+                queue.push(a);
+                continue;
+            }
+            let tris = s.read_all()?;
+            s.remove();
+            report.chunks += 1;
+            report.largest_chunk = report.largest_chunk.max(s.count);
+            let link = if tris.is_empty() {
+                None
+            } else {
+                Some(build_chunk(tris, s.bounds, s.depth, &mut blocks)?)
+            };
+            top.nodes[s.node] = link.map_or(TopNode::Empty, TopNode::Chunk);
+            built += s.count;
+            progress("building", built.min(count), count);
+            // Empty space around the chunk's triangles is cut off above it.
+            if link.is_some() {
+                top.cut_empty(s.node, &s.bounds, &s.content);
+            }
+        }
+        report.chunk_seconds = t0.elapsed().as_secs_f64();
+    }
+
+    // The top of the tree, over the chunks.
+    top.compute_voxels(root, &bounds);
+    let first = blocks.entries.len() as u32;
+    let d = decompose(&top, root, bounds, first, 0, settings.block_bytes);
+    blocks.add(d.blocks)?;
+    let root_link = d.root;
+    blocks.file.flush().map_err(|e| OocError::io(&blocks.path, e))?;
+
+    // The file: header, blocks by level, index, trailer.
+    let levels = blocks.entries.iter().map(|e| u32::from(e.level)).max().unwrap_or(0) + 1;
+    let header = Header {
+        codec: settings.codec,
+        content_hash,
+        triangles: count,
+        references: blocks.references,
+        skipped: source.skipped(),
+        blocks: blocks.entries.len() as u32,
+        levels,
+        decompressed_bytes: blocks.raw,
+        bounds: [bounds.lo.to_array(), bounds.hi.to_array()],
+        root: HeaderLink::from_link(&root_link),
+        materials: meta.materials.clone(),
+        material_names: meta.material_names.clone(),
+        sky: meta.sky.clone(),
+        sections: meta.sections.clone(),
+        emitters,
+    };
+    let head = header.encode()?;
+    let mut order: Vec<usize> = (0..blocks.entries.len()).collect();
+    order.sort_by_key(|&i| (blocks.entries[i].level, i));
+    let mut src = File::open(&blocks.path).map_err(|e| OocError::io(&blocks.path, e))?;
+    let file = File::create(partial).map_err(|e| OocError::io(partial, e))?;
+    let mut w = BufWriter::with_capacity(1 << 20, file);
+    let io = |e| OocError::io(partial, e);
+    w.write_all(&head).map_err(io)?;
+    let mut at = head.len() as u64;
+    let mut index = blocks.entries.clone();
+    let mut buf = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        let e = blocks.entries[i];
+        buf.resize(e.packed as usize, 0);
+        src.seek(SeekFrom::Start(e.offset))
+            .map_err(|e| OocError::io(&blocks.path, e))?;
+        src.read_exact(&mut buf).map_err(|e| OocError::io(&blocks.path, e))?;
+        w.write_all(&buf).map_err(io)?;
+        index[i].offset = at;
+        at += u64::from(e.packed);
+        if k % 4096 == 0 {
+            progress("writing", k as u64, order.len() as u64);
+        }
+    }
+    let mut raw_index = Vec::with_capacity(index.len() * super::format::INDEX_ENTRY);
+    for e in &index {
+        e.encode(&mut raw_index);
+    }
+    w.write_all(&raw_index).map_err(io)?;
+    w.write_all(&encode_trailer(at, index.len() as u64, crc32c::crc32c(&raw_index)))
+        .map_err(io)?;
+    let file = w.into_inner().map_err(|e| OocError::io(partial, e.into_error()))?;
+    file.sync_all().map_err(io)?;
+    drop(file);
+    fs::rename(partial, out).map_err(|e| OocError::io(out, e))?;
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if let Ok(d) = File::open(parent) {
+            let _ = d.sync_all();
+        }
+    }
+    report.references = blocks.references;
+    report.blocks = index.len() as u32;
+    report.levels = levels;
+    report.decompressed_bytes = blocks.raw;
+    report.compressed_bytes = blocks.at;
+    report.file_bytes = fs::metadata(out).map(|m| m.len()).unwrap_or(0);
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}

@@ -1,0 +1,191 @@
+//! The out-of-core scene (`.hds` files): a kd-tree over any number of
+//! triangles, decomposed into treelets with LOD voxels, packed into compressed
+//! blocks ordered by level (Áfra 2012, sections 4–6), built out of core within
+//! a memory budget (`build`), and traced through a cache of decompressed
+//! blocks of fixed budget that fetcher threads fill (`cache`, `traverse`).
+//! Voxels stand in for subtrees that are small enough as seen from the ray
+//! (LOD) or not loaded yet; callers learn which, so that nothing traced from a
+//! proxy for missing data is ever stored as a holodeck ray.
+
+pub mod block;
+pub mod build;
+pub mod cache;
+pub mod codec;
+pub mod format;
+pub mod node;
+pub mod traverse;
+pub mod treelet;
+pub mod voxel;
+
+#[cfg(test)]
+mod tests;
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use glam::Vec3;
+
+pub use block::{Block, Link};
+pub use build::{build_scene_file, BuildReport, BuildSettings};
+pub use cache::{Cache, CacheStats};
+pub use codec::Codec;
+pub use format::Header;
+pub use traverse::{Fetch, OnMissing, OocHit, OocSurface};
+
+use crate::geom::Aabb;
+use crate::scene::Scene;
+
+/// File name extension of scene files.
+pub const EXTENSION: &str = "hds";
+
+/// Why a scene file cannot be built, opened or read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OocError {
+    /// The file does not start like a scene file.
+    #[error("not a holodeck scene file (no HDSCENE magic)")]
+    NotASceneFile,
+    /// Written by another version of the layout.
+    #[error("scene file version {0}; this holodeck reads version {version}", version = format::VERSION)]
+    Version(u32),
+    /// The file ends early.
+    #[error("the file is truncated: {0} is missing or cut short")]
+    Truncated(&'static str),
+    /// A checksum does not match.
+    #[error("checksum mismatch in {0}: the file is corrupt")]
+    Checksum(String),
+    /// The header does not parse or is inconsistent.
+    #[error("bad header: {0}")]
+    Header(String),
+    /// A block fails its checks.
+    #[error("block {block}: {message}")]
+    Block {
+        /// The block.
+        block: u32,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading or writing failed.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The system's message.
+        message: String,
+    },
+    /// The scene cannot be built.
+    #[error("{0}")]
+    Build(String),
+}
+
+impl OocError {
+    /// An I/O error on `path`.
+    pub fn io(path: &Path, e: std::io::Error) -> OocError {
+        OocError::Io {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        }
+    }
+}
+
+/// True if `path` names a scene file (by its extension).
+pub fn is_scene_file(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case(EXTENSION))
+}
+
+/// An open scene file: header, root, and the block cache with its fetchers.
+pub struct OocScene {
+    header: Header,
+    root: Link,
+    bounds: Aabb,
+    fetchers: cache::Fetchers,
+    corrupt: AtomicU64,
+}
+
+impl OocScene {
+    /// Opens a scene file with a cache of `budget` decompressed bytes (by
+    /// default room for every block) and `fetchers` fetcher threads. Checks
+    /// the header, index and trailer; blocks are checked as they are loaded.
+    pub fn open(path: &Path, budget: Option<usize>, fetchers: usize) -> Result<OocScene, OocError> {
+        let file = File::open(path).map_err(|e| OocError::io(path, e))?;
+        // SAFETY: the file is opened read-only; a scene file is never modified
+        // in place (the builder writes a new file and renames it over the old).
+        let mmap = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| OocError::io(path, e))?;
+        let (header, blocks_start) = format::Header::decode(&mmap)?;
+        let index = format::decode_index(&mmap, blocks_start, header.blocks)?;
+        let root = header
+            .root
+            .to_link()
+            .ok_or_else(|| OocError::Header("root link".into()))?;
+        let [lo, hi] = header.bounds;
+        let bounds = Aabb {
+            lo: Vec3::from(lo),
+            hi: Vec3::from(hi),
+        };
+        if !(bounds.lo.is_finite() && bounds.hi.is_finite()) {
+            return Err(OocError::Header("scene bounds are not finite".into()));
+        }
+        let cache = Arc::new(Cache::new(
+            mmap,
+            index,
+            header.codec,
+            header.materials.len() as u32,
+            budget
+                .unwrap_or_else(|| {
+                    usize::try_from(header.decompressed_bytes)
+                        .unwrap_or(usize::MAX)
+                        .saturating_add(16 << 20)
+                })
+                .max(1),
+        ));
+        Ok(OocScene {
+            header,
+            root,
+            bounds,
+            fetchers: cache::Fetchers::start(cache, fetchers),
+            corrupt: AtomicU64::new(0),
+        })
+    }
+
+    /// The header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+    /// The block cache.
+    pub fn cache(&self) -> &Arc<Cache> {
+        self.fetchers.cache()
+    }
+    /// The link to the root treelet.
+    pub fn root(&self) -> &Link {
+        &self.root
+    }
+    /// Scene bounds.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+    /// Links that pointed past the end of a block (corrupt files only).
+    pub fn corrupt_links(&self) -> u64 {
+        self.corrupt.load(Ordering::Relaxed)
+    }
+    fn note_corrupt(&self, node: u32) {
+        if self.corrupt.fetch_add(1, Ordering::Relaxed) == 0 {
+            tracing::error!("scene file: a link names node {node} past the end of its block; the file is corrupt");
+        }
+    }
+
+    /// The scene without its triangles: materials, sky, sections and the
+    /// emitters (so lights can be sampled with no block loaded).
+    pub fn shell(&self) -> Scene {
+        let h = &self.header;
+        let mut s = Scene {
+            materials: h.materials.clone(),
+            material_names: h.material_names.clone(),
+            sky: h.sky.clone(),
+            sections: h.sections.clone(),
+            ..Scene::default()
+        };
+        s.stats.triangles = h.triangles;
+        s
+    }
+}

@@ -1,0 +1,357 @@
+//! End-to-end checks of scene files: built out of core, traced exactly like
+//! the in-core tracer, converging from a cold cache, refusing damage.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+
+use super::build::{
+    build_scene_file, BuildSettings, LandscapeSource, SceneSource, TriangleSource, BUILD_BYTES_PER_TRIANGLE,
+};
+use super::*;
+use crate::accel::{BuildOptions, KdTree};
+use crate::geom::Ray;
+use crate::scene::gen::{generate, GenParams};
+use crate::shade::lights::Lights;
+
+fn landscape(triangles: u64) -> Scene {
+    generate(
+        "landscape",
+        &GenParams {
+            triangles: Some(triangles),
+            ..GenParams::default()
+        },
+    )
+    .unwrap()
+}
+
+fn build(scene: &Scene, dir: &Path, memory_triangles: u64, codec: Codec) -> (PathBuf, BuildReport) {
+    let out = dir.join("scene.hds");
+    let settings = BuildSettings {
+        memory: memory_triangles * BUILD_BYTES_PER_TRIANGLE,
+        codec,
+        block_bytes: 16 << 10,
+    };
+    let report = build_scene_file(&SceneSource::new(scene.clone()), &out, &settings, &|_, _, _| {}).unwrap();
+    (out, report)
+}
+
+/// Rays from inside the room, from above the terrain and from far away.
+fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<Ray> {
+    let (lo, hi) = scene.bounds();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    (0..n)
+        .map(|k| {
+            let origin = match k % 3 {
+                0 => Vec3::new(
+                    rng.gen_range(0.5..5.5),
+                    rng.gen_range(0.5..3.5),
+                    rng.gen_range(0.3..2.4),
+                ),
+                1 => Vec3::new(rng.gen_range(lo.x..hi.x), rng.gen_range(lo.y..hi.y), hi.z + 5.0),
+                _ => Vec3::new(rng.gen_range(lo.x..hi.x), lo.y - 50.0, rng.gen_range(lo.z..hi.z + 30.0)),
+            };
+            let dir = Vec3::new(
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+            );
+            let dir = match k % 3 {
+                1 => Vec3::new(dir.x, dir.y, -dir.z.abs() - 0.2),
+                2 => Vec3::new(dir.x * 0.3, 1.0, dir.z * 0.2),
+                _ => dir,
+            };
+            Ray::new(origin, dir.normalize())
+        })
+        .collect()
+}
+
+fn same_hit(ooc: Option<OocHit>, core: Option<crate::accel::Hit>) -> bool {
+    match (ooc, core) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            let OocSurface::Triangle { .. } = a.surface else {
+                return false;
+            };
+            a.t == b.t || (a.t - b.t).abs() <= 1e-6 * b.t
+        }
+        _ => false,
+    }
+}
+
+#[test]
+fn an_out_of_core_build_traces_exactly_like_the_in_core_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(40_000);
+    let n = scene.triangles.len() as u64;
+    // A memory budget for a sixth of the scene: the build must go out of core.
+    let (path, report) = build(&scene, dir.path(), n / 6, Codec::Lz4);
+    assert!(report.chunks >= 6, "{report:?}");
+    assert!(report.largest_chunk <= n / 6, "{report:?}");
+    assert_eq!(report.triangles, n);
+    let file = OocScene::open(&path, None, 1).unwrap();
+    assert_eq!(file.header().content_hash, crate::scene::content_hash(&scene));
+    assert_eq!(file.header().emitters.len(), Lights::new(&scene).len());
+    let tree = KdTree::build(&scene, &BuildOptions::default());
+    let (mut hits, mut same_tri) = (0, 0);
+    for (k, ray) in rays(&scene, 6000, 1).iter().enumerate() {
+        let a = file.intersect(ray, 0.0, &mut Fetch::load());
+        let b = tree.intersect(&scene, ray);
+        assert!(same_hit(a, b), "ray {k} {ray:?}: out of core {a:?}, in core {b:?}");
+        if let (
+            Some(OocHit {
+                surface: OocSurface::Triangle { id, .. },
+                ..
+            }),
+            Some(b),
+        ) = (a, b)
+        {
+            hits += 1;
+            same_tri += usize::from(id == b.tri);
+        }
+        let blocked = file.occluded_by(
+            &Ray {
+                t_max: b.map_or(1e30, |h| h.t * 1.001),
+                ..*ray
+            },
+            0.0,
+            &mut Fetch::load(),
+            |_, _, _| true,
+        );
+        assert_eq!(blocked, b.is_some(), "ray {k}");
+    }
+    assert!(hits > 3000, "{hits}");
+    // Only rays through shared edges may name the neighbouring triangle.
+    assert!(same_tri * 1000 >= hits * 999, "{same_tri} of {hits}");
+}
+
+#[test]
+fn the_streamed_landscape_is_the_generated_one() {
+    let params = GenParams {
+        triangles: Some(20_000),
+        seed: 3,
+        ..GenParams::default()
+    };
+    let scene = generate("landscape", &params).unwrap();
+    let source = LandscapeSource::new(params).unwrap();
+    let mut streamed = Vec::new();
+    source
+        .stream(&mut |b| {
+            streamed.extend(
+                b.iter()
+                    .map(|t| (t.v.map(|p| p.to_array().map(f32::to_bits)), t.material)),
+            );
+            Ok(())
+        })
+        .unwrap();
+    let mut generated: Vec<_> = (0..scene.triangles.len())
+        .map(|i| {
+            (
+                scene.vertices(i).map(|p| p.to_array().map(f32::to_bits)),
+                scene.triangles[i].material,
+            )
+        })
+        .collect();
+    assert_eq!(source.meta().materials, scene.materials);
+    assert_eq!(source.meta().sections, scene.sections);
+    streamed.sort_unstable();
+    generated.sort_unstable();
+    assert_eq!(streamed.len(), generated.len());
+    assert!(streamed == generated);
+}
+
+#[test]
+fn a_cold_small_cache_converges_to_the_exact_hits() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(100_000);
+    let (path, report) = build(&scene, dir.path(), 1 << 20, Codec::Zstd);
+    // A tenth of the decompressed scene.
+    let budget = (report.decompressed_bytes / 10) as usize;
+    let file = OocScene::open(&path, Some(budget), 2).unwrap();
+    let tree = KdTree::build(&scene, &BuildOptions::default());
+    // Primary rays of one view from the room out of its window: a working set
+    // that fits in the budget, as a view's does.
+    let rays: Vec<Ray> = (0..64)
+        .map(|k| {
+            let (x, y) = ((k % 8) as f32 / 7.0 - 0.5, (k / 8) as f32 / 7.0 - 0.5);
+            Ray::new(
+                Vec3::new(1.0, 2.0, 1.5),
+                Vec3::new(1.0, x * 0.4, y * 0.3 - 0.1).normalize(),
+            )
+        })
+        .collect();
+    let want: Vec<_> = rays.iter().map(|r| tree.intersect(&scene, r)).collect();
+    let mut rounds = 0;
+    let mut first_missing = 0;
+    loop {
+        let batch = file.cache().begin_batch();
+        let mut missing = 0;
+        let mut requests = Vec::new();
+        for (ray, want) in rays.iter().zip(&want) {
+            let mut fetch = Fetch::proxy();
+            let got = file.intersect(ray, 0.0, &mut fetch);
+            if fetch.missed {
+                missing += 1;
+                // A proxy is a voxel hit that says so.
+                assert!(matches!(
+                    got,
+                    Some(OocHit {
+                        surface: OocSurface::Voxel { missing: true, .. },
+                        ..
+                    })
+                ));
+                requests.extend(fetch.requests);
+            } else {
+                assert!(same_hit(got, *want), "{got:?} vs {want:?}");
+            }
+        }
+        file.cache().end_batch(batch);
+        if rounds == 0 {
+            first_missing = missing;
+        }
+        if missing == 0 {
+            break;
+        }
+        file.cache().request(&requests);
+        requests.sort_unstable();
+        requests.dedup();
+        file.cache().wait_resident(&requests, std::time::Duration::from_secs(5));
+        rounds += 1;
+        assert!(rounds < 40, "still {missing} rays missing data");
+    }
+    assert_eq!(first_missing, rays.len(), "a cold cache holds nothing");
+    let stats = file.cache().stats();
+    assert!(stats.resident_bytes <= budget + (64 << 10), "{stats:?}");
+    assert!(stats.loads > 0);
+}
+
+#[test]
+fn the_tracer_never_keeps_a_result_made_from_missing_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(20_000);
+    let (path, report) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let file = Arc::new(OocScene::open(&path, Some((report.decompressed_bytes / 10) as usize), 2).unwrap());
+    let options = crate::TraceOptions {
+        max_bounces: 0,
+        ..crate::TraceOptions::default()
+    };
+    let core = crate::Tracer::new(scene.clone(), options);
+    let ooc = crate::Tracer::out_of_core(file, options);
+    let rays = rays(&scene, 400, 9);
+    let mut rng = crate::Rng::new(1, 1);
+    let got = ooc.trace_batch(rays.len(), &mut rng, |k, rng, fetch| {
+        (k, ooc.trace_fetching(rays[k].origin, rays[k].dir, false, rng, fetch))
+    });
+    assert_eq!(got.len(), rays.len());
+    for (k, s) in got {
+        let want = core.trace_measuring(rays[k].origin, rays[k].dir, false, &mut crate::Rng::new(1, 1));
+        assert!(
+            s.distance == want.distance || (s.distance - want.distance).abs() <= 1e-5 * want.distance,
+            "ray {k}: {} vs {}",
+            s.distance,
+            want.distance
+        );
+    }
+}
+
+fn damaged(path: &Path, f: impl FnOnce(&mut Vec<u8>)) -> Result<OocScene, OocError> {
+    let mut bytes = std::fs::read(path).unwrap();
+    f(&mut bytes);
+    let out = path.with_file_name("damaged.hds");
+    std::fs::write(&out, bytes).unwrap();
+    OocScene::open(&out, None, 0)
+}
+
+#[test]
+fn damaged_files_are_refused_with_what_is_wrong() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = generate("room", &GenParams::default()).unwrap();
+    let (path, _) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let good = OocScene::open(&path, None, 0).unwrap();
+    let first = good.cache().entry(0).copied().unwrap();
+    for id in 0..good.header().blocks {
+        good.cache().read(id).unwrap();
+    }
+    let len = std::fs::metadata(&path).unwrap().len() as usize;
+    for cut in [0, 10, 100, first.offset as usize + 3, len - 40, len - 1] {
+        let e = damaged(&path, |b| b.truncate(cut))
+            .err()
+            .unwrap_or_else(|| panic!("cut at {cut} opened"));
+        assert!(
+            matches!(
+                e,
+                OocError::Truncated(_) | OocError::NotASceneFile | OocError::Checksum(_)
+            ),
+            "cut at {cut}: {e}"
+        );
+    }
+    assert_eq!(damaged(&path, |b| b[8] = 9).err(), Some(OocError::Version(9)));
+    assert!(matches!(
+        damaged(&path, |b| b[40] ^= 1).err(),
+        Some(OocError::Checksum(_))
+    ));
+    assert_eq!(damaged(&path, |b| b[0] = b'X').err(), Some(OocError::NotASceneFile));
+    // A flipped bit inside a block: the file opens, the block is refused when read.
+    let hurt = damaged(&path, |b| b[first.offset as usize + 5] ^= 0x10).unwrap();
+    let e = hurt.cache().read(0).unwrap_err();
+    assert!(matches!(e, OocError::Checksum(_)), "{e}");
+    assert!(e.to_string().contains("block 0"), "{e}");
+    // Tracing through it neither panics nor invents geometry silently.
+    let tracer = crate::Tracer::out_of_core(Arc::new(hurt), crate::TraceOptions::default());
+    let mut rng = crate::Rng::new(1, 2);
+    let kept = tracer.trace_batch(10, &mut rng, |_, rng, fetch| {
+        tracer.trace_fetching(Vec3::new(3.0, 2.0, 1.2), Vec3::X, false, rng, fetch)
+    });
+    assert!(kept.len() <= 10);
+    assert!(tracer.scene_file().unwrap().cache().error().is_some());
+}
+
+#[test]
+fn an_empty_scene_builds_and_traces_to_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, report) = build(&Scene::default(), dir.path(), 1 << 20, Codec::Lz4);
+    assert_eq!(report.triangles, 0);
+    let file = OocScene::open(&path, None, 1).unwrap();
+    assert_eq!(
+        file.intersect(&Ray::new(Vec3::ZERO, Vec3::X), 0.0, &mut Fetch::load()),
+        None
+    );
+}
+
+#[test]
+fn lod_stops_at_voxels_that_look_small() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(30_000);
+    let (path, _) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let file = OocScene::open(&path, None, 1).unwrap();
+    let tree = KdTree::build(&scene, &BuildOptions::default());
+    let (mut voxels, mut near, mut empty) = (0, 0, 0);
+    for ray in rays(&scene, 1500, 3) {
+        let exact = tree.intersect(&scene, &ray);
+        match file.intersect(&ray, 0.05, &mut Fetch::load()) {
+            Some(OocHit {
+                t,
+                surface: OocSurface::Voxel { radius, missing, .. },
+            }) => {
+                assert!(!missing);
+                voxels += 1;
+                assert!(radius <= 0.05 * t * 1.0001);
+                // A voxel fills its node's box: a ray through the box's empty
+                // part may see it where the triangles let it pass.
+                let Some(e) = exact else {
+                    empty += 1;
+                    continue;
+                };
+                // It lies in front of the surface, usually close (rays may pass
+                // through the empty part of a voxel's box).
+                assert!(t <= e.t * 1.0001 + 1e-4, "{t} {radius} {e:?}");
+                near += usize::from(e.t - t <= 2.0 * radius);
+            }
+            other => assert!(same_hit(other, exact)),
+        }
+    }
+    assert!(voxels > 50, "{voxels}");
+    assert!(near * 2 > voxels, "{near} of {voxels}");
+    assert!(empty * 4 < voxels, "{empty} of {voxels} voxels where nothing is");
+}

@@ -1,0 +1,232 @@
+//! Decomposing a kd-tree into treelets of height 3 (Áfra 2012, 4.3): inner
+//! nodes three levels below a treelet's root start new treelets, reached
+//! through LOD nodes that carry their voxel. Treelets are numbered breadth
+//! first, so they come out by level; consecutive treelets of one level are
+//! packed into blocks of about `target` bytes, with the triangles their leaves
+//! list and those triangles' vertices (shared within the block).
+
+use std::collections::{HashMap, VecDeque};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::block::{Block, BlockTri, Link};
+use super::node::TNode;
+use super::voxel::Voxel;
+use crate::geom::Aabb;
+
+/// Levels of inner nodes per treelet: voxels sit at every third level.
+pub const TREELET_HEIGHT: usize = 3;
+/// Most triangles per block (keeps vertex indices within 16 bits).
+const MAX_BLOCK_TRIS: usize = 20_000;
+
+/// A node of the tree being decomposed.
+pub enum SrcNode<'a> {
+    /// Split `axis` at `split`; children by index.
+    Inner {
+        /// Split axis.
+        axis: usize,
+        /// Split position.
+        split: f32,
+        /// Below and above the split.
+        children: [usize; 2],
+    },
+    /// Triangles (indices the source understands).
+    Leaf(&'a [u32]),
+    /// A treelet already written elsewhere (a chunk's root, for the top tree).
+    External(Link),
+}
+
+/// A tree to decompose.
+pub trait SourceTree: Sync {
+    /// Node `i`.
+    fn node(&self, i: usize) -> SrcNode<'_>;
+    /// Triangle `t` of a leaf: vertices, material, scene-wide id.
+    fn triangle(&self, t: u32) -> ([Vec3; 3], u16, u32);
+    /// The voxel of node `i`, whose box is `bounds`.
+    fn voxel(&self, i: usize, bounds: &Aabb) -> Voxel;
+}
+
+/// Blocks made from a tree, and the link to its root treelet.
+pub struct Decomposed {
+    /// (level, block), with block ids `first_block..` in order.
+    pub blocks: Vec<(u16, Block)>,
+    /// Link to the root treelet (voxel included).
+    pub root: Link,
+}
+
+enum Member {
+    Inner { axis: usize, split: f32, left: usize },
+    Leaf(Vec<u32>),
+    Treelet(usize),
+    External(Link),
+}
+
+struct Treelet {
+    src: usize,
+    bounds: Aabb,
+    level: u16,
+    members: Vec<Member>,
+    tris: usize,
+    links: usize,
+}
+
+/// Children boxes of `b` split on `axis` at `split`.
+pub fn split_box(b: &Aabb, axis: usize, split: f32) -> (Aabb, Aabb) {
+    let (mut l, mut r) = (*b, *b);
+    l.hi[axis] = split;
+    r.lo[axis] = split;
+    (l, r)
+}
+
+/// Radius of the sphere around a box.
+pub fn radius(b: &Aabb) -> f32 {
+    if b.is_empty() {
+        0.0
+    } else {
+        0.5 * (b.hi - b.lo).length()
+    }
+}
+
+fn collect(src: &impl SourceTree, root: usize, bounds: Aabb, base_level: u16) -> Vec<Treelet> {
+    let mut treelets: Vec<Treelet> = Vec::new();
+    let mut queue = VecDeque::from([(root, bounds, base_level)]);
+    let mut next_id = 1usize;
+    while let Some((src_root, bounds, level)) = queue.pop_front() {
+        let mut t = Treelet {
+            src: src_root,
+            bounds,
+            level,
+            members: vec![Member::Leaf(Vec::new())],
+            tris: 0,
+            links: 0,
+        };
+        let mut stack = vec![(src_root, 0usize, 0usize, bounds)];
+        while let Some((i, local, depth, b)) = stack.pop() {
+            t.members[local] = match src.node(i) {
+                SrcNode::Inner { axis, split, children } if depth < TREELET_HEIGHT || local == 0 => {
+                    let left = t.members.len();
+                    t.members.push(Member::Leaf(Vec::new()));
+                    t.members.push(Member::Leaf(Vec::new()));
+                    let (lb, rb) = split_box(&b, axis, split);
+                    stack.push((children[1], left + 1, depth + 1, rb));
+                    stack.push((children[0], left, depth + 1, lb));
+                    Member::Inner { axis, split, left }
+                }
+                SrcNode::Inner { .. } => {
+                    queue.push_back((i, b, level + 1));
+                    next_id += 1;
+                    t.links += 1;
+                    Member::Treelet(next_id - 1)
+                }
+                SrcNode::Leaf(tris) => {
+                    t.tris += tris.len();
+                    Member::Leaf(tris.to_vec())
+                }
+                SrcNode::External(l) => {
+                    t.links += 1;
+                    Member::External(l)
+                }
+            };
+        }
+        treelets.push(t);
+    }
+    treelets
+}
+
+/// Decomposes the tree under `root` (box `bounds`) into blocks numbered from
+/// `first_block`, levels counted from `base_level`.
+pub fn decompose(
+    src: &impl SourceTree,
+    root: usize,
+    bounds: Aabb,
+    first_block: u32,
+    base_level: u16,
+    target: usize,
+) -> Decomposed {
+    if let SrcNode::External(l) = src.node(root) {
+        return Decomposed {
+            blocks: Vec::new(),
+            root: l,
+        };
+    }
+    let treelets = collect(src, root, bounds, base_level);
+    let voxels: Vec<Voxel> = treelets.par_iter().map(|t| src.voxel(t.src, &t.bounds)).collect();
+
+    // Packing: treelet -> (block, first node); blocks hold one level each.
+    let mut place = Vec::with_capacity(treelets.len());
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let (mut size, mut tris, mut nodes) = (usize::MAX, 0usize, 0u32);
+    let mut level = u16::MAX;
+    for (k, t) in treelets.iter().enumerate() {
+        let est = t.members.len() * 8 + t.links * 64 + t.tris * 34;
+        let full = size.saturating_add(est) > target || tris + t.tris > MAX_BLOCK_TRIS;
+        if groups.is_empty() || t.level != level || (full && size > 0) {
+            groups.push(Vec::new());
+            (size, tris, nodes, level) = (24, 0, 0, t.level);
+        }
+        place.push((first_block + groups.len() as u32 - 1, nodes));
+        if let Some(g) = groups.last_mut() {
+            g.push(k);
+        }
+        size += est;
+        tris += t.tris;
+        nodes += t.members.len() as u32;
+    }
+    let link_to = |k: usize| Link {
+        block: place[k].0,
+        node: place[k].1,
+        radius_bits: radius(&treelets[k].bounds).to_bits(),
+        voxel: voxels[k],
+    };
+    let blocks = groups
+        .par_iter()
+        .map(|group| {
+            let mut b = Block::default();
+            let mut tri_of: HashMap<u32, u16> = HashMap::new();
+            let mut vert_of: HashMap<[u32; 3], u16> = HashMap::new();
+            for &k in group {
+                let t = &treelets[k];
+                let base = b.nodes.len() as u32;
+                for m in &t.members {
+                    let node = match m {
+                        Member::Inner { axis, split, left } => TNode::inner(*axis, *split, base + *left as u32),
+                        Member::Leaf(list) => {
+                            let first = b.list.len() as u32;
+                            for &s in list {
+                                let local = *tri_of.entry(s).or_insert_with(|| {
+                                    let (v, material, id) = src.triangle(s);
+                                    let idx = v.map(|p| {
+                                        *vert_of.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
+                                            b.verts.push(p);
+                                            (b.verts.len() - 1) as u16
+                                        })
+                                    });
+                                    b.tris.push(BlockTri { v: idx, material });
+                                    b.ids.push(id);
+                                    (b.tris.len() - 1) as u16
+                                });
+                                b.list.push(local);
+                            }
+                            TNode::leaf(first, list.len() as u32)
+                        }
+                        Member::Treelet(j) => {
+                            b.links.push(link_to(*j));
+                            TNode::link(b.links.len() as u32 - 1)
+                        }
+                        Member::External(l) => {
+                            b.links.push(*l);
+                            TNode::link(b.links.len() as u32 - 1)
+                        }
+                    };
+                    b.nodes.push(node);
+                }
+            }
+            (treelets[group[0]].level, b)
+        })
+        .collect();
+    Decomposed {
+        blocks,
+        root: link_to(0),
+    }
+}
