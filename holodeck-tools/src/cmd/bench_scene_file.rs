@@ -7,13 +7,13 @@
 
 use std::path::Path;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use holodeck_protocol::View;
 use holodeck_sampler::geom::{offset_origin, Ray};
 use holodeck_sampler::ooc::build::{build_scene_file, BuildSettings, SceneSource, BUILD_BYTES_PER_TRIANGLE};
-use holodeck_sampler::ooc::{Codec, Fetch, OnMissing, OocScene, OocSurface};
+use holodeck_sampler::ooc::{Codec, Fetch, OocScene, OocSurface};
 use holodeck_sampler::render::{render, Picture, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
@@ -57,42 +57,10 @@ fn trace_ooc(file: &OocScene, rays: &[Ray], want: &[Option<f32>]) -> (f64, usize
     let start = Instant::now();
     let mut wrong = 0;
     for (chunk, want) in rays.chunks(4096).zip(want.chunks(4096)) {
-        let cache = file.cache();
-        let batch = cache.begin_batch();
-        let mut todo: Vec<usize> = (0..chunk.len()).collect();
-        let mut waiting = true;
-        for round in 0..4 {
-            let on_missing = if round < 3 && waiting {
-                OnMissing::Proxy
-            } else {
-                OnMissing::Load
-            };
-            let mut again = Vec::new();
-            let mut requests = Vec::new();
-            for k in todo {
-                let mut fetch = Fetch {
-                    on_missing,
-                    requests: Vec::new(),
-                    missed: false,
-                };
-                let h = file.intersect(&chunk[k], 0.0, &mut fetch);
-                if fetch.missed {
-                    requests.extend(fetch.requests);
-                    again.push(k);
-                } else if h.map(|h| h.t) != want[k] {
-                    wrong += 1;
-                }
-            }
-            todo = again;
-            if todo.is_empty() {
-                break;
-            }
-            cache.request(&requests);
-            requests.sort_unstable();
-            requests.dedup();
-            waiting = cache.wait_resident(&requests, Duration::from_secs(2));
-        }
-        cache.end_batch(batch);
+        let got = file.exact_batch(chunk.len(), |k, fetch| {
+            file.intersect(&chunk[k], 0.0, fetch).map(|h| h.t)
+        });
+        wrong += got.iter().zip(want).filter(|(g, w)| g.as_ref() != Some(*w)).count();
     }
     (rays.len() as f64 / start.elapsed().as_secs_f64(), wrong)
 }

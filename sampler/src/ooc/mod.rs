@@ -37,6 +37,11 @@ pub use traverse::{Fetch, OnMissing, OocHit, OocSurface};
 use crate::geom::Aabb;
 use crate::scene::Scene;
 
+/// Rounds a batch waits for the fetchers before loading blocks itself.
+pub const PROXY_ROUNDS: usize = 3;
+/// How long one round waits for the fetchers.
+const ROUND_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// File name extension of scene files.
 pub const EXTENSION: &str = "hds";
 
@@ -172,6 +177,59 @@ impl OocScene {
         if self.corrupt.fetch_add(1, Ordering::Relaxed) == 0 {
             tracing::error!("scene file: a link names node {node} past the end of its block; the file is corrupt");
         }
+    }
+
+    /// Runs `f` on items `0..n` as one batch, keeping no result that a proxy
+    /// for missing data stood in for: items that missed are run again once the
+    /// fetchers have what they asked for, and after [`PROXY_ROUNDS`] rounds
+    /// (or at once when the blocks do not fit beside those in use) with blocks
+    /// loaded on the spot. `None` only for items that met unreadable blocks.
+    pub fn exact_batch<T>(&self, n: usize, mut f: impl FnMut(usize, &mut Fetch) -> T) -> Vec<Option<T>> {
+        let cache = self.cache();
+        let batch = cache.begin_batch();
+        let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+        let mut todo: Vec<usize> = (0..n).collect();
+        let mut waiting = true;
+        for round in 0..=PROXY_ROUNDS {
+            let on_missing = if round < PROXY_ROUNDS && waiting {
+                OnMissing::Proxy
+            } else {
+                OnMissing::Load
+            };
+            let mut requests = Vec::new();
+            let mut again = Vec::new();
+            for k in todo {
+                let mut fetch = Fetch {
+                    on_missing,
+                    requests: Vec::new(),
+                    missed: false,
+                };
+                let r = f(k, &mut fetch);
+                if fetch.missed {
+                    requests.extend(fetch.requests);
+                    again.push(k);
+                } else {
+                    out[k] = Some(r);
+                }
+            }
+            todo = again;
+            if todo.is_empty() {
+                break;
+            }
+            // Every request counts: a block many rays missed is fetched first.
+            cache.request(&requests);
+            requests.sort_unstable();
+            requests.dedup();
+            waiting = cache.wait_resident(&requests, ROUND_WAIT);
+        }
+        cache.end_batch(batch);
+        if !todo.is_empty() {
+            tracing::error!(
+                "{} rays could not be traced: the scene file has unreadable blocks",
+                todo.len()
+            );
+        }
+        out
     }
 
     /// The scene without its triangles: materials, sky, sections and the

@@ -6,7 +6,6 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
 
 use glam::Vec3;
 
@@ -17,7 +16,7 @@ use super::sampling::{power_heuristic, Frame};
 use super::sky::SkyModel;
 use crate::accel::{BuildOptions, KdTree};
 use crate::geom::{offset_origin, Ray};
-use crate::ooc::{Fetch, OnMissing, OocScene, OocSurface};
+use crate::ooc::{Fetch, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
 
 /// Settings of the estimator.
@@ -106,11 +105,6 @@ struct SurfaceHit {
     radius: f32,
 }
 
-/// How many rounds a batch waits for blocks before loading them itself.
-const PROXY_ROUNDS: usize = 3;
-/// How long one round waits for the fetchers.
-const ROUND_WAIT: Duration = Duration::from_secs(2);
-
 fn flat_specular(m: &Material) -> bool {
     matches!(m, Material::Mirror { .. } | Material::Glass { thin: true, .. })
         || matches!(m, Material::Metal { roughness, .. } if *roughness < 0.02)
@@ -194,53 +188,10 @@ impl Tracer {
             let mut fetch = Fetch::load();
             return (0..n).map(|k| f(k, rng, &mut fetch)).collect();
         };
-        let cache = ooc.cache();
-        let batch = cache.begin_batch();
-        let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
-        let mut todo: Vec<usize> = (0..n).collect();
-        let mut waiting = true;
-        for round in 0..=PROXY_ROUNDS {
-            let on_missing = if round < PROXY_ROUNDS && waiting {
-                OnMissing::Proxy
-            } else {
-                OnMissing::Load
-            };
-            let mut requests = Vec::new();
-            let mut again = Vec::new();
-            for k in todo {
-                let mut fetch = Fetch {
-                    on_missing,
-                    requests: Vec::new(),
-                    missed: false,
-                };
-                let r = f(k, rng, &mut fetch);
-                if fetch.missed {
-                    requests.extend(fetch.requests);
-                    again.push(k);
-                } else {
-                    out[k] = Some(r);
-                }
-            }
-            todo = again;
-            if todo.is_empty() {
-                break;
-            }
-            // Every request counts: a block many rays missed is fetched first.
-            cache.request(&requests);
-            requests.sort_unstable();
-            requests.dedup();
-            // No use waiting where the fetchers cannot help (the blocks do not
-            // fit beside those in use): load on the spot next round.
-            waiting = cache.wait_resident(&requests, ROUND_WAIT);
-        }
-        cache.end_batch(batch);
-        if !todo.is_empty() {
-            tracing::error!(
-                "{} rays could not be traced: the scene file has unreadable blocks",
-                todo.len()
-            );
-        }
-        out.into_iter().flatten().collect()
+        ooc.exact_batch(n, |k, fetch| f(k, rng, fetch))
+            .into_iter()
+            .flatten()
+            .collect()
     }
 
     /// The kd-tree (empty for a scene file).
