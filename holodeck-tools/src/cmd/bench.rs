@@ -32,6 +32,7 @@ Example:
   holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)
   holodeck bench tracer --triangles 1M --triangles 10M
   holodeck bench scene-file --triangles 1M --pixels 256
+  holodeck bench scene-file --triangles 10M --charts docs    (ooc-budget, ooc-lod charts)
   holodeck bench display --samples 1M --rays 4M
   holodeck bench network --seconds 8
   holodeck bench share                                     (a greedy and a modest display)
@@ -61,6 +62,9 @@ pub struct Args {
     /// Keep the files.
     #[arg(long)]
     keep: bool,
+    /// Write charts (SVG and PNG) of the results into this folder (`scene-file`).
+    #[arg(long, value_name = "DIR")]
+    charts: Option<PathBuf>,
     /// Landscape sizes for `tracer` (triangles; repeat for several).
     #[arg(long, value_parser = count_in(1, MAX_TRIANGLES), default_values = ["1M"])]
     triangles: Vec<u64>,
@@ -404,7 +408,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         Target::SceneFile => {
             let n = a.triangles.first().copied().unwrap_or(1_000_000);
-            super::bench_scene_file::run(n, a.pixels, &a.dir, a.keep)?;
+            super::bench_scene_file::run(n, a.pixels, &a.dir, a.keep, a.charts.as_deref())?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Tracer => {

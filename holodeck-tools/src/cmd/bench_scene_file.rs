@@ -19,6 +19,7 @@ use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
 use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
 
+use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::human::{bytes, count};
 
 /// Over the room and across the terrain and forest from 40 m up.
@@ -76,8 +77,9 @@ fn relative_rmse(a: &Picture, reference: &Picture) -> f64 {
     (num / den.max(1e-30)).sqrt()
 }
 
-/// Runs the benchmark on a landscape of `triangles` triangles, files in `dir`.
-pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool) -> Result<()> {
+/// Runs the benchmark on a landscape of `triangles` triangles, files in
+/// `dir`; writes charts of the results into `charts` if given.
+pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&Path>) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     println!(
         "holodeck bench scene-file: landscape of {} triangles, {pixels} x {pixels} rays, one tracing thread",
@@ -145,7 +147,9 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool) -> Result<()> {
     println!();
     println!("| rays | in core (baseline) | budget | cold | warm | warm / in core | hits differing |");
     println!("|---|---|---|---|---|---|---|");
+    let mut budget_series = Vec::new();
     for (label, rays) in [("primary", &prim), ("diffuse bounce", &bounce)] {
+        let (mut cold_curve, mut warm_curve) = (Vec::new(), Vec::new());
         let t = Instant::now();
         let want: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(&scene, r).map(|h| h.t)).collect();
         let base = rays.len() as f64 / t.elapsed().as_secs_f64();
@@ -167,7 +171,17 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool) -> Result<()> {
                 warm / base,
                 w1 + w2
             );
+            cold_curve.push((share * 100.0, cold / base));
+            warm_curve.push((share * 100.0, warm / base));
         }
+        budget_series.push(Series {
+            name: format!("{label}, warm"),
+            points: warm_curve,
+        });
+        budget_series.push(Series {
+            name: format!("{label}, cold"),
+            points: cold_curve,
+        });
     }
 
     // LOD: frame time and error against LOD off, all blocks resident.
@@ -215,14 +229,61 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool) -> Result<()> {
     println!("| pixels of error | frame ({w} x {h}, 4 spp, 1 bounce, 2 threads) | frame / LOD off | relative RMSE against LOD off | primary rays ending at a voxel |");
     println!("|---|---|---|---|---|");
     println!("| off | {exact_time:.3} s | 1.00 | 0 | 0% |");
+    let (mut time_curve, mut error_curve, mut voxel_curve) = (Vec::new(), Vec::new(), Vec::new());
     for poe in [0.5, 1.0, 2.0, 4.0, 8.0] {
         let (p, t, _) = frame(poe)?;
+        let (error, voxels) = (relative_rmse(&p, &exact), voxel_hits(poe));
         println!(
-            "| {poe} | {t:.3} s | {:.2} | {:.4} | {:.1}% |",
+            "| {poe} | {t:.3} s | {:.2} | {error:.4} | {:.1}% |",
             t / exact_time,
-            relative_rmse(&p, &exact),
-            100.0 * voxel_hits(poe)
+            100.0 * voxels
         );
+        time_curve.push((poe, t / exact_time));
+        error_curve.push((poe, error));
+        voxel_curve.push((poe, voxels));
+    }
+    if let Some(dir) = charts {
+        let scene_name = format!("landscape, {} triangles", count(n));
+        let budget = Panel {
+            title: format!("Scene-memory budget: rays/s against in core ({scene_name})"),
+            x_label: "cache budget, % of the decompressed scene".into(),
+            y_label: "rays/s, out of core / in core".into(),
+            legend: SeriesLabelPosition::LowerRight,
+            series: budget_series,
+        };
+        let lod = [
+            Panel {
+                title: format!("LOD: frame time ({scene_name})"),
+                x_label: "pixels of error".into(),
+                y_label: "frame time / LOD off".into(),
+                legend: SeriesLabelPosition::LowerLeft,
+                series: vec![Series {
+                    name: format!("{w} x {h}, 4 spp, 1 bounce"),
+                    points: time_curve,
+                }],
+            },
+            Panel {
+                title: "LOD: image error and voxel hits".into(),
+                x_label: "pixels of error".into(),
+                y_label: "share".into(),
+                legend: SeriesLabelPosition::UpperLeft,
+                series: vec![
+                    Series {
+                        name: "relative RMSE against LOD off".into(),
+                        points: error_curve,
+                    },
+                    Series {
+                        name: "primary rays ending at a voxel".into(),
+                        points: voxel_curve,
+                    },
+                ],
+            },
+        ];
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        for (stem, panels) in [("ooc-budget", std::slice::from_ref(&budget)), ("ooc-lod", &lod[..])] {
+            let [svg, png] = crate::chart::write(&dir.join(stem), panels)?;
+            println!("wrote {} and {}", svg.display(), png.display());
+        }
     }
     if !keep {
         drop(file);

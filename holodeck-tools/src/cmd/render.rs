@@ -29,7 +29,8 @@ SCENE is a scene file (see `holodeck scene gen`) or builtin:NAME for a generated
 Examples:
   holodeck render builtin:room -o room.png
   holodeck render builtin:room --spp 256 -x 1024 -y 768 -o room.hdr
-  holodeck render scene.toml --view '-vta -vp 3 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 180 -vv 180' -o fisheye.png")]
+  holodeck render scene.toml --view '-vta -vp 3 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 180 -vv 180' -o fisheye.png
+  holodeck render land.hds --scene-memory 2G --lod 1 --lod-secondary 1 -o land.png")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
     scene: String,
@@ -64,6 +65,11 @@ pub struct Args {
     /// below this many pixels stands in for its subtree (0: exact triangles).
     #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative)]
     lod: f64,
+    /// For a .hds scene file: the same for bounce and shadow rays, as an angle
+    /// in milliradians: a voxel whose radius is below this angle as seen from
+    /// the ray's origin stands in for its subtree (0: exact triangles).
+    #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative, value_name = "MRAD")]
+    lod_secondary: f64,
     /// Output picture: .png (tone-mapped) or .hdr (Radiance RGBE, linear).
     #[arg(short, long)]
     output: PathBuf,
@@ -114,7 +120,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let tracer = scene.tracer(TraceOptions {
         max_bounces: a.bounces,
         lod_primary: lod_ratio(a.lod, &view, a.width),
-        lod_secondary: 0.0,
+        lod_secondary: (a.lod_secondary / 1000.0) as f32,
         ..TraceOptions::default()
     });
     let build = start.elapsed().as_secs_f64();
@@ -162,6 +168,20 @@ pub fn run(a: Args) -> Result<ExitCode> {
         rayon::current_num_threads(),
         count(triangles)
     );
+    if let Some(f) = tracer.scene_file() {
+        // What this view needed of the scene file: its working set, when the cache held it all.
+        let st = f.cache().stats();
+        println!(
+            "scene file: {} of {} blocks loaded ({} MB read, {} MB decompressed), {} MB resident of a {} MB cache, {} evicted",
+            count(st.loads),
+            count(u64::from(f.header().blocks)),
+            st.read_bytes >> 20,
+            st.loaded_bytes >> 20,
+            st.resident_bytes >> 20,
+            f.cache().budget() >> 20,
+            count(st.evictions)
+        );
+    }
     if tracer.non_finite_count() > 0 {
         println!(
             "warning: {} non-finite estimates were replaced by black",

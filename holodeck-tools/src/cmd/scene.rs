@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use holodeck_sampler::scene::gen::mandelbulb::MAX_RESOLUTION;
+use holodeck_sampler::scene::gen::mandelbulb::{DEFAULT_RESOLUTION, MAX_RESOLUTION, MAX_STREAM_RESOLUTION};
 use holodeck_sampler::scene::gen::{self, GenParams};
 use holodeck_sampler::scene::{content_hash, load_scene, write_scene};
 use holodeck_sampler::{Material, Scene, Sky};
@@ -28,6 +28,8 @@ Examples:
   holodeck scene gen bunny --bunny my-bunny.obj -o my-bunny.toml
   holodeck scene info scenes/room.toml
   holodeck scene build builtin:landscape --triangles 300M --memory 2G -o landscape.hds
+  holodeck scene build builtin:mandelbulb --resolution 4096 -o bulb.hds
+  holodeck scene recode landscape.hds --codec zstd -o landscape-zstd.hds
   holodeck scene info landscape.hds")]
 pub struct Args {
     #[command(subcommand)]
@@ -42,6 +44,29 @@ enum SceneCommand {
     Info(InfoArgs),
     /// Build a scene file for out-of-core tracing (.hds): kd-tree, LOD voxels, compressed blocks.
     Build(BuildArgs),
+    /// Rewrite a scene file (.hds) with another block codec, without building it again.
+    Recode(RecodeArgs),
+}
+
+/// Arguments of `holodeck scene recode`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Reads every block of IN (checking its checksum), decompresses it and compresses it with
+--codec into OUT; the tree, LOD voxels and header carry over. OUT may be IN: the new file
+replaces it only once complete. zstd files are smaller, lz4 files decompress faster.
+
+Examples:
+  holodeck scene recode landscape.hds --codec zstd -o landscape-zstd.hds
+  holodeck scene recode bulb.hds --codec lz4 -o bulb.hds")]
+pub struct RecodeArgs {
+    /// The scene file to read (.hds).
+    input: PathBuf,
+    /// The scene file to write (.hds).
+    #[arg(short, long, value_name = "HDS")]
+    output: PathBuf,
+    /// Block compression of the new file: lz4 or zstd.
+    #[arg(long)]
+    codec: holodeck_sampler::ooc::Codec,
 }
 
 /// Arguments of `holodeck scene build`.
@@ -50,14 +75,16 @@ enum SceneCommand {
 Builds SCENE (a scene file or builtin:NAME) into one .hds file that samplers, `render`, `fill`
 and `run` trace out of core: only the blocks rays need are decompressed, into a cache of
 --scene-memory bytes. The build itself stays within --memory: triangles are sorted into
-chunks at spatial medians on disk, and each chunk is built in memory. builtin:landscape is
-generated as a stream, so its triangles never all exist at once; other scenes are loaded
-first. A killed build can simply be run again. The file carries the scene's content hash
-(a scene file and its .hds serve the same holodecks).
+chunks at spatial medians on disk, and each chunk is built in memory. builtin:landscape and
+builtin:mandelbulb are generated as streams, so their triangles never all exist at once (the
+bulb's --resolution may go to 16384 here); other scenes are loaded first. A killed build can
+simply be run again. The file carries the scene's content hash (a scene file and its .hds
+serve the same holodecks).
 
 Examples:
   holodeck scene build scenes/room.toml -o room.hds
   holodeck scene build builtin:landscape --triangles 300M --memory 2G -o landscape.hds
+  holodeck scene build builtin:mandelbulb --resolution 4096 -o bulb.hds
   holodeck scene build big.toml --memory 8G --codec zstd -o big.hds")]
 pub struct BuildArgs {
     /// Scene file, or builtin:NAME.
@@ -77,6 +104,9 @@ pub struct BuildArgs {
     /// Triangles for builtin:landscape; suffixes K, M, G as powers of 1000.
     #[arg(long, value_parser = count_in(1, u64::from(u32::MAX)))]
     triangles: Option<u64>,
+    /// Grid cells per axis for builtin:mandelbulb (default 128).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(4..=i64::from(MAX_STREAM_RESOLUTION)))]
+    resolution: Option<u32>,
     /// Random seed (landscape).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -133,6 +163,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         SceneCommand::Gen(g) => generate(g),
         SceneCommand::Info(i) => info(i),
         SceneCommand::Build(b) => build(b),
+        SceneCommand::Recode(r) => recode(r),
     }
 }
 
@@ -182,17 +213,23 @@ fn generate(a: GenArgs) -> Result<ExitCode> {
 }
 
 fn build(a: BuildArgs) -> Result<ExitCode> {
-    use holodeck_sampler::ooc::build::{build_scene_file, BuildSettings, LandscapeSource, SceneSource, TriangleSource};
+    use holodeck_sampler::ooc::build::{
+        build_scene_file, BuildSettings, LandscapeSource, MandelbulbSource, SceneSource, TriangleSource,
+    };
     if !holodeck_sampler::ooc::is_scene_file(&a.output) {
         anyhow::bail!("{}: a scene file's name ends in .hds", a.output.display());
     }
     let params = GenParams {
         triangles: a.triangles,
+        resolution: a.resolution,
         seed: a.seed,
         ..GenParams::default()
     };
     let source: Box<dyn TriangleSource> = if a.scene == "builtin:landscape" {
         Box::new(LandscapeSource::new(params).context("builtin:landscape")?)
+    } else if a.scene == "builtin:mandelbulb" {
+        let resolution = a.resolution.unwrap_or(DEFAULT_RESOLUTION);
+        Box::new(MandelbulbSource::new(resolution).context("builtin:mandelbulb")?)
     } else {
         let bar = spinner(format!("loading {}", a.scene));
         let scene = if let Some(name) = a.scene.strip_prefix("builtin:") {
@@ -245,6 +282,41 @@ fn build(a: BuildArgs) -> Result<ExitCode> {
         r.seconds,
         r.partition_seconds,
         r.chunk_seconds
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn recode(a: RecodeArgs) -> Result<ExitCode> {
+    if !holodeck_sampler::ooc::is_scene_file(&a.output) {
+        anyhow::bail!("{}: a scene file's name ends in .hds", a.output.display());
+    }
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("recoding [{bar:30}] {human_pos}/{human_len} blocks ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let r = holodeck_sampler::ooc::recode(&a.input, &a.output, a.codec, &progress)
+        .with_context(|| format!("recoding {} into {}", a.input.display(), a.output.display()))?;
+    bar.finish_and_clear();
+    let pct = |b: u64| 100.0 * b as f64 / r.decompressed_bytes.max(1) as f64;
+    println!(
+        "wrote {}: {} blocks, {} decompressed; {} compressed ({:.1}%, {}) where {} had {} ({:.1}%); file {}; {:.1} s",
+        a.output.display(),
+        count(u64::from(r.blocks)),
+        crate::human::bytes(r.decompressed_bytes),
+        crate::human::bytes(r.after_bytes),
+        pct(r.after_bytes),
+        a.codec.name(),
+        a.input.display(),
+        crate::human::bytes(r.before_bytes),
+        pct(r.before_bytes),
+        crate::human::bytes(r.file_bytes),
+        r.seconds
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -38,6 +38,8 @@ pub struct CacheStats {
     pub evictions: u64,
     /// Compressed bytes read so far.
     pub read_bytes: u64,
+    /// Decompressed bytes of the blocks read so far.
+    pub loaded_bytes: u64,
     /// Blocks that failed their checks.
     pub errors: u64,
 }
@@ -73,6 +75,7 @@ pub struct Cache {
     loads: AtomicU64,
     evictions: AtomicU64,
     read_bytes: AtomicU64,
+    loaded_bytes: AtomicU64,
     errors: AtomicU64,
     queue: Mutex<Queue>,
     wake_fetchers: Condvar,
@@ -99,6 +102,7 @@ impl Cache {
             loads: AtomicU64::new(0),
             evictions: AtomicU64::new(0),
             read_bytes: AtomicU64::new(0),
+            loaded_bytes: AtomicU64::new(0),
             errors: AtomicU64::new(0),
             queue: Mutex::new(Queue {
                 pending: HashMap::new(),
@@ -169,6 +173,7 @@ impl Cache {
             .get(start..start + e.packed as usize)
             .ok_or_else(|| bad("lies past the end of the file".into()))?;
         self.read_bytes.fetch_add(u64::from(e.packed), Ordering::Relaxed);
+        self.loaded_bytes.fetch_add(u64::from(e.len), Ordering::Relaxed);
         if crc32c::crc32c(packed) != e.crc {
             return Err(OocError::Checksum(format!("block {id}")));
         }
@@ -375,6 +380,7 @@ impl Cache {
             loads: self.loads.load(Ordering::Relaxed),
             evictions: self.evictions.load(Ordering::Relaxed),
             read_bytes: self.read_bytes.load(Ordering::Relaxed),
+            loaded_bytes: self.loaded_bytes.load(Ordering::Relaxed),
             errors: self.errors.load(Ordering::Relaxed),
         }
     }

@@ -13,9 +13,11 @@ pub mod cache;
 pub mod codec;
 pub mod format;
 pub mod node;
+pub mod recode;
 pub mod traverse;
 pub mod treelet;
 pub mod voxel;
+pub mod writer;
 
 #[cfg(test)]
 mod tests;
@@ -32,6 +34,7 @@ pub use build::{build_scene_file, BuildReport, BuildSettings};
 pub use cache::{Cache, CacheStats};
 pub use codec::Codec;
 pub use format::Header;
+pub use recode::{recode, RecodeReport};
 pub use traverse::{Fetch, OnMissing, OocHit, OocSurface};
 
 use crate::geom::Aabb;

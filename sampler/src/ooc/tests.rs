@@ -7,7 +7,8 @@ use glam::Vec3;
 use rand::{Rng, SeedableRng};
 
 use super::build::{
-    build_scene_file, BuildSettings, LandscapeSource, SceneSource, TriangleSource, BUILD_BYTES_PER_TRIANGLE,
+    build_scene_file, BuildSettings, LandscapeSource, MandelbulbSource, SceneSource, TriangleSource,
+    BUILD_BYTES_PER_TRIANGLE,
 };
 use super::*;
 use crate::accel::{BuildOptions, KdTree};
@@ -159,6 +160,71 @@ fn the_streamed_landscape_is_the_generated_one() {
     generated.sort_unstable();
     assert_eq!(streamed.len(), generated.len());
     assert!(streamed == generated);
+}
+
+#[test]
+fn the_streamed_mandelbulb_is_the_generated_one_and_builds_out_of_core() {
+    let params = GenParams {
+        resolution: Some(24),
+        ..GenParams::default()
+    };
+    let scene = generate("mandelbulb", &params).unwrap();
+    let source = MandelbulbSource::new(24).unwrap();
+    assert!(
+        source.sections().is_err(),
+        "sections follow the geometry: not known before streaming"
+    );
+    let bits = |v: [Vec3; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+    let mut streamed = Vec::new();
+    source
+        .stream(&mut |b| {
+            streamed.extend(b.iter().map(|t| (bits(t.v), t.material, t.id)));
+            Ok(())
+        })
+        .unwrap();
+    let generated: Vec<_> = (0..scene.triangles.len())
+        .map(|i| (bits(scene.vertices(i)), scene.triangles[i].material, i as u32))
+        .collect();
+    assert_eq!(streamed.len(), generated.len());
+    assert!(streamed == generated, "same triangles, same order, same ids");
+    assert_eq!(source.meta().materials, scene.materials);
+    assert_eq!(source.sections().unwrap(), scene.sections);
+    assert!(MandelbulbSource::new(3).is_err());
+
+    // Built from the stream with a memory budget for a fifth of it: the hits are the in-core tree's.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bulb.hds");
+    let n = scene.triangles.len() as u64;
+    let settings = BuildSettings {
+        memory: n / 5 * BUILD_BYTES_PER_TRIANGLE,
+        codec: Codec::Lz4,
+        block_bytes: 16 << 10,
+    };
+    let report = build_scene_file(&source, &out, &settings, &|_, _, _| {}).unwrap();
+    assert!(report.chunks >= 5, "{report:?}");
+    let file = OocScene::open(&out, None, 1).unwrap();
+    assert_eq!(file.header().sections, scene.sections);
+    let tree = KdTree::build(&scene, &BuildOptions::default());
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let mut hits = 0;
+    for k in 0..3000 {
+        let origin = Vec3::new(
+            rng.gen_range(-3.0..3.0),
+            rng.gen_range(-3.0..3.0),
+            rng.gen_range(0.2..3.0),
+        );
+        let target = Vec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(0.0..2.4),
+        );
+        let ray = Ray::new(origin, (target - origin).normalize());
+        let a = file.intersect(&ray, 0.0, &mut Fetch::load());
+        let b = tree.intersect(&scene, &ray);
+        assert!(same_hit(a, b), "ray {k} {ray:?}: out of core {a:?}, in core {b:?}");
+        hits += usize::from(b.is_some());
+    }
+    assert!(hits > 2000, "{hits}");
 }
 
 #[test]
@@ -354,4 +420,40 @@ fn lod_stops_at_voxels_that_look_small() {
     assert!(voxels > 50, "{voxels}");
     assert!(near * 2 > voxels, "{near} of {voxels}");
     assert!(empty * 4 < voxels, "{empty} of {voxels} voxels where nothing is");
+}
+
+#[test]
+fn recoding_changes_the_codec_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(20_000);
+    let (path, report) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let zstd = dir.path().join("zstd.hds");
+    let r = recode(&path, &zstd, Codec::Zstd, &|_, _| {}).unwrap();
+    assert_eq!(r.blocks, report.blocks);
+    assert_eq!(r.decompressed_bytes, report.decompressed_bytes);
+    assert_eq!(r.before_bytes, report.compressed_bytes);
+    assert!(r.after_bytes < r.before_bytes, "{r:?}");
+    let file = OocScene::open(&zstd, None, 1).unwrap();
+    assert_eq!(file.header().codec, Codec::Zstd);
+    let tree = KdTree::build(&scene, &BuildOptions::default());
+    for ray in rays(&scene, 1500, 4) {
+        let a = file.intersect(&ray, 0.0, &mut Fetch::load());
+        assert!(same_hit(a, tree.intersect(&scene, &ray)), "{ray:?}");
+    }
+    // LZ4 is deterministic: back again gives the very same file.
+    let back = dir.path().join("back.hds");
+    recode(&zstd, &back, Codec::Lz4, &|_, _| {}).unwrap();
+    assert!(std::fs::read(&back).unwrap() == std::fs::read(&path).unwrap());
+
+    // A damaged block is refused, and nothing is written.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let f = OocScene::open(&path, None, 0).unwrap();
+    let e = *f.cache().entry(f.header().blocks / 2).unwrap();
+    bytes[e.offset as usize + 3] ^= 0x40;
+    let bad = dir.path().join("bad.hds");
+    std::fs::write(&bad, &bytes).unwrap();
+    let out = dir.path().join("never.hds");
+    let err = recode(&bad, &out, Codec::Zstd, &|_, _| {}).unwrap_err();
+    assert!(err.to_string().contains("checksum"), "{err}");
+    assert!(!out.exists() && !dir.path().join("never.hds.partial").exists());
 }

@@ -24,13 +24,14 @@ use rayon::prelude::*;
 
 use super::block::{Block, MAX_BLOCK_ITEMS};
 use super::codec::Codec;
-use super::format::{encode_trailer, Emitter, Header, HeaderLink, IndexEntry};
+use super::format::{Emitter, Header, HeaderLink, IndexEntry};
 use super::treelet::{decompose, split_box};
+use super::writer::FileWriter;
 use super::OocError;
 use crate::geom::Aabb;
 pub use chunk::shade_color;
 use chunk::Chunk;
-pub use source::{LandscapeSource, RawTri, SceneMeta, SceneSource, StreamHash, TriangleSource};
+pub use source::{LandscapeSource, MandelbulbSource, RawTri, SceneMeta, SceneSource, StreamHash, TriangleSource};
 use spill::Spill;
 use top::{TopNode, TopTree};
 
@@ -161,7 +162,8 @@ fn make_chunks(
     out: &mut Vec<Spill>,
 ) -> Result<(), OocError> {
     if levels == 0 {
-        let path = dir.join(format!("chunk-{}.tri", top.nodes.len() + out.len()));
+        // Named by node, as re-split halves are: no two live chunk files share a name.
+        let path = dir.join(format!("chunk-{node}.tri"));
         out.push(Spill::create(path, b, depth, node)?);
         return Ok(());
     }
@@ -456,19 +458,13 @@ fn build_in(
         materials: meta.materials.clone(),
         material_names: meta.material_names.clone(),
         sky: meta.sky.clone(),
-        sections: meta.sections.clone(),
+        sections: source.sections()?,
         emitters,
     };
-    let head = header.encode()?;
     let mut order: Vec<usize> = (0..blocks.entries.len()).collect();
     order.sort_by_key(|&i| (blocks.entries[i].level, i));
     let mut src = File::open(&blocks.path).map_err(|e| OocError::io(&blocks.path, e))?;
-    let file = File::create(partial).map_err(|e| OocError::io(partial, e))?;
-    let mut w = BufWriter::with_capacity(1 << 20, file);
-    let io = |e| OocError::io(partial, e);
-    w.write_all(&head).map_err(io)?;
-    let mut at = head.len() as u64;
-    let mut index = blocks.entries.clone();
+    let mut file = FileWriter::create(partial, &header)?;
     let mut buf = Vec::new();
     for (k, &i) in order.iter().enumerate() {
         let e = blocks.entries[i];
@@ -476,29 +472,12 @@ fn build_in(
         src.seek(SeekFrom::Start(e.offset))
             .map_err(|e| OocError::io(&blocks.path, e))?;
         src.read_exact(&mut buf).map_err(|e| OocError::io(&blocks.path, e))?;
-        w.write_all(&buf).map_err(io)?;
-        index[i].offset = at;
-        at += u64::from(e.packed);
+        file.block(i as u32, &buf, e.len, e.level)?;
         if k % 4096 == 0 {
             progress("writing", k as u64, order.len() as u64);
         }
     }
-    let mut raw_index = Vec::with_capacity(index.len() * super::format::INDEX_ENTRY);
-    for e in &index {
-        e.encode(&mut raw_index);
-    }
-    w.write_all(&raw_index).map_err(io)?;
-    w.write_all(&encode_trailer(at, index.len() as u64, crc32c::crc32c(&raw_index)))
-        .map_err(io)?;
-    let file = w.into_inner().map_err(|e| OocError::io(partial, e.into_error()))?;
-    file.sync_all().map_err(io)?;
-    drop(file);
-    fs::rename(partial, out).map_err(|e| OocError::io(out, e))?;
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if let Ok(d) = File::open(parent) {
-            let _ = d.sync_all();
-        }
-    }
+    let index = file.finish(out)?;
     report.references = blocks.references;
     report.blocks = index.len() as u32;
     report.levels = levels;

@@ -1,13 +1,15 @@
 //! Where a build's triangles come from: a stream that can be replayed. A
-//! scene already in memory streams its triangles; the built-in landscape
-//! generates them tile by tile, so a scene of hundreds of millions of
-//! triangles never exists in memory as a whole.
+//! scene already in memory streams its triangles; the built-in landscape and
+//! Mandelbulb generate them tile by tile and slab by slab, so a scene of
+//! hundreds of millions of triangles never exists in memory as a whole.
 
 use glam::Vec3;
 use holodeck_protocol::Section;
 
 use super::super::OocError;
-use crate::scene::gen::{landscape, GenParams};
+use std::sync::Mutex;
+
+use crate::scene::gen::{landscape, mandelbulb, GenParams};
 use crate::scene::{content_hash, Material, Scene, SceneBuilder, Sky};
 
 /// One triangle on its way into the build.
@@ -86,6 +88,65 @@ pub trait TriangleSource {
     /// Triangles skipped before streaming (degenerate, not finite).
     fn skipped(&self) -> u64 {
         0
+    }
+    /// The sections, asked for after the first stream: a generated scene's
+    /// sections may depend on where its geometry turned out to lie.
+    fn sections(&self) -> Result<Vec<Section>, OocError> {
+        Ok(self.meta().sections.clone())
+    }
+}
+
+/// Numbers streamed triangles and sends them on in batches, leaving out
+/// degenerate ones as the in-core scene builder does.
+struct Batcher {
+    batch: Vec<RawTri>,
+    next: u32,
+}
+
+impl Batcher {
+    fn new() -> Batcher {
+        Batcher {
+            batch: Vec::with_capacity(1 << 15),
+            next: 0,
+        }
+    }
+
+    fn push(
+        &mut self,
+        v: [Vec3; 3],
+        material: u32,
+        emit: &mut dyn FnMut(&[RawTri]) -> Result<(), OocError>,
+    ) -> Result<(), OocError> {
+        if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
+            self.batch.push(RawTri {
+                v,
+                material,
+                id: self.next,
+            });
+            self.next = self
+                .next
+                .checked_add(1)
+                .ok_or_else(|| OocError::Build("more than 2^32 triangles".into()))?;
+        }
+        if self.batch.len() == self.batch.capacity() {
+            emit(&self.batch)?;
+            self.batch.clear();
+        }
+        Ok(())
+    }
+
+    fn finish(self, emit: &mut dyn FnMut(&[RawTri]) -> Result<(), OocError>) -> Result<(), OocError> {
+        emit(&self.batch)
+    }
+}
+
+/// The meta of a scene being built from generated parts.
+fn meta_of(scene: &Scene) -> SceneMeta {
+    SceneMeta {
+        materials: scene.materials.clone(),
+        material_names: scene.material_names.clone(),
+        sky: scene.sky.clone(),
+        sections: scene.sections.clone(),
     }
 }
 
@@ -191,12 +252,7 @@ impl LandscapeSource {
             b.section(s);
         }
         let room = b.finish();
-        let meta = SceneMeta {
-            materials: room.materials.clone(),
-            material_names: room.material_names.clone(),
-            sky: room.sky.clone(),
-            sections: room.sections.clone(),
-        };
+        let meta = meta_of(&room);
         Ok(LandscapeSource {
             params,
             meta,
@@ -211,29 +267,93 @@ impl TriangleSource for LandscapeSource {
         &self.meta
     }
     fn stream(&self, emit: &mut dyn FnMut(&[RawTri]) -> Result<(), OocError>) -> Result<(), OocError> {
-        let mut next = 0u32;
-        let mut batch: Vec<RawTri> = Vec::with_capacity(1 << 15);
-        let mut push = |batch: &mut Vec<RawTri>, v: [Vec3; 3], material: u32| -> Result<(), OocError> {
-            // The same checks as the in-core builder: no degenerate triangles.
-            if (v[1] - v[0]).cross(v[2] - v[0]).length_squared() > 0.0 {
-                batch.push(RawTri { v, material, id: next });
-                next = next
-                    .checked_add(1)
-                    .ok_or_else(|| OocError::Build("more than 2^32 triangles".into()))?;
-            }
-            if batch.len() == batch.capacity() {
-                emit(batch)?;
-                batch.clear();
-            }
-            Ok(())
-        };
+        let mut out = Batcher::new();
         for i in 0..self.room.triangles.len() {
-            push(&mut batch, self.room.vertices(i), self.room.triangles[i].material)?;
+            out.push(self.room.vertices(i), self.room.triangles[i].material, emit)?;
         }
-        landscape::stream(&self.params, self.ids, &mut |v, m| push(&mut batch, v, m))?;
-        emit(&batch)
+        landscape::stream(&self.params, self.ids, &mut |v, m| out.push(v, m, emit))?;
+        out.finish(emit)
     }
     fn content_hash(&self) -> Option<String> {
         None
+    }
+}
+
+/// The built-in Mandelbulb, marched two grid planes at a time (see
+/// [`mandelbulb::for_each_slab`]): the same triangles in the same order as
+/// the in-core generator, at resolutions no in-core scene could hold.
+pub struct MandelbulbSource {
+    resolution: u32,
+    meta: SceneMeta,
+    /// The ground plane.
+    ground: Scene,
+    bulb: u32,
+    /// Bounds of the bulb before its lift, and the lift, once streamed.
+    placed: Mutex<Option<(Vec3, Vec3, Vec3)>>,
+}
+
+impl MandelbulbSource {
+    /// The bulb at `resolution` grid cells per axis.
+    pub fn new(resolution: u32) -> Result<MandelbulbSource, OocError> {
+        let err = |e: crate::SceneError| OocError::Build(format!("builtin:mandelbulb: {e}"));
+        mandelbulb::check_resolution(resolution, mandelbulb::MAX_STREAM_RESOLUTION).map_err(err)?;
+        let mut b = SceneBuilder::new();
+        let (bulb, ground) = mandelbulb::add_materials(&mut b).map_err(err)?;
+        mandelbulb::add_ground(&mut b, ground).map_err(err)?;
+        b.sky(crate::scene::gen::room::daylight()).map_err(err)?;
+        let ground = b.finish();
+        Ok(MandelbulbSource {
+            resolution,
+            meta: meta_of(&ground),
+            ground,
+            bulb,
+            placed: Mutex::new(None),
+        })
+    }
+}
+
+impl TriangleSource for MandelbulbSource {
+    fn meta(&self) -> &SceneMeta {
+        &self.meta
+    }
+    fn stream(&self, emit: &mut dyn FnMut(&[RawTri]) -> Result<(), OocError>) -> Result<(), OocError> {
+        let mut out = Batcher::new();
+        let mut lift = None;
+        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+        mandelbulb::for_each_slab(self.resolution, &mut |tris| {
+            // Slabs come bottom up, so the first with a surface holds the lowest vertex.
+            let Some(first) = tris.first() else {
+                return Ok(());
+            };
+            let l = *lift
+                .get_or_insert_with(|| mandelbulb::lift(tris.iter().flatten().fold(first[0].1.z, |z, v| z.min(v.1.z))));
+            for t in tris {
+                let v = t.map(|(_, p)| p);
+                for p in v {
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                }
+                out.push(v.map(|p| p + l), self.bulb, emit)?;
+            }
+            Ok(())
+        })?;
+        for i in 0..self.ground.triangles.len() {
+            out.push(self.ground.vertices(i), self.ground.triangles[i].material, emit)?;
+        }
+        out.finish(emit)?;
+        let lift = lift.ok_or_else(|| OocError::Build(format!("builtin:mandelbulb: {}", mandelbulb::no_surface())))?;
+        *self.placed.lock().unwrap_or_else(|e| e.into_inner()) = Some((lo, hi, lift));
+        Ok(())
+    }
+    fn content_hash(&self) -> Option<String> {
+        None
+    }
+    fn sections(&self) -> Result<Vec<Section>, OocError> {
+        let placed = *self.placed.lock().unwrap_or_else(|e| e.into_inner());
+        let (lo, hi, lift) =
+            placed.ok_or_else(|| OocError::Build("builtin:mandelbulb: sections asked for before streaming".into()))?;
+        mandelbulb::setting(lo, hi, lift)
+            .map(|s| s.sections)
+            .map_err(|e| OocError::Build(format!("builtin:mandelbulb: {e}")))
     }
 }

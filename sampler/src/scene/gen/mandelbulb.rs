@@ -3,10 +3,11 @@
 //! extracted by marching tetrahedra (six tetrahedra per cube around its main
 //! diagonal, so neighbouring cubes agree on every face). Vertices are keyed by
 //! the grid edge they lie on, so the mesh is welded: a closed, consistently
-//! oriented 2-manifold, every edge shared by exactly two triangles. Slabs of
-//! the grid are sampled and triangulated in parallel. The bulb (a gold metal)
-//! rests on a ground plane at z = 0 under the daylight sky, inside one exterior
-//! section.
+//! oriented 2-manifold, every edge shared by exactly two triangles. The grid
+//! is sampled two planes at a time and each slab between them triangulated in
+//! parallel, so the surface can be streamed at any resolution without holding
+//! the grid or the mesh. The bulb (a gold metal) rests on a ground plane at
+//! z = 0 under the daylight sky, inside one exterior section.
 
 use glam::{DVec3, Vec3};
 use holodeck_protocol::SectionKind;
@@ -53,22 +54,50 @@ pub fn distance(p: DVec3) -> f64 {
     0.5 * r.ln() * r / dr
 }
 
-/// The closed surface mesh at `resolution` cells per axis, in bulb coordinates
-/// (about [-1.2, 1.2]³): positions and triangles (vertex triples).
-pub fn surface(resolution: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let n = resolution as usize;
-    let p = n + 1;
-    let cell = 2.0 * EXTENT / n as f64;
-    let iso = 0.5 * cell;
-    let at = |i: usize| -EXTENT + i as f64 * cell;
-    // Field samples, z-major slabs; inside where negative. The outer layer is forced outside so the surface closes.
-    let mut field = vec![0.0f32; p * p * p];
-    field.par_chunks_mut(p * p).enumerate().for_each(|(k, slab)| {
-        for j in 0..p {
-            for i in 0..p {
+/// Most cells per axis when the bulb is streamed into a scene-file build:
+/// the grid is sampled two planes at a time, so only time limits it.
+pub const MAX_STREAM_RESOLUTION: u32 = 16_384;
+
+/// One surface triangle as it leaves a slab: per corner, the key of the grid
+/// edge it lies on (`8 * low grid point + direction mask`) and its position.
+pub type SlabTriangle = [(u64, Vec3); 3];
+
+/// The sampling grid over [-EXTENT, EXTENT]³.
+struct Grid {
+    /// Cells per axis.
+    n: usize,
+    /// Grid points per axis.
+    p: usize,
+    cell: f64,
+    iso: f64,
+}
+
+impl Grid {
+    fn new(resolution: u32) -> Grid {
+        let n = resolution as usize;
+        let cell = 2.0 * EXTENT / n as f64;
+        Grid {
+            n,
+            p: n + 1,
+            cell,
+            iso: 0.5 * cell,
+        }
+    }
+
+    fn at(&self, i: usize) -> f64 {
+        -EXTENT + i as f64 * self.cell
+    }
+
+    /// Field samples of grid plane `k`, row by row; inside where negative. The
+    /// outer layer is forced outside so the surface closes.
+    fn plane(&self, k: usize) -> Vec<f32> {
+        let (n, p) = (self.n, self.p);
+        let mut plane = vec![0.0f32; p * p];
+        plane.par_chunks_mut(p).enumerate().for_each(|(j, row)| {
+            for (i, out) in row.iter_mut().enumerate() {
                 let border = i == 0 || j == 0 || k == 0 || i == n || j == n || k == n;
-                let d = (distance(DVec3::new(at(i), at(j), at(k))) - iso) as f32;
-                slab[j * p + i] = if border {
+                let d = (distance(DVec3::new(self.at(i), self.at(j), self.at(k))) - self.iso) as f32;
+                *out = if border {
                     d.max(1e-6)
                 } else if d == 0.0 {
                     1e-9
@@ -76,52 +105,94 @@ pub fn surface(resolution: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
                     d
                 };
             }
-        }
-    });
-    let index = |i: usize, j: usize, k: usize| (k * p + j) * p + i;
-    // Edge key: 8 * (grid point at the low end) + direction mask (bit 0 x, bit 1 y, bit 2 z).
-    let keyed: Vec<[u64; 3]> = (0..n)
-        .into_par_iter()
-        .flat_map_iter(|k| {
-            let mut out = Vec::new();
-            for j in 0..n {
+        });
+        plane
+    }
+
+    /// The surface triangles of slab `k` (between planes `k` and `k + 1`,
+    /// given as `planes`), in row, cell, tetrahedron order.
+    fn slab(&self, k: usize, planes: [&[f32]; 2]) -> Vec<SlabTriangle> {
+        let (n, p) = (self.n, self.p);
+        let value = |i: usize, j: usize, dz: usize| planes[dz][j * p + i];
+        let position = |key: u64| {
+            let a = (key >> 3) as usize;
+            let (i, j, kk) = (a % p, a / p % p, a / (p * p));
+            let d = (key & 7) as usize;
+            let (dx, dy, dz) = (d & 1, d >> 1 & 1, d >> 2 & 1);
+            let (fa, fb) = (
+                f64::from(value(i, j, kk - k)),
+                f64::from(value(i + dx, j + dy, kk - k + dz)),
+            );
+            let t = (fa / (fa - fb)).clamp(0.01, 0.99);
+            let pa = DVec3::new(self.at(i), self.at(j), self.at(kk));
+            let pb = pa + self.cell * DVec3::new(dx as f64, dy as f64, dz as f64);
+            (pa + (pb - pa) * t).as_vec3()
+        };
+        (0..n)
+            .into_par_iter()
+            .flat_map_iter(|j| {
+                let mut keys = Vec::new();
                 for i in 0..n {
-                    let corner = |m: usize| index(i + (m & 1), j + (m >> 1 & 1), k + (m >> 2 & 1));
-                    let values: [f32; 8] = std::array::from_fn(|m| field[corner(m)]);
+                    let values: [f32; 8] = std::array::from_fn(|m| value(i + (m & 1), j + (m >> 1 & 1), m >> 2 & 1));
                     let inside = values.iter().filter(|v| **v < 0.0).count();
                     if inside == 0 || inside == 8 {
                         continue;
                     }
+                    let corner = |m: usize| ((k + (m >> 2 & 1)) * p + j + (m >> 1 & 1)) * p + i + (m & 1);
                     for tet in TETS {
-                        march(&tet, &values, |a, b| (corner(a) as u64) << 3 | (b ^ a) as u64, &mut out);
+                        march(
+                            &tet,
+                            &values,
+                            |a, b| (corner(a) as u64) << 3 | (b ^ a) as u64,
+                            &mut keys,
+                        );
                     }
                 }
-            }
-            out
-        })
-        .collect();
-    let mut keys: Vec<u64> = keyed.par_iter().flat_map_iter(|t| t.iter().copied()).collect();
-    keys.par_sort_unstable();
-    keys.dedup();
-    let positions: Vec<Vec3> = keys
-        .par_iter()
-        .map(|&key| {
-            let a = (key >> 3) as usize;
-            let (i, j, k) = (a % p, a / p % p, a / (p * p));
-            let d = (key & 7) as usize;
-            let b = index(i + (d & 1), j + (d >> 1 & 1), k + (d >> 2 & 1));
-            let (fa, fb) = (f64::from(field[a]), f64::from(field[b]));
-            let t = (fa / (fa - fb)).clamp(0.01, 0.99);
-            let pa = DVec3::new(at(i), at(j), at(k));
-            let pb = pa + cell * DVec3::new((d & 1) as f64, (d >> 1 & 1) as f64, (d >> 2 & 1) as f64);
-            (pa + (pb - pa) * t).as_vec3()
-        })
-        .collect();
+                keys.into_iter().map(move |t| t.map(|key| (key, position(key))))
+            })
+            .collect()
+    }
+}
+
+/// Samples the grid at `resolution` cells per axis two planes at a time and
+/// hands each slab's surface triangles to `f`, bottom (lowest z) to top:
+/// the whole surface in bulb coordinates (about [-1.2, 1.2]³), never held
+/// at once. Triangles sharing a grid edge get bit-identical vertices.
+pub fn for_each_slab<E>(resolution: u32, f: &mut dyn FnMut(&[SlabTriangle]) -> Result<(), E>) -> Result<(), E> {
+    let grid = Grid::new(resolution);
+    let mut lower = grid.plane(0);
+    for k in 0..grid.n {
+        let upper = grid.plane(k + 1);
+        f(&grid.slab(k, [&lower, &upper]))?;
+        lower = upper;
+    }
+    Ok(())
+}
+
+/// The closed surface mesh at `resolution` cells per axis, in bulb coordinates
+/// (about [-1.2, 1.2]³): positions and triangles (vertex triples), welded by
+/// grid edge.
+pub fn surface(resolution: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut keyed: Vec<[u64; 3]> = Vec::new();
+    let mut vertices: Vec<(u64, Vec3)> = Vec::new();
+    let _ = for_each_slab::<std::convert::Infallible>(resolution, &mut |tris| {
+        keyed.extend(tris.iter().map(|t| t.map(|(key, _)| key)));
+        let start = vertices.len();
+        vertices.extend(tris.iter().flatten());
+        vertices[start..].sort_unstable_by_key(|v| v.0);
+        let mut slab = vertices.split_off(start);
+        slab.dedup_by_key(|v| v.0);
+        vertices.extend(slab);
+        Ok(())
+    });
+    // Slabs share the vertices of the plane between them.
+    vertices.par_sort_unstable_by_key(|v| v.0);
+    vertices.dedup_by_key(|v| v.0);
     let triangles: Vec<[u32; 3]> = keyed
         .par_iter()
-        .map(|t| t.map(|key| keys.binary_search(&key).map_or(0, |v| v as u32)))
+        .map(|t| t.map(|key| vertices.binary_search_by_key(&key, |v| v.0).map_or(0, |v| v as u32)))
         .collect();
-    (positions, triangles)
+    (vertices.into_iter().map(|v| v.1).collect(), triangles)
 }
 
 /// The six tetrahedra of a cube, as corner masks along a path from corner 0 to 7.
@@ -175,18 +246,20 @@ fn march(tet: &[usize; 4], values: &[f32; 8], key: impl Fn(usize, usize) -> u64,
     }
 }
 
-/// Adds the bulb on its ground plane; returns the daylight sky and an exterior section around the bulb.
-pub fn add_mandelbulb(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, SceneError> {
-    if params.triangles.is_some() {
-        tracing::warn!("mandelbulb: --triangles does not apply (use --resolution); ignored");
-    }
-    let resolution = params.resolution.unwrap_or(DEFAULT_RESOLUTION);
-    if !(4..=MAX_RESOLUTION).contains(&resolution) {
-        return Err(SceneError::Invalid {
+/// Checks a resolution against `max`.
+pub fn check_resolution(resolution: u32, max: u32) -> Result<(), SceneError> {
+    if (4..=max).contains(&resolution) {
+        Ok(())
+    } else {
+        Err(SceneError::Invalid {
             what: "mandelbulb".to_string(),
-            message: format!("resolution {resolution} must be in 4..={MAX_RESOLUTION}"),
-        });
+            message: format!("resolution {resolution} must be in 4..={max}"),
+        })
     }
+}
+
+/// Adds (or finds) the bulb's and the ground's materials: (bulb, ground).
+pub fn add_materials(b: &mut SceneBuilder) -> Result<(u32, u32), SceneError> {
     let bulb = material(
         b,
         "bulb",
@@ -196,24 +269,11 @@ pub fn add_mandelbulb(b: &mut SceneBuilder, params: &GenParams) -> Result<Settin
         },
     )?;
     let ground = material(b, "ground", Material::lambertian([0.45, 0.45, 0.43]))?;
-    let (mut positions, tris) = surface(resolution);
-    tracing::info!("mandelbulb: {} triangles at resolution {resolution}", tris.len());
-    let (lo, hi) = positions
-        .iter()
-        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), p| {
-            (l.min(*p), h.max(*p))
-        });
-    if tris.is_empty() {
-        return Err(SceneError::Invalid {
-            what: "mandelbulb".to_string(),
-            message: "no surface found".to_string(),
-        });
-    }
-    // Rest the bulb 1 cm above the ground plane at z = 0.
-    let lift = Vec3::Z * (0.01 - lo.z);
-    positions.par_iter_mut().for_each(|p| *p += lift);
-    let triangles: Vec<Triangle> = tris.into_iter().map(|v| Triangle { v, material: bulb }).collect();
-    b.add_world_mesh("mandelbulb", positions, triangles)?;
+    Ok((bulb, ground))
+}
+
+/// Adds the ground plane at z = 0.
+pub fn add_ground(b: &mut SceneBuilder, ground: u32) -> Result<(), SceneError> {
     let mut floor = MeshBuf::new();
     let g = 15.0;
     floor.quad(
@@ -226,7 +286,17 @@ pub fn add_mandelbulb(b: &mut SceneBuilder, params: &GenParams) -> Result<Settin
         Vec3::Z,
         ground,
     );
-    floor.flush(b, "mandelbulb ground")?;
+    floor.flush(b, "mandelbulb ground")
+}
+
+/// The lift that rests a bulb whose lowest vertex is at `lowest_z` 1 cm above the ground.
+pub fn lift(lowest_z: f32) -> Vec3 {
+    Vec3::Z * (0.01 - lowest_z)
+}
+
+/// The daylight sky and an exterior section around the bulb, given the
+/// bounds of its vertices before `lift`.
+pub fn setting(lo: Vec3, hi: Vec3, lift: Vec3) -> Result<Setting, SceneError> {
     let (lo, hi) = ((lo + lift).as_dvec3(), (hi + lift).as_dvec3());
     let m = 0.05;
     let size = [hi.x - lo.x + 2.0 * m, hi.y - lo.y + 2.0 * m, hi.z + m - 0.005];
@@ -236,4 +306,38 @@ pub fn add_mandelbulb(b: &mut SceneBuilder, params: &GenParams) -> Result<Settin
         sky: daylight(),
         sections: vec![section],
     })
+}
+
+/// The error for a grid that holds no surface.
+pub fn no_surface() -> SceneError {
+    SceneError::Invalid {
+        what: "mandelbulb".to_string(),
+        message: "no surface found".to_string(),
+    }
+}
+
+/// Adds the bulb on its ground plane; returns the daylight sky and an exterior section around the bulb.
+pub fn add_mandelbulb(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, SceneError> {
+    if params.triangles.is_some() {
+        tracing::warn!("mandelbulb: --triangles does not apply (use --resolution); ignored");
+    }
+    let resolution = params.resolution.unwrap_or(DEFAULT_RESOLUTION);
+    check_resolution(resolution, MAX_RESOLUTION)?;
+    let (bulb, ground) = add_materials(b)?;
+    let (mut positions, tris) = surface(resolution);
+    tracing::info!("mandelbulb: {} triangles at resolution {resolution}", tris.len());
+    let (lo, hi) = positions
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), p| {
+            (l.min(*p), h.max(*p))
+        });
+    if tris.is_empty() {
+        return Err(no_surface());
+    }
+    let lift = lift(lo.z);
+    positions.par_iter_mut().for_each(|p| *p += lift);
+    let triangles: Vec<Triangle> = tris.into_iter().map(|v| Triangle { v, material: bulb }).collect();
+    b.add_world_mesh("mandelbulb", positions, triangles)?;
+    add_ground(b, ground)?;
+    setting(lo, hi, lift)
 }
