@@ -57,15 +57,25 @@ fn throughput(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> (f64, Vec<Option<Ra
     (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
 }
 
-/// Rays per second on this thread, tracing in packets of eight consecutive rays.
-fn packet_throughput(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> f64 {
+/// Rays per second on this thread, tracing in packets of eight consecutive
+/// rays, and the hits (parameter, triangle).
+fn packet_throughput(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> (f64, Vec<Option<(f32, u32)>>) {
     let start = Instant::now();
-    let mut hits = 0usize;
+    let mut hits = Vec::with_capacity(rays.len());
     for chunk in rays.chunks(PACKET) {
-        hits += tree.intersect_packet(scene, chunk).iter().flatten().count();
+        let found = tree.intersect_packet(scene, chunk);
+        hits.extend(found[..chunk.len()].iter().map(|h| h.map(|h| (h.t, h.tri))));
     }
-    std::hint::black_box(hits);
-    rays.len() as f64 / start.elapsed().as_secs_f64()
+    (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+}
+
+/// Rays whose packet hit differs from the single-ray hit.
+fn differing(packets: &[Option<(f32, u32)>], single: &[Option<RayHit>]) -> usize {
+    packets
+        .iter()
+        .zip(single)
+        .filter(|(p, s)| **p != s.map(|(_, t, tri)| (t, tri)))
+        .count()
 }
 
 /// Seconds of rendering per estimator in the equal-time comparison.
@@ -106,9 +116,9 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
-        "| scene | triangles | build (2 cores) | kd-tree bytes/tri | mesh bytes/tri | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 |"
+        "| scene | triangles | build (2 cores) | kd-tree bytes/tri | mesh bytes/tri | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | packet hits differing from single |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for case in cases(triangles)? {
         let scene = &case.scene;
         let start = Instant::now();
@@ -128,8 +138,9 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
                     .map(|(o, d)| Ray::new(o.as_vec3(), d.as_vec3()))
             })
             .collect();
-        let primary_packets = packet_throughput(&tree, scene, &primary);
+        let (primary_packets, primary_packet_hits) = packet_throughput(&tree, scene, &primary);
         let (primary_rate, hits) = throughput(&tree, scene, &primary);
+        let mut wrong = differing(&primary_packet_hits, &hits);
         let mut rng = Rng::new(1, 0);
         let bounce: Vec<Ray> = hits
             .iter()
@@ -144,11 +155,12 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
                 Ray::new(offset_origin(r.at(*t), ng), d)
             })
             .collect();
-        let (bounce_rate, _) = throughput(&tree, scene, &bounce);
-        let bounce_packets = packet_throughput(&tree, scene, &bounce);
+        let (bounce_rate, bounce_hits) = throughput(&tree, scene, &bounce);
+        let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, scene, &bounce);
+        wrong += differing(&bounce_packet_hits, &bounce_hits);
         let tris = scene.triangles.len().max(1) as f64;
         println!(
-            "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
             case.label,
             count(scene.triangles.len() as u64),
             build,

@@ -32,7 +32,12 @@ impl KdTree {
     pub fn intersect_packet(&self, scene: &Scene, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
         let n = rays.len().min(PACKET);
-        let octant = |r: &Ray| (r.dir.x < 0.0) as u8 | ((r.dir.y < 0.0) as u8) << 1 | ((r.dir.z < 0.0) as u8) << 2;
+        // By sign bit, so that a -0.0 component walks like the single ray, whose inverse is -inf.
+        let octant = |r: &Ray| {
+            r.dir.x.is_sign_negative() as u8
+                | (r.dir.y.is_sign_negative() as u8) << 1
+                | (r.dir.z.is_sign_negative() as u8) << 2
+        };
         let mut done = 0u32;
         for i in 0..n {
             if done & (1 << i) != 0 {
@@ -81,9 +86,9 @@ impl KdTree {
         }
         let first_lane = active.trailing_zeros() as usize;
         let negative = [
-            rays[first_lane].dir.x < 0.0,
-            rays[first_lane].dir.y < 0.0,
-            rays[first_lane].dir.z < 0.0,
+            rays[first_lane].dir.x.is_sign_negative(),
+            rays[first_lane].dir.y.is_sign_negative(),
+            rays[first_lane].dir.z.is_sign_negative(),
         ];
         let shared = SharedPrep::new(rays, active);
         let mut stack = [(0u32, 0u32, [0f32; PACKET], [0f32; PACKET]); STACK];
@@ -112,33 +117,37 @@ impl KdTree {
                         need_second |= 1 << i;
                         continue;
                     }
-                    if t > t_min[i] * SLACK_DOWN {
+                    // The single-ray walk's rules exactly, boundaries included.
+                    if t <= 0.0 {
+                        // The plane is behind this ray (or it starts on it): only the
+                        // child it starts in, decided as the single-ray walk decides.
+                        let o = lane.origin[axis][i];
+                        let starts_left = o < split || (o == split && lane.inv[axis][i] <= 0.0);
+                        if starts_left != negative[axis] {
+                            need_first |= 1 << i;
+                        } else {
+                            need_second |= 1 << i;
+                        }
+                        continue;
+                    }
+                    if t >= t_min[i] * SLACK_DOWN {
                         need_first |= 1 << i;
                     }
-                    if t < t_max[i] * SLACK_UP {
+                    if t <= t_max[i] * SLACK_UP {
                         need_second |= 1 << i;
-                    }
-                    if t <= 0.0 {
-                        // The plane is behind this ray: only the child it starts in.
-                        let below = lane.origin[axis][i] < split;
-                        let starts_first = below != negative[axis];
-                        if starts_first {
-                            need_second &= !(1 << i);
-                        } else {
-                            need_first &= !(1 << i);
-                        }
                     }
                 }
                 match (need_first != 0, need_second != 0) {
                     (true, true) => {
                         let mut t0 = t_min;
                         let mut t1 = t_max;
+                        // Rays that need both children split their range at the plane,
+                        // as the single-ray walk does (slack included).
                         for i in 0..PACKET {
-                            if need_second & (1 << i) != 0 && !ts[i].is_nan() && ts[i] > 0.0 {
-                                t0[i] = t_min[i].max(ts[i]);
-                            }
-                            if need_first & (1 << i) != 0 && !ts[i].is_nan() && ts[i] > 0.0 {
-                                t1[i] = t_max[i].min(ts[i]);
+                            let both = need_first & need_second & (1 << i) != 0;
+                            if both && !ts[i].is_nan() && ts[i] > 0.0 {
+                                t0[i] = ts[i];
+                                t1[i] = ts[i];
                             }
                         }
                         if sp < STACK {
@@ -389,5 +398,90 @@ mod tests {
             }
             assert!(hits > 1000, "{hits}");
         }
+    }
+
+    /// Rays that start exactly on split planes, with zero (and negative zero)
+    /// direction components, and bounce rays leaving a surface: where the
+    /// packet walk once dropped rays that the single-ray walk kept.
+    #[test]
+    fn packets_agree_on_rays_starting_on_split_planes_and_leaving_surfaces() {
+        let mut checked = 0;
+        let mut near = 0;
+        for seed in 0..4 {
+            let scene = soup(seed, 400);
+            let tree = KdTree::build(&scene, &BuildOptions::default());
+            let planes: Vec<(usize, f32)> = tree
+                .nodes()
+                .iter()
+                .filter(|n| !n.is_leaf())
+                .map(|n| (n.axis(), n.split()))
+                .collect();
+            let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 90);
+            for k in 0..800 {
+                let rays: Vec<Ray> = if k % 2 == 0 {
+                    let (axis, split) = planes[rng.gen_range(0..planes.len())];
+                    let mut origin = Vec3::new(
+                        rng.gen_range(-6.0..6.0),
+                        rng.gen_range(-6.0..6.0),
+                        rng.gen_range(-6.0..6.0),
+                    );
+                    origin[axis] = split;
+                    let centre = Vec3::new(
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                        rng.gen_range(-1.0..1.0),
+                    );
+                    (0..PACKET)
+                        .map(|i| {
+                            let mut d = centre
+                                + 0.05
+                                    * Vec3::new(
+                                        rng.gen_range(-1.0..1.0),
+                                        rng.gen_range(-1.0..1.0),
+                                        rng.gen_range(-1.0..1.0),
+                                    );
+                            match (k / 2 + i) % 4 {
+                                0 => d[axis] = 0.0,
+                                1 => d[axis] = -0.0,
+                                2 => d[(axis + 1) % 3] = -0.0,
+                                _ => {}
+                            }
+                            Ray::new(origin, d)
+                        })
+                        .collect()
+                } else {
+                    // Bounce rays from one point just off a triangle, as a sampler makes them.
+                    let t = rng.gen_range(0..scene.triangles.len());
+                    let [a, b, c] = scene.vertices(t);
+                    let n = (b - a).cross(c - a).normalize();
+                    let (u, v) = (rng.gen_range(0.05..0.45), rng.gen_range(0.05..0.45));
+                    let p = a + u * (b - a) + v * (c - a) + n * 1e-5;
+                    (0..PACKET)
+                        .map(|_| {
+                            let d = Vec3::new(
+                                rng.gen_range(-1.0..1.0),
+                                rng.gen_range(-1.0..1.0),
+                                rng.gen_range(-1.0..1.0),
+                            );
+                            Ray::new(p, if d.dot(n) < 0.0 { -d } else { d })
+                        })
+                        .collect()
+                };
+                let rays: Vec<Ray> = rays.into_iter().filter(|r| r.dir.length() > 1e-3).collect();
+                let packet = tree.intersect_packet(&scene, &rays);
+                for (i, r) in rays.iter().enumerate() {
+                    let single = tree.intersect(&scene, r);
+                    assert_eq!(
+                        packet[i].map(|h| (h.t, h.tri)),
+                        single.map(|h| (h.t, h.tri)),
+                        "seed {seed} packet {k} ray {i} {r:?}"
+                    );
+                    checked += 1;
+                    near += usize::from(single.is_some_and(|h| h.t < 1e-3));
+                }
+            }
+        }
+        assert!(checked > 20_000, "{checked}");
+        assert!(near > 0, "some bounce rays hit a neighbour right away");
     }
 }
