@@ -191,6 +191,10 @@ impl Cache {
             return Ok(b);
         }
         let block = self.read(id).inspect_err(|e| self.note_error(e))?;
+        // A tick per load on the spot: when a batch's blocks do not all fit, the
+        // ones its rays used least recently go first, not those that every ray
+        // passes through but that share the batch's stamp.
+        self.clock.fetch_add(1, Ordering::Relaxed);
         let p = self.insert(id, block, true, guard);
         // SAFETY: as in `get`: the pointer was loaded or stored under `guard`,
         // and is freed only after every guard pinned before its eviction is gone.

@@ -200,6 +200,7 @@ impl OocScene {
                 OnMissing::Load
             };
             let mut requests = Vec::new();
+            // Rays that missed, with the block each waits for.
             let mut again = Vec::new();
             for k in todo {
                 let mut fetch = Fetch {
@@ -209,13 +210,16 @@ impl OocScene {
                 };
                 let r = f(k, &mut fetch);
                 if fetch.missed {
+                    again.push((fetch.requests.first().copied().unwrap_or(u32::MAX), k));
                     requests.extend(fetch.requests);
-                    again.push(k);
                 } else {
                     out[k] = Some(r);
                 }
             }
-            todo = again;
+            // Rays waiting for the same block go on together: they walk the same
+            // subtree, so a cache too small for the whole batch still serves them.
+            again.sort_unstable();
+            todo = again.into_iter().map(|(_, k)| k).collect();
             if todo.is_empty() {
                 break;
             }

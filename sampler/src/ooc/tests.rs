@@ -457,3 +457,32 @@ fn recoding_changes_the_codec_and_nothing_else() {
     assert!(err.to_string().contains("checksum"), "{err}");
     assert!(!out.exists() && !dir.path().join("never.hds.partial").exists());
 }
+
+#[test]
+fn a_batch_bigger_than_the_cache_loads_each_block_a_few_times_not_once_per_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(100_000);
+    let (path, report) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let tree = KdTree::build(&scene, &BuildOptions::default());
+    let rays = rays(&scene, 3000, 11);
+    let trace = |file: &OocScene| file.exact_batch(rays.len(), |k, fetch| file.intersect(&rays[k], 0.0, fetch));
+    // What the batch needs: every block it loads into a cache that holds everything.
+    let roomy = OocScene::open(&path, None, 2).unwrap();
+    trace(&roomy);
+    let needed = roomy.cache().stats().loads;
+    let needed_bytes = roomy.cache().stats().resident_bytes;
+    // A cache for a quarter of that.
+    let budget = needed_bytes / 4;
+    assert!((budget as u64) < report.decompressed_bytes / 4);
+    let small = OocScene::open(&path, Some(budget), 2).unwrap();
+    let got = trace(&small);
+    for (k, (g, ray)) in got.iter().zip(&rays).enumerate() {
+        let g = g.expect("every block is readable");
+        assert!(same_hit(g, tree.intersect(&scene, ray)), "ray {k}");
+    }
+    let loads = small.cache().stats().loads;
+    // Rays that wait for the same block go on together and evictions take the
+    // least recently used blocks: each block is loaded a few times, not once per ray.
+    assert!(loads <= 6 * needed, "{loads} loads for {needed} blocks");
+    assert!(small.cache().stats().resident_bytes <= budget + (64 << 10));
+}
