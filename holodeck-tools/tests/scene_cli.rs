@@ -124,3 +124,60 @@ fn count(n: usize) -> String {
     }
     out
 }
+
+#[test]
+fn the_mandelbulb_streams_into_a_scene_file_that_recodes_to_zstd() {
+    let dir = tempfile::tempdir().unwrap();
+    let hds = dir.path().join("bulb.hds");
+    let zstd = dir.path().join("bulb-zstd.hds");
+    let o = holodeck(&[
+        "scene",
+        "build",
+        "builtin:mandelbulb",
+        "--resolution",
+        "20",
+        "--memory",
+        "1M",
+        "-o",
+        hds.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let generated = holodeck_sampler::scene::generate(
+        "mandelbulb",
+        &holodeck_sampler::scene::gen::GenParams {
+            resolution: Some(20),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        text(&o).contains(&count(generated.triangles.len())),
+        "every generated triangle streamed: {}",
+        text(&o)
+    );
+    let o = holodeck(&[
+        "scene",
+        "recode",
+        hds.to_str().unwrap(),
+        "--codec",
+        "zstd",
+        "-o",
+        zstd.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = holodeck(&["scene", "info", zstd.to_str().unwrap()]);
+    assert!(text(&o).contains("zstd codec"), "{}", text(&o));
+    assert!(text(&o).contains(&count(generated.triangles.len())), "{}", text(&o));
+    // Past what triangle ids can number: refused before any work.
+    let o = holodeck(&[
+        "scene",
+        "build",
+        "builtin:mandelbulb",
+        "--resolution",
+        "9000",
+        "-o",
+        hds.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("9000"), "{}", text(&o));
+}

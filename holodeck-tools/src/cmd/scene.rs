@@ -77,7 +77,7 @@ and `run` trace out of core: only the blocks rays need are decompressed, into a 
 --scene-memory bytes. The build itself stays within --memory: triangles are sorted into
 chunks at spatial medians on disk, and each chunk is built in memory. builtin:landscape and
 builtin:mandelbulb are generated as streams, so their triangles never all exist at once (the
-bulb's --resolution may go to 16384 here); other scenes are loaded first. A killed build can
+bulb's --resolution may go to 8192 here); other scenes are loaded first. A killed build can
 simply be run again. The file carries the scene's content hash (a scene file and its .hds
 serve the same holodecks).
 

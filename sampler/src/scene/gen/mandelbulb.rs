@@ -54,9 +54,10 @@ pub fn distance(p: DVec3) -> f64 {
     0.5 * r.ln() * r / dr
 }
 
-/// Most cells per axis when the bulb is streamed into a scene-file build:
-/// the grid is sampled two planes at a time, so only time limits it.
-pub const MAX_STREAM_RESOLUTION: u32 = 16_384;
+/// Most cells per axis when the bulb is streamed into a scene-file build: the
+/// grid is sampled two planes at a time (2 x 256 MiB here), and the surface
+/// has about 2 billion triangles, half of what triangle ids can number.
+pub const MAX_STREAM_RESOLUTION: u32 = 8_192;
 
 /// One surface triangle as it leaves a slab: per corner, the key of the grid
 /// edge it lies on (`8 * low grid point + direction mask`) and its position.
