@@ -423,3 +423,25 @@ pub fn collect_until(
     }
     want.iter().map(|(k, _)| (*k, held(have, k))).collect()
 }
+
+/// Waits for `holodeck run`'s server (started on `file`) to print its
+/// address, then until the beams of its first section hold more than `rays`
+/// stored rays, and asks the server to quit. `run` is left to finish.
+pub fn run_stores_then_quit(run: &Proc, file: &Path, rays: u64, what: &str) {
+    let addr = run.wait_line("the address of run's server", &mut 0, |l| {
+        l.split_once("(server ")?.1.strip_suffix(')').map(str::to_string)
+    });
+    let token = std::fs::read_to_string(format!("{}.token", file.display()))
+        .unwrap()
+        .trim()
+        .to_string();
+    let beams: Vec<(BeamKey, u32)> = {
+        let (_, welcome) = Client::connect(&addr, Role::Display, &token);
+        let n = welcome.sections[0].beam_count();
+        (0..n).map(|b| (BeamKey::new(0, b), 0)).collect()
+    };
+    let (mut display, _) = Client::connect(&addr, Role::Display, &token);
+    stored_above(&mut display, &beams, rays, what);
+    drop(display);
+    quit(&addr, &token);
+}

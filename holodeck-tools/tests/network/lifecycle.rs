@@ -182,20 +182,7 @@ fn run_fills_with_local_samplers_and_stops_cleanly() {
         "--bounces",
         "0",
     ]));
-    let addr = run.wait_line("the address of run's server", &mut 0, |l| {
-        l.split_once("(server ")?.1.strip_suffix(')').map(str::to_string)
-    });
-    let token_file = format!("{}.token", file.display());
-    let token = std::fs::read_to_string(&token_file).unwrap().trim().to_string();
-    let beams: Vec<(BeamKey, u32)> = {
-        let (_, welcome) = Client::connect(&addr, Role::Display, &token);
-        let n = welcome.sections[0].beam_count();
-        (0..n).map(|b| (BeamKey::new(0, b), 0)).collect()
-    };
-    let (mut display, _) = Client::connect(&addr, Role::Display, &token);
-    stored_above(&mut display, &beams, 10_000, "run's samplers at work");
-    drop(display);
-    quit(&addr, &token);
+    run_stores_then_quit(&run, &file, 10_000, "run's samplers at work");
     let o = run.finish();
     assert!(o.status.success(), "{}", text(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);

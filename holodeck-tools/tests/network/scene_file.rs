@@ -2,8 +2,6 @@
 //! cache far smaller than the scene: every ray they store must be the exact
 //! in-core result, never one traced through a stand-in for missing data.
 
-use holodeck_protocol::wire::Role;
-use holodeck_protocol::BeamKey;
 use holodeck_sampler::ooc::OocScene;
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_server::{HoloFile, OpenOptions};
@@ -46,22 +44,7 @@ fn samplers_on_a_tenth_of_a_scene_file_store_only_exact_rays() {
         "--scene-memory",
         &budget,
     ]));
-    let addr = run.wait_line("the address of run's server", &mut 0, |l| {
-        l.split_once("(server ")?.1.strip_suffix(')').map(str::to_string)
-    });
-    let token = std::fs::read_to_string(format!("{}.token", file.display()))
-        .unwrap()
-        .trim()
-        .to_string();
-    let beams: Vec<(BeamKey, u32)> = {
-        let (_, welcome) = Client::connect(&addr, Role::Display, &token);
-        let n = welcome.sections[0].beam_count();
-        (0..n).map(|b| (BeamKey::new(0, b), 0)).collect()
-    };
-    let (mut display, _) = Client::connect(&addr, Role::Display, &token);
-    stored_above(&mut display, &beams, 5_000, "samplers tracing the scene file");
-    drop(display);
-    quit(&addr, &token);
+    run_stores_then_quit(&run, &file, 5_000, "samplers tracing the scene file");
     let o = run.finish();
     assert!(o.status.success(), "{}", text(&o));
     let mut hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();

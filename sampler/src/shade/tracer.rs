@@ -115,21 +115,7 @@ impl Tracer {
     pub fn new(scene: Scene, options: TraceOptions) -> Tracer {
         let tree = KdTree::build(&scene, &BuildOptions::default());
         let lights = Lights::new(&scene);
-        let sky = SkyModel::new(&scene.sky);
-        let has_panes = scene
-            .materials
-            .iter()
-            .any(|m| matches!(m, Material::Glass { thin: true, .. }));
-        Tracer {
-            scene,
-            tree,
-            ooc: None,
-            lights,
-            sky,
-            has_panes,
-            options,
-            non_finite: AtomicU64::new(0),
-        }
+        Tracer::assemble(scene, tree, None, lights, options)
     }
 
     /// A tracer over an open scene file: materials, sky, sections and lights
@@ -141,15 +127,28 @@ impl Tracer {
             let le = h.materials.get(e.material as usize).map_or([0.0; 3], |m| m.emission());
             (e.id, e.vertices.map(Vec3::from), Vec3::from_array(le))
         }));
+        let tree = KdTree::build(&Scene::default(), &BuildOptions::default());
+        Tracer::assemble(scene, tree, Some(ooc), lights, options)
+    }
+
+    /// The tracer around its geometry: the sky model and whether thin panes
+    /// need their shadow-ray pass follow from the scene.
+    fn assemble(
+        scene: Scene,
+        tree: KdTree,
+        ooc: Option<Arc<OocScene>>,
+        lights: Lights,
+        options: TraceOptions,
+    ) -> Tracer {
         let sky = SkyModel::new(&scene.sky);
         let has_panes = scene
             .materials
             .iter()
             .any(|m| matches!(m, Material::Glass { thin: true, .. }));
         Tracer {
-            tree: KdTree::build(&Scene::default(), &BuildOptions::default()),
             scene,
-            ooc: Some(ooc),
+            tree,
+            ooc,
             lights,
             sky,
             has_panes,
