@@ -66,6 +66,14 @@ fn trace_ooc(file: &OocScene, rays: &[Ray], want: &[Option<f32>]) -> (f64, usize
     (rays.len() as f64 / start.elapsed().as_secs_f64(), wrong)
 }
 
+/// Warm passes per budget, each beside an in-core pass.
+const REPEATS: usize = 5;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
 fn relative_rmse(a: &Picture, reference: &Picture) -> f64 {
     let (mut num, mut den) = (0.0f64, 0.0f64);
     for (x, y) in a.pixels.iter().zip(&reference.pixels) {
@@ -145,19 +153,33 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     let prim = primary(&view, pixels as usize);
     let bounce = bounces(&tree, &scene, &prim);
     println!();
-    println!("| rays | in core (baseline) | budget | cold | warm | warm / in core | hits differing |");
+    println!("| rays | in core (baseline, median) | budget | cold | warm (median of {REPEATS}) | warm / in core (median of pairs) | hits differing |");
     println!("|---|---|---|---|---|---|---|");
     let mut budget_series = Vec::new();
     for (label, rays) in [("primary", &prim), ("diffuse bounce", &bounce)] {
         let (mut cold_curve, mut warm_curve) = (Vec::new(), Vec::new());
-        let t = Instant::now();
-        let want: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(&scene, r).map(|h| h.t)).collect();
-        let base = rays.len() as f64 / t.elapsed().as_secs_f64();
+        let in_core = || {
+            let t = Instant::now();
+            let hits: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(&scene, r).map(|h| h.t)).collect();
+            (rays.len() as f64 / t.elapsed().as_secs_f64(), hits)
+        };
+        let want = in_core().1;
         for share in [1.0, 0.3, 0.1] {
             let budget = ((decompressed as f64 * share) as usize).max(1 << 16);
             let file = OocScene::open(&path, Some(budget), 2)?;
-            let (cold, w1) = trace_ooc(&file, rays, &want);
-            let (warm, w2) = trace_ooc(&file, rays, &want);
+            let (cold, mut wrong) = trace_ooc(&file, rays, &want);
+            // Warm: passes alternating with the in-core baseline, so that both
+            // see the same machine; the medians of each and of their ratio.
+            let (mut base, mut warm, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+            for _ in 0..REPEATS {
+                let (b, _) = in_core();
+                let (w, e) = trace_ooc(&file, rays, &want);
+                wrong += e;
+                base.push(b);
+                warm.push(w);
+                ratio.push(w / b);
+            }
+            let (base, warm, ratio) = (median(base), median(warm), median(ratio));
             let st = file.cache().stats();
             println!(
                 "| {label}, {} | {:.2} M/s | {:.0}% ({}; {} resident) | {:.2} M/s | {:.2} M/s | {:.2} | {} |",
@@ -168,11 +190,11 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
                 bytes(st.resident_bytes as u64),
                 cold / 1e6,
                 warm / 1e6,
-                warm / base,
-                w1 + w2
+                ratio,
+                wrong
             );
             cold_curve.push((share * 100.0, cold / base));
-            warm_curve.push((share * 100.0, warm / base));
+            warm_curve.push((share * 100.0, ratio));
         }
         budget_series.push(Series {
             name: format!("{label}, warm"),

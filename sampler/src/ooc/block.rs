@@ -216,6 +216,21 @@ impl Block {
         Ok(block)
     }
 
+    /// Lets the walk follow links into this block (`id`) itself without the
+    /// link table: each such link node keeps its target node. Only targets
+    /// after the link node are taken, so a walk inside a block never cycles.
+    pub fn resolve_local_links(&mut self, id: u32) {
+        for i in 0..self.nodes.len() {
+            if let NodeKind::Link { link, local: 0 } = self.nodes[i].kind() {
+                if let Some(l) = self.links.get(link as usize) {
+                    if l.block == id && l.node as usize > i && l.node < (1 << 28) {
+                        self.nodes[i] = TNode::local_link(link, l.node);
+                    }
+                }
+            }
+        }
+    }
+
     fn validate(&self, blocks: u32, materials: u32) -> Result<(), BlockError> {
         let bad = |m: String| Err(BlockError::Corrupt(m));
         for (i, n) in self.nodes.iter().enumerate() {
@@ -231,8 +246,8 @@ impl Block {
                         return bad(format!("node {i}: list {first}+{count} of {}", self.list.len()));
                     }
                 }
-                NodeKind::Link { link } => {
-                    if link as usize >= self.links.len() {
+                NodeKind::Link { link, local } => {
+                    if link as usize >= self.links.len() || local != 0 {
                         return bad(format!("node {i}: link {link} of {}", self.links.len()));
                     }
                 }

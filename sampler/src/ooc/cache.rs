@@ -181,7 +181,9 @@ impl Cache {
             .codec
             .decompress(packed, e.len as usize)
             .map_err(|c| bad(c.to_string()))?;
-        Block::decode(&raw, self.index.len() as u32, self.materials).map_err(|b| bad(b.to_string()))
+        let mut block = Block::decode(&raw, self.index.len() as u32, self.materials).map_err(|b| bad(b.to_string()))?;
+        block.resolve_local_links(id);
+        Ok(block)
     }
 
     /// Makes a block resident now (on demand): the exact path, used when a

@@ -39,7 +39,7 @@ pub struct IndexEntry {
     pub len: u32,
     /// CRC-32C of the compressed bytes.
     pub crc: u32,
-    /// LOD level (treelet depth) of the block's treelets.
+    /// LOD level (treelet depth) of the block's first, coarsest treelet.
     pub level: u16,
 }
 

@@ -172,13 +172,13 @@ impl OocScene {
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
-    /// Links that pointed past the end of a block (corrupt files only).
+    /// Links that pointed past the end of a block or formed a cycle (corrupt files only).
     pub fn corrupt_links(&self) -> u64 {
         self.corrupt.load(Ordering::Relaxed)
     }
-    fn note_corrupt(&self, node: u32) {
+    fn note_corrupt(&self, what: impl FnOnce() -> String) {
         if self.corrupt.fetch_add(1, Ordering::Relaxed) == 0 {
-            tracing::error!("scene file: a link names node {node} past the end of its block; the file is corrupt");
+            tracing::error!("scene file: {}; the file is corrupt", what());
         }
     }
 

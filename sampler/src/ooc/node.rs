@@ -3,7 +3,9 @@
 //! Leaf (`b & 3 == 3`): a triangle list (`a` = first entry of the block's list,
 //! `b >> 3` = count) or, with bit 2 set, a link to another treelet through the
 //! block's link table (`a` = link index): the LOD node, which carries the voxel
-//! of the treelet it leads to.
+//! of the treelet it leads to. In memory only, a link into its own block also
+//! keeps the linked node (plus one) in `b >> 3`, so that the walk can follow
+//! it without reading the link table; it is stored as a plain link.
 
 /// One treelet node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -19,8 +21,10 @@ pub enum NodeKind {
     Inner { axis: usize, split: f32, left: u32 },
     /// `count` triangles listed from `first`.
     Leaf { first: u32, count: u32 },
-    /// The treelet behind link `link` of this block.
-    Link { link: u32 },
+    /// The treelet behind link `link` of this block; `local` is that
+    /// treelet's root node plus one when it lies in this same block and the
+    /// block has resolved it (see `Block::resolve_local_links`), else 0.
+    Link { link: u32, local: u32 },
 }
 
 const LEAF: u32 = 3;
@@ -50,6 +54,14 @@ impl TNode {
             b: LINK | LEAF,
         }
     }
+    /// A link into this same block, to node `node` (which comes later).
+    pub fn local_link(link: u32, node: u32) -> TNode {
+        debug_assert!(node < (1 << 28));
+        TNode {
+            a: link,
+            b: ((node + 1) << 3) | LINK | LEAF,
+        }
+    }
     /// Decodes the node.
     #[inline]
     pub fn kind(self) -> NodeKind {
@@ -60,7 +72,10 @@ impl TNode {
                 left: self.b >> 2,
             }
         } else if self.b & LINK != 0 {
-            NodeKind::Link { link: self.a }
+            NodeKind::Link {
+                link: self.a,
+                local: self.b >> 3,
+            }
         } else {
             NodeKind::Leaf {
                 first: self.a,
@@ -68,9 +83,13 @@ impl TNode {
             }
         }
     }
-    /// The two words, as stored.
+    /// The two words, as stored (a resolved local link as a plain link).
     pub fn words(self) -> [u32; 2] {
-        [self.a, self.b]
+        if self.b & (LINK | LEAF) == LINK | LEAF {
+            [self.a, LINK | LEAF]
+        } else {
+            [self.a, self.b]
+        }
     }
     /// A node from its two stored words (validated by the block decoder).
     pub fn from_words(a: u32, b: u32) -> TNode {
@@ -100,6 +119,9 @@ mod tests {
             }
         );
         assert_eq!(TNode::leaf(5, 0).kind(), NodeKind::Leaf { first: 5, count: 0 });
-        assert_eq!(TNode::link(9).kind(), NodeKind::Link { link: 9 });
+        assert_eq!(TNode::link(9).kind(), NodeKind::Link { link: 9, local: 0 });
+        let local = TNode::local_link(9, 40);
+        assert_eq!(local.kind(), NodeKind::Link { link: 9, local: 41 });
+        assert_eq!(local.words(), TNode::link(9).words());
     }
 }

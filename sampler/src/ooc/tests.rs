@@ -486,3 +486,71 @@ fn a_batch_bigger_than_the_cache_loads_each_block_a_few_times_not_once_per_ray()
     assert!(loads <= 6 * needed, "{loads} loads for {needed} blocks");
     assert!(small.cache().stats().resident_bytes <= budget + (64 << 10));
 }
+
+#[test]
+fn blocks_hold_subtrees_and_come_out_coarse_levels_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(40_000);
+    let (path, report) = build(&scene, dir.path(), scene.triangles.len() as u64 / 4, Codec::Lz4);
+    let file = OocScene::open(&path, None, 1).unwrap();
+    let cache = file.cache();
+    let entries: Vec<format::IndexEntry> = (0..cache.blocks() as u32).map(|id| *cache.entry(id).unwrap()).collect();
+    // Stored breadth first by level: offsets grow with the level.
+    let mut by_offset = entries.clone();
+    by_offset.sort_by_key(|e| e.offset);
+    assert!(by_offset.windows(2).all(|w| w[0].level <= w[1].level));
+    assert_eq!(report.levels, u32::from(by_offset.last().unwrap().level) + 1);
+    // Most links stay inside their block: a ray changes blocks only every few
+    // treelet levels. Every block but the root's is reached from another.
+    let (mut inside, mut total) = (0usize, 0usize);
+    let mut entered = vec![0u32; entries.len()];
+    for id in 0..entries.len() as u32 {
+        let b = cache.read(id).unwrap();
+        for l in &b.links {
+            total += 1;
+            if l.block == id {
+                inside += 1;
+            } else {
+                entered[l.block as usize] += 1;
+            }
+        }
+    }
+    assert!(inside * 2 > total, "{inside} of {total} links inside their block");
+    let roots = entered.iter().filter(|&&n| n == 0).count();
+    assert_eq!(roots, 1, "blocks reached from no other block: {roots}");
+}
+
+#[test]
+fn links_that_cycle_between_blocks_end_the_walk_as_corrupt() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(20_000);
+    let (path, _) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let good = OocScene::open(&path, None, 0).unwrap();
+    let root = *good.root();
+    // Every link out of a block leads back to the root treelet: well-formed
+    // blocks with checksums that match, but a tree that never ends.
+    let out = dir.path().join("cycle.hds");
+    let mut w = writer::FileWriter::create(&dir.path().join("cycle.partial"), good.header()).unwrap();
+    let mut redirected = 0;
+    for id in 0..good.header().blocks {
+        let mut b = good.cache().read(id).unwrap();
+        for l in &mut b.links {
+            if l.block != id {
+                (l.block, l.node) = (root.block, root.node);
+                redirected += 1;
+            }
+        }
+        let raw = b.encode();
+        let e = good.cache().entry(id).unwrap();
+        w.block(id, &Codec::Lz4.compress(&raw), raw.len() as u32, e.level)
+            .unwrap();
+    }
+    w.finish(&out).unwrap();
+    assert!(redirected > 0);
+    let bad = OocScene::open(&out, None, 1).unwrap();
+    for ray in rays(&scene, 200, 3) {
+        // Ends (or this test would hang), with or without a hit.
+        let _ = bad.intersect(&ray, 0.0, &mut Fetch::load());
+    }
+    assert!(bad.corrupt_links() > 0);
+}

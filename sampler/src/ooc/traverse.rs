@@ -109,15 +109,17 @@ enum Stop<'g> {
     Visitor,
 }
 
-/// A walk position: block, node, ray range, last voxel, entry axis.
+/// A walk position: block (and its id), node, ray range, entry axis, and
+/// how many links into other blocks led here.
 #[derive(Clone, Copy)]
 struct State<'g> {
     block: &'g Block,
+    id: u32,
     node: u32,
     t_min: f32,
     t_max: f32,
-    voxel: &'g Link,
     axis: u8,
+    depth: u16,
 }
 
 impl OocScene {
@@ -192,19 +194,27 @@ impl OocScene {
         let mut sp = 0;
         let mut s = State {
             block: root_block,
+            id: root.block,
             node: root.node,
             t_min: t0,
             t_max: t1,
-            voxel: root,
             axis: axis0 as u8,
+            depth: 0,
         };
+        // Each link into another block leads a level deeper; more crossings
+        // than levels means links that cycle (a corrupt file).
+        let max_depth = self.header().levels.min(u32::from(u16::MAX)) as u16;
+        // The current block's nodes, kept at hand: the block changes far less
+        // often than the node.
+        let mut nodes: &'g [super::node::TNode] = &s.block.nodes;
         loop {
-            let Some(n) = s.block.nodes.get(s.node as usize) else {
+            let Some(n) = nodes.get(s.node as usize) else {
                 // A link into a block with fewer nodes: a corrupt file. Treat as empty.
-                self.note_corrupt(s.node);
+                self.note_corrupt(|| format!("a link names node {} past the end of its block", s.node));
                 if !pop(&stack, &mut sp, &mut s, closest) {
                     return None;
                 }
+                nodes = &s.block.nodes;
                 continue;
             };
             match n.kind() {
@@ -242,9 +252,13 @@ impl OocScene {
                     }
                     continue;
                 }
-                NodeKind::Link { link } => {
+                NodeKind::Link { link, local } => {
+                    if local != 0 && lod <= 0.0 {
+                        // Into this same block, and no voxel to look at.
+                        s.node = local - 1;
+                        continue;
+                    }
                     let l = &s.block.links[link as usize];
-                    s.voxel = l;
                     if lod > 0.0 && l.radius() <= s.t_min * lod && solid(l, entry_face(s.axis as usize, ray.dir)) {
                         return Some(Stop::Voxel {
                             t: s.t_min,
@@ -253,10 +267,25 @@ impl OocScene {
                             missing: false,
                         });
                     }
+                    if local != 0 {
+                        s.node = local - 1;
+                        continue;
+                    }
+                    if s.depth >= max_depth {
+                        self.note_corrupt(|| format!("links lead through more than {max_depth} blocks (a cycle)"));
+                        if !pop(&stack, &mut sp, &mut s, closest) {
+                            return None;
+                        }
+                        nodes = &s.block.nodes;
+                        continue;
+                    }
                     match self.block(l.block, fetch, guard) {
                         Some(b) => {
                             s.block = b;
+                            nodes = &b.nodes;
+                            s.id = l.block;
                             s.node = l.node;
+                            s.depth += 1;
                         }
                         None => return Some(missing_at(s.t_min, l, s.axis as usize)),
                     }
@@ -275,6 +304,7 @@ impl OocScene {
                     if !pop(&stack, &mut sp, &mut s, closest) {
                         return None;
                     }
+                    nodes = &s.block.nodes;
                 }
             }
         }

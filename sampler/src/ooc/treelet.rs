@@ -1,8 +1,8 @@
 //! Decomposing a kd-tree into treelets of height 3 (Áfra 2012, 4.3): inner
 //! nodes three levels below a treelet's root start new treelets, reached
 //! through LOD nodes that carry their voxel. Treelets are numbered breadth
-//! first, so they come out by level; consecutive treelets of one level are
-//! packed into blocks of about `target` bytes, with the triangles their leaves
+//! first, so they come out by level, and packed into blocks of about `target`
+//! bytes a subtree at a time (see [`pack`]), with the triangles their leaves
 //! list and those triangles' vertices (shared within the block).
 
 use std::collections::{HashMap, VecDeque};
@@ -53,6 +53,8 @@ pub struct Decomposed {
     pub blocks: Vec<(u16, Block)>,
     /// Link to the root treelet (voxel included).
     pub root: Link,
+    /// One more than the deepest treelet's level (0 without treelets).
+    pub levels: u16,
 }
 
 enum Member {
@@ -134,6 +136,54 @@ fn collect(src: &impl SourceTree, root: usize, bounds: Aabb, base_level: u16) ->
     treelets
 }
 
+/// Packs treelets into blocks of about `target` bytes: each block takes a
+/// treelet and then its descendants breadth first while they fit, so a ray
+/// crosses into another block only every few treelet levels and a view's
+/// blocks hold little it does not need; a block whose subtree runs out takes
+/// the next pending treelets (its cousins). Blocks come out ordered by the
+/// level of their first treelet: coarse levels first, as Áfra's layout has
+/// them, each block spanning a band of levels.
+fn pack(treelets: &[Treelet], target: usize) -> Vec<Vec<usize>> {
+    let kids: Vec<Vec<usize>> = treelets
+        .iter()
+        .map(|t| {
+            t.members
+                .iter()
+                .filter_map(|m| match m {
+                    Member::Treelet(j) => Some(*j),
+                    _ => None,
+                })
+                .collect()
+        })
+        .collect();
+    let est = |t: &Treelet| t.members.len() * 8 + t.links * 64 + t.tris * 34;
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut pending = VecDeque::from([0usize]);
+    while !pending.is_empty() {
+        let mut group = Vec::new();
+        let (mut size, mut tris) = (24usize, 0usize);
+        let mut subtree = VecDeque::new();
+        while let Some(k) = subtree.pop_front().or_else(|| pending.pop_front()) {
+            let t = &treelets[k];
+            if !group.is_empty() && (size + est(t) > target || tris + t.tris > MAX_BLOCK_TRIS) {
+                // Full: this treelet and what is left of the subtree start the next blocks.
+                while let Some(j) = subtree.pop_back() {
+                    pending.push_front(j);
+                }
+                pending.push_front(k);
+                break;
+            }
+            group.push(k);
+            size += est(t);
+            tris += t.tris;
+            subtree.extend(&kids[k]);
+        }
+        groups.push(group);
+    }
+    groups.sort_by_key(|g| (treelets[g[0]].level, g[0]));
+    groups
+}
+
 /// Decomposes the tree under `root` (box `bounds`) into blocks numbered from
 /// `first_block`, levels counted from `base_level`.
 pub fn decompose(
@@ -148,30 +198,21 @@ pub fn decompose(
         return Decomposed {
             blocks: Vec::new(),
             root: l,
+            levels: 0,
         };
     }
     let treelets = collect(src, root, bounds, base_level);
     let voxels: Vec<Voxel> = treelets.par_iter().map(|t| src.voxel(t.src, &t.bounds)).collect();
 
-    // Packing: treelet -> (block, first node); blocks hold one level each.
-    let mut place = Vec::with_capacity(treelets.len());
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    let (mut size, mut tris, mut nodes) = (usize::MAX, 0usize, 0u32);
-    let mut level = u16::MAX;
-    for (k, t) in treelets.iter().enumerate() {
-        let est = t.members.len() * 8 + t.links * 64 + t.tris * 34;
-        let full = size.saturating_add(est) > target || tris + t.tris > MAX_BLOCK_TRIS;
-        if groups.is_empty() || t.level != level || (full && size > 0) {
-            groups.push(Vec::new());
-            (size, tris, nodes, level) = (24, 0, 0, t.level);
+    let groups = pack(&treelets, target);
+    // Treelet -> (block, first node).
+    let mut place = vec![(0u32, 0u32); treelets.len()];
+    for (g, group) in groups.iter().enumerate() {
+        let mut nodes = 0u32;
+        for &k in group {
+            place[k] = (first_block + g as u32, nodes);
+            nodes += treelets[k].members.len() as u32;
         }
-        place.push((first_block + groups.len() as u32 - 1, nodes));
-        if let Some(g) = groups.last_mut() {
-            g.push(k);
-        }
-        size += est;
-        tris += t.tris;
-        nodes += t.members.len() as u32;
     }
     let link_to = |k: usize| Link {
         block: place[k].0,
@@ -228,5 +269,6 @@ pub fn decompose(
     Decomposed {
         blocks,
         root: link_to(0),
+        levels: treelets.iter().map(|t| t.level + 1).max().unwrap_or(0),
     }
 }

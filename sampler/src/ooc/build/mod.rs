@@ -22,10 +22,10 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::block::{Block, MAX_BLOCK_ITEMS};
+use super::block::MAX_BLOCK_ITEMS;
 use super::codec::Codec;
 use super::format::{Emitter, Header, HeaderLink, IndexEntry};
-use super::treelet::{decompose, split_box};
+use super::treelet::{decompose, split_box, Decomposed};
 use super::writer::FileWriter;
 use super::OocError;
 use crate::geom::Aabb;
@@ -102,10 +102,14 @@ struct Blocks {
     codec: Codec,
     raw: u64,
     references: u64,
+    /// One more than the deepest treelet level so far.
+    levels: u16,
 }
 
 impl Blocks {
-    fn add(&mut self, blocks: Vec<(u16, Block)>) -> Result<(), OocError> {
+    fn add(&mut self, d: Decomposed) -> Result<super::Link, OocError> {
+        self.levels = self.levels.max(d.levels);
+        let blocks = d.blocks;
         for (_, b) in &blocks {
             if b.verts.len() > MAX_BLOCK_ITEMS || b.tris.len() > MAX_BLOCK_ITEMS {
                 return Err(OocError::Build(format!(
@@ -135,7 +139,7 @@ impl Blocks {
             self.at += bytes.len() as u64;
             self.raw += u64::from(len);
         }
-        Ok(())
+        Ok(d.root)
     }
 }
 
@@ -318,6 +322,7 @@ fn build_in(
         codec: settings.codec,
         raw: 0,
         references: 0,
+        levels: 0,
     };
     let mut report = BuildReport {
         triangles: count,
@@ -330,8 +335,7 @@ fn build_in(
             let first = blocks.entries.len() as u32;
             let d = decompose(&chunk, 0, b, first, (depth / 3 + 1) as u16, settings.block_bytes);
             drop(chunk);
-            blocks.add(d.blocks)?;
-            Ok(d.root)
+            blocks.add(d)
         };
 
     let partition_start = Instant::now();
@@ -438,12 +442,11 @@ fn build_in(
     top.compute_voxels(root, &bounds);
     let first = blocks.entries.len() as u32;
     let d = decompose(&top, root, bounds, first, 0, settings.block_bytes);
-    blocks.add(d.blocks)?;
-    let root_link = d.root;
+    let root_link = blocks.add(d)?;
     blocks.file.flush().map_err(|e| OocError::io(&blocks.path, e))?;
 
     // The file: header, blocks by level, index, trailer.
-    let levels = blocks.entries.iter().map(|e| u32::from(e.level)).max().unwrap_or(0) + 1;
+    let levels = u32::from(blocks.levels.max(1));
     let header = Header {
         codec: settings.codec,
         content_hash,
