@@ -1,7 +1,8 @@
 //! Decompressed bytes of a scene-file block, and the same bytes as a
 //! compressed block: decoding fails or yields a block whose every index is in
 //! range (walked here node by node), never a panic; a decoded block encodes
-//! back to the same bytes.
+//! back to the same bytes, also once its links into itself are resolved, and
+//! those lead only forward.
 #![no_main]
 
 use holodeck_sampler::ooc::block::Block;
@@ -12,8 +13,9 @@ use libfuzzer_sys::fuzz_target;
 fuzz_target!(|data: &[u8]| {
     let Some((&sel, bytes)) = data.split_first() else { return };
     let (blocks, materials) = (u32::from(sel >> 4) + 1, u32::from(sel & 15) + 1);
-    if let Ok(b) = Block::decode(bytes, blocks, materials) {
-        for n in &b.nodes {
+    if let Ok(mut b) = Block::decode(bytes, blocks, materials) {
+        b.resolve_local_links(u32::from(sel) % blocks);
+        for (i, n) in b.nodes.iter().enumerate() {
             match n.kind() {
                 NodeKind::Inner { left, .. } => assert!((left as usize) + 1 < b.nodes.len()),
                 NodeKind::Leaf { first, count } => {
@@ -22,7 +24,10 @@ fuzz_target!(|data: &[u8]| {
                         assert!(b.ids.len() > t as usize);
                     }
                 }
-                NodeKind::Link { link } => assert!(b.links[link as usize].block < blocks),
+                NodeKind::Link { link, local } => {
+                    assert!(b.links[link as usize].block < blocks);
+                    assert!(local == 0 || (local as usize > i + 1 && (local as usize) <= b.nodes.len()));
+                }
             }
         }
         assert_eq!(b.encode(), bytes);

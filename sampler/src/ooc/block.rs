@@ -223,7 +223,11 @@ impl Block {
         for i in 0..self.nodes.len() {
             if let NodeKind::Link { link, local: 0 } = self.nodes[i].kind() {
                 if let Some(l) = self.links.get(link as usize) {
-                    if l.block == id && l.node as usize > i && l.node < (1 << 28) {
+                    if l.block == id
+                        && l.node as usize > i
+                        && (l.node as usize) < self.nodes.len()
+                        && l.node < (1 << 28)
+                    {
                         self.nodes[i] = TNode::local_link(link, l.node);
                     }
                 }
@@ -323,6 +327,38 @@ mod tests {
         let bytes = b.encode();
         assert_eq!(Block::decode(&bytes, 4, 2).unwrap(), b);
         assert!(b.memory() > bytes.len() / 2);
+    }
+
+    #[test]
+    fn only_forward_links_into_the_block_itself_are_resolved() {
+        let mut b = sample();
+        // Nodes 3..6: links into block 3 forward (to 5), backward (to 0),
+        // past the end (to 99), and into another block.
+        b.nodes
+            .extend([TNode::link(1), TNode::link(2), TNode::link(3), TNode::link(4)]);
+        b.nodes.push(TNode::leaf(0, 1));
+        for (block, node) in [(3, 5), (3, 0), (3, 99), (2, 5)] {
+            b.links.push(Link {
+                block,
+                node,
+                ..b.links[0]
+            });
+        }
+        let bytes = b.encode();
+        let mut r = Block::decode(&bytes, 4, 2).unwrap();
+        r.resolve_local_links(3);
+        let locals: Vec<u32> = r
+            .nodes
+            .iter()
+            .filter_map(|n| match n.kind() {
+                NodeKind::Link { local, .. } => Some(local),
+                _ => None,
+            })
+            .collect();
+        // Node 2's link (to block 3, node 7, the last) and node 3's resolve.
+        assert_eq!(locals, vec![8, 6, 0, 0, 0]);
+        // Stored as plain links: resolving changes nothing on disk.
+        assert_eq!(r.encode(), bytes);
     }
 
     #[test]
