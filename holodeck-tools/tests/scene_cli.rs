@@ -168,6 +168,38 @@ fn the_mandelbulb_streams_into_a_scene_file_that_recodes_to_zstd() {
     let o = holodeck(&["scene", "info", zstd.to_str().unwrap()]);
     assert!(text(&o).contains("zstd codec"), "{}", text(&o));
     assert!(text(&o).contains(&count(generated.triangles.len())), "{}", text(&o));
+    // Rendered from the file assembled in memory, and through the block
+    // cache: the same hits, so the same picture.
+    let view = "-vtv -vp 0 -3.5 0.3 -vd 0 1 -0.08 -vu 0 0 1 -vh 50 -vv 40";
+    let mut pictures = Vec::new();
+    for (name, extra) in [("assembled.png", None), ("streamed.png", Some("--out-of-core"))] {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "render",
+            zstd.to_str().unwrap(),
+            "--view",
+            view,
+            "-x",
+            "32",
+            "-y",
+            "24",
+            "--spp",
+            "2",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let o = holodeck(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        let said = if extra.is_some() {
+            "blocks loaded"
+        } else {
+            "assembled in memory"
+        };
+        assert!(text(&o).contains(said), "{}", text(&o));
+        pictures.push(std::fs::read(&out).unwrap());
+    }
+    assert_eq!(pictures[0], pictures[1], "the two renders differ");
     // Past what triangle ids can number: refused before any work.
     let o = holodeck(&[
         "scene",

@@ -30,7 +30,8 @@ Examples:
   holodeck render builtin:room -o room.png
   holodeck render builtin:room --spp 256 -x 1024 -y 768 -o room.hdr
   holodeck render scene.toml --view '-vta -vp 3 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 180 -vv 180' -o fisheye.png
-  holodeck render land.hds --scene-memory 2G --lod 1 --lod-secondary 1 -o land.png")]
+  holodeck render land.hds --scene-memory 2G --lod 1 --lod-secondary 1 -o land.png
+  holodeck render land.hds --out-of-core -o land.png      (prints what the view needed of the file)")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
     scene: String,
@@ -58,9 +59,15 @@ pub struct Args {
     /// Triangles for builtin:landscape (K, M suffixes).
     #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
-    /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
+    /// For a .hds scene file: decompressed blocks kept in memory (K, M, G;
+    /// default: all of them). When they all fit (and memory allows, and LOD
+    /// is off) the file is assembled into the in-core tree at the start.
     #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
     scene_memory: Option<u64>,
+    /// For a .hds scene file: trace it out of core even when it would fit in
+    /// memory (to see what a view needs of it: its working set).
+    #[arg(long)]
+    out_of_core: bool,
     /// For a .hds scene file: pixels of error; a voxel whose projected area is
     /// below this many pixels stands in for its subtree (0: exact triangles).
     #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative)]
@@ -117,12 +124,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let scene = SceneInput::open(&a.scene, a.triangles, a.scene_memory)?;
     let triangles = scene.triangles();
     let start = Instant::now();
-    let tracer = scene.tracer(TraceOptions {
-        max_bounces: a.bounces,
-        lod_primary: lod_ratio(a.lod, &view, a.width),
-        lod_secondary: (a.lod_secondary / 1000.0) as f32,
-        ..TraceOptions::default()
-    });
+    let tracer = scene.tracer_with(
+        TraceOptions {
+            max_bounces: a.bounces,
+            lod_primary: lod_ratio(a.lod, &view, a.width),
+            lod_secondary: (a.lod_secondary / 1000.0) as f32,
+            ..TraceOptions::default()
+        },
+        !a.out_of_core,
+    );
     let build = start.elapsed().as_secs_f64();
     tracing::info!(
         "kd-tree over {} triangles built in {build:.2} s: {:?}",
@@ -168,6 +178,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         rayon::current_num_threads(),
         count(triangles)
     );
+    if let Some(r) = tracer.assembled() {
+        println!(
+            "scene file: assembled in memory ({} blocks, {} MB, {:.2} s); --out-of-core to trace it through the block cache",
+            count(u64::from(r.blocks)),
+            r.bytes >> 20,
+            r.seconds
+        );
+    }
     if let Some(f) = tracer.scene_file() {
         // What this view needed of the scene file: its working set, when the cache held it all.
         let st = f.cache().stats();

@@ -72,11 +72,39 @@ impl SceneInput {
         }
     }
 
-    /// The tracer (builds the kd-tree of an in-core scene).
+    /// The tracer (builds the kd-tree of an in-core scene). A scene file is
+    /// assembled in memory when its cache budget holds every block, memory
+    /// allows, and LOD is off; otherwise it is traced out of core.
     pub fn tracer(self, options: TraceOptions) -> Tracer {
+        self.tracer_with(options, true)
+    }
+
+    /// [`SceneInput::tracer`], with the choice to assemble a scene file in
+    /// memory when it fits (`in_core`) or always trace it out of core.
+    pub fn tracer_with(self, options: TraceOptions, in_core: bool) -> Tracer {
         match self {
             SceneInput::InCore(s) => Tracer::new(*s, options),
-            SceneInput::File(f) => Tracer::out_of_core(f, options),
+            SceneInput::File(f) => {
+                let lod = options.lod_primary > 0.0 || options.lod_secondary > 0.0;
+                if in_core && !lod && f.fits_in_core() {
+                    match Tracer::in_core_from_file(&f, options) {
+                        Ok(t) => {
+                            if let Some(r) = t.assembled() {
+                                tracing::info!(
+                                    "scene file assembled in memory: {} blocks, {} MB, {} nodes, {:.2} s",
+                                    r.blocks,
+                                    r.bytes >> 20,
+                                    r.nodes,
+                                    r.seconds
+                                );
+                            }
+                            return t;
+                        }
+                        Err(e) => tracing::warn!("scene file not assembled in memory ({e}); tracing it out of core"),
+                    }
+                }
+                Tracer::out_of_core(f, options)
+            }
         }
     }
 }

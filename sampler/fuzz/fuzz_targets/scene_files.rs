@@ -1,7 +1,7 @@
 //! Whole scene files (seed the corpus with a small one from `holodeck scene
 //! build builtin:room`): opening fails with an error or succeeds, and then
-//! every block either reads or is refused, and rays through the scene
-//! trace without panicking.
+//! every block either reads or is refused, rays through the scene trace
+//! without panicking, and assembling it in memory succeeds or is refused.
 #![no_main]
 
 use holodeck_sampler::geom::Ray;
@@ -23,6 +23,11 @@ fuzz_target!(|data: &[u8]| {
         let c = (b.lo + b.hi) * 0.5;
         for dir in [glam::Vec3::X, glam::Vec3::NEG_Y, glam::Vec3::new(0.3, 0.4, -0.5)] {
             let _ = scene.intersect(&Ray::new(c - dir * 100.0, dir), 0.0, &mut Fetch::load());
+        }
+        if scene.header().blocks <= 64 {
+            if let Ok((mesh, tree, _)) = scene.in_core() {
+                let _ = tree.intersect(&mesh, &Ray::new(c - glam::Vec3::X * 100.0, glam::Vec3::X));
+            }
         }
     }
 });

@@ -5,6 +5,7 @@
 mod build;
 mod node;
 mod packet;
+mod parts;
 #[cfg(test)]
 pub(crate) mod testing;
 mod traverse;
@@ -12,6 +13,7 @@ mod traverse;
 pub use build::BuildOptions;
 pub use node::Node;
 pub use packet::PACKET;
+pub use parts::PartsError;
 pub use traverse::Hit;
 
 use crate::geom::Aabb;

@@ -18,7 +18,7 @@ pub struct Hit {
     pub v: f32,
 }
 
-const STACK: usize = 64;
+pub(crate) const STACK: usize = 64;
 
 /// Split planes this close (relatively) to either end of the ray's range in a
 /// node send the ray into both children: rounding in `t_split` must never skip

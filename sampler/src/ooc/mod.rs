@@ -12,6 +12,7 @@ pub mod build;
 pub mod cache;
 pub mod codec;
 pub mod format;
+pub mod in_core;
 pub mod node;
 pub mod recode;
 pub mod traverse;
@@ -34,6 +35,7 @@ pub use build::{build_scene_file, BuildReport, BuildSettings};
 pub use cache::{Cache, CacheStats};
 pub use codec::Codec;
 pub use format::Header;
+pub use in_core::InCoreReport;
 pub use recode::{recode, RecodeReport};
 pub use traverse::{Fetch, OnMissing, OocHit, OocSurface};
 

@@ -553,4 +553,52 @@ fn links_that_cycle_between_blocks_end_the_walk_as_corrupt() {
         let _ = bad.intersect(&ray, 0.0, &mut Fetch::load());
     }
     assert!(bad.corrupt_links() > 0);
+    let e = bad.in_core().err().unwrap();
+    assert!(e.to_string().contains("cycle"), "{e}");
+}
+
+#[test]
+fn a_scene_file_assembled_in_memory_traces_like_the_in_core_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(40_000);
+    let (path, _) = build(&scene, dir.path(), scene.triangles.len() as u64 / 5, Codec::Lz4);
+    let file = OocScene::open(&path, None, 1).unwrap();
+    let (mesh, tree, report) = file.in_core().unwrap();
+    assert_eq!(report.blocks, file.header().blocks);
+    // Blocks are read past the cache: nothing stays resident.
+    assert_eq!(file.cache().stats().resident_bytes, 0);
+    assert_eq!(mesh.triangles.len(), scene.triangles.len());
+    assert_eq!(mesh.materials, scene.materials);
+    // Triangles keep their ids: the same corners, the same materials.
+    for (id, t) in scene.triangles.iter().enumerate() {
+        assert_eq!(mesh.vertices(id), scene.vertices(id), "triangle {id}");
+        assert_eq!(mesh.triangles[id].material, t.material);
+    }
+    let original = KdTree::build(&scene, &BuildOptions::default());
+    for (k, ray) in rays(&scene, 6000, 4).iter().enumerate() {
+        let a = tree.intersect(&mesh, ray);
+        let b = original.intersect(&scene, ray);
+        assert_eq!(a.map(|h| h.t), b.map(|h| h.t), "ray {k}");
+        let c = file.intersect(ray, 0.0, &mut Fetch::load());
+        assert_eq!(c.map(|h| h.t), a.map(|h| h.t), "ray {k}");
+    }
+    let tracer = crate::Tracer::in_core_from_file(&file, crate::TraceOptions::default()).unwrap();
+    assert!(tracer.scene_file().is_none());
+    assert_eq!(tracer.assembled().map(|r| r.blocks), Some(file.header().blocks));
+}
+
+#[test]
+fn a_damaged_scene_file_is_not_assembled() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = generate("room", &GenParams::default()).unwrap();
+    let (path, _) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let first = OocScene::open(&path, None, 0)
+        .unwrap()
+        .cache()
+        .entry(0)
+        .copied()
+        .unwrap();
+    let hurt = damaged(&path, |b| b[first.offset as usize + 5] ^= 0x10).unwrap();
+    let e = hurt.in_core().err().unwrap();
+    assert!(matches!(e, OocError::Checksum(_)), "{e}");
 }

@@ -109,12 +109,11 @@ enum Stop<'g> {
     Visitor,
 }
 
-/// A walk position: block (and its id), node, ray range, entry axis, and
-/// how many links into other blocks led here.
+/// A walk position: block, node, ray range, entry axis, and how many links
+/// into other blocks led here (24 bytes: pushed and popped at every split).
 #[derive(Clone, Copy)]
 struct State<'g> {
     block: &'g Block,
-    id: u32,
     node: u32,
     t_min: f32,
     t_max: f32,
@@ -194,7 +193,6 @@ impl OocScene {
         let mut sp = 0;
         let mut s = State {
             block: root_block,
-            id: root.block,
             node: root.node,
             t_min: t0,
             t_max: t1,
@@ -283,7 +281,6 @@ impl OocScene {
                         Some(b) => {
                             s.block = b;
                             nodes = &b.nodes;
-                            s.id = l.block;
                             s.node = l.node;
                             s.depth += 1;
                         }

@@ -16,7 +16,7 @@ use super::sampling::{power_heuristic, Frame};
 use super::sky::SkyModel;
 use crate::accel::{BuildOptions, KdTree};
 use crate::geom::{offset_origin, Ray};
-use crate::ooc::{Fetch, OocScene, OocSurface};
+use crate::ooc::{Fetch, InCoreReport, OocError, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
 
 /// Settings of the estimator.
@@ -78,6 +78,8 @@ pub struct Tracer {
     /// Estimator settings.
     pub options: TraceOptions,
     non_finite: AtomicU64,
+    /// For a scene file assembled in memory: what that took.
+    assembled: Option<InCoreReport>,
 }
 
 /// Transmittance of a thin pane for a ray crossing it at incidence cosine `cos`,
@@ -89,6 +91,15 @@ fn pane_transmittance(m: &Material, cos: f32) -> Option<Vec3> {
         }
         _ => None,
     }
+}
+
+/// The emitters a scene file's header lists, with their materials' emission.
+fn file_lights(ooc: &OocScene) -> Lights {
+    let h = ooc.header();
+    Lights::from_emitters(h.emitters.iter().map(|e| {
+        let le = h.materials.get(e.material as usize).map_or([0.0; 3], |m| m.emission());
+        (e.id, e.vertices.map(Vec3::from), Vec3::from_array(le))
+    }))
 }
 
 /// A hit as shading needs it.
@@ -122,13 +133,25 @@ impl Tracer {
     /// come from its header, triangles from its blocks as rays need them.
     pub fn out_of_core(ooc: Arc<OocScene>, options: TraceOptions) -> Tracer {
         let scene = ooc.shell();
-        let h = ooc.header();
-        let lights = Lights::from_emitters(h.emitters.iter().map(|e| {
-            let le = h.materials.get(e.material as usize).map_or([0.0; 3], |m| m.emission());
-            (e.id, e.vertices.map(Vec3::from), Vec3::from_array(le))
-        }));
+        let lights = file_lights(&ooc);
         let tree = KdTree::build(&Scene::default(), &BuildOptions::default());
         Tracer::assemble(scene, tree, Some(ooc), lights, options)
+    }
+
+    /// A tracer over a scene file assembled in memory (see
+    /// [`OocScene::in_core`]): the in-core walk, with the hits the
+    /// out-of-core walk finds; no LOD, since there are no voxels in core.
+    pub fn in_core_from_file(ooc: &OocScene, options: TraceOptions) -> Result<Tracer, OocError> {
+        let (scene, tree, report) = ooc.in_core()?;
+        let lights = file_lights(ooc);
+        let mut t = Tracer::assemble(scene, tree, None, lights, options);
+        t.assembled = Some(report);
+        Ok(t)
+    }
+
+    /// For a tracer made with [`Tracer::in_core_from_file`]: what assembling took.
+    pub fn assembled(&self) -> Option<&InCoreReport> {
+        self.assembled.as_ref()
     }
 
     /// The tracer around its geometry: the sky model and whether thin panes
@@ -154,6 +177,7 @@ impl Tracer {
             has_panes,
             options,
             non_finite: AtomicU64::new(0),
+            assembled: None,
         }
     }
 
