@@ -8,7 +8,7 @@
 //! used and spares blocks touched since the oldest batch still in flight.
 
 use std::cmp::Reverse;
-use std::collections::{BTreeMap, BinaryHeap, HashMap, HashSet};
+use std::collections::{BTreeMap, BinaryHeap, HashMap, HashSet, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -57,6 +57,13 @@ struct Queue {
     next_batch: u64,
     /// The first error met, reported to whoever asks.
     error: Option<OocError>,
+    /// Blocks a batch that loads on the spot will want next, in order: the
+    /// fetchers decode them ahead into `staged`, outside the cache.
+    ahead: VecDeque<u32>,
+    /// Decoded ahead and waiting for `load_now`.
+    staged: HashMap<u32, Block>,
+    /// Bytes in `staged`.
+    staged_bytes: usize,
 }
 
 /// The shared state of the cache.
@@ -112,6 +119,9 @@ impl Cache {
                 in_flight: BTreeMap::new(),
                 next_batch: 0,
                 error: None,
+                ahead: VecDeque::new(),
+                staged: HashMap::new(),
+                staged_bytes: 0,
             }),
             wake_fetchers: Condvar::new(),
             loaded: Condvar::new(),
@@ -192,7 +202,10 @@ impl Cache {
         if let Some(b) = self.get(id, guard) {
             return Ok(b);
         }
-        let block = self.read(id).inspect_err(|e| self.note_error(e))?;
+        let block = match self.take_staged(id) {
+            Some(b) => b,
+            None => self.read(id).inspect_err(|e| self.note_error(e))?,
+        };
         // A tick per load on the spot: when a batch's blocks do not all fit, the
         // ones its rays used least recently go first, not those that every ray
         // passes through but that share the batch's stamp.
@@ -204,6 +217,41 @@ impl Cache {
             block: id,
             message: "could not be cached".into(),
         })
+    }
+
+    /// Asks the fetchers to decode `ids` ahead, in this order, for a batch
+    /// about to load them on the spot (replacing what was asked before). At
+    /// most an eighth of the budget waits decoded outside the cache.
+    pub fn decode_ahead(&self, ids: &[u32]) {
+        let mut q = self.lock();
+        q.ahead.clear();
+        q.ahead
+            .extend(ids.iter().copied().filter(|&id| (id as usize) < self.index.len()));
+        drop(q);
+        self.wake_fetchers.notify_all();
+    }
+
+    /// The block if a fetcher decoded it ahead, waiting for one that is
+    /// decoding it now.
+    fn take_staged(&self, id: u32) -> Option<Block> {
+        let mut q = self.lock();
+        loop {
+            if let Some(b) = q.staged.remove(&id) {
+                q.staged_bytes -= b.memory();
+                drop(q);
+                // Room for the next one.
+                self.wake_fetchers.notify_all();
+                return Some(b);
+            }
+            if !q.loading.contains(&id) || self.shutdown.load(Ordering::Relaxed) {
+                return None;
+            }
+            q = self
+                .loaded
+                .wait_timeout(q, Duration::from_millis(50))
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
+        }
     }
 
     fn note_error(&self, e: &OocError) {
@@ -311,7 +359,14 @@ impl Cache {
 
     /// Ends a batch started with [`Cache::begin_batch`].
     pub fn end_batch(&self, batch: u64) {
-        self.lock().in_flight.remove(&batch);
+        let mut q = self.lock();
+        q.in_flight.remove(&batch);
+        if q.in_flight.is_empty() {
+            // Nothing will ask for what was decoded ahead.
+            q.ahead.clear();
+            q.staged.clear();
+            q.staged_bytes = 0;
+        }
     }
 
     /// Waits until every block of `ids` is resident, a load failed, one could
@@ -359,12 +414,27 @@ impl Cache {
                             continue;
                         }
                         q.loading.insert(id);
-                        break id;
+                        break (id, false);
+                    }
+                    if q.staged_bytes < (self.budget / 8).max(1) {
+                        if let Some(id) = q.ahead.pop_front() {
+                            if self.is_resident(id) || q.staged.contains_key(&id) || q.loading.contains(&id) {
+                                continue;
+                            }
+                            q.loading.insert(id);
+                            break (id, true);
+                        }
                     }
                     q = self.wake_fetchers.wait(q).unwrap_or_else(|p| p.into_inner());
                 }
             };
+            let (id, ahead) = id;
             match self.read(id) {
+                Ok(block) if ahead => {
+                    let mut q = self.lock();
+                    q.staged_bytes += block.memory();
+                    q.staged.insert(id, block);
+                }
                 Ok(block) => {
                     let guard = epoch::pin();
                     if self.insert(id, block, false, &guard).is_null() {

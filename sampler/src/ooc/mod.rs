@@ -221,6 +221,8 @@ impl OocScene {
             // Rays waiting for the same block go on together: they walk the same
             // subtree, so a cache too small for the whole batch still serves them.
             again.sort_unstable();
+            let mut awaited: Vec<u32> = again.iter().map(|&(b, _)| b).collect();
+            awaited.dedup();
             todo = again.into_iter().map(|(_, k)| k).collect();
             if todo.is_empty() {
                 break;
@@ -230,6 +232,11 @@ impl OocScene {
             requests.sort_unstable();
             requests.dedup();
             waiting = cache.wait_resident(&requests, ROUND_WAIT);
+            if !waiting || round + 1 >= PROXY_ROUNDS {
+                // The next round loads on the spot: the fetchers decode the
+                // awaited blocks ahead, in the order the rays will want them.
+                cache.decode_ahead(&awaited);
+            }
         }
         cache.end_batch(batch);
         if !todo.is_empty() {

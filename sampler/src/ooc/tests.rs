@@ -602,3 +602,31 @@ fn a_damaged_scene_file_is_not_assembled() {
     let e = hurt.in_core().err().unwrap();
     assert!(matches!(e, OocError::Checksum(_)), "{e}");
 }
+
+#[test]
+fn blocks_decoded_ahead_are_taken_without_reading_them_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(20_000);
+    let (path, _) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let file = OocScene::open(&path, None, 2).unwrap();
+    let cache = file.cache();
+    let ids = [3u32, 1, 2];
+    let packed: u64 = ids.iter().map(|&id| u64::from(cache.entry(id).unwrap().packed)).sum();
+    let batch = cache.begin_batch();
+    cache.decode_ahead(&ids);
+    let start = std::time::Instant::now();
+    while cache.stats().read_bytes < packed {
+        assert!(start.elapsed().as_secs() < 20, "the fetchers never decoded ahead");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    // Decoded, but not in the cache until a ray needs them.
+    assert_eq!(cache.stats().resident_blocks, 0);
+    let guard = crossbeam_epoch::pin();
+    for &id in &ids {
+        assert_eq!(cache.load_now(id, &guard).unwrap(), &cache.read(id).unwrap());
+    }
+    // Three reads ahead and three here for the comparison: none by load_now.
+    assert_eq!(cache.stats().read_bytes, 2 * packed);
+    assert_eq!(cache.stats().resident_blocks, 3);
+    cache.end_batch(batch);
+}
