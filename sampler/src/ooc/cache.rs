@@ -231,6 +231,22 @@ impl Cache {
         self.wake_fetchers.notify_all();
     }
 
+    /// Waits until the fetchers have decoded all that was asked for ahead,
+    /// or `timeout` passed; true if they have.
+    #[cfg(test)]
+    pub(crate) fn wait_decoded_ahead(&self, timeout: Duration) -> bool {
+        let until = Instant::now() + timeout;
+        let mut q = self.lock();
+        while !(q.ahead.is_empty() && q.loading.is_empty()) {
+            let left = until.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return false;
+            }
+            q = self.loaded.wait_timeout(q, left).unwrap_or_else(|p| p.into_inner()).0;
+        }
+        true
+    }
+
     /// The block if a fetcher decoded it ahead, waiting for one that is
     /// decoding it now.
     fn take_staged(&self, id: u32) -> Option<Block> {

@@ -54,10 +54,7 @@ impl OocScene {
             .into_par_iter()
             .map(|id| self.cache().read(id))
             .collect::<Result<_, _>>()?;
-        let corrupt = |m: String| OocError::Block {
-            block: u32::MAX,
-            message: m,
-        };
+        let corrupt = OocError::Corrupt;
         let mut scene = self.shell();
         let count = usize::try_from(h.triangles).map_err(|_| corrupt("too many triangles".into()))?;
         let listed: usize = blocks.iter().map(|b| b.ids.len()).sum();
@@ -137,21 +134,16 @@ impl OocScene {
                 }
             }
         }
+        let bytes = blocks.iter().map(|b| b.memory() as u64).sum();
+        drop(blocks);
+        let node_count = nodes.len();
+        let tree = KdTree::from_parts(nodes, leaf_tris, self.bounds(), count).map_err(|e| corrupt(e.to_string()))?;
         let report = InCoreReport {
             blocks: h.blocks,
-            bytes: blocks.iter().map(|b| b.memory() as u64).sum(),
-            nodes: nodes.len(),
-            seconds: 0.0,
+            bytes,
+            nodes: node_count,
+            seconds: start.elapsed().as_secs_f64(),
         };
-        drop(blocks);
-        let tree = KdTree::from_parts(nodes, leaf_tris, self.bounds(), count).map_err(|e| corrupt(e.to_string()))?;
-        Ok((
-            scene,
-            tree,
-            InCoreReport {
-                seconds: start.elapsed().as_secs_f64(),
-                ..report
-            },
-        ))
+        Ok((scene, tree, report))
     }
 }

@@ -87,6 +87,9 @@ pub enum OocError {
     /// The scene cannot be built.
     #[error("{0}")]
     Build(String),
+    /// The blocks do not make one tree (found when assembling it in memory).
+    #[error("the scene file is corrupt: {0}")]
+    Corrupt(String),
 }
 
 impl OocError {
@@ -221,10 +224,8 @@ impl OocScene {
             // Rays waiting for the same block go on together: they walk the same
             // subtree, so a cache too small for the whole batch still serves them.
             again.sort_unstable();
-            let mut awaited: Vec<u32> = again.iter().map(|&(b, _)| b).collect();
-            awaited.dedup();
-            todo = again.into_iter().map(|(_, k)| k).collect();
-            if todo.is_empty() {
+            if again.is_empty() {
+                todo = Vec::new();
                 break;
             }
             // Every request counts: a block many rays missed is fetched first.
@@ -235,8 +236,11 @@ impl OocScene {
             if !waiting || round + 1 >= PROXY_ROUNDS {
                 // The next round loads on the spot: the fetchers decode the
                 // awaited blocks ahead, in the order the rays will want them.
+                let mut awaited: Vec<u32> = again.iter().map(|&(b, _)| b).collect();
+                awaited.dedup();
                 cache.decode_ahead(&awaited);
             }
+            todo = again.into_iter().map(|(_, k)| k).collect();
         }
         cache.end_batch(batch);
         if !todo.is_empty() {

@@ -614,11 +614,11 @@ fn blocks_decoded_ahead_are_taken_without_reading_them_again() {
     let packed: u64 = ids.iter().map(|&id| u64::from(cache.entry(id).unwrap().packed)).sum();
     let batch = cache.begin_batch();
     cache.decode_ahead(&ids);
-    let start = std::time::Instant::now();
-    while cache.stats().read_bytes < packed {
-        assert!(start.elapsed().as_secs() < 20, "the fetchers never decoded ahead");
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
+    assert!(
+        cache.wait_decoded_ahead(std::time::Duration::from_secs(60)),
+        "the fetchers never decoded ahead"
+    );
+    assert_eq!(cache.stats().read_bytes, packed);
     // Decoded, but not in the cache until a ray needs them.
     assert_eq!(cache.stats().resident_blocks, 0);
     let guard = crossbeam_epoch::pin();

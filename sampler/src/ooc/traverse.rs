@@ -11,7 +11,7 @@ use crossbeam_epoch::Guard;
 use glam::Vec3;
 
 use super::block::{Block, Link};
-use super::node::NodeKind;
+use super::node::{NodeKind, TNode};
 use super::voxel::{entry_face, FaceSample};
 use super::OocScene;
 use crate::geom::{intersect_triangle, Ray, RayPrep};
@@ -204,15 +204,14 @@ impl OocScene {
         let max_depth = self.header().levels.min(u32::from(u16::MAX)) as u16;
         // The current block's nodes, kept at hand: the block changes far less
         // often than the node.
-        let mut nodes: &'g [super::node::TNode] = &s.block.nodes;
+        let mut nodes: &'g [TNode] = &s.block.nodes;
         loop {
             let Some(n) = nodes.get(s.node as usize) else {
                 // A link into a block with fewer nodes: a corrupt file. Treat as empty.
                 self.note_corrupt(|| format!("a link names node {} past the end of its block", s.node));
-                if !pop(&stack, &mut sp, &mut s, closest) {
+                if !pop(&stack, &mut sp, &mut s, &mut nodes, closest) {
                     return None;
                 }
-                nodes = &s.block.nodes;
                 continue;
             };
             match n.kind() {
@@ -271,10 +270,9 @@ impl OocScene {
                     }
                     if s.depth >= max_depth {
                         self.note_corrupt(|| format!("links lead through more than {max_depth} blocks (a cycle)"));
-                        if !pop(&stack, &mut sp, &mut s, closest) {
+                        if !pop(&stack, &mut sp, &mut s, &mut nodes, closest) {
                             return None;
                         }
-                        nodes = &s.block.nodes;
                         continue;
                     }
                     match self.block(l.block, fetch, guard) {
@@ -298,10 +296,9 @@ impl OocScene {
                     if closest <= s.t_max {
                         return None;
                     }
-                    if !pop(&stack, &mut sp, &mut s, closest) {
+                    if !pop(&stack, &mut sp, &mut s, &mut nodes, closest) {
                         return None;
                     }
-                    nodes = &s.block.nodes;
                 }
             }
         }
@@ -386,15 +383,23 @@ fn solid(l: &Link, face: usize) -> bool {
     l.voxel.face(face).coverage >= SOLID
 }
 
-/// Pops the nearest pending node that starts before `closest`. Entries below
-/// `sp` are initialized: only pushes write them, and `sp` counts the pushes.
-fn pop<'g>(stack: &[MaybeUninit<State<'g>>], sp: &mut usize, s: &mut State<'g>, closest: f32) -> bool {
+/// Pops the nearest pending node that starts before `closest`, with its
+/// block's nodes. Entries below `sp` are initialized: only pushes write them,
+/// and `sp` counts the pushes.
+fn pop<'g>(
+    stack: &[MaybeUninit<State<'g>>],
+    sp: &mut usize,
+    s: &mut State<'g>,
+    nodes: &mut &'g [TNode],
+    closest: f32,
+) -> bool {
     while *sp > 0 {
         *sp -= 1;
         // SAFETY: index below the push count, written by a push (see above).
         let next = unsafe { stack[*sp].assume_init() };
         if next.t_min <= closest {
             *s = next;
+            *nodes = &next.block.nodes;
             return true;
         }
     }

@@ -126,7 +126,7 @@ impl Tracer {
     pub fn new(scene: Scene, options: TraceOptions) -> Tracer {
         let tree = KdTree::build(&scene, &BuildOptions::default());
         let lights = Lights::new(&scene);
-        Tracer::assemble(scene, tree, None, lights, options)
+        Tracer::with_geometry(scene, tree, None, lights, options)
     }
 
     /// A tracer over an open scene file: materials, sky, sections and lights
@@ -135,7 +135,7 @@ impl Tracer {
         let scene = ooc.shell();
         let lights = file_lights(&ooc);
         let tree = KdTree::build(&Scene::default(), &BuildOptions::default());
-        Tracer::assemble(scene, tree, Some(ooc), lights, options)
+        Tracer::with_geometry(scene, tree, Some(ooc), lights, options)
     }
 
     /// A tracer over a scene file assembled in memory (see
@@ -144,7 +144,7 @@ impl Tracer {
     pub fn in_core_from_file(ooc: &OocScene, options: TraceOptions) -> Result<Tracer, OocError> {
         let (scene, tree, report) = ooc.in_core()?;
         let lights = file_lights(ooc);
-        let mut t = Tracer::assemble(scene, tree, None, lights, options);
+        let mut t = Tracer::with_geometry(scene, tree, None, lights, options);
         t.assembled = Some(report);
         Ok(t)
     }
@@ -156,7 +156,7 @@ impl Tracer {
 
     /// The tracer around its geometry: the sky model and whether thin panes
     /// need their shadow-ray pass follow from the scene.
-    fn assemble(
+    fn with_geometry(
         scene: Scene,
         tree: KdTree,
         ooc: Option<Arc<OocScene>>,
