@@ -147,22 +147,18 @@ impl Block {
         if !bytes.len().is_multiple_of(4) {
             return Err(BlockError::Malformed("length is not a whole number of words"));
         }
-        let words: Vec<u32> = bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        let mut r = Reader { w: &words, at: 0 };
-        if r.take(1)?[0] != BLOCK_MAGIC {
+        let mut r = Reader { b: bytes };
+        if r.take(1)?.get(0) != BLOCK_MAGIC {
             return Err(BlockError::Malformed("wrong magic"));
         }
         let c = r.take(5)?;
-        let [n_nodes, n_links, n_verts, n_tris, n_list] = [c[0], c[1], c[2], c[3], c[4]].map(|x| x as usize);
+        let [n_nodes, n_links, n_verts, n_tris, n_list] = [0, 1, 2, 3, 4].map(|i| c.get(i) as usize);
         if n_verts > MAX_BLOCK_ITEMS || n_tris > MAX_BLOCK_ITEMS {
             return Err(BlockError::Corrupt(format!("{n_verts} vertices, {n_tris} triangles")));
         }
         let nodes: Vec<TNode> = r
             .take(n_nodes.checked_mul(2).ok_or(BlockError::Malformed("node count"))?)?
-            .chunks_exact(2)
+            .groups::<2>()
             .map(|p| TNode::from_words(p[0], p[1]))
             .collect();
         let links: Vec<Link> = r
@@ -171,7 +167,7 @@ impl Block {
                     .checked_mul(LINK_WORDS)
                     .ok_or(BlockError::Malformed("link count"))?,
             )?
-            .chunks_exact(LINK_WORDS)
+            .groups::<LINK_WORDS>()
             .map(|p| Link {
                 block: p[0],
                 node: p[1],
@@ -183,13 +179,13 @@ impl Block {
             .collect();
         let verts: Vec<Vec3> = r
             .take(n_verts * 3)?
-            .chunks_exact(3)
+            .groups::<3>()
             .map(|p| Vec3::new(f32::from_bits(p[0]), f32::from_bits(p[1]), f32::from_bits(p[2])))
             .collect();
-        let ids = r.take(n_tris)?.to_vec();
+        let ids: Vec<u32> = r.take(n_tris)?.groups::<1>().map(|p| p[0]).collect();
         let tris: Vec<BlockTri> = r
             .take(n_tris * 2)?
-            .chunks_exact(2)
+            .groups::<2>()
             .map(|p| BlockTri {
                 v: [p[0] as u16, (p[0] >> 16) as u16, p[1] as u16],
                 material: (p[1] >> 16) as u16,
@@ -197,11 +193,11 @@ impl Block {
             .collect();
         let list: Vec<u16> = r
             .take(n_list.div_ceil(2))?
-            .iter()
-            .flat_map(|x| [*x as u16, (*x >> 16) as u16])
+            .groups::<1>()
+            .flat_map(|[x]| [x as u16, (x >> 16) as u16])
             .take(n_list)
             .collect();
-        if r.at != words.len() {
+        if !r.b.is_empty() {
             return Err(BlockError::Malformed("bytes after the last list entry"));
         }
         let block = Block {
@@ -277,18 +273,39 @@ impl Block {
     }
 }
 
+/// Little-endian words read off the front of a block's bytes.
 struct Reader<'a> {
-    w: &'a [u32],
-    at: usize,
+    b: &'a [u8],
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Result<&'a [u32], BlockError> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.w.len());
-        let end = end.ok_or(BlockError::Malformed("shorter than its counts"))?;
-        let s = &self.w[self.at..end];
-        self.at = end;
-        Ok(s)
+    fn take(&mut self, n: usize) -> Result<Words<'a>, BlockError> {
+        let len = n
+            .checked_mul(4)
+            .filter(|&l| l <= self.b.len())
+            .ok_or(BlockError::Malformed("shorter than its counts"))?;
+        let (w, rest) = self.b.split_at(len);
+        self.b = rest;
+        Ok(Words(w))
+    }
+}
+
+/// A run of little-endian words, read in place.
+#[derive(Clone, Copy)]
+struct Words<'a>(&'a [u8]);
+
+impl<'a> Words<'a> {
+    /// Word `i` (0 past the end).
+    fn get(self, i: usize) -> u32 {
+        self.0
+            .get(4 * i..4 * i + 4)
+            .map_or(0, |c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+    }
+    /// The words `K` at a time.
+    fn groups<const K: usize>(self) -> impl Iterator<Item = [u32; K]> + 'a {
+        self.0
+            .chunks_exact(4 * K)
+            .map(|c| std::array::from_fn(|i| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])))
     }
 }
 

@@ -50,7 +50,9 @@ struct Queue {
     loading: HashSet<u32>,
     /// Blocks a fetcher loaded but found no room for (everything resident was in use).
     declined: HashSet<u32>,
-    /// (timestamp when pushed, block): lazily refreshed LRU order.
+    /// (timestamp when pushed, !block): lazily refreshed LRU order, finer
+    /// blocks first among blocks last used at the same time (every ray of a
+    /// batch passes through the coarse ones).
     lru: BinaryHeap<Reverse<(u32, u32)>>,
     /// Batch id -> clock when it began.
     in_flight: BTreeMap<u64, u32>,
@@ -187,11 +189,17 @@ impl Cache {
         if crc32c::crc32c(packed) != e.crc {
             return Err(OocError::Checksum(format!("block {id}")));
         }
-        let raw = self
-            .codec
-            .decompress(packed, e.len as usize)
-            .map_err(|c| bad(c.to_string()))?;
-        let mut block = Block::decode(&raw, self.index.len() as u32, self.materials).map_err(|b| bad(b.to_string()))?;
+        thread_local! {
+            /// Each thread's decompression buffer, reused from block to block.
+            static RAW: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
+        let mut block = RAW.with_borrow_mut(|buf| {
+            let raw = self
+                .codec
+                .decompress_into(packed, e.len as usize, buf)
+                .map_err(|c| bad(c.to_string()))?;
+            Block::decode(raw, self.index.len() as u32, self.materials).map_err(|b| bad(b.to_string()))
+        })?;
         block.resolve_local_links(id);
         Ok(block)
     }
@@ -297,20 +305,21 @@ impl Cache {
         }
         let protect_from = q.in_flight.values().min().copied().unwrap_or(u32::MAX);
         while self.resident.load(Ordering::Relaxed) + size > self.budget {
-            let Some(Reverse((stamp, victim))) = q.lru.pop() else {
+            let Some(Reverse((stamp, rank))) = q.lru.pop() else {
                 break;
             };
+            let victim = !rank;
             let slot = &self.slots[victim as usize];
             if slot.load(Ordering::Acquire, guard).is_null() {
                 continue;
             }
             let now = self.stamps[victim as usize].load(Ordering::Relaxed);
             if now != stamp {
-                q.lru.push(Reverse((now, victim)));
+                q.lru.push(Reverse((now, rank)));
                 continue;
             }
             if !force && now >= protect_from {
-                q.lru.push(Reverse((now, victim)));
+                q.lru.push(Reverse((now, rank)));
                 break;
             }
             let old = slot.swap(Shared::null(), Ordering::AcqRel, guard);
@@ -335,7 +344,7 @@ impl Cache {
         self.resident.fetch_add(size, Ordering::Relaxed);
         self.resident_blocks.fetch_add(1, Ordering::Relaxed);
         self.loads.fetch_add(1, Ordering::Relaxed);
-        q.lru.push(Reverse((now, id)));
+        q.lru.push(Reverse((now, !id)));
         q.pending.remove(&id);
         p
     }

@@ -630,3 +630,27 @@ fn blocks_decoded_ahead_are_taken_without_reading_them_again() {
     assert_eq!(cache.stats().resident_blocks, 3);
     cache.end_batch(batch);
 }
+
+#[test]
+fn among_blocks_last_used_together_the_finer_is_evicted_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = landscape(20_000);
+    let (path, _) = build(&scene, dir.path(), 1 << 20, Codec::Lz4);
+    let probe = OocScene::open(&path, None, 0).unwrap();
+    let size = |id: u32| probe.cache().read(id).unwrap().memory();
+    // Room for block 1 and one of blocks 2 and 3.
+    let budget = size(1) + size(2).max(size(3));
+    let file = OocScene::open(&path, Some(budget), 0).unwrap();
+    let cache = file.cache();
+    let guard = crossbeam_epoch::pin();
+    cache.load_now(1, &guard).unwrap();
+    cache.load_now(2, &guard).unwrap();
+    // A tick of the clock, then both used at the same time, the finer first.
+    cache.end_batch(cache.begin_batch());
+    assert!(cache.get(2, &guard).is_some() && cache.get(1, &guard).is_some());
+    cache.load_now(3, &guard).unwrap();
+    assert!(cache.is_resident(1), "the coarser block was evicted");
+    assert!(!cache.is_resident(2));
+    assert!(cache.is_resident(3));
+    assert_eq!(cache.stats().evictions, 1);
+}
