@@ -7,6 +7,8 @@ use clap::{Parser, Subcommand};
 
 mod chart;
 mod cmd;
+#[cfg(feature = "embree")]
+mod embree;
 mod fill;
 mod human;
 mod parent;

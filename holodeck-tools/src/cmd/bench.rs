@@ -31,6 +31,7 @@ Example:
   holodeck bench storage --rays 50M --dir target/bench
   holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)
   holodeck bench tracer --triangles 1M --triangles 10M
+  holodeck bench tracer --triangles 10M --embree      (beside Embree; needs --features embree)
   holodeck bench scene-file --triangles 1M --pixels 256
   holodeck bench scene-file --triangles 10M --charts docs    (ooc-budget, ooc-lod charts)
   holodeck bench display --samples 1M --rays 4M
@@ -62,6 +63,10 @@ pub struct Args {
     /// Keep the files.
     #[arg(long)]
     keep: bool,
+    /// Trace the same rays through Embree in the same process (`tracer`; a
+    /// holodeck built with `--features embree`, which needs libembree-dev).
+    #[arg(long)]
+    embree: bool,
     /// Write charts (SVG and PNG) of the results into this folder (`scene-file`).
     #[arg(long, value_name = "DIR")]
     charts: Option<PathBuf>,
@@ -412,7 +417,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             return Ok(ExitCode::SUCCESS);
         }
         Target::Tracer => {
-            super::bench_tracer::run(&a.triangles, a.pixels)?;
+            super::bench_tracer::run(&a.triangles, a.pixels, a.embree)?;
             return Ok(ExitCode::SUCCESS);
         }
         Target::Display => {

@@ -111,8 +111,16 @@ fn equal_time(tracer: &Tracer, view: &View, w: u32, h: u32) -> Result<(Picture, 
     Ok((picture, passes, secs))
 }
 
-/// Runs the tracer measurements and prints a table.
-pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
+/// Runs the tracer measurements and prints a table (and, with `embree`, the
+/// same rays through Embree beside ours).
+pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
+    if embree && !cfg!(feature = "embree") {
+        anyhow::bail!(
+            "this holodeck was built without Embree: build it with \
+             `cargo build --release -p holodeck-tools --features embree` (needs libembree-dev)"
+        );
+    }
+    let mut beside = Vec::new();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -171,6 +179,32 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
             bounce_rate / 1e6,
             bounce_packets / 1e6
         );
+        if embree {
+            beside.push(side_by_side(
+                &case.label,
+                scene,
+                build,
+                [primary_rate, primary_packets, bounce_rate, bounce_packets],
+                &primary,
+                &hits,
+                &bounce,
+                &bounce_hits,
+            )?);
+        }
+    }
+    if embree {
+        println!();
+        println!(
+            "The same rays through Embree 3 in this process (high build quality, default threads); ours / Embree:"
+        );
+        println!();
+        println!(
+            "| scene | build, ours / Embree | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | rays hitting another triangle |"
+        );
+        println!("|---|---|---|---|---|---|---|");
+        for row in beside {
+            println!("{row}");
+        }
     }
     // Path tracing with one diffuse bounce in the furnished room, on one core:
     // samples per second, and the error against a converged reference after
@@ -216,4 +250,77 @@ pub fn run(triangles: &[u64], pixels: u32) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Embree's build time and rates on the same rays as a table row, each
+/// beside ours (`ours`: primary single, primary packets, bounce single,
+/// bounce packets, in rays/s), and how many rays hit a different triangle.
+#[cfg(feature = "embree")]
+#[allow(clippy::too_many_arguments)]
+fn side_by_side(
+    label: &str,
+    scene: &Scene,
+    build: f64,
+    ours: [f64; 4],
+    primary: &[Ray],
+    primary_hits: &[Option<RayHit>],
+    bounce: &[Ray],
+    bounce_hits: &[Option<RayHit>],
+) -> Result<String> {
+    use crate::embree::Embree;
+    let start = Instant::now();
+    let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))?;
+    let e_build = start.elapsed().as_secs_f64();
+    let single = |rays: &[Ray]| {
+        let start = Instant::now();
+        let hits: Vec<Option<u32>> = rays.iter().map(|r| e.intersect(r).map(|h| h.1)).collect();
+        (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+    };
+    let packets = |rays: &[Ray]| {
+        let start = Instant::now();
+        let mut hits = Vec::with_capacity(rays.len());
+        for chunk in rays.chunks(8) {
+            let found = e.intersect8(chunk);
+            hits.extend(found[..chunk.len()].iter().map(|h| h.map(|h| h.1)));
+        }
+        (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+    };
+    let (ps, ph) = single(primary);
+    let (pp, pph) = packets(primary);
+    let (bs, bh) = single(bounce);
+    let (bp, bph) = packets(bounce);
+    let other = |theirs: &[Option<u32>], ours: &[Option<RayHit>]| {
+        theirs
+            .iter()
+            .zip(ours)
+            .filter(|(t, o)| **t != o.map(|(_, _, tri)| tri))
+            .count()
+    };
+    let differ = other(&ph, primary_hits) + other(&bh, bounce_hits);
+    let packet_differ =
+        ph.iter().zip(&pph).filter(|(a, b)| a != b).count() + bh.iter().zip(&bph).filter(|(a, b)| a != b).count();
+    let cell = |o: f64, t: f64| format!("{:.2} / {:.2} = {:.2}", o / 1e6, t / 1e6, o / t);
+    Ok(format!(
+        "| {label} | {build:.2} s / {e_build:.2} s | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
+        cell(ours[0], ps),
+        cell(ours[1], pp),
+        cell(ours[2], bs),
+        cell(ours[3], bp),
+        primary.len() + bounce.len(),
+    ))
+}
+
+#[cfg(not(feature = "embree"))]
+#[allow(clippy::too_many_arguments)]
+fn side_by_side(
+    _: &str,
+    _: &Scene,
+    _: f64,
+    _: [f64; 4],
+    _: &[Ray],
+    _: &[Option<RayHit>],
+    _: &[Ray],
+    _: &[Option<RayHit>],
+) -> Result<String> {
+    anyhow::bail!("this holodeck was built without Embree")
 }
