@@ -56,7 +56,7 @@ impl Store {
                     Request::Append(key, rays) => {
                         if let Err(e) = file.append(key, &rays) {
                             // Log the first refusal only: every later packet meets the same wall.
-                            if !refused.swap(true, Ordering::SeqCst) {
+                            if !refused.load(Ordering::SeqCst) {
                                 tracing::error!("storing rays of {key:?}: {e}");
                                 let why = match e {
                                     StorageError::DiskSpace { limit, .. } => {
@@ -67,6 +67,9 @@ impl Store {
                                 if let Ok(mut r) = reason.lock() {
                                     *r = Some(why);
                                 }
+                                // Raised after the reason is in: whoever sees the
+                                // flag can say why (only this thread sets it).
+                                refused.store(true, Ordering::SeqCst);
                             }
                         }
                     }
