@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use holodeck_protocol::View;
-use holodeck_sampler::accel::{BuildOptions, PACKET};
+use holodeck_sampler::accel::{BuildOptions, RayOrder, PACKET};
 use holodeck_sampler::geom::{offset_origin, Ray};
 use holodeck_sampler::render::{render, Picture, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
@@ -123,6 +123,8 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     // Embree's rows, printed after ours.
     #[cfg_attr(not(feature = "embree"), allow(unused_mut))]
     let mut beside: Vec<String> = Vec::new();
+    // Rows of the reordering table, printed after the first.
+    let mut reordered: Vec<String> = Vec::new();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -168,6 +170,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         let (bounce_rate, bounce_hits) = throughput(&tree, scene, &bounce);
         let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, scene, &bounce);
         wrong += differing(&bounce_packet_hits, &bounce_hits);
+        reordered.push(reordering_row(&case.label, &tree, scene, &bounce, &bounce_hits));
         let tris = scene.triangles.len().max(1) as f64;
         println!(
             "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
@@ -208,6 +211,18 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         for row in beside {
             println!("{row}");
         }
+    }
+    println!();
+    println!(
+        "Incoherent rays: the diffuse bounce rays above in random order, traced as one batch, as given and reordered (the sort's time included):"
+    );
+    println!();
+    println!(
+        "| scene | rays | as given | by hit point (Moon 2010) | by origin | hit point / as given | origin / as given | hits differing |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for row in reordered {
+        println!("{row}");
     }
     // Path tracing with one diffuse bounce in the furnished room, on one core:
     // samples per second, and the error against a converged reference after
@@ -253,6 +268,49 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The bounce rays shuffled, traced as one batch in each [`RayOrder`]: a
+/// table row of rates (rays/s, best of three) and how many hits differ from
+/// the single-ray hits.
+fn reordering_row(label: &str, tree: &KdTree, scene: &Scene, bounce: &[Ray], hits: &[Option<RayHit>]) -> String {
+    let mut rng = Rng::new(9, 0);
+    let mut order: Vec<usize> = (0..bounce.len()).collect();
+    for i in (1..order.len()).rev() {
+        let j = ((rng.f32x2().0 * (i + 1) as f32) as usize).min(i);
+        order.swap(i, j);
+    }
+    let rays: Vec<Ray> = order.iter().map(|&i| bounce[i]).collect();
+    let want: Vec<Option<(f32, u32)>> = order.iter().map(|&i| hits[i].map(|(_, t, tri)| (t, tri))).collect();
+    let mut differ = 0;
+    let mut rate = |o: RayOrder| {
+        let mut best = 0f64;
+        for _ in 0..3 {
+            let start = Instant::now();
+            let got = tree.intersect_batch(scene, &rays, o);
+            best = best.max(rays.len() as f64 / start.elapsed().as_secs_f64());
+            differ += got
+                .iter()
+                .zip(&want)
+                .filter(|(g, w)| g.map(|h| (h.t, h.tri)) != **w)
+                .count();
+        }
+        best
+    };
+    let (given, hit_point, origin) = (
+        rate(RayOrder::AsGiven),
+        rate(RayOrder::HitPoint),
+        rate(RayOrder::Origin),
+    );
+    format!(
+        "| {label} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {differ} |",
+        rays.len(),
+        given / 1e6,
+        hit_point / 1e6,
+        origin / 1e6,
+        hit_point / given,
+        origin / given
+    )
 }
 
 /// Embree's build time and rates on the same rays as a table row, each

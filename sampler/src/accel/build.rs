@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use super::leaf::LeafTris;
 use super::{KdTree, Node};
 use crate::geom::Aabb;
 use crate::scene::Scene;
@@ -11,7 +12,11 @@ use crate::scene::Scene;
 /// Tuning of the build.
 #[derive(Clone, Copy, Debug)]
 pub struct BuildOptions {
-    /// Cost of one traversal step relative to one triangle test.
+    /// Cost of one traversal step relative to one triangle test. Triangles
+    /// are tested four at a time in SIMD lanes, which makes a test cheap
+    /// beside a step: 10 measured fastest for single rays on the 1M
+    /// landscape (8 to 16 within noise), and builds 2.6 times faster with
+    /// 40% fewer references than 3.
     pub traversal_cost: f32,
     /// Bins per axis.
     pub bins: usize,
@@ -26,11 +31,23 @@ pub struct BuildOptions {
 impl Default for BuildOptions {
     fn default() -> Self {
         BuildOptions {
-            traversal_cost: 3.0,
+            traversal_cost: 10.0,
             bins: 32,
             empty_bonus: 0.8,
             leaf_size: 2,
             parallel_above: 4096,
+        }
+    }
+}
+
+impl BuildOptions {
+    /// For the trees of out-of-core scene files, whose walk tests a leaf's
+    /// triangles one at a time from decoded blocks: a traversal step costs
+    /// three triangle tests, and leaves stay small.
+    pub fn one_triangle_at_a_time() -> BuildOptions {
+        BuildOptions {
+            traversal_cost: 3.0,
+            ..BuildOptions::default()
         }
     }
 }
@@ -83,9 +100,11 @@ impl KdTree {
         let mut tree = KdTree {
             nodes: vec![Node::leaf(0, 0)],
             leaf_tris: Vec::new(),
+            leaves: LeafTris::new(scene, &[]),
             bounds,
         };
         flatten(root, 0, &mut tree);
+        tree.leaves = LeafTris::new(scene, &tree.leaf_tris);
         tree
     }
 

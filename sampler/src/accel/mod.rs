@@ -3,9 +3,11 @@
 //! cutting, in parallel. Traversal finds the nearest hit or any hit.
 
 mod build;
+mod leaf;
 mod node;
 mod packet;
 mod parts;
+mod reorder;
 #[cfg(test)]
 pub(crate) mod testing;
 mod traverse;
@@ -14,15 +16,17 @@ pub use build::BuildOptions;
 pub use node::Node;
 pub use packet::PACKET;
 pub use parts::PartsError;
+pub use reorder::{RayOrder, COARSE_DEPTH};
 pub use traverse::Hit;
 
 use crate::geom::Aabb;
 
-/// A kd-tree: nodes (children of an inner node are adjacent) and the triangle
-/// index lists of the leaves.
+/// A kd-tree: nodes (children of an inner node are adjacent), the triangle
+/// index lists of the leaves, and the leaves' triangles copied in list order.
 pub struct KdTree {
     nodes: Vec<Node>,
     leaf_tris: Vec<u32>,
+    leaves: leaf::LeafTris,
     bounds: Aabb,
 }
 
@@ -41,8 +45,10 @@ pub struct TreeStats {
     pub depth: usize,
     /// Most triangles in one leaf.
     pub max_leaf: usize,
-    /// Bytes of nodes and leaf lists.
+    /// Bytes of nodes, leaf lists and the leaves' triangles.
     pub bytes: usize,
+    /// Of `bytes`, those of the leaves' triangles (36 per reference).
+    pub triangle_bytes: usize,
 }
 
 impl KdTree {
@@ -56,7 +62,8 @@ impl KdTree {
         let mut s = TreeStats {
             nodes: self.nodes.len(),
             references: self.leaf_tris.len(),
-            bytes: self.nodes.len() * std::mem::size_of::<Node>() + self.leaf_tris.len() * 4,
+            bytes: self.nodes.len() * std::mem::size_of::<Node>() + self.leaf_tris.len() * 4 + self.leaves.bytes(),
+            triangle_bytes: self.leaves.bytes(),
             ..TreeStats::default()
         };
         let mut stack = vec![(0usize, 0usize)];

@@ -1,16 +1,16 @@
 //! Packet traversal for coherent rays (Wald et al. 2001; Manta, Stephens et
 //! al. 2006, section 3.2): up to eight rays with the same direction signs walk
-//! the kd-tree together, each with its own `[t_min, t_max]` interval, and a
-//! child is visited when any active ray needs it. The rays of one beam packet
-//! pass through the same pair of grid cells, so they stay together deep into
-//! the tree. At the leaves, rays sharing the watertight test's axis
-//! permutation are tested against each triangle in structure-of-arrays form;
-//! rays that land exactly on an edge are settled by the exact scalar test.
+//! the kd-tree together, each with its own `[t_min, t_max]` interval in one
+//! SIMD lane, and a child is visited when any active ray needs it. The rays
+//! of one beam packet pass through the same pair of grid cells, so they stay
+//! together deep into the tree. At a leaf, each active ray tests the leaf's
+//! triangles four at a time, as a single ray does, so packets find exactly
+//! the single rays' hits.
 
-use glam::Vec3;
+use wide::{f32x8, CmpEq, CmpGe, CmpLe, CmpLt};
 
 use super::{Hit, KdTree};
-use crate::geom::{axis_permutation, intersect_triangle, Ray, RayPrep};
+use crate::geom::{Ray, Ray4};
 use crate::scene::Scene;
 
 /// Rays per packet.
@@ -20,16 +20,10 @@ const STACK: usize = 64;
 const SLACK_UP: f32 = 1.0 + 1e-5;
 const SLACK_DOWN: f32 = 1.0 - 1e-5;
 
-#[derive(Clone, Copy)]
-struct Lane {
-    origin: [[f32; PACKET]; 3],
-    inv: [[f32; PACKET]; 3],
-}
-
 impl KdTree {
     /// Nearest hits of up to [`PACKET`] rays; rays may point anywhere (they are
     /// grouped by direction octant), but coherent rays gain the most.
-    pub fn intersect_packet(&self, scene: &Scene, rays: &[Ray]) -> [Option<Hit>; PACKET] {
+    pub fn intersect_packet(&self, _scene: &Scene, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
         let n = rays.len().min(PACKET);
         // By sign bit, so that a -0.0 component walks like the single ray, whose inverse is -inf.
@@ -48,16 +42,13 @@ impl KdTree {
                 .filter(|&j| done & (1 << j) == 0 && octant(&rays[j]) == o)
                 .fold(0u32, |m, j| m | 1 << j);
             done |= mask;
-            self.packet_octant(scene, rays, mask, &mut out);
+            self.packet_octant(rays, mask, &mut out);
         }
         out
     }
 
-    fn packet_octant(&self, scene: &Scene, rays: &[Ray], mask: u32, out: &mut [Option<Hit>; PACKET]) {
-        let mut lane = Lane {
-            origin: [[0.0; PACKET]; 3],
-            inv: [[0.0; PACKET]; 3],
-        };
+    fn packet_octant(&self, rays: &[Ray], mask: u32, out: &mut [Option<Hit>; PACKET]) {
+        let (mut origin, mut inv) = ([[0f32; PACKET]; 3], [[0f32; PACKET]; 3]);
         let mut t_min = [f32::INFINITY; PACKET];
         let mut t_max = [f32::NEG_INFINITY; PACKET];
         let mut closest = [f32::INFINITY; PACKET];
@@ -68,17 +59,17 @@ impl KdTree {
                 continue;
             }
             let r = &rays[i];
-            let inv = r.dir.recip();
+            let d = r.dir.recip();
             for a in 0..3 {
-                lane.origin[a][i] = r.origin[a];
-                lane.inv[a][i] = inv[a];
+                origin[a][i] = r.origin[a];
+                inv[a][i] = d[a];
             }
             closest[i] = r.t_max;
-            if let Some((a, b)) = self.bounds.range(r, inv) {
+            if let Some((a, b)) = self.bounds.range(r, d) {
                 t_min[i] = a;
                 t_max[i] = b;
                 active |= 1 << i;
-                preps[i] = Some(RayPrep::new(r.origin, r.dir));
+                preps[i] = Some(Ray4::new(r.origin, r.dir));
             }
         }
         if active == 0 {
@@ -90,72 +81,56 @@ impl KdTree {
             rays[first_lane].dir.y.is_sign_negative(),
             rays[first_lane].dir.z.is_sign_negative(),
         ];
-        let shared = SharedPrep::new(rays, active);
-        let mut stack = [(0u32, 0u32, [0f32; PACKET], [0f32; PACKET]); STACK];
+        let origin = origin.map(f32x8::new);
+        let inv = inv.map(f32x8::new);
+        let (mut t_min, mut t_max) = (f32x8::new(t_min), f32x8::new(t_max));
+        let (zero, slack_up, slack_down) = (f32x8::ZERO, f32x8::splat(SLACK_UP), f32x8::splat(SLACK_DOWN));
+        let mut stack = [(0u32, 0u32, f32x8::ZERO, f32x8::ZERO); STACK];
         let mut sp = 0;
         let mut node = 0usize;
+        let mut finished = 0u32;
         loop {
             let nd = self.nodes[node];
             if !nd.is_leaf() {
                 let axis = nd.axis();
-                let split = nd.split();
+                let split = f32x8::splat(nd.split());
                 let (first, second) = if negative[axis] {
                     (nd.left() + 1, nd.left())
                 } else {
                     (nd.left(), nd.left() + 1)
                 };
-                let (mut need_first, mut need_second) = (0u32, 0u32);
-                let mut ts = [0f32; PACKET];
-                for i in 0..PACKET {
-                    if active & (1 << i) == 0 {
-                        continue;
-                    }
-                    let t = (split - lane.origin[axis][i]) * lane.inv[axis][i];
-                    ts[i] = t;
-                    if t.is_nan() {
-                        need_first |= 1 << i;
-                        need_second |= 1 << i;
-                        continue;
-                    }
-                    // The single-ray walk's rules exactly, boundaries included.
-                    if t <= 0.0 {
-                        // The plane is behind this ray (or it starts on it): only the
-                        // child it starts in, decided as the single-ray walk decides.
-                        let o = lane.origin[axis][i];
-                        let starts_left = o < split || (o == split && lane.inv[axis][i] <= 0.0);
-                        if starts_left != negative[axis] {
-                            need_first |= 1 << i;
-                        } else {
-                            need_second |= 1 << i;
-                        }
-                        continue;
-                    }
-                    if t >= t_min[i] * SLACK_DOWN {
-                        need_first |= 1 << i;
-                    }
-                    if t <= t_max[i] * SLACK_UP {
-                        need_second |= 1 << i;
-                    }
-                }
+                let (o, d) = (origin[axis], inv[axis]);
+                let t = (split - o) * d;
+                // The single-ray walk's rules exactly, boundaries included, lane by lane.
+                let nan = t.is_nan().move_mask() as u32;
+                let behind = t.cmp_le(zero).move_mask() as u32;
+                // A ray the plane is behind (or that starts on it) visits only the
+                // child it starts in, decided as the single-ray walk decides.
+                let starts_left = (o.cmp_lt(split) | (o.cmp_eq(split) & d.cmp_le(zero))).move_mask() as u32;
+                let starts_first = if negative[axis] { !starts_left } else { starts_left };
+                let ahead = !(nan | behind);
+                let reaches_first = t.cmp_ge(t_min * slack_down).move_mask() as u32;
+                let reaches_second = t.cmp_le(t_max * slack_up).move_mask() as u32;
+                let need_first = active & (nan | (behind & starts_first) | (ahead & reaches_first));
+                let need_second = active & (nan | (behind & !starts_first) | (ahead & reaches_second));
                 match (need_first != 0, need_second != 0) {
                     (true, true) => {
-                        let mut t0 = t_min;
-                        let mut t1 = t_max;
                         // Rays that need both children split their range at the plane,
                         // as the single-ray walk does (slack included).
-                        for i in 0..PACKET {
-                            let both = need_first & need_second & (1 << i) != 0;
-                            if both && !ts[i].is_nan() && ts[i] > 0.0 {
-                                t0[i] = ts[i];
-                                t1[i] = ts[i];
+                        let both = need_first & need_second & ahead;
+                        let split_here = f32x8::new(std::array::from_fn(|i| {
+                            if both & (1 << i) != 0 {
+                                f32::from_bits(u32::MAX)
+                            } else {
+                                0.0
                             }
-                        }
+                        }));
                         if sp < STACK {
-                            stack[sp] = (second as u32, need_second, t0, t_max);
+                            stack[sp] = (second as u32, need_second, split_here.blend(t, t_min), t_max);
                             sp += 1;
                         }
                         active = need_first;
-                        t_max = t1;
+                        t_max = split_here.blend(t, t_max);
                         node = first;
                     }
                     (true, false) => {
@@ -172,13 +147,26 @@ impl KdTree {
                     continue;
                 }
             } else {
-                let tris = &self.leaf_tris[nd.first()..nd.first() + nd.count()];
-                for &t in tris {
-                    let [a, b, c] = scene.vertices(t as usize);
-                    shared.test(&preps, active, a, b, c, t, &mut closest, out);
+                let mut todo = active;
+                while todo != 0 {
+                    let i = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let Some(prep) = preps[i].as_ref() else { continue };
+                    self.leaves
+                        .intersect(prep, nd.first(), nd.count(), closest[i], |entry, h| {
+                            closest[i] = h.t;
+                            out[i] = Some(Hit {
+                                t: h.t,
+                                tri: self.leaf_tris[entry],
+                                u: h.u,
+                                v: h.v,
+                            });
+                            Some(h.t)
+                        });
                 }
-                // Rays whose nearest hit lies in this leaf drop out when the
-                // next node is popped: its interval starts beyond their hit.
+                // Rays whose nearest hit lies within this leaf are done, as a
+                // single ray is (which matters when a hit lies on a split plane).
+                finished |= active & f32x8::new(closest).cmp_le(t_max).move_mask() as u32;
             }
             // Pop the next node that still has unfinished rays.
             loop {
@@ -187,12 +175,7 @@ impl KdTree {
                 }
                 sp -= 1;
                 let (next, m, a, b) = stack[sp];
-                let mut live = 0u32;
-                for i in 0..PACKET {
-                    if m & (1 << i) != 0 && a[i] <= closest[i] {
-                        live |= 1 << i;
-                    }
-                }
+                let live = m & !finished & a.cmp_le(f32x8::new(closest)).move_mask() as u32;
                 if live != 0 {
                     node = next as usize;
                     active = live;
@@ -205,145 +188,12 @@ impl KdTree {
     }
 }
 
-/// The exact scalar test of one ray, keeping a nearer hit.
-#[inline]
-fn scalar_test(prep: Option<&RayPrep>, [a, b, c]: [Vec3; 3], tri: u32, closest: &mut f32, out: &mut Option<Hit>) {
-    if let Some(h) = prep.and_then(|p| intersect_triangle(p, a, b, c, *closest)) {
-        *closest = h.t;
-        *out = Some(Hit {
-            t: h.t,
-            tri,
-            u: h.u,
-            v: h.v,
-        });
-    }
-}
-
-/// The watertight test's per-ray constants in structure-of-arrays form, when
-/// every ray of the packet shares one axis permutation.
-struct SharedPrep {
-    k: Option<[usize; 3]>,
-    ox: [f32; PACKET],
-    oy: [f32; PACKET],
-    oz: [f32; PACKET],
-    sx: [f32; PACKET],
-    sy: [f32; PACKET],
-    sz: [f32; PACKET],
-}
-
-impl SharedPrep {
-    fn new(rays: &[Ray], active: u32) -> SharedPrep {
-        let mut p = SharedPrep {
-            k: None,
-            ox: [0.0; PACKET],
-            oy: [0.0; PACKET],
-            oz: [0.0; PACKET],
-            sx: [0.0; PACKET],
-            sy: [0.0; PACKET],
-            sz: [0.0; PACKET],
-        };
-        let mut k: Option<[usize; 3]> = None;
-        for (i, r) in rays.iter().enumerate().take(PACKET) {
-            if active & (1 << i) == 0 {
-                continue;
-            }
-            let [kx, ky, kz] = axis_permutation(r.dir);
-            match k {
-                None => k = Some([kx, ky, kz]),
-                Some(prev) if prev != [kx, ky, kz] => return p,
-                _ => {}
-            }
-            p.ox[i] = r.origin[kx];
-            p.oy[i] = r.origin[ky];
-            p.oz[i] = r.origin[kz];
-            p.sx[i] = r.dir[kx] / r.dir[kz];
-            p.sy[i] = r.dir[ky] / r.dir[kz];
-            p.sz[i] = 1.0 / r.dir[kz];
-        }
-        p.k = k;
-        p
-    }
-
-    /// Tests one triangle against every active ray, keeping nearer hits.
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn test(
-        &self,
-        preps: &[Option<RayPrep>; PACKET],
-        active: u32,
-        a: Vec3,
-        b: Vec3,
-        c: Vec3,
-        tri: u32,
-        closest: &mut [f32; PACKET],
-        out: &mut [Option<Hit>; PACKET],
-    ) {
-        let Some([kx, ky, kz]) = self.k else {
-            for i in 0..PACKET {
-                if active & (1 << i) == 0 {
-                    continue;
-                }
-                scalar_test(preps[i].as_ref(), [a, b, c], tri, &mut closest[i], &mut out[i]);
-            }
-            return;
-        };
-        let (mut u, mut v, mut w, mut tz, mut det) = (
-            [0f32; PACKET],
-            [0f32; PACKET],
-            [0f32; PACKET],
-            [0f32; PACKET],
-            [0f32; PACKET],
-        );
-        // Structure-of-arrays: the compiler turns this loop into vector code.
-        for i in 0..PACKET {
-            let (az, bz, cz) = (a[kz] - self.oz[i], b[kz] - self.oz[i], c[kz] - self.oz[i]);
-            let ax = a[kx] - self.ox[i] - self.sx[i] * az;
-            let ay = a[ky] - self.oy[i] - self.sy[i] * az;
-            let bx = b[kx] - self.ox[i] - self.sx[i] * bz;
-            let by = b[ky] - self.oy[i] - self.sy[i] * bz;
-            let cx = c[kx] - self.ox[i] - self.sx[i] * cz;
-            let cy = c[ky] - self.oy[i] - self.sy[i] * cz;
-            u[i] = cx * by - cy * bx;
-            v[i] = ax * cy - ay * cx;
-            w[i] = bx * ay - by * ax;
-            det[i] = u[i] + v[i] + w[i];
-            // Same operation order as the scalar test, so both give identical bits.
-            tz[i] = u[i] * (self.sz[i] * az) + v[i] * (self.sz[i] * bz) + w[i] * (self.sz[i] * cz);
-        }
-        for i in 0..PACKET {
-            if active & (1 << i) == 0 {
-                continue;
-            }
-            if u[i] == 0.0 || v[i] == 0.0 || w[i] == 0.0 {
-                // On an edge: let the exact test decide.
-                scalar_test(preps[i].as_ref(), [a, b, c], tri, &mut closest[i], &mut out[i]);
-                continue;
-            }
-            let mixed = (u[i] < 0.0 || v[i] < 0.0 || w[i] < 0.0) && (u[i] > 0.0 || v[i] > 0.0 || w[i] > 0.0);
-            if mixed || det[i] == 0.0 {
-                continue;
-            }
-            let sign = det[i].signum();
-            if !(tz[i] * sign > 0.0 && tz[i] * sign <= closest[i] * det[i] * sign) {
-                continue;
-            }
-            let inv = 1.0 / det[i];
-            closest[i] = tz[i] * inv;
-            out[i] = Some(Hit {
-                t: closest[i],
-                tri,
-                u: v[i] * inv,
-                v: w[i] * inv,
-            });
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::accel::testing::soup;
     use crate::accel::BuildOptions;
+    use glam::Vec3;
     use rand::{Rng, SeedableRng};
 
     #[test]

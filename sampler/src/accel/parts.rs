@@ -1,9 +1,11 @@
 //! A kd-tree from nodes and leaf lists made elsewhere (a scene file assembled
 //! in memory), checked so that the walk can trust every index in it.
 
+use super::leaf::LeafTris;
 use super::traverse::STACK;
 use super::{KdTree, Node};
 use crate::geom::Aabb;
+use crate::scene::Scene;
 
 /// Why nodes and leaf lists do not make a tree the in-core walk can use.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -17,14 +19,15 @@ pub enum PartsError {
 }
 
 impl KdTree {
-    /// A tree over `triangles` triangles from its nodes (root first, children
-    /// of an inner node adjacent and after it), leaf lists and bounds.
+    /// A tree over the triangles of `scene` from its nodes (root first,
+    /// children of an inner node adjacent and after it), leaf lists and bounds.
     pub fn from_parts(
         nodes: Vec<Node>,
         leaf_tris: Vec<u32>,
         bounds: Aabb,
-        triangles: usize,
+        scene: &Scene,
     ) -> Result<KdTree, PartsError> {
+        let triangles = scene.triangles.len();
         if nodes.is_empty() {
             return Err(PartsError::Index(0));
         }
@@ -54,6 +57,7 @@ impl KdTree {
             return Err(PartsError::TooDeep(deepest));
         }
         Ok(KdTree {
+            leaves: LeafTris::new(scene, &leaf_tris),
             nodes,
             leaf_tris,
             bounds,
@@ -64,7 +68,22 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use crate::scene::{Material, SceneBuilder};
+    use glam::{Mat4, Vec3};
+
+    /// A scene of `n` triangles.
+    fn scene(n: u32) -> Scene {
+        let mut b = SceneBuilder::new();
+        let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
+        let p: Vec<Vec3> = (0..n * 3)
+            .map(|i| Vec3::new(i as f32, (i % 3 == 1) as u8 as f32, (i % 3 == 2) as u8 as f32))
+            .collect();
+        let t: Vec<[u32; 3]> = (0..n).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        if n > 0 {
+            b.add_mesh("tris", &p, &t, &[m], Mat4::IDENTITY).unwrap();
+        }
+        b.finish()
+    }
 
     #[test]
     fn parts_are_checked_before_the_walk_trusts_them() {
@@ -77,7 +96,7 @@ mod tests {
             vec![Node::inner(0, 0.5, 1), leaf(0, 1), leaf(1, 1)],
             vec![0, 1],
             bounds,
-            2,
+            &scene(2),
         );
         assert!(ok.is_ok());
         // A child before its parent (a cycle), past the end, a list past the end, a triangle past the end.
@@ -88,7 +107,7 @@ mod tests {
             (vec![leaf(0, 1)], vec![5], 2),
         ];
         for (nodes, list, tris) in bad {
-            assert!(KdTree::from_parts(nodes, list, bounds, tris).is_err());
+            assert!(KdTree::from_parts(nodes, list, bounds, &scene(tris)).is_err());
         }
         // A chain deeper than the walk's stack: each inner node's left child
         // is the next inner node.
@@ -100,7 +119,7 @@ mod tests {
         nodes.push(leaf(0, 0));
         nodes.push(leaf(0, 0));
         assert!(matches!(
-            KdTree::from_parts(nodes, vec![], bounds, 0),
+            KdTree::from_parts(nodes, vec![], bounds, &scene(0)),
             Err(PartsError::TooDeep(_))
         ));
     }

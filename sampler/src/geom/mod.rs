@@ -3,9 +3,11 @@
 
 mod offset;
 mod triangle;
+mod triangle4;
 
 pub use offset::offset_origin;
 pub use triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
+pub use triangle4::{Ray4, Tri4};
 
 use glam::Vec3;
 

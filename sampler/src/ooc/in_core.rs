@@ -137,7 +137,7 @@ impl OocScene {
         let bytes = blocks.iter().map(|b| b.memory() as u64).sum();
         drop(blocks);
         let node_count = nodes.len();
-        let tree = KdTree::from_parts(nodes, leaf_tris, self.bounds(), count).map_err(|e| corrupt(e.to_string()))?;
+        let tree = KdTree::from_parts(nodes, leaf_tris, self.bounds(), &scene).map_err(|e| corrupt(e.to_string()))?;
         let report = InCoreReport {
             blocks: h.blocks,
             bytes,

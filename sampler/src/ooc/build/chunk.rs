@@ -56,7 +56,7 @@ impl Chunk {
             });
             ids.push(t.id);
         }
-        let tree = KdTree::build_within(&scene, bounds, &BuildOptions::default());
+        let tree = KdTree::build_within(&scene, bounds, &BuildOptions::one_triangle_at_a_time());
         let colors = materials.iter().map(shade_color).collect();
         Chunk {
             scene,
