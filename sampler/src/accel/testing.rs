@@ -61,3 +61,17 @@ pub fn soup(seed: u64, n: usize) -> Scene {
     b.add_mesh("soup", &p, &t, &[m], Mat4::IDENTITY).unwrap();
     b.finish()
 }
+
+/// The triangles of an `n` x `n` grid of quads over `(n + 1)^2` vertices in
+/// row order, two per quad, sharing the diagonal from `(i, j + 1)` to `(i + 1, j)`.
+pub fn grid_triangles(n: u32) -> Vec<[u32; 3]> {
+    let mut t = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let a = i * (n + 1) + j;
+            t.push([a, a + n + 1, a + 1]);
+            t.push([a + 1, a + n + 1, a + n + 2]);
+        }
+    }
+    t
+}

@@ -150,7 +150,7 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::testing::soup;
+    use crate::accel::testing::{grid_triangles, soup};
     use crate::accel::BuildOptions;
     use crate::geom::{intersect_triangle, RayPrep};
     use glam::Vec3;
@@ -170,14 +170,7 @@ mod tests {
                 p.push(Vec3::new(i as f32 * 0.1, j as f32 * 0.1, 0.0));
             }
         }
-        let mut t = Vec::new();
-        for i in 0..n {
-            for j in 0..n {
-                let a = i * (n + 1) + j;
-                t.push([a, a + n + 1, a + 1]);
-                t.push([a + 1, a + n + 1, a + n + 2]);
-            }
-        }
+        let t = grid_triangles(n);
         b.add_mesh("floor", &p, &t, &[m], glam::Mat4::IDENTITY).unwrap();
         for z in [-3.0f32, 3.0] {
             let q = [Vec3::new(2.0, 2.0, z), Vec3::new(8.0, 2.0, z), Vec3::new(8.0, 8.0, z)];
@@ -289,14 +282,7 @@ mod tests {
                 p.push(Vec3::new(i as f32 * 0.25, j as f32 * 0.25, height(i, j)));
             }
         }
-        let mut t = Vec::new();
-        for i in 0..n {
-            for j in 0..n {
-                let a = i * (n + 1) + j;
-                t.push([a, a + n + 1, a + 1]);
-                t.push([a + 1, a + n + 1, a + n + 2]);
-            }
-        }
+        let t = grid_triangles(n);
         let mut b = SceneBuilder::new();
         let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
         b.add_mesh("field", &p, &t, &[m], glam::Mat4::IDENTITY).unwrap();
