@@ -304,7 +304,7 @@ mod tests {
         for chunk in rays.chunks(8) {
             let packet = e.intersect8(chunk);
             for (k, r) in chunk.iter().enumerate() {
-                let ours = tree.intersect(&scene, r).map(|h| h.tri);
+                let ours = tree.intersect(r).map(|h| h.tri);
                 let single = e.intersect(r).map(|h| h.1);
                 assert_eq!(single, packet[k].map(|h| h.1), "Embree's packet and single rays differ");
                 hits += usize::from(ours.is_some());

@@ -40,7 +40,7 @@ fn bounces(tree: &KdTree, scene: &Scene, rays: &[Ray]) -> Vec<Ray> {
     let mut rng = Rng::new(1, 0);
     rays.iter()
         .filter_map(|r| {
-            let h = tree.intersect(scene, r)?;
+            let h = tree.intersect(r)?;
             let [a, b, c] = scene.vertices(h.tri as usize);
             let mut ng = (b - a).cross(c - a).normalize();
             if ng.dot(r.dir) > 0.0 {
@@ -164,7 +164,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         let (mut cold_curve, mut warm_curve) = (Vec::new(), Vec::new());
         let in_core = || {
             let t = Instant::now();
-            let hits: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(&scene, r).map(|h| h.t)).collect();
+            let hits: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(r).map(|h| h.t)).collect();
             (rays.len() as f64 / t.elapsed().as_secs_f64(), hits)
         };
         let want = in_core().1;
@@ -204,10 +204,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         for _ in 0..REPEATS {
             let (b, _) = in_core();
             let t = Instant::now();
-            let hits: Vec<Option<f32>> = rays
-                .iter()
-                .map(|r| assembled.intersect(&mesh, r).map(|h| h.t))
-                .collect();
+            let hits: Vec<Option<f32>> = rays.iter().map(|r| assembled.intersect(r).map(|h| h.t)).collect();
             let a = rays.len() as f64 / t.elapsed().as_secs_f64();
             wrong += hits.iter().zip(&want).filter(|(g, w)| g != w).count();
             ratio.push(a / b);

@@ -45,9 +45,7 @@ pub fn check_rays_against_room(hdk: &mut holodeck_server::HoloFile) -> (u64, u64
             // The interior section's rays were traced from the exit wall outward.
             let start = d.ray.origin + d.ray.direction * d.ray.length;
             let probe = Ray::new(start.as_vec3(), d.ray.direction.as_vec3());
-            let hit = tree
-                .intersect(&scene, &probe)
-                .expect("the room is closed but for its pane");
+            let hit = tree.intersect(&probe).expect("the room is closed but for its pane");
             let traced = d.ray.length + f64::from(hit.t);
             let holodeck_protocol::Hit::Point(p) = d.hit else {
                 panic!("finite hits decode as points")

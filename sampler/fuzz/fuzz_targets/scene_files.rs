@@ -25,8 +25,8 @@ fuzz_target!(|data: &[u8]| {
             let _ = scene.intersect(&Ray::new(c - dir * 100.0, dir), 0.0, &mut Fetch::load());
         }
         if scene.header().blocks <= 64 {
-            if let Ok((mesh, tree, _)) = scene.in_core() {
-                let _ = tree.intersect(&mesh, &Ray::new(c - glam::Vec3::X * 100.0, glam::Vec3::X));
+            if let Ok((_, tree, _)) = scene.in_core() {
+                let _ = tree.intersect(&Ray::new(c - glam::Vec3::X * 100.0, glam::Vec3::X));
             }
         }
     }

@@ -97,15 +97,14 @@ impl KdTree {
         } else {
             build_node(scene, refs, bounds, 0, max_depth, options)
         };
-        let mut tree = KdTree {
-            nodes: vec![Node::leaf(0, 0)],
-            leaf_tris: Vec::new(),
-            leaves: LeafTris::new(scene, &[]),
+        let (mut nodes, mut leaf_tris) = (vec![Node::leaf(0, 0)], Vec::new());
+        flatten(root, 0, &mut nodes, &mut leaf_tris);
+        KdTree {
+            leaves: LeafTris::new(scene, &leaf_tris),
+            nodes,
+            leaf_tris,
             bounds,
-        };
-        flatten(root, 0, &mut tree);
-        tree.leaves = LeafTris::new(scene, &tree.leaf_tris);
-        tree
+        }
     }
 
     /// The nodes (root at 0).
@@ -142,20 +141,19 @@ fn references(scene: &Scene, within: Option<&Aabb>) -> Vec<Ref> {
         .collect()
 }
 
-fn flatten(node: BuildNode, at: usize, tree: &mut KdTree) {
+fn flatten(node: BuildNode, at: usize, nodes: &mut Vec<Node>, leaf_tris: &mut Vec<u32>) {
     match node {
         BuildNode::Leaf(tris) => {
-            tree.nodes[at] = Node::leaf(tree.leaf_tris.len(), tris.len());
-            tree.leaf_tris.extend(tris);
+            nodes[at] = Node::leaf(leaf_tris.len(), tris.len());
+            leaf_tris.extend(tris);
         }
         BuildNode::Inner { axis, split, children } => {
-            let left = tree.nodes.len();
-            tree.nodes.push(Node::leaf(0, 0));
-            tree.nodes.push(Node::leaf(0, 0));
-            tree.nodes[at] = Node::inner(axis, split, left);
+            let left = nodes.len();
+            nodes.extend([Node::leaf(0, 0); 2]);
+            nodes[at] = Node::inner(axis, split, left);
             let (l, r) = *children;
-            flatten(l, left, tree);
-            flatten(r, left + 1, tree);
+            flatten(l, left, nodes, leaf_tris);
+            flatten(r, left + 1, nodes, leaf_tris);
         }
     }
 }

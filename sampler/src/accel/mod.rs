@@ -16,7 +16,7 @@ pub use build::BuildOptions;
 pub use node::Node;
 pub use packet::PACKET;
 pub use parts::PartsError;
-pub use reorder::{RayOrder, COARSE_DEPTH};
+pub use reorder::RayOrder;
 pub use traverse::Hit;
 
 use crate::geom::Aabb;
@@ -45,10 +45,8 @@ pub struct TreeStats {
     pub depth: usize,
     /// Most triangles in one leaf.
     pub max_leaf: usize,
-    /// Bytes of nodes, leaf lists and the leaves' triangles.
+    /// Bytes of nodes, leaf lists and the leaves' triangles (36 per reference).
     pub bytes: usize,
-    /// Of `bytes`, those of the leaves' triangles (36 per reference).
-    pub triangle_bytes: usize,
 }
 
 impl KdTree {
@@ -63,7 +61,6 @@ impl KdTree {
             nodes: self.nodes.len(),
             references: self.leaf_tris.len(),
             bytes: self.nodes.len() * std::mem::size_of::<Node>() + self.leaf_tris.len() * 4 + self.leaves.bytes(),
-            triangle_bytes: self.leaves.bytes(),
             ..TreeStats::default()
         };
         let mut stack = vec![(0usize, 0usize)];

@@ -7,11 +7,10 @@
 //! triangles four at a time, as a single ray does, so packets find exactly
 //! the single rays' hits.
 
-use wide::{f32x8, CmpEq, CmpGe, CmpLe, CmpLt};
+use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::{Hit, KdTree};
 use crate::geom::{Ray, Ray4};
-use crate::scene::Scene;
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
@@ -23,7 +22,7 @@ const SLACK_DOWN: f32 = 1.0 - 1e-5;
 impl KdTree {
     /// Nearest hits of up to [`PACKET`] rays; rays may point anywhere (they are
     /// grouped by direction octant), but coherent rays gain the most.
-    pub fn intersect_packet(&self, _scene: &Scene, rays: &[Ray]) -> [Option<Hit>; PACKET] {
+    pub fn intersect_packet(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
         let n = rays.len().min(PACKET);
         // By sign bit, so that a -0.0 component walks like the single ray, whose inverse is -inf.
@@ -104,27 +103,22 @@ impl KdTree {
                 // The single-ray walk's rules exactly, boundaries included, lane by lane.
                 let nan = t.is_nan().move_mask() as u32;
                 let behind = t.cmp_le(zero).move_mask() as u32;
+                let ahead = t.cmp_gt(zero);
+                let reaches_first = t.cmp_ge(t_min * slack_down);
+                let reaches_second = t.cmp_le(t_max * slack_up);
                 // A ray the plane is behind (or that starts on it) visits only the
                 // child it starts in, decided as the single-ray walk decides.
                 let starts_left = (o.cmp_lt(split) | (o.cmp_eq(split) & d.cmp_le(zero))).move_mask() as u32;
                 let starts_first = if negative[axis] { !starts_left } else { starts_left };
-                let ahead = !(nan | behind);
-                let reaches_first = t.cmp_ge(t_min * slack_down).move_mask() as u32;
-                let reaches_second = t.cmp_le(t_max * slack_up).move_mask() as u32;
-                let need_first = active & (nan | (behind & starts_first) | (ahead & reaches_first));
-                let need_second = active & (nan | (behind & !starts_first) | (ahead & reaches_second));
+                let need_first = active & (nan | (behind & starts_first) | (ahead & reaches_first).move_mask() as u32);
+                let need_second =
+                    active & (nan | (behind & !starts_first) | (ahead & reaches_second).move_mask() as u32);
                 match (need_first != 0, need_second != 0) {
                     (true, true) => {
                         // Rays that need both children split their range at the plane,
-                        // as the single-ray walk does (slack included).
-                        let both = need_first & need_second & ahead;
-                        let split_here = f32x8::new(std::array::from_fn(|i| {
-                            if both & (1 << i) != 0 {
-                                f32::from_bits(u32::MAX)
-                            } else {
-                                0.0
-                            }
-                        }));
+                        // as the single-ray walk does (slack included). Lanes not
+                        // active here are masked off wherever their range is read.
+                        let split_here = ahead & reaches_first & reaches_second;
                         if sp < STACK {
                             stack[sp] = (second as u32, need_second, split_here.blend(t, t_min), t_max);
                             sp += 1;
@@ -230,9 +224,9 @@ mod tests {
                     })
                     .filter(|r| r.dir.length() > 1e-3)
                     .collect();
-                let packet = tree.intersect_packet(&scene, &rays);
+                let packet = tree.intersect_packet(&rays);
                 for (i, r) in rays.iter().enumerate() {
-                    let single = tree.intersect(&scene, r);
+                    let single = tree.intersect(r);
                     match (packet[i], single) {
                         (None, None) => {}
                         (Some(p), Some(s)) => {
@@ -318,9 +312,9 @@ mod tests {
                         .collect()
                 };
                 let rays: Vec<Ray> = rays.into_iter().filter(|r| r.dir.length() > 1e-3).collect();
-                let packet = tree.intersect_packet(&scene, &rays);
+                let packet = tree.intersect_packet(&rays);
                 for (i, r) in rays.iter().enumerate() {
-                    let single = tree.intersect(&scene, r);
+                    let single = tree.intersect(r);
                     assert_eq!(
                         packet[i].map(|h| (h.t, h.tri)),
                         single.map(|h| (h.t, h.tri)),

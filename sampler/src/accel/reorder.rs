@@ -9,11 +9,10 @@
 use super::traverse::STACK;
 use super::{Hit, KdTree};
 use crate::geom::Ray;
-use crate::scene::Scene;
 
 /// Depth of the coarse level the hit points are estimated on: 4,096 cells
 /// at most, a few tens of KiB of nodes.
-pub const COARSE_DEPTH: usize = 12;
+const COARSE_DEPTH: usize = 12;
 
 /// Bits per axis of the quantized hit point (a 30-bit Z-curve key).
 const BITS: u32 = 10;
@@ -35,9 +34,9 @@ pub enum RayOrder {
 impl KdTree {
     /// Nearest hits of a batch of rays, traced in `order`; the hits are in
     /// the rays' order and equal those of [`KdTree::intersect`] on each ray.
-    pub fn intersect_batch(&self, scene: &Scene, rays: &[Ray], order: RayOrder) -> Vec<Option<Hit>> {
+    pub fn intersect_batch(&self, rays: &[Ray], order: RayOrder) -> Vec<Option<Hit>> {
         match order {
-            RayOrder::AsGiven => rays.iter().map(|r| self.intersect(scene, r)).collect(),
+            RayOrder::AsGiven => rays.iter().map(|r| self.intersect(r)).collect(),
             RayOrder::HitPoint | RayOrder::Origin => {
                 let order = if order == RayOrder::Origin {
                     self.origin_order(rays)
@@ -46,7 +45,7 @@ impl KdTree {
                 };
                 let mut out = vec![None; rays.len()];
                 for i in order {
-                    out[i as usize] = self.intersect(scene, &rays[i as usize]);
+                    out[i as usize] = self.intersect(&rays[i as usize]);
                 }
                 out
             }
@@ -191,9 +190,9 @@ mod tests {
             seen.sort_unstable();
             assert_eq!(seen, (0..rays.len() as u32).collect::<Vec<_>>(), "a permutation");
             assert_ne!(order, seen, "the order changed");
-            let want: Vec<_> = rays.iter().map(|r| tree.intersect(&scene, r)).collect();
+            let want: Vec<_> = rays.iter().map(|r| tree.intersect(r)).collect();
             for o in [RayOrder::AsGiven, RayOrder::HitPoint, RayOrder::Origin] {
-                let got = tree.intersect_batch(&scene, &rays, o);
+                let got = tree.intersect_batch(&rays, o);
                 assert_eq!(got, want, "seed {seed}, {o:?}");
             }
             assert!(want.iter().flatten().count() > 500);

@@ -3,7 +3,6 @@
 
 use super::KdTree;
 use crate::geom::{Ray, Ray4};
-use crate::scene::Scene;
 
 /// The nearest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,12 +27,11 @@ const SLACK_DOWN: f32 = 1.0 - 1e-5;
 
 impl KdTree {
     /// Visits leaves along the ray in front-to-back order. `leaf` gets the
-    /// leaf's entries in the leaf lists (first, count) and the far end of the
-    /// ray's range inside the leaf, and
-    /// returns `Some(t)` for a hit that makes everything beyond `t` irrelevant,
-    /// or stops the walk by returning `Err(())`.
+    /// leaf's entries in the leaf lists (first, count) and returns `Some(t)`
+    /// for a hit that makes everything beyond `t` irrelevant, or stops the
+    /// walk by returning `Err(())`.
     #[inline]
-    fn walk(&self, ray: &Ray, mut leaf: impl FnMut(usize, usize, f32) -> Result<Option<f32>, ()>) {
+    fn walk(&self, ray: &Ray, mut leaf: impl FnMut(usize, usize) -> Result<Option<f32>, ()>) {
         let inv = ray.dir.recip();
         let Some((mut t_min, mut t_max)) = self.bounds.range(ray, inv) else {
             return;
@@ -73,7 +71,7 @@ impl KdTree {
                 }
                 continue;
             }
-            match leaf(n.first(), n.count(), t_max) {
+            match leaf(n.first(), n.count()) {
                 Err(()) => return,
                 Ok(Some(t)) => closest = closest.min(t),
                 Ok(None) => {}
@@ -98,11 +96,11 @@ impl KdTree {
     }
 
     /// The nearest hit within `(0, ray.t_max]`.
-    pub fn intersect(&self, _scene: &Scene, ray: &Ray) -> Option<Hit> {
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let prep = Ray4::new(ray.origin, ray.dir);
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
-        self.walk(ray, |first, count, _| {
+        self.walk(ray, |first, count| {
             self.leaves.intersect(&prep, first, count, closest, |entry, h| {
                 closest = h.t;
                 best = Some(Hit {
@@ -121,10 +119,10 @@ impl KdTree {
     /// True if a triangle for which `blocks(triangle)` is true lies within
     /// `(0, ray.t_max)`. Triangles that do not block are passed to the filter
     /// and skipped (a triangle in several leaves may be passed more than once).
-    pub fn occluded_by(&self, _scene: &Scene, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
+    pub fn occluded_by(&self, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
         let prep = Ray4::new(ray.origin, ray.dir);
         let mut hit = false;
-        self.walk(ray, |first, count, _| {
+        self.walk(ray, |first, count| {
             let go = self.leaves.intersect(&prep, first, count, ray.t_max, |entry, h| {
                 if h.t < ray.t_max && blocks(self.leaf_tris[entry]) {
                     hit = true;
@@ -142,8 +140,8 @@ impl KdTree {
     }
 
     /// True if anything lies within `(0, ray.t_max)`.
-    pub fn occluded(&self, scene: &Scene, ray: &Ray) -> bool {
-        self.occluded_by(scene, ray, |_| true)
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.occluded_by(ray, |_| true)
     }
 }
 
@@ -153,6 +151,7 @@ mod tests {
     use crate::accel::testing::{grid_triangles, soup};
     use crate::accel::BuildOptions;
     use crate::geom::{intersect_triangle, RayPrep};
+    use crate::scene::Scene;
     use glam::Vec3;
     use rand::{Rng, SeedableRng};
 
@@ -238,7 +237,7 @@ mod tests {
                     continue;
                 }
                 let ray = Ray::new(origin, dir);
-                let (a, b) = (tree.intersect(&scene, &ray), brute(&scene, &ray));
+                let (a, b) = (tree.intersect(&ray), brute(&scene, &ray));
                 match (a, b) {
                     (None, None) => {}
                     (Some(a), Some(b)) => {
@@ -252,13 +251,10 @@ mod tests {
                     _ => panic!("seed {seed} ray {k} {ray:?}: tree {a:?}, brute force {b:?}"),
                 }
                 assert_eq!(
-                    tree.occluded(
-                        &scene,
-                        &Ray {
-                            t_max: b.map_or(1e30, |h| h.t * 1.001),
-                            ..ray
-                        }
-                    ),
+                    tree.occluded(&Ray {
+                        t_max: b.map_or(1e30, |h| h.t * 1.001),
+                        ..ray
+                    }),
                     b.is_some()
                 );
             }
@@ -308,9 +304,9 @@ mod tests {
             rays.push(Ray::new(origin, target - origin));
         }
         for (k, chunk) in rays.chunks(PACKET).enumerate() {
-            let packet = tree.intersect_packet(&scene, chunk);
+            let packet = tree.intersect_packet(chunk);
             for (i, r) in chunk.iter().enumerate() {
-                let single = tree.intersect(&scene, r);
+                let single = tree.intersect(r);
                 let Some(h) = single else {
                     panic!("ray {} {r:?} leaked through the field", k * PACKET + i)
                 };

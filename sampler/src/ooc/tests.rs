@@ -98,7 +98,7 @@ fn an_out_of_core_build_traces_exactly_like_the_in_core_tree() {
     let (mut hits, mut same_tri) = (0, 0);
     for (k, ray) in rays(&scene, 6000, 1).iter().enumerate() {
         let a = file.intersect(ray, 0.0, &mut Fetch::load());
-        let b = tree.intersect(&scene, ray);
+        let b = tree.intersect(ray);
         assert!(same_hit(a, b), "ray {k} {ray:?}: out of core {a:?}, in core {b:?}");
         if let (
             Some(OocHit {
@@ -220,7 +220,7 @@ fn the_streamed_mandelbulb_is_the_generated_one_and_builds_out_of_core() {
         );
         let ray = Ray::new(origin, (target - origin).normalize());
         let a = file.intersect(&ray, 0.0, &mut Fetch::load());
-        let b = tree.intersect(&scene, &ray);
+        let b = tree.intersect(&ray);
         assert!(same_hit(a, b), "ray {k} {ray:?}: out of core {a:?}, in core {b:?}");
         hits += usize::from(b.is_some());
     }
@@ -247,7 +247,7 @@ fn a_cold_small_cache_converges_to_the_exact_hits() {
             )
         })
         .collect();
-    let want: Vec<_> = rays.iter().map(|r| tree.intersect(&scene, r)).collect();
+    let want: Vec<_> = rays.iter().map(|r| tree.intersect(r)).collect();
     let mut rounds = 0;
     let mut first_missing = 0;
     loop {
@@ -394,7 +394,7 @@ fn lod_stops_at_voxels_that_look_small() {
     let tree = KdTree::build(&scene, &BuildOptions::default());
     let (mut voxels, mut near, mut empty) = (0, 0, 0);
     for ray in rays(&scene, 1500, 3) {
-        let exact = tree.intersect(&scene, &ray);
+        let exact = tree.intersect(&ray);
         match file.intersect(&ray, 0.05, &mut Fetch::load()) {
             Some(OocHit {
                 t,
@@ -438,7 +438,7 @@ fn recoding_changes_the_codec_and_nothing_else() {
     let tree = KdTree::build(&scene, &BuildOptions::default());
     for ray in rays(&scene, 1500, 4) {
         let a = file.intersect(&ray, 0.0, &mut Fetch::load());
-        assert!(same_hit(a, tree.intersect(&scene, &ray)), "{ray:?}");
+        assert!(same_hit(a, tree.intersect(&ray)), "{ray:?}");
     }
     // LZ4 is deterministic: back again gives the very same file.
     let back = dir.path().join("back.hds");
@@ -478,7 +478,7 @@ fn a_batch_bigger_than_the_cache_loads_each_block_a_few_times_not_once_per_ray()
     let got = trace(&small);
     for (k, (g, ray)) in got.iter().zip(&rays).enumerate() {
         let g = g.expect("every block is readable");
-        assert!(same_hit(g, tree.intersect(&scene, ray)), "ray {k}");
+        assert!(same_hit(g, tree.intersect(ray)), "ray {k}");
     }
     let loads = small.cache().stats().loads;
     // Rays that wait for the same block go on together and evictions take the
@@ -576,8 +576,8 @@ fn a_scene_file_assembled_in_memory_traces_like_the_in_core_tree() {
     }
     let original = KdTree::build(&scene, &BuildOptions::default());
     for (k, ray) in rays(&scene, 6000, 4).iter().enumerate() {
-        let a = tree.intersect(&mesh, ray);
-        let b = original.intersect(&scene, ray);
+        let a = tree.intersect(ray);
+        let b = original.intersect(ray);
         assert_eq!(a.map(|h| h.t), b.map(|h| h.t), "ray {k}");
         let c = file.intersect(ray, 0.0, &mut Fetch::load());
         assert_eq!(c.map(|h| h.t), a.map(|h| h.t), "ray {k}");

@@ -276,7 +276,7 @@ impl Tracer {
     /// for missing data, which `fetch` notes).
     fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
         let Some(ooc) = &self.ooc else {
-            let h = self.tree.intersect(&self.scene, ray)?;
+            let h = self.tree.intersect(ray)?;
             let [a, b, c] = self.scene.vertices(h.tri as usize);
             return Some(SurfaceHit {
                 t: h.t,
@@ -317,7 +317,7 @@ impl Tracer {
     /// (or a voxel) lies within `(0, ray.t_max)`.
     fn blocked(&self, ray: &Ray, fetch: &mut Fetch, mut blocks: impl FnMut(u32, u32, [Vec3; 3]) -> bool) -> bool {
         match &self.ooc {
-            None => self.tree.occluded_by(&self.scene, ray, |t| {
+            None => self.tree.occluded_by(ray, |t| {
                 blocks(
                     t,
                     self.scene.triangles[t as usize].material,
@@ -449,7 +449,7 @@ impl Tracer {
     fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
         if !self.has_panes {
             let blocked = match &self.ooc {
-                None => self.tree.occluded(&self.scene, &ray),
+                None => self.tree.occluded(&ray),
                 Some(_) => self.blocked(&ray, fetch, |_, _, _| true),
             };
             return if blocked { Vec3::ZERO } else { Vec3::ONE };

@@ -112,7 +112,7 @@ impl SourceTree for Chunk {
                     dir: -n,
                     t_max: size[axis].max(1e-30),
                 };
-                match self.tree.intersect(&self.scene, &ray) {
+                match self.tree.intersect(&ray) {
                     Some(h) => {
                         let [a, bb, c] = self.scene.vertices(h.tri as usize);
                         let ng = (bb - a).cross(c - a).normalize_or(n);
