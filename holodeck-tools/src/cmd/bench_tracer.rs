@@ -5,13 +5,15 @@
 use std::time::Instant;
 
 use anyhow::Result;
+use holodeck_protocol::RayRecord;
 use holodeck_protocol::View;
 use holodeck_sampler::accel::{BuildOptions, RayOrder, PACKET};
+use holodeck_sampler::beam::{trace_samples, trace_start, uniform_rays, BeamSample, FileRules};
 use holodeck_sampler::geom::{offset_origin, Ray};
 use holodeck_sampler::render::{render, Picture, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
-use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
+use holodeck_sampler::{FirstHits, KdTree, Rng, Scene, TraceOptions, Tracer};
 
 use crate::human::count;
 
@@ -224,6 +226,18 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     for row in reordered {
         println!("{row}");
     }
+    println!();
+    println!(
+        "Beam packets in the furnished room: the rays of one beam packet (from one sampled pair of grid cells), first hits one ray at a time and in packets of 8, and the whole sample (path tracing, 8 bounces, one estimate) with each and with the choice timed as it runs (the samplers' way):"
+    );
+    println!();
+    println!(
+        "| rays per beam | beams | first hits, single | first hits, packets | packets / single | samples/s, single first hits | samples/s, packets | packets / single | samples/s, measured (its choice) | records differing |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for per_beam in [4, 32] {
+        println!("{}", beam_row(per_beam)?);
+    }
     // Path tracing with one diffuse bounce in the furnished room, on one core:
     // samples per second, and the error against a converged reference after
     // equal wall time, with and without light sampling.
@@ -311,6 +325,98 @@ fn reordering_row(label: &str, tree: &KdTree, bounce: &[Ray], hits: &[Option<Ray
         hit_point / given,
         origin / given
     )
+}
+
+/// A row of the beam-packet table: `per_beam` rays in each of a spread of
+/// the room's beams, first hits (Mrays/s) and whole samples (M/s) with
+/// single rays and with packets, best of three, on this thread.
+fn beam_row(per_beam: usize) -> Result<String> {
+    let room = generate("room", &GenParams::default())?;
+    let sections = room.sections.clone();
+    let tracer = Tracer::new(room, TraceOptions::default());
+    let rules = FileRules::default();
+    let mut rng = Rng::new(3, per_beam as u64);
+    let target = 256 * 1024 / per_beam;
+    let mut beams: Vec<(usize, Vec<BeamSample>)> = Vec::new();
+    for (i, section) in sections.iter().enumerate() {
+        let step = (u64::from(section.beam_count()) * sections.len() as u64 / target as u64).max(1);
+        for beam in (0..section.beam_count()).step_by(step as usize) {
+            beams.push((i, uniform_rays(section, beam, per_beam, &mut rng)?));
+        }
+    }
+    let rays: Vec<Vec<Ray>> = beams
+        .iter()
+        .map(|(i, samples)| {
+            let kind = sections[*i].kind();
+            samples
+                .iter()
+                .map(|s| {
+                    let start = trace_start(kind, rules.obstructions, &s.ray);
+                    let origin = s.ray.origin + s.ray.direction * start;
+                    Ray::new(origin.as_vec3(), s.ray.direction.as_vec3().normalize())
+                })
+                .collect()
+        })
+        .collect();
+    let total: usize = rays.iter().map(Vec::len).sum();
+    let best = |f: &mut dyn FnMut()| {
+        (0..3)
+            .map(|_| {
+                let start = Instant::now();
+                f();
+                total as f64 / start.elapsed().as_secs_f64()
+            })
+            .fold(0f64, f64::max)
+    };
+    let tree = tracer.tree();
+    let single_hits = best(&mut || {
+        for beam in &rays {
+            for r in beam {
+                std::hint::black_box(tree.intersect(r));
+            }
+        }
+    });
+    let packet_hits = best(&mut || {
+        for beam in &rays {
+            for chunk in beam.chunks(PACKET) {
+                std::hint::black_box(tree.intersect_packet(chunk));
+            }
+        }
+    });
+    let mut records: [Vec<Vec<RayRecord>>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+    let mut rates = [0f64; 3];
+    for (k, first) in [FirstHits::Single, FirstHits::Packets, FirstHits::Measured]
+        .into_iter()
+        .enumerate()
+    {
+        rates[k] = best(&mut || {
+            records[k] = beams
+                .iter()
+                .enumerate()
+                .map(|(b, (i, samples))| {
+                    let mut rng = Rng::new(4, b as u64);
+                    trace_samples(&tracer, &sections[*i], rules, samples, first, &mut rng)
+                })
+                .collect();
+        });
+    }
+    let differ: usize = records[1..]
+        .iter()
+        .flat_map(|other| records[0].iter().zip(other))
+        .map(|(a, b)| a.iter().zip(b).filter(|(x, y)| x != y).count() + a.len().abs_diff(b.len()))
+        .sum();
+    Ok(format!(
+        "| {per_beam} | {} | {:.2} | {:.2} | {:.2} | {:.3} | {:.3} | {:.2} | {:.3} ({:?}) | {differ} |",
+        beams.len(),
+        single_hits / 1e6,
+        packet_hits / 1e6,
+        packet_hits / single_hits,
+        rates[0] / 1e6,
+        rates[1] / 1e6,
+        rates[1] / rates[0],
+        rates[2] / 1e6,
+        tracer.first_hits_preferred()
+    ))
 }
 
 /// Embree's build time and rates on the same rays as a table row, each

@@ -41,7 +41,7 @@ impl LeafTris {
     }
 
     /// The vertices of leaf-list entry `i`.
-    #[cfg(test)]
+    #[inline]
     pub(crate) fn vertices(&self, i: usize) -> [glam::Vec3; 3] {
         self.blocks[i / LANES].get(i % LANES)
     }

@@ -10,14 +10,36 @@
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::{Hit, KdTree};
-use crate::geom::{Ray, Ray4};
+use crate::geom::{Ray, Ray4, Rays8};
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
 
 const STACK: usize = 64;
+/// Active rays from which a leaf is tested ray-parallel (one triangle against
+/// all rays at once) rather than ray by ray.
+const SHARED_LEAF: u32 = 3;
 const SLACK_UP: f32 = 1.0 + 1e-5;
 const SLACK_DOWN: f32 = 1.0 - 1e-5;
+
+/// Smallest cosine between the first active ray's direction and any other's
+/// for the packet to share its leaf tests.
+const COHERENT_COS: f32 = 0.9;
+
+/// Whether the rays in `mask` run nearly one way, so that they tend to meet
+/// the same leaves and the same triangles in them.
+fn coherent(rays: &[Ray], mask: u32) -> bool {
+    let first = rays[mask.trailing_zeros() as usize].dir;
+    let f2 = first.length_squared();
+    rays.iter()
+        .enumerate()
+        .filter(|(i, _)| mask & (1 << i) != 0)
+        .all(|(_, r)| {
+            // cos >= c, squared, without a square root.
+            let d = r.dir.dot(first);
+            d > 0.0 && d * d >= COHERENT_COS * COHERENT_COS * f2 * r.dir.length_squared()
+        })
+}
 
 impl KdTree {
     /// Nearest hits of up to [`PACKET`] rays; rays may point anywhere (they are
@@ -52,7 +74,7 @@ impl KdTree {
         let mut t_max = [f32::NEG_INFINITY; PACKET];
         let mut closest = [f32::INFINITY; PACKET];
         let mut active = 0u32;
-        let mut preps = [None; PACKET];
+        let mut preps: [Option<Ray4>; PACKET] = [None; PACKET];
         for i in 0..PACKET {
             if mask & (1 << i) == 0 {
                 continue;
@@ -68,12 +90,20 @@ impl KdTree {
                 t_min[i] = a;
                 t_max[i] = b;
                 active |= 1 << i;
-                preps[i] = Some(Ray4::new(r.origin, r.dir));
             }
         }
         if active == 0 {
             return;
         }
+        let shared = if coherent(rays, active) {
+            let mut pairs = [(glam::Vec3::ZERO, glam::Vec3::ONE); PACKET];
+            for (p, r) in pairs.iter_mut().zip(rays) {
+                *p = (r.origin, r.dir);
+            }
+            Rays8::new(&pairs, active)
+        } else {
+            None
+        };
         let first_lane = active.trailing_zeros() as usize;
         let negative = [
             rays[first_lane].dir.x.is_sign_negative(),
@@ -140,12 +170,24 @@ impl KdTree {
                 if active != 0 {
                     continue;
                 }
+            } else if let Some(shared) = shared.as_ref().filter(|_| active.count_ones() >= SHARED_LEAF) {
+                for entry in nd.first()..nd.first() + nd.count() {
+                    shared.intersect(self.leaves.vertices(entry), active, &mut closest, |i, h| {
+                        out[i] = Some(Hit {
+                            t: h.t,
+                            tri: self.leaf_tris[entry],
+                            u: h.u,
+                            v: h.v,
+                        });
+                    });
+                }
             } else {
                 let mut todo = active;
                 while todo != 0 {
                     let i = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
-                    let Some(prep) = preps[i].as_ref() else { continue };
+                    // Prepared when first needed: coherent packets may never test ray by ray.
+                    let prep = preps[i].get_or_insert_with(|| Ray4::new(rays[i].origin, rays[i].dir));
                     self.leaves
                         .intersect(prep, nd.first(), nd.count(), closest[i], |entry, h| {
                             closest[i] = h.t;
@@ -158,10 +200,11 @@ impl KdTree {
                             Some(h.t)
                         });
                 }
-                // Rays whose nearest hit lies within this leaf are done, as a
-                // single ray is (which matters when a hit lies on a split plane).
-                finished |= active & f32x8::new(closest).cmp_le(t_max).move_mask() as u32;
             }
+            // Rays whose nearest hit lies within this leaf are done, as a
+            // single ray is (which matters when a hit lies on a split plane).
+            // After an inner node whose children no ray needs, none is active.
+            finished |= active & f32x8::new(closest).cmp_le(t_max).move_mask() as u32;
             // Pop the next node that still has unfinished rays.
             loop {
                 if sp == 0 {
@@ -231,10 +274,7 @@ mod tests {
                         (None, None) => {}
                         (Some(p), Some(s)) => {
                             hits += 1;
-                            assert!(
-                                p.t == s.t || (p.t - s.t).abs() <= 1e-6 * s.t,
-                                "seed {seed} packet {k} ray {i}: {p:?} vs {s:?}"
-                            );
+                            assert_eq!(p, s, "seed {seed} packet {k} ray {i}");
                         }
                         other => panic!("seed {seed} packet {k} ray {i} {r:?}: packet vs single {other:?}"),
                     }

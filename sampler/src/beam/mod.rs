@@ -9,12 +9,12 @@ mod proximity;
 
 pub use proximity::{proximity_rays, ProximityStats};
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamIndex, BeamRay, DepthCode, RayRecord, Rgbe, Section, SectionError, SectionKind};
 
 use crate::ooc::Fetch;
-use crate::shade::{Rng, Tracer};
+use crate::shade::{FirstHits, Rng, Sample, Tracer};
 
 /// One ray of a beam to trace: its sub-cell bytes and its world geometry.
 #[derive(Clone, Copy, Debug)]
@@ -105,15 +105,51 @@ pub fn trace_sample_fetching(
     rng: &mut Rng,
     fetch: &mut Fetch,
 ) -> RayRecord {
+    let (start, origin, dir) = traced_ray(section, rules, s);
+    let sample = tracer.trace_fetching(origin, dir, rules.vdistance, rng, fetch);
+    encode(section, s, start, &sample)
+}
+
+/// Where the traced part of a beam sample's ray starts (in world units from
+/// the entry wall), its origin there and its direction.
+fn traced_ray(section: &Section, rules: FileRules, s: &BeamSample) -> (f64, Vec3, Vec3) {
     let start = trace_start(section.kind(), rules.obstructions, &s.ray);
     let origin: DVec3 = s.ray.origin + s.ray.direction * start;
-    let sample = tracer.trace_fetching(origin.as_vec3(), s.ray.direction.as_vec3(), rules.vdistance, rng, fetch);
+    (start, origin.as_vec3(), s.ray.direction.as_vec3())
+}
+
+/// The record of a beam sample traced from `start`: radiance, and the
+/// distance from the entry wall to the first hit (or infinity).
+fn encode(section: &Section, s: &BeamSample, start: f64, sample: &Sample) -> RayRecord {
     let depth = if sample.distance.is_finite() {
         DepthCode::encode(start + f64::from(sample.distance), section.diagonal())
     } else {
         DepthCode::INFINITE
     };
     RayRecord::new(s.entry, s.exit, Rgbe::from_rgb(sample.radiance.to_array()), depth)
+}
+
+/// Traces beam samples into records, finding their first hits as `first`
+/// says (in core; out of core every ray walks alone), with the random
+/// numbers of [`trace_sample_under`] on each sample in turn: the records do
+/// not depend on `first`. Samples only unreadable scene-file blocks could
+/// have traced are left out.
+pub fn trace_samples(
+    tracer: &Tracer,
+    section: &Section,
+    rules: FileRules,
+    samples: &[BeamSample],
+    first: FirstHits,
+    rng: &mut Rng,
+) -> Vec<RayRecord> {
+    let traced: Vec<(f64, Vec3, Vec3)> = samples.iter().map(|s| traced_ray(section, rules, s)).collect();
+    let rays: Vec<(Vec3, Vec3)> = traced.iter().map(|&(_, o, d)| (o, d)).collect();
+    tracer
+        .trace_rays(&rays, rules.vdistance, first, rng)
+        .into_iter()
+        .zip(samples.iter().zip(&traced))
+        .filter_map(|(sample, (s, &(start, _, _)))| Some(encode(section, s, start, &sample?)))
+        .collect()
 }
 
 /// Chooses `n` rays of `beam` as `mode` says (uniformly, or near an eye)
@@ -151,11 +187,16 @@ pub fn trace_beam_under(
             proximity_rays(section, beam, n, DVec3::from(eye), radius, frustum.as_ref(), rng)?.0
         }
     };
-    // Out of core, a ray that met missing data is traced again: no record
-    // made from a stand-in for missing geometry is ever returned.
-    Ok(tracer.trace_batch(samples.len(), rng, |k, rng, fetch| {
-        trace_sample_fetching(tracer, section, rules, &samples[k], rng, fetch)
-    }))
+    // A beam's rays run between one pair of cells; whether that is coherent
+    // enough for packets to pay, the times tell.
+    Ok(trace_samples(
+        tracer,
+        section,
+        rules,
+        &samples,
+        FirstHits::Measured,
+        rng,
+    ))
 }
 
 #[cfg(test)]
@@ -181,5 +222,66 @@ mod tests {
             }
         }
         assert!(uniform_rays(&s, s.beam_count(), 1, &mut rng).is_err());
+    }
+
+    /// Finding a beam's first hits in packets, or once for all the
+    /// estimates along a ray, changes no record: every record equals the one
+    /// made ray by ray with each estimate walking from the start.
+    #[test]
+    fn first_hits_in_packets_change_no_record() {
+        use crate::scene::{generate, GenParams};
+        use crate::TraceOptions;
+        let scene = generate("room", &GenParams::default()).unwrap();
+        let sections = scene.sections.clone();
+        let tracer = Tracer::new(
+            scene,
+            TraceOptions {
+                samples: 3,
+                ..TraceOptions::default()
+            },
+        );
+        let (mut records, mut hits) = (0, 0);
+        for (i, section) in sections.iter().enumerate() {
+            for obstructions in [false, true] {
+                let rules = FileRules {
+                    obstructions,
+                    vdistance: i % 2 == 0,
+                };
+                for beam in (0..section.beam_count()).step_by(97) {
+                    let n = 1 + (beam as usize % 21);
+                    let samples = uniform_rays(section, beam, n, &mut Rng::new(5, beam.into())).unwrap();
+                    let mut want = Vec::new();
+                    let mut rng = Rng::new(6, beam.into());
+                    for s in &samples {
+                        // The estimates one by one, each walking from the start as before.
+                        let (start, origin, dir) = traced_ray(section, rules, s);
+                        let mut fetch = Fetch::load();
+                        let mut sum = Vec3::ZERO;
+                        let mut distance = 0.0;
+                        for k in 0..3 {
+                            let (l, d) =
+                                tracer.estimate_walking(origin, dir.normalize(), rules.vdistance, &mut rng, &mut fetch);
+                            sum += l;
+                            if k == 0 {
+                                distance = d;
+                            }
+                        }
+                        let sample = Sample {
+                            radiance: sum / 3.0,
+                            distance,
+                        };
+                        want.push(encode(section, s, start, &sample));
+                    }
+                    for first in [FirstHits::Packets, FirstHits::Single, FirstHits::Measured] {
+                        let got =
+                            trace_samples(&tracer, section, rules, &samples, first, &mut Rng::new(6, beam.into()));
+                        assert_eq!(got, want, "section {i} beam {beam} {first:?}");
+                    }
+                    records += want.len();
+                    hits += want.iter().filter(|r| r.depth_code() != DepthCode::INFINITE).count();
+                }
+            }
+        }
+        assert!(records > 1000 && hits > records / 2, "{records} records, {hits} hit");
     }
 }

@@ -2,10 +2,12 @@
 //! test, and robust offsetting of secondary ray origins.
 
 mod offset;
+mod rays8;
 mod triangle;
 mod triangle4;
 
 pub use offset::offset_origin;
+pub use rays8::Rays8;
 pub use triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
 pub use triangle4::{Ray4, Tri4};
 

@@ -10,4 +10,4 @@ pub mod sky;
 pub mod tracer;
 
 pub use rng::Rng;
-pub use tracer::{Sample, TraceOptions, Tracer};
+pub use tracer::{FirstHits, Sample, TraceOptions, Tracer};

@@ -6,6 +6,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
+use std::time::Instant;
 
 use glam::Vec3;
 
@@ -14,7 +15,7 @@ use super::lights::Lights;
 use super::rng::Rng;
 use super::sampling::{power_heuristic, Frame};
 use super::sky::SkyModel;
-use crate::accel::{BuildOptions, KdTree};
+use crate::accel::{BuildOptions, Hit, KdTree, PACKET};
 use crate::geom::{offset_origin, Ray};
 use crate::ooc::{Fetch, InCoreReport, OocError, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
@@ -78,6 +79,7 @@ pub struct Tracer {
     /// Estimator settings.
     pub options: TraceOptions,
     non_finite: AtomicU64,
+    first_hits: FirstHitTimes,
     /// For a scene file assembled in memory: what that took.
     assembled: Option<InCoreReport>,
 }
@@ -102,7 +104,84 @@ fn file_lights(ooc: &OocScene) -> Lights {
     }))
 }
 
+/// How [`Tracer::trace_rays`] finds the first hits of its rays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FirstHits {
+    /// In packets of [`PACKET`] consecutive rays (coherent rays, such as one
+    /// beam's, share their walk and their leaf tests).
+    #[default]
+    Packets,
+    /// One ray at a time.
+    Single,
+    /// Whichever of the two has cost less per ray on this tracer's batches
+    /// so far, timed as they run, with one batch in [`PROBE_EVERY`] given
+    /// to the other (see [`FirstHitTimes`]). Beam rays share an origin cell,
+    /// not a point, so whether packets pay depends on the grid and the scene.
+    Measured,
+}
+
+/// How often a [`FirstHits::Measured`] batch tries the way not chosen.
+pub const PROBE_EVERY: u64 = 16;
+
+/// Rays and nanoseconds spent on first hits each way, for [`FirstHits::Measured`].
+#[derive(Default)]
+struct FirstHitTimes {
+    batches: AtomicU64,
+    /// (rays, nanoseconds) of packets and of single rays.
+    spent: [(AtomicU64, AtomicU64); 2],
+}
+
+impl FirstHitTimes {
+    /// Rays timed each way before the faster one is trusted.
+    const WARM: u64 = 4096;
+    /// Past this many rays, both counts halve, so that the choice follows
+    /// the views and the parts of the scene the samplers are asked for now.
+    const WINDOW: u64 = 1 << 20;
+
+    fn choose(&self) -> FirstHits {
+        let b = self.batches.fetch_add(1, Ordering::Relaxed);
+        let per_ray = |i: usize| {
+            let (rays, ns) = (&self.spent[i].0, &self.spent[i].1);
+            let rays = rays.load(Ordering::Relaxed);
+            (rays >= Self::WARM).then(|| ns.load(Ordering::Relaxed) as f64 / rays as f64)
+        };
+        let faster = match (per_ray(0), per_ray(1)) {
+            (Some(p), Some(s)) => [FirstHits::Packets, FirstHits::Single][usize::from(s < p)],
+            (None, _) => return FirstHits::Packets,
+            (_, None) => return FirstHits::Single,
+        };
+        if b % PROBE_EVERY == PROBE_EVERY - 1 {
+            return [FirstHits::Single, FirstHits::Packets][usize::from(faster == FirstHits::Single)];
+        }
+        faster
+    }
+
+    fn record(&self, way: FirstHits, rays: usize, ns: u64) {
+        let (r, t) = &self.spent[usize::from(way == FirstHits::Single)];
+        if r.fetch_add(rays as u64, Ordering::Relaxed) > Self::WINDOW {
+            // Racing halvings lose a little history, which only blurs the window.
+            r.store(r.load(Ordering::Relaxed) / 2, Ordering::Relaxed);
+            t.store(t.load(Ordering::Relaxed) / 2, Ordering::Relaxed);
+        }
+        t.fetch_add(ns, Ordering::Relaxed);
+    }
+
+    /// The way chosen now, for reports: packets until single rays prove faster.
+    fn preferred(&self) -> FirstHits {
+        let per_ray = |i: usize| {
+            let rays = self.spent[i].0.load(Ordering::Relaxed).max(1);
+            self.spent[i].1.load(Ordering::Relaxed) as f64 / rays as f64
+        };
+        if self.spent[1].0.load(Ordering::Relaxed) >= Self::WARM && per_ray(1) < per_ray(0) {
+            FirstHits::Single
+        } else {
+            FirstHits::Packets
+        }
+    }
+}
+
 /// A hit as shading needs it.
+#[derive(Clone, Copy)]
 struct SurfaceHit {
     t: f32,
     /// Unit geometric normal.
@@ -177,6 +256,7 @@ impl Tracer {
             has_panes,
             options,
             non_finite: AtomicU64::new(0),
+            first_hits: FirstHitTimes::default(),
             assembled: None,
         }
     }
@@ -207,20 +287,39 @@ impl Tracer {
         rng: &mut Rng,
         mut f: impl FnMut(usize, &mut Rng, &mut Fetch) -> T,
     ) -> Vec<T> {
-        let Some(ooc) = &self.ooc else {
+        if self.ooc.is_none() {
             let mut fetch = Fetch::load();
             return (0..n).map(|k| f(k, rng, &mut fetch)).collect();
-        };
-        ooc.exact_batch(n, |k, fetch| f(k, rng, fetch))
-            .into_iter()
-            .flatten()
-            .collect()
+        }
+        self.ooc_batch(n, rng, f).into_iter().flatten().collect()
+    }
+
+    /// [`Tracer::trace_batch`] for a scene file: each item's result, or
+    /// `None` where only unreadable blocks could have made it.
+    fn ooc_batch<T>(
+        &self,
+        n: usize,
+        rng: &mut Rng,
+        mut f: impl FnMut(usize, &mut Rng, &mut Fetch) -> T,
+    ) -> Vec<Option<T>> {
+        match &self.ooc {
+            Some(ooc) => ooc.exact_batch(n, |k, fetch| f(k, rng, fetch)),
+            None => {
+                let mut fetch = Fetch::load();
+                (0..n).map(|k| Some(f(k, rng, &mut fetch))).collect()
+            }
+        }
     }
 
     /// The kd-tree (empty for a scene file).
     pub fn tree(&self) -> &KdTree {
         &self.tree
     }
+    /// How [`FirstHits::Measured`] finds first hits now, by the times so far.
+    pub fn first_hits_preferred(&self) -> FirstHits {
+        self.first_hits.preferred()
+    }
+
     /// Estimates that came out NaN or infinite and were replaced by black.
     pub fn non_finite_count(&self) -> u64 {
         self.non_finite.load(Ordering::Relaxed)
@@ -250,13 +349,97 @@ impl Tracer {
             };
         }
         let dir = dir.normalize();
-        let (mut radiance, distance) = self.estimate(origin, dir, vdistance, rng, fetch);
+        // In core, the first hit is the same for every estimate along the
+        // ray: found once. Out of core, each estimate looks again, since
+        // data may arrive between them.
+        let first = match self.ooc {
+            None => Some(self.tree.intersect(&Ray::new(origin, dir)).map(|h| self.surface(h))),
+            Some(_) => None,
+        };
+        self.estimates(origin, dir, first, vdistance, rng, fetch)
+    }
+
+    /// Traces each ray `(origin, direction)` of `rays` as
+    /// [`Tracer::trace_measuring`] would, with the same random numbers in
+    /// the same order and so the same samples, but finding the first hits
+    /// together as `first` says. Out of core, rays are traced one by one
+    /// until every sample is exact (see [`Tracer::trace_batch`]); a sample
+    /// only unreadable blocks could have made comes back as `None`.
+    pub fn trace_rays(
+        &self,
+        rays: &[(Vec3, Vec3)],
+        vdistance: bool,
+        first: FirstHits,
+        rng: &mut Rng,
+    ) -> Vec<Option<Sample>> {
+        if self.ooc.is_some() {
+            let samples = self.ooc_batch(rays.len(), rng, |k, rng, fetch| {
+                self.trace_fetching(rays[k].0, rays[k].1, vdistance, rng, fetch)
+            });
+            return samples;
+        }
+        let valid = |o: Vec3, d: Vec3| o.is_finite() && d.is_finite() && d.length_squared() > 0.0;
+        let walk: Vec<(usize, Ray)> = rays
+            .iter()
+            .enumerate()
+            .filter(|(_, (o, d))| valid(*o, *d))
+            .map(|(k, &(o, d))| (k, Ray::new(o, d.normalize())))
+            .collect();
+        let mut hits: Vec<Option<Hit>> = vec![None; rays.len()];
+        let (way, started) = match first {
+            FirstHits::Measured => (self.first_hits.choose(), Some(Instant::now())),
+            way => (way, None),
+        };
+        if way == FirstHits::Packets {
+            let mut packet = [Ray::new(Vec3::ZERO, Vec3::ONE); PACKET];
+            for chunk in walk.chunks(PACKET) {
+                for (p, c) in packet.iter_mut().zip(chunk) {
+                    *p = c.1;
+                }
+                let found = self.tree.intersect_packet(&packet[..chunk.len()]);
+                for (&(k, _), h) in chunk.iter().zip(found) {
+                    hits[k] = h;
+                }
+            }
+        } else {
+            walk.iter().for_each(|&(k, r)| hits[k] = self.tree.intersect(&r));
+        }
+        if let Some(started) = started {
+            let ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+            self.first_hits.record(way, walk.len(), ns);
+        }
+        let mut fetch = Fetch::load();
+        rays.iter()
+            .zip(hits)
+            .map(|(&(origin, dir), hit)| {
+                Some(if valid(origin, dir) {
+                    let first = Some(hit.map(|h| self.surface(h)));
+                    self.estimates(origin, dir.normalize(), first, vdistance, rng, &mut fetch)
+                } else {
+                    self.trace_fetching(origin, dir, vdistance, rng, &mut fetch)
+                })
+            })
+            .collect()
+    }
+
+    /// The mean of the options' number of estimates along a valid ray (unit
+    /// `dir`), each starting from `first` when given (an in-core first hit).
+    fn estimates(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        first: Option<Option<SurfaceHit>>,
+        vdistance: bool,
+        rng: &mut Rng,
+        fetch: &mut Fetch,
+    ) -> Sample {
+        let (mut radiance, distance) = self.estimate(origin, dir, first, vdistance, rng, fetch);
         let n = self.options.samples.max(1);
         for _ in 1..n {
             if fetch.missed {
                 break;
             }
-            radiance += self.estimate(origin, dir, vdistance, rng, fetch).0;
+            radiance += self.estimate(origin, dir, first, vdistance, rng, fetch).0;
         }
         radiance /= n as f32;
         // A NaN distance (it cannot arise from finite input, but is never passed on) reads as "escaped".
@@ -276,16 +459,7 @@ impl Tracer {
     /// for missing data, which `fetch` notes).
     fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
         let Some(ooc) = &self.ooc else {
-            let h = self.tree.intersect(ray)?;
-            let [a, b, c] = self.scene.vertices(h.tri as usize);
-            return Some(SurfaceHit {
-                t: h.t,
-                ng: (b - a).cross(c - a).normalize(),
-                tri: h.tri,
-                material: Some(self.scene.triangles[h.tri as usize].material),
-                color: Vec3::ZERO,
-                radius: 0.0,
-            });
+            return self.tree.intersect(ray).map(|h| self.surface(h));
         };
         let h = ooc.intersect(ray, lod, fetch)?;
         Some(match h.surface {
@@ -313,6 +487,19 @@ impl Tracer {
         })
     }
 
+    /// An in-core triangle hit as shading needs it.
+    fn surface(&self, h: Hit) -> SurfaceHit {
+        let [a, b, c] = self.scene.vertices(h.tri as usize);
+        SurfaceHit {
+            t: h.t,
+            ng: (b - a).cross(c - a).normalize(),
+            tri: h.tri,
+            material: Some(self.scene.triangles[h.tri as usize].material),
+            color: Vec3::ZERO,
+            radius: 0.0,
+        }
+    }
+
     /// True if a surface for which `blocks(id, material, vertices)` says so
     /// (or a voxel) lies within `(0, ray.t_max)`.
     fn blocked(&self, ray: &Ray, fetch: &mut Fetch, mut blocks: impl FnMut(u32, u32, [Vec3; 3]) -> bool) -> bool {
@@ -328,7 +515,31 @@ impl Tracer {
         }
     }
 
-    fn estimate(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng, fetch: &mut Fetch) -> (Vec3, f32) {
+    /// [`Tracer::estimate`] walking from the start, for tests that compare
+    /// against estimates given their first hit.
+    #[cfg(test)]
+    pub(crate) fn estimate_walking(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        vdistance: bool,
+        rng: &mut Rng,
+        fetch: &mut Fetch,
+    ) -> (Vec3, f32) {
+        self.estimate(origin, dir, None, vdistance, rng, fetch)
+    }
+
+    /// One path's radiance and first distance; `first`, when given, is the
+    /// hit of the first segment (found beforehand, in core).
+    fn estimate(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        mut first: Option<Option<SurfaceHit>>,
+        vdistance: bool,
+        rng: &mut Rng,
+        fetch: &mut Fetch,
+    ) -> (Vec3, f32) {
         let mut ray = Ray::new(origin, dir);
         let (mut l, mut beta) = (Vec3::ZERO, Vec3::ONE);
         let (mut distance, mut path, mut measuring) = (f32::INFINITY, 0.0f32, true);
@@ -345,7 +556,10 @@ impl Tracer {
             } else {
                 self.options.lod_secondary
             };
-            let hit = self.nearest(&ray, lod, fetch);
+            let hit = match first.take() {
+                Some(hit) => hit,
+                None => self.nearest(&ray, lod, fetch),
+            };
             if fetch.missed {
                 break;
             }
@@ -531,5 +745,32 @@ impl Tracer {
             }
         }
         l
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_first_hits_follow_the_faster_way_and_keep_probing() {
+        let times = FirstHitTimes::default();
+        // Untimed, packets come first, then single rays until both are warm.
+        assert_eq!(times.choose(), FirstHits::Packets);
+        times.record(FirstHits::Packets, 8192, 8192 * 300);
+        assert_eq!(times.choose(), FirstHits::Single);
+        times.record(FirstHits::Single, 8192, 8192 * 200);
+        let picks: Vec<FirstHits> = (0..64).map(|_| times.choose()).collect();
+        let packets = picks.iter().filter(|&&w| w == FirstHits::Packets).count();
+        assert_eq!(packets, 64 / PROBE_EVERY as usize, "{picks:?}");
+        assert_eq!(times.preferred(), FirstHits::Single);
+        // Packets turn faster: the window forgets the old times.
+        for _ in 0..300 {
+            times.record(FirstHits::Packets, 8192, 8192 * 100);
+        }
+        assert_eq!(times.preferred(), FirstHits::Packets);
+        let picks: Vec<FirstHits> = (0..64).map(|_| times.choose()).collect();
+        let single = picks.iter().filter(|&&w| w == FirstHits::Single).count();
+        assert_eq!(single, 64 / PROBE_EVERY as usize, "{picks:?}");
     }
 }
