@@ -3,6 +3,8 @@
 
 mod offset;
 mod rays8;
+#[cfg(test)]
+mod testing;
 mod triangle;
 mod triangle4;
 

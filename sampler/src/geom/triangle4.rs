@@ -162,16 +162,9 @@ impl Ray4 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::testing::vec3;
     use super::*;
     use proptest::prelude::*;
-
-    fn vec3() -> impl Strategy<Value = Vec3> {
-        // Small integers and halves meet edges and vertices exactly; the rest anywhere.
-        prop_oneof![
-            (-4i32..4, -4i32..4, -4i32..4).prop_map(|(x, y, z)| Vec3::new(x as f32, y as f32, z as f32) * 0.5),
-            (-4f32..4.0, -4f32..4.0, -4f32..4.0).prop_map(|(x, y, z)| Vec3::new(x, y, z)),
-        ]
-    }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
