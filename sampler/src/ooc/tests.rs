@@ -319,6 +319,20 @@ fn the_tracer_never_keeps_a_result_made_from_missing_data() {
             want.distance
         );
     }
+    // Rays traced as a sampler traces a beam's: every one comes back, exact.
+    let pairs: Vec<(glam::Vec3, glam::Vec3)> = rays.iter().map(|r| (r.origin, r.dir)).collect();
+    let from_file = ooc.trace_rays(&pairs, false, crate::FirstHits::Measured, &mut crate::Rng::new(2, 2));
+    let in_core = core.trace_rays(&pairs, false, crate::FirstHits::Packets, &mut crate::Rng::new(2, 2));
+    assert_eq!(from_file.len(), rays.len());
+    for (k, (f, c)) in from_file.iter().zip(&in_core).enumerate() {
+        let (f, c) = (f.unwrap(), c.unwrap());
+        assert!(
+            f.distance == c.distance || (f.distance - c.distance).abs() <= 1e-5 * c.distance,
+            "ray {k}: {} vs {}",
+            f.distance,
+            c.distance
+        );
+    }
 }
 
 fn damaged(path: &Path, f: impl FnOnce(&mut Vec<u8>)) -> Result<OocScene, OocError> {

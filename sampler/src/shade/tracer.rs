@@ -287,34 +287,21 @@ impl Tracer {
         rng: &mut Rng,
         mut f: impl FnMut(usize, &mut Rng, &mut Fetch) -> T,
     ) -> Vec<T> {
-        if self.ooc.is_none() {
+        let Some(ooc) = &self.ooc else {
             let mut fetch = Fetch::load();
             return (0..n).map(|k| f(k, rng, &mut fetch)).collect();
-        }
-        self.ooc_batch(n, rng, f).into_iter().flatten().collect()
-    }
-
-    /// [`Tracer::trace_batch`] for a scene file: each item's result, or
-    /// `None` where only unreadable blocks could have made it.
-    fn ooc_batch<T>(
-        &self,
-        n: usize,
-        rng: &mut Rng,
-        mut f: impl FnMut(usize, &mut Rng, &mut Fetch) -> T,
-    ) -> Vec<Option<T>> {
-        match &self.ooc {
-            Some(ooc) => ooc.exact_batch(n, |k, fetch| f(k, rng, fetch)),
-            None => {
-                let mut fetch = Fetch::load();
-                (0..n).map(|k| Some(f(k, rng, &mut fetch))).collect()
-            }
-        }
+        };
+        ooc.exact_batch(n, |k, fetch| f(k, rng, fetch))
+            .into_iter()
+            .flatten()
+            .collect()
     }
 
     /// The kd-tree (empty for a scene file).
     pub fn tree(&self) -> &KdTree {
         &self.tree
     }
+
     /// How [`FirstHits::Measured`] finds first hits now, by the times so far.
     pub fn first_hits_preferred(&self) -> FirstHits {
         self.first_hits.preferred()
@@ -372,11 +359,10 @@ impl Tracer {
         first: FirstHits,
         rng: &mut Rng,
     ) -> Vec<Option<Sample>> {
-        if self.ooc.is_some() {
-            let samples = self.ooc_batch(rays.len(), rng, |k, rng, fetch| {
+        if let Some(ooc) = &self.ooc {
+            return ooc.exact_batch(rays.len(), |k, fetch| {
                 self.trace_fetching(rays[k].0, rays[k].1, vdistance, rng, fetch)
             });
-            return samples;
         }
         let valid = |o: Vec3, d: Vec3| o.is_finite() && d.is_finite() && d.length_squared() > 0.0;
         let walk: Vec<(usize, Ray)> = rays
