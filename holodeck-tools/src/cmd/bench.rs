@@ -227,7 +227,7 @@ fn raw_read(path: &Path, cold: bool) -> Result<(f64, u64)> {
 }
 
 /// Peak resident memory of this process, and the current, in bytes (Linux).
-fn rss() -> (u64, u64) {
+pub(crate) fn rss() -> (u64, u64) {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
     let field = |name: &str| {
         status
@@ -239,6 +239,12 @@ fn rss() -> (u64, u64) {
             * 1024
     };
     (field("VmHWM:"), field("VmRSS:"))
+}
+
+/// Starts this process's peak resident memory over from the current
+/// (Linux's `clear_refs`); false where that cannot be done.
+pub(crate) fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
 /// The beams seen along a short walk through the room (eye points and

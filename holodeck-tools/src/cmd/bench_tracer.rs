@@ -127,6 +127,8 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     let mut beside: Vec<String> = Vec::new();
     // Rows of the reordering table, printed after the first.
     let mut reordered: Vec<String> = Vec::new();
+    // Rows of the build-memory table.
+    let mut memory: Vec<String> = Vec::new();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -135,11 +137,36 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for case in cases(triangles)? {
         let scene = &case.scene;
+        let peak_known = super::bench::reset_peak_rss();
+        let before = super::bench::rss().1;
         let start = Instant::now();
         let tree = KdTree::build(scene, &BuildOptions::default());
         let build = start.elapsed().as_secs_f64();
+        let peak = super::bench::rss().0;
         let st = tree.stats();
         let bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + st.bytes;
+        let mib = |b: u64| b as f64 / f64::from(1 << 20);
+        let mesh = (bytes - st.bytes) as u64;
+        // The target's measure: the build's peak with the mesh beside it,
+        // against what remains (the tree and the mesh).
+        let grown = peak.saturating_sub(before);
+        memory.push(if peak_known {
+            format!(
+                "| {} | {:.0} MiB | {:.0} MiB | {:.0} MiB | {:.2} |",
+                case.label,
+                mib(mesh),
+                mib(st.bytes as u64),
+                mib(grown),
+                (grown + mesh) as f64 / bytes.max(1) as f64
+            )
+        } else {
+            format!(
+                "| {} | {:.0} MiB | {:.0} MiB | unknown (this system cannot reset the peak) | |",
+                case.label,
+                mib(mesh),
+                mib(st.bytes as u64)
+            )
+        });
         let n = pixels as usize;
         // Rays in 4 x 2 pixel tiles, so that each run of 8 is a coherent packet.
         let primary: Vec<Ray> = (0..n * n)
@@ -199,6 +226,16 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
                 &bounce_hits,
             )?);
         }
+    }
+    println!();
+    println!(
+        "Memory while building (resident memory of this process above what it held just before the build, at its peak):"
+    );
+    println!();
+    println!("| scene | mesh | kd-tree | build's peak | (build's peak + mesh) / (kd-tree + mesh) |");
+    println!("|---|---|---|---|---|");
+    for row in memory {
+        println!("{row}");
     }
     if embree {
         println!();

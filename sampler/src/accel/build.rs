@@ -99,6 +99,9 @@ impl KdTree {
         };
         let (mut nodes, mut leaf_tris) = (vec![Node::leaf(0, 0)], Vec::new());
         flatten(root, 0, &mut nodes, &mut leaf_tris);
+        if leaf_tris.len() >= RELEASE_ABOVE {
+            release_freed_memory();
+        }
         KdTree {
             leaves: LeafTris::new(scene, &leaf_tris),
             nodes,
@@ -114,6 +117,24 @@ impl KdTree {
     /// The leaf triangle lists.
     pub fn leaf_tris(&self) -> &[u32] {
         &self.leaf_tris
+    }
+}
+
+/// References from which a build hands its freed memory back (smaller
+/// builds, such as a scene file's many chunks, leave little behind).
+const RELEASE_ABOVE: usize = 1 << 20;
+
+/// Hands the memory the build freed back to the system before the leaf
+/// triangles are copied. The build's many reference lists, each below the
+/// allocator's threshold for mapping memory of its own, are freed into its
+/// heaps, which the system would otherwise count as in use beside the new
+/// copy (glibc; elsewhere nothing to do).
+fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap pages to the system; it
+    // touches no memory in use.
+    unsafe {
+        libc::malloc_trim(0);
     }
 }
 
@@ -184,6 +205,9 @@ fn build_node(
             .par_chunks(1 << 14)
             .map(|c| partition(scene, c, &split, &left_box, &right_box))
             .collect();
+        // The parts hold every reference now: the node's own list can go
+        // before they are joined.
+        drop(refs);
         let (nl, nr) = parts.iter().fold((0, 0), |(a, b), (l, r)| (a + l.len(), b + r.len()));
         let (mut left, mut right) = (Vec::with_capacity(nl), Vec::with_capacity(nr));
         for (l, r) in parts {
@@ -192,9 +216,10 @@ fn build_node(
         }
         (left, right)
     } else {
-        partition(scene, &refs, &split, &left_box, &right_box)
+        let sides = partition(scene, &refs, &split, &left_box, &right_box);
+        drop(refs);
+        sides
     };
-    drop(refs);
     if left.len() == n && right.len() == n {
         // Nothing was separated: splitting again would only duplicate.
         return leaf(left);
@@ -246,6 +271,10 @@ fn partition(scene: &Scene, refs: &[Ref], split: &Split, left_box: &Aabb, right_
             }
         }
     }
+    // A side that outgrew its guess may hold up to twice what it needs, and
+    // it lives on while the other side's subtree is built.
+    left.shrink_to_fit();
+    right.shrink_to_fit();
     (left, right)
 }
 
