@@ -8,7 +8,7 @@ use anyhow::Result;
 use holodeck_protocol::RayRecord;
 use holodeck_protocol::View;
 use holodeck_sampler::accel::{BuildOptions, RayOrder, PACKET};
-use holodeck_sampler::beam::{trace_samples, trace_start, uniform_rays, BeamSample, FileRules};
+use holodeck_sampler::beam::{trace_samples, traced_ray, uniform_rays, BeamSample, FileRules};
 use holodeck_sampler::geom::{offset_origin, Ray};
 use holodeck_sampler::render::{render, Picture, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
@@ -389,13 +389,11 @@ fn beam_row(per_beam: usize) -> Result<String> {
     let rays: Vec<Vec<Ray>> = beams
         .iter()
         .map(|(i, samples)| {
-            let kind = sections[*i].kind();
             samples
                 .iter()
                 .map(|s| {
-                    let start = trace_start(kind, rules.obstructions, &s.ray);
-                    let origin = s.ray.origin + s.ray.direction * start;
-                    Ray::new(origin.as_vec3(), s.ray.direction.as_vec3().normalize())
+                    let (_, origin, dir) = traced_ray(&sections[*i], rules, s);
+                    Ray::new(origin, dir.normalize())
                 })
                 .collect()
         })

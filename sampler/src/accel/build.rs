@@ -216,9 +216,14 @@ fn build_node(
         }
         (left, right)
     } else {
-        let sides = partition(scene, &refs, &split, &left_box, &right_box);
+        let (mut left, mut right) = partition(scene, &refs, &split, &left_box, &right_box);
         drop(refs);
-        sides
+        // A side that outgrew its guess may hold up to twice what it needs,
+        // and it lives on while the other side's subtree is built. (The
+        // parallel branch above already joins its parts at their exact size.)
+        left.shrink_to_fit();
+        right.shrink_to_fit();
+        (left, right)
     };
     if left.len() == n && right.len() == n {
         // Nothing was separated: splitting again would only duplicate.
@@ -271,10 +276,6 @@ fn partition(scene: &Scene, refs: &[Ref], split: &Split, left_box: &Aabb, right_
             }
         }
     }
-    // A side that outgrew its guess may hold up to twice what it needs, and
-    // it lives on while the other side's subtree is built.
-    left.shrink_to_fit();
-    right.shrink_to_fit();
     (left, right)
 }
 

@@ -228,9 +228,9 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::testing::random_vec3;
     use crate::accel::testing::soup;
     use crate::accel::BuildOptions;
-    use glam::Vec3;
     use rand::{Rng, SeedableRng};
 
     #[test]
@@ -243,25 +243,13 @@ mod tests {
             for k in 0..600 {
                 // Coherent packets (a small cone around one direction, as beam
                 // rays are), mixed-octant packets, and partial packets.
-                let origin = Vec3::new(
-                    rng.gen_range(-7.0..7.0),
-                    rng.gen_range(-7.0..7.0),
-                    rng.gen_range(-7.0..7.0),
-                );
-                let centre = Vec3::new(
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                );
+                let origin = random_vec3(&mut rng, 7.0);
+                let centre = random_vec3(&mut rng, 1.0);
                 let spread = if k % 3 == 0 { 1.0 } else { 0.05 };
                 let n = if k % 5 == 0 { 1 + k % PACKET } else { PACKET };
                 let rays: Vec<Ray> = (0..n)
                     .map(|_| {
-                        let jitter = Vec3::new(
-                            rng.gen_range(-1.0..1.0),
-                            rng.gen_range(-1.0..1.0),
-                            rng.gen_range(-1.0..1.0),
-                        );
+                        let jitter = random_vec3(&mut rng, 1.0);
                         let o = if k % 7 == 0 { origin } else { origin + jitter * 0.2 };
                         Ray::new(o, centre + jitter * spread)
                     })
@@ -304,26 +292,12 @@ mod tests {
             for k in 0..800 {
                 let rays: Vec<Ray> = if k % 2 == 0 {
                     let (axis, split) = planes[rng.gen_range(0..planes.len())];
-                    let mut origin = Vec3::new(
-                        rng.gen_range(-6.0..6.0),
-                        rng.gen_range(-6.0..6.0),
-                        rng.gen_range(-6.0..6.0),
-                    );
+                    let mut origin = random_vec3(&mut rng, 6.0);
                     origin[axis] = split;
-                    let centre = Vec3::new(
-                        rng.gen_range(-1.0..1.0),
-                        rng.gen_range(-1.0..1.0),
-                        rng.gen_range(-1.0..1.0),
-                    );
+                    let centre = random_vec3(&mut rng, 1.0);
                     (0..PACKET)
                         .map(|i| {
-                            let mut d = centre
-                                + 0.05
-                                    * Vec3::new(
-                                        rng.gen_range(-1.0..1.0),
-                                        rng.gen_range(-1.0..1.0),
-                                        rng.gen_range(-1.0..1.0),
-                                    );
+                            let mut d = centre + 0.05 * random_vec3(&mut rng, 1.0);
                             match (k / 2 + i) % 4 {
                                 0 => d[axis] = 0.0,
                                 1 => d[axis] = -0.0,
@@ -342,11 +316,7 @@ mod tests {
                     let p = a + u * (b - a) + v * (c - a) + n * 1e-5;
                     (0..PACKET)
                         .map(|_| {
-                            let d = Vec3::new(
-                                rng.gen_range(-1.0..1.0),
-                                rng.gen_range(-1.0..1.0),
-                                rng.gen_range(-1.0..1.0),
-                            );
+                            let d = random_vec3(&mut rng, 1.0);
                             Ray::new(p, if d.dot(n) < 0.0 { -d } else { d })
                         })
                         .collect()

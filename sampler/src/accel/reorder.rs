@@ -146,10 +146,11 @@ fn morton(x: u32, y: u32, z: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::testing::random_vec3;
     use crate::accel::testing::soup;
     use crate::accel::BuildOptions;
     use glam::Vec3;
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
 
     #[test]
     fn morton_keys_interleave_bits() {
@@ -171,16 +172,8 @@ mod tests {
             let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 30);
             let rays: Vec<Ray> = (0..3000)
                 .map(|_| {
-                    let o = Vec3::new(
-                        rng.gen_range(-7.0..7.0),
-                        rng.gen_range(-7.0..7.0),
-                        rng.gen_range(-7.0..7.0),
-                    );
-                    let d = Vec3::new(
-                        rng.gen_range(-1.0..1.0),
-                        rng.gen_range(-1.0..1.0),
-                        rng.gen_range(-1.0..1.0),
-                    );
+                    let o = random_vec3(&mut rng, 7.0);
+                    let d = random_vec3(&mut rng, 1.0);
                     Ray::new(o, d)
                 })
                 .filter(|r| r.dir.length() > 1e-3)

@@ -6,6 +6,11 @@ use rand::{Rng, SeedableRng};
 
 use crate::scene::{Material, Scene, SceneBuilder};
 
+/// A random point (or direction) in the cube `[-r, r)^3`.
+pub fn random_vec3(rng: &mut impl Rng, r: f32) -> Vec3 {
+    Vec3::new(rng.gen_range(-r..r), rng.gen_range(-r..r), rng.gen_range(-r..r))
+}
+
 /// A soup of random triangles plus deliberately nasty ones: a grid of
 /// triangles sharing edges and vertices, coplanar overlaps, slivers and
 /// axis-aligned triangles lying exactly in likely split planes.

@@ -148,6 +148,7 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::testing::random_vec3;
     use crate::accel::testing::{grid_triangles, soup};
     use crate::accel::BuildOptions;
     use crate::geom::{intersect_triangle, RayPrep};
@@ -209,16 +210,8 @@ mod tests {
             let mut rng = rand::rngs::StdRng::seed_from_u64(100 + seed);
             let mut hits = 0;
             for k in 0..4000 {
-                let origin = Vec3::new(
-                    rng.gen_range(-7.0..7.0),
-                    rng.gen_range(-7.0..7.0),
-                    rng.gen_range(-7.0..7.0),
-                );
-                let mut dir = Vec3::new(
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                    rng.gen_range(-1.0..1.0),
-                );
+                let origin = random_vec3(&mut rng, 7.0);
+                let mut dir = random_vec3(&mut rng, 1.0);
                 match k % 4 {
                     // Axis-parallel rays, some lying in the grid planes.
                     1 => dir = [Vec3::X, Vec3::Y, Vec3::Z][k % 3] * if k % 8 == 1 { -1.0 } else { 1.0 },

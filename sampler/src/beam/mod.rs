@@ -112,7 +112,7 @@ pub fn trace_sample_fetching(
 
 /// Where the traced part of a beam sample's ray starts (in world units from
 /// the entry wall), its origin there and its direction.
-fn traced_ray(section: &Section, rules: FileRules, s: &BeamSample) -> (f64, Vec3, Vec3) {
+pub fn traced_ray(section: &Section, rules: FileRules, s: &BeamSample) -> (f64, Vec3, Vec3) {
     let start = trace_start(section.kind(), rules.obstructions, &s.ray);
     let origin: DVec3 = s.ray.origin + s.ray.direction * start;
     (start, origin.as_vec3(), s.ray.direction.as_vec3())

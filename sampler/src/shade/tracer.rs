@@ -138,22 +138,34 @@ impl FirstHitTimes {
     /// the views and the parts of the scene the samplers are asked for now.
     const WINDOW: u64 = 1 << 20;
 
+    /// Nanoseconds per ray spent one way (0: packets, 1: single rays), once
+    /// it has been timed on enough rays.
+    fn per_ray(&self, way: usize) -> Option<f64> {
+        let rays = self.spent[way].0.load(Ordering::Relaxed);
+        (rays >= Self::WARM).then(|| self.spent[way].1.load(Ordering::Relaxed) as f64 / rays as f64)
+    }
+
+    /// The cheaper way, once both are timed.
+    fn faster(&self) -> Option<FirstHits> {
+        let (p, s) = (self.per_ray(0)?, self.per_ray(1)?);
+        Some(if s < p { FirstHits::Single } else { FirstHits::Packets })
+    }
+
     fn choose(&self) -> FirstHits {
         let b = self.batches.fetch_add(1, Ordering::Relaxed);
-        let per_ray = |i: usize| {
-            let (rays, ns) = (&self.spent[i].0, &self.spent[i].1);
-            let rays = rays.load(Ordering::Relaxed);
-            (rays >= Self::WARM).then(|| ns.load(Ordering::Relaxed) as f64 / rays as f64)
+        let Some(faster) = self.faster() else {
+            // Packets first, then single rays, until both are timed.
+            return if self.per_ray(0).is_none() {
+                FirstHits::Packets
+            } else {
+                FirstHits::Single
+            };
         };
-        let faster = match (per_ray(0), per_ray(1)) {
-            (Some(p), Some(s)) => [FirstHits::Packets, FirstHits::Single][usize::from(s < p)],
-            (None, _) => return FirstHits::Packets,
-            (_, None) => return FirstHits::Single,
-        };
-        if b % PROBE_EVERY == PROBE_EVERY - 1 {
-            return [FirstHits::Single, FirstHits::Packets][usize::from(faster == FirstHits::Single)];
+        match (b % PROBE_EVERY == PROBE_EVERY - 1, faster) {
+            (true, FirstHits::Single) => FirstHits::Packets,
+            (true, _) => FirstHits::Single,
+            (false, way) => way,
         }
-        faster
     }
 
     fn record(&self, way: FirstHits, rays: usize, ns: u64) {
@@ -168,16 +180,13 @@ impl FirstHitTimes {
 
     /// The way chosen now, for reports: packets until single rays prove faster.
     fn preferred(&self) -> FirstHits {
-        let per_ray = |i: usize| {
-            let rays = self.spent[i].0.load(Ordering::Relaxed).max(1);
-            self.spent[i].1.load(Ordering::Relaxed) as f64 / rays as f64
-        };
-        if self.spent[1].0.load(Ordering::Relaxed) >= Self::WARM && per_ray(1) < per_ray(0) {
-            FirstHits::Single
-        } else {
-            FirstHits::Packets
-        }
+        self.faster().unwrap_or(FirstHits::Packets)
     }
+}
+
+/// Whether a ray can be traced: a finite origin and a finite, non-zero direction.
+fn traceable(origin: Vec3, dir: Vec3) -> bool {
+    origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0
 }
 
 /// A hit as shading needs it.
@@ -328,7 +337,7 @@ impl Tracer {
     /// says. When `fetch.missed` comes back true, the path stopped where data
     /// was missing: the sample is incomplete and must not be kept.
     pub fn trace_fetching(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng, fetch: &mut Fetch) -> Sample {
-        if !(origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0) {
+        if !traceable(origin, dir) {
             self.non_finite.fetch_add(1, Ordering::Relaxed);
             return Sample {
                 radiance: Vec3::ZERO,
@@ -339,10 +348,10 @@ impl Tracer {
         // In core, the first hit is the same for every estimate along the
         // ray: found once. Out of core, each estimate looks again, since
         // data may arrive between them.
-        let first = match self.ooc {
-            None => Some(self.tree.intersect(&Ray::new(origin, dir)).map(|h| self.surface(h))),
-            Some(_) => None,
-        };
+        let first = self
+            .ooc
+            .is_none()
+            .then(|| self.nearest(&Ray::new(origin, dir), 0.0, fetch));
         self.estimates(origin, dir, first, vdistance, rng, fetch)
     }
 
@@ -364,11 +373,10 @@ impl Tracer {
                 self.trace_fetching(rays[k].0, rays[k].1, vdistance, rng, fetch)
             });
         }
-        let valid = |o: Vec3, d: Vec3| o.is_finite() && d.is_finite() && d.length_squared() > 0.0;
         let walk: Vec<(usize, Ray)> = rays
             .iter()
             .enumerate()
-            .filter(|(_, (o, d))| valid(*o, *d))
+            .filter(|(_, (o, d))| traceable(*o, *d))
             .map(|(k, &(o, d))| (k, Ray::new(o, d.normalize())))
             .collect();
         let mut hits: Vec<Option<Hit>> = vec![None; rays.len()];
@@ -398,7 +406,7 @@ impl Tracer {
         rays.iter()
             .zip(hits)
             .map(|(&(origin, dir), hit)| {
-                Some(if valid(origin, dir) {
+                Some(if traceable(origin, dir) {
                     let first = Some(hit.map(|h| self.surface(h)));
                     self.estimates(origin, dir.normalize(), first, vdistance, rng, &mut fetch)
                 } else {
