@@ -38,6 +38,9 @@ Examples:
   holodeck info room.hdk
   holodeck check room.hdk --repair salvaged.hdk
   holodeck optimize room.hdk
+  holodeck copy night.hdk room.hdk
+  holodeck import radiance office.hdk -o office-holo.hdk
+  holodeck export radiance room.hdk -o room-rholo.hdk
   holodeck grid room.hdk -o grid.obj
   holodeck bench storage --rays 50M
   holodeck scene gen landscape --triangles 10M -o landscape.toml
@@ -59,6 +62,12 @@ enum Command {
     Check(cmd::check::Args),
     /// Rewrite a file with beams collated in beam order and no free space (like rhoptimize).
     Optimize(cmd::optimize::Args),
+    /// Add the rays of one holodeck to another: merged, or resampled into other sections (like rhcopy).
+    Copy(cmd::copy::Args),
+    /// Read a holodeck of another program into a new holodeck file (Radiance's rholo).
+    Import(cmd::import::Args),
+    /// Write a holodeck file for another program (Radiance's rholo, rhinfo, rhpict).
+    Export(cmd::export::Args),
     /// Write the section grids as an OBJ line mesh for any 3D viewer.
     Grid(cmd::grid::Args),
     /// Measure the storage engine (append, recall, optimize, memory).
@@ -117,6 +126,9 @@ fn main() -> ExitCode {
         Command::Info(a) => cmd::info::run(a),
         Command::Check(a) => cmd::check::run(a),
         Command::Optimize(a) => cmd::optimize::run(a),
+        Command::Copy(a) => cmd::copy::run(a),
+        Command::Import(a) => cmd::import::run(a),
+        Command::Export(a) => cmd::export::run(a),
         Command::Grid(a) => cmd::grid::run(a),
         Command::Bench(a) => cmd::bench::run(a),
         Command::Scene(a) => cmd::scene::run(a),

@@ -177,7 +177,7 @@ fn bad_input_gets_a_clear_error_and_a_failing_exit() {
 fn every_command_has_help_with_examples() {
     for cmd in [
         "create", "info", "check", "optimize", "grid", "bench", "scene", "render", "fill", "run", "serve", "sample",
-        "pict", "view", "compare",
+        "pict", "view", "compare", "copy", "import", "export",
     ] {
         let o = holodeck(&[cmd, "--help"]);
         assert!(o.status.success());
@@ -362,4 +362,63 @@ fn numbers_that_size_an_allocation_are_refused_by_their_flag() {
     );
     refused(&["serve", hdk, "--packet", "0"], "--packet");
     refused(&["create", hdk, "--section", ROOM, "--beams", "0"], "--beams");
+}
+
+#[test]
+fn radiance_holodecks_export_import_and_copy_through_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let section = format!("{ROOM} grid=6,4,3");
+    assert!(holodeck(&["create", f, "--section", &section]).status.success());
+    fill(&file, 200, 3);
+    let rad = dir.path().join("room.rad.hdk");
+    let r = rad.to_str().unwrap();
+    let o = holodeck(&["export", "radiance", f, "-o", r]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("200 beams holding 600 rays"), "{}", text(&o));
+    assert!(std::fs::read(&rad).unwrap().starts_with(b"#?RADIANCE\n"));
+    // Our own commands on a Radiance file say how to convert it.
+    let o = holodeck(&["info", r]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("holodeck import radiance"), "{}", text(&o));
+    let back = dir.path().join("back.hdk");
+    let b = back.to_str().unwrap();
+    let o = holodeck(&["import", "radiance", r, "-o", b]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("200 beams holding 600 rays (little-endian, 8-byte offsets)"),
+        "{}",
+        text(&o)
+    );
+    let o = holodeck(&["info", b]);
+    assert!(text(&o).contains("depth=radiance"), "{}", text(&o));
+    assert!(holodeck(&["check", b]).status.success());
+    // A second import onto the same name is refused; the first survives.
+    let o = holodeck(&["import", "radiance", r, "-o", b]);
+    assert!(!o.status.success());
+    assert!(holodeck(&["check", b]).status.success());
+    // Copy into the imported file: its section differs in depth coding only, so rays are resampled.
+    let o = holodeck(&["copy", f, b]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("600 rays read, 600 stored (0 section(s) merged beam for beam, 1 resampled)"),
+        "{}",
+        text(&o)
+    );
+    let o = holodeck(&["info", b]);
+    assert!(text(&o).contains("1,200 rays"), "{}", text(&o));
+    // A truncated Radiance file is refused with the beam that lost its rays.
+    let bytes = std::fs::read(&rad).unwrap();
+    let cut = dir.path().join("cut.rad.hdk");
+    std::fs::write(&cut, &bytes[..bytes.len() - 5]).unwrap();
+    let o = holodeck(&[
+        "import",
+        "radiance",
+        cut.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.hdk").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("cut off"), "{}", text(&o));
 }

@@ -3,6 +3,12 @@
 //! Codes below 2^11 are linear in steps of diagonal / 2^11; above, each code is a
 //! factor (1 + 2^-11) further, so the largest finite code reaches about
 //! 3e13 section diagonals. Code 0xFFFF means the ray escaped to infinity.
+//!
+//! Sections imported from Radiance keep Radiance's own coding
+//! ([`DepthCoding::Radiance`]): the same 2^11 linear and logarithmic steps,
+//! scaled by the sum of the section's axis lengths, with codes that truncate
+//! and decode to the middle of their step. A section records which coding its
+//! rays use, so imported codes are kept exactly and new rays match them.
 
 use serde::{Deserialize, Serialize};
 
@@ -67,6 +73,80 @@ impl DepthCode {
     }
 }
 
+/// How a section's depth codes map to distances.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DepthCoding {
+    /// This program's coding ([`DepthCode::encode`]): scaled by the section's
+    /// main diagonal, codes rounded to the nearest step.
+    #[default]
+    Holodeck,
+    /// Radiance's (`hdcode`/`hddepth` in rholo): scaled by the sum of the
+    /// section's axis lengths, codes truncated, decoded at the middle of the step.
+    Radiance,
+}
+
+/// Radiance's infinite distance (`FHUGE`); distances from 0.99 of it are infinite.
+const RADIANCE_HUGE: f64 = 1e10;
+
+impl DepthCoding {
+    /// The name used in section lines and scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            DepthCoding::Holodeck => "holodeck",
+            DepthCoding::Radiance => "radiance",
+        }
+    }
+
+    /// The coding of `name` ([`DepthCoding::name`]).
+    pub fn from_name(name: &str) -> Option<DepthCoding> {
+        match name {
+            "holodeck" => Some(DepthCoding::Holodeck),
+            "radiance" => Some(DepthCoding::Radiance),
+            _ => None,
+        }
+    }
+
+    /// Encodes `distance` (world units from the entry wall) for a section whose
+    /// depth scale ([`crate::Section::depth_scale`]) is `scale`.
+    pub fn encode(self, distance: f64, scale: f64) -> DepthCode {
+        match self {
+            DepthCoding::Holodeck => DepthCode::encode(distance, scale),
+            DepthCoding::Radiance => {
+                if distance.is_nan() || distance >= 0.99 * RADIANCE_HUGE {
+                    return DepthCode::INFINITE;
+                }
+                if distance <= 0.0 {
+                    return DepthCode(0);
+                }
+                let linear = f64::from(DEPTH_LINEAR_CODES);
+                if distance < scale {
+                    // Below one scale the truncated code is below 2^11.
+                    return DepthCode((distance * linear / scale) as u16);
+                }
+                let code = ((distance / scale).ln() / LOG_STEP.ln()).floor() + linear;
+                DepthCode(code.min(f64::from(DEPTH_INFINITE)) as u16)
+            }
+        }
+    }
+
+    /// Decodes to world units, or `None` for a ray that escaped.
+    pub fn decode(self, code: DepthCode, scale: f64) -> Option<f64> {
+        match self {
+            DepthCoding::Holodeck => code.decode(scale),
+            DepthCoding::Radiance => match code.0 {
+                DEPTH_INFINITE => None,
+                c if c < DEPTH_LINEAR_CODES => Some(scale * (f64::from(c) + 0.5) / f64::from(DEPTH_LINEAR_CODES)),
+                c => Some(
+                    scale
+                        * (1.0 + 0.5 / f64::from(DEPTH_LINEAR_CODES))
+                        * LOG_STEP.powi(i32::from(c - DEPTH_LINEAR_CODES)),
+                ),
+            },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,6 +178,35 @@ mod tests {
             let d = DepthCode(c).decode(diag).unwrap();
             assert_eq!(DepthCode::encode(d, diag), DepthCode(c), "code {c} -> {d}");
         }
+    }
+
+    #[test]
+    fn radiance_codes_match_rholos_worked_values_and_round_trip() {
+        let r = DepthCoding::Radiance;
+        // rholo with axis lengths summing to 6: 1.5 -> 512, 2.5 -> 853, 10 -> 3094;
+        // code 3072 reads back as 9.8935.
+        assert_eq!(r.encode(1.5, 6.0), DepthCode(512));
+        assert_eq!(r.encode(2.5, 6.0), DepthCode(853));
+        assert_eq!(r.encode(10.0, 6.0), DepthCode(3094));
+        assert!((r.decode(DepthCode(3072), 6.0).unwrap() - 9.8935).abs() < 1e-4);
+        assert_eq!(r.encode(-1.0, 6.0), DepthCode(0));
+        assert_eq!(r.encode(1e10, 6.0), DepthCode::INFINITE);
+        assert_eq!(r.decode(DepthCode::INFINITE, 6.0), None);
+        // Every code decodes to the middle of its step, which encodes back to
+        // it, up to Radiance's infinity (0.99e10).
+        let mut kept = 0;
+        for c in (0..DEPTH_INFINITE).step_by(7) {
+            let d = r.decode(DepthCode(c), 6.0).unwrap();
+            if d < 0.99e10 {
+                assert_eq!(r.encode(d, 6.0), DepthCode(c), "code {c} -> {d}");
+                kept += 1;
+            } else {
+                assert_eq!(r.encode(d, 6.0), DepthCode::INFINITE, "code {c} -> {d}");
+            }
+        }
+        assert!(kept > 6000, "{kept}");
+        assert_eq!(DepthCoding::from_name(r.name()), Some(r));
+        assert_eq!(DepthCoding::from_name("holodeck"), Some(DepthCoding::Holodeck));
     }
 
     proptest! {

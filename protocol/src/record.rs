@@ -7,7 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 use crate::beam::{BeamIndex, BeamRay};
-use crate::depth::DepthCode;
+use crate::depth::{DepthCode, DepthCoding};
 use crate::rgbe::Rgbe;
 use crate::section::{Section, SectionError};
 
@@ -107,7 +107,8 @@ impl WallFrame {
 pub struct BeamDecoder {
     entry: WallFrame,
     exit: WallFrame,
-    diagonal: f64,
+    depth: DepthCoding,
+    depth_scale: f64,
 }
 
 impl BeamDecoder {
@@ -119,7 +120,7 @@ impl BeamDecoder {
         let along = b - a;
         let length = along.length();
         let direction = along / length;
-        let hit = match rec.depth_code().decode(self.diagonal) {
+        let hit = match self.depth.decode(rec.depth_code(), self.depth_scale) {
             Some(d) => Hit::Point(a + direction * d),
             None => Hit::Infinite,
         };
@@ -139,7 +140,7 @@ impl Section {
     /// Decodes a record of `beam` into its world ray, color and hit point.
     pub fn decode_record(&self, beam: BeamIndex, rec: &RayRecord) -> Result<DecodedRay, SectionError> {
         let ray = self.beam_ray(beam, rec.entry, rec.exit)?;
-        let hit = match rec.depth_code().decode(self.diagonal()) {
+        let hit = match self.decode_depth(rec.depth_code()) {
             Some(d) => Hit::Point(ray.origin + ray.direction * d),
             None => Hit::Infinite,
         };
@@ -171,7 +172,8 @@ impl Section {
         Ok(BeamDecoder {
             entry: frame(cells.entry),
             exit: frame(cells.exit),
-            diagonal: self.diagonal(),
+            depth: self.depth_coding(),
+            depth_scale: self.depth_scale(),
         })
     }
 
@@ -189,7 +191,7 @@ impl Section {
         let unit = dir.normalize();
         let entry_point = origin + dir * at.t_entry;
         let depth = match hit {
-            Some(h) => DepthCode::encode((h - entry_point).dot(unit), self.diagonal()),
+            Some(h) => self.encode_depth((h - entry_point).dot(unit)),
             None => DepthCode::INFINITE,
         };
         Some((

@@ -9,12 +9,18 @@
 use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
 
+use crate::depth::{DepthCode, DepthCoding};
+
 mod bounds;
+mod spec;
+mod text;
 
 pub use bounds::{
     SectionError, SectionField, MAX_AXIS_LENGTH, MAX_BEAMS_PER_SECTION, MAX_COORDINATE, MAX_GRID, MIN_AXIS_LENGTH,
     MIN_CELL_FRACTION, MIN_VOLUME_RATIO,
 };
+pub use spec::{SectionSpec, DEFAULT_BEAMS};
+pub use text::SectionTextError;
 
 /// Whether views look out of the section (interior) or into it (exterior).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -59,19 +65,6 @@ impl Wall {
     }
 }
 
-/// Plain description of a section, as written in settings and on the wire.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SectionSpec {
-    /// World position of the corner at unit coordinates (0,0,0).
-    pub origin: [f64; 3],
-    /// The three edge vectors from the origin, in world units.
-    pub axes: [[f64; 3]; 3],
-    /// Cells along each axis.
-    pub grid: [u16; 3],
-    /// Interior or exterior.
-    pub kind: SectionKind,
-}
-
 /// A validated section with its derived beam-indexing tables.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "SectionSpec", into = "SectionSpec")]
@@ -85,6 +78,10 @@ pub struct Section {
     pairs: [(Wall, Wall, u32); 30],
     beam_count: u32,
     diagonal: f64,
+    depth_coding: DepthCoding,
+    /// What depth codes are scaled by (see [`Section::depth_scale`]), kept
+    /// because every encoded and decoded ray needs it.
+    depth_scale: f64,
 }
 
 /// The paper's beam count N = 2W²D² + 2W²H² + 2D²H² + 8W²DH + 8WD²H + 8WDH².
@@ -219,6 +216,7 @@ impl Section {
             }
         }
         debug_assert_eq!(base, count);
+        let diagonal = (axis_vecs[0] + axis_vecs[1] + axis_vecs[2]).length();
         Ok(Section {
             origin,
             axes: axis_vecs,
@@ -227,8 +225,42 @@ impl Section {
             to_unit: m.inverse(),
             pairs,
             beam_count: count as u32,
-            diagonal: (axis_vecs[0] + axis_vecs[1] + axis_vecs[2]).length(),
+            diagonal,
+            depth_coding: DepthCoding::Holodeck,
+            depth_scale: diagonal,
         })
+    }
+
+    /// The same section with its rays' depths in `coding` (Radiance's, for
+    /// sections imported from Radiance holodecks).
+    pub fn with_depth_coding(mut self, coding: DepthCoding) -> Section {
+        self.depth_coding = coding;
+        self.depth_scale = match coding {
+            DepthCoding::Holodeck => self.diagonal,
+            DepthCoding::Radiance => self.axes.iter().map(|a| a.length()).sum(),
+        };
+        self
+    }
+
+    /// How this section's depth codes map to distances.
+    pub fn depth_coding(&self) -> DepthCoding {
+        self.depth_coding
+    }
+
+    /// The length depth codes are scaled by: the main diagonal, or for
+    /// Radiance's coding the sum of the axis lengths.
+    pub fn depth_scale(&self) -> f64 {
+        self.depth_scale
+    }
+
+    /// The depth code of a distance (world units from the entry wall).
+    pub fn encode_depth(&self, distance: f64) -> DepthCode {
+        self.depth_coding.encode(distance, self.depth_scale)
+    }
+
+    /// The distance from the entry wall of a depth code, `None` for a ray that escaped.
+    pub fn decode_depth(&self, code: DepthCode) -> Option<f64> {
+        self.depth_coding.decode(code, self.depth_scale)
     }
 
     /// Builds a section whose grid follows a cell length (Radiance's GRID).
@@ -241,13 +273,16 @@ impl Section {
         Section::new(origin, axes, grid_for_length(axes, length)?, kind)
     }
 
-    /// The plain description (for settings text and the wire).
+    /// The plain description, with its explicit grid (for settings text,
+    /// scene files and the wire).
     pub fn spec(&self) -> SectionSpec {
         SectionSpec {
+            kind: self.kind,
             origin: self.origin.to_array(),
             axes: self.axes.map(|a| a.to_array()),
-            grid: self.grid,
-            kind: self.kind,
+            grid: Some(self.grid),
+            beams: None,
+            depth: (self.depth_coding != DepthCoding::Holodeck).then_some(self.depth_coding),
         }
     }
 
@@ -339,7 +374,7 @@ impl Section {
 impl TryFrom<SectionSpec> for Section {
     type Error = SectionError;
     fn try_from(s: SectionSpec) -> Result<Self, Self::Error> {
-        Section::new(s.origin, s.axes, s.grid, s.kind)
+        s.resolve(None, None)
     }
 }
 

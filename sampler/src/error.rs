@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use crate::scene::export::ExportError;
 use crate::scene::file::TransformError;
 use crate::scene::material::{MaterialError, SkyError};
-use crate::scene::section::SectionTableError;
+use holodeck_protocol::SectionError;
 
 /// What went wrong building a scene, naming the file or mesh involved.
 #[derive(Debug, thiserror::Error)]
@@ -62,12 +62,12 @@ pub enum SceneError {
         source: TransformError,
     },
     /// A section table does not describe a valid section.
-    #[error("{what}: {source}")]
+    #[error("{what}: {key}{source}", key = crate::scene::section::toml_key_prefix(source))]
     Section {
         /// The table (file and index) or the generated scene.
         what: String,
         /// Why.
-        source: SectionTableError,
+        source: SectionError,
     },
     /// A scene could not be written as a scene file.
     #[error("{path}: {source}")]
@@ -96,9 +96,12 @@ pub enum SceneError {
         what: String,
     },
     /// A file format this build cannot read.
-    #[error("{path}: unsupported geometry format (use .obj, .ply, .gltf or .glb)")]
+    #[error("{path}: unsupported geometry format (use .obj, .ply, .gltf, .glb or .rad)")]
     UnsupportedFormat {
         /// The file.
         path: PathBuf,
     },
+    /// A Radiance scene file that cannot be read (the error names its file and line).
+    #[error(transparent)]
+    Rad(Box<crate::scene::import::rad::RadError>),
 }

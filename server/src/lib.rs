@@ -2,6 +2,7 @@
 //! settings it records. Network service and scheduler build on these.
 
 pub mod net;
+pub mod radiance;
 pub mod schedule;
 pub mod settings;
 pub mod storage;

@@ -1,6 +1,6 @@
 //! Crash safety with real processes and real signals: a child process fills a
-//! holodeck file (appending, evicting, relocating, committing, optimizing) and
-//! is killed with SIGKILL at random instants. After every kill the file must
+//! holodeck file (appending, evicting, relocating, committing, compacting,
+//! optimizing) and is killed with SIGKILL at random instants. After every kill the file must
 //! open without error, every beam must hold exactly a prefix of the rays
 //! written to it, and no flushed ray may be missing. The writer reports each
 //! flush on a pipe of its own, in lines of one strict form; every report is
@@ -42,6 +42,8 @@ enum Report {
     Flushed(u64),
     /// `optimized N`: the file was rewritten whole, holding N rays.
     Optimized(u64),
+    /// `compacted N`: the runs were packed in place, N rays kept.
+    Compacted(u64),
 }
 
 impl Report {
@@ -49,6 +51,7 @@ impl Report {
         match self {
             Report::Flushed(n) => format!("flushed {n}\n"),
             Report::Optimized(n) => format!("optimized {n}\n"),
+            Report::Compacted(n) => format!("compacted {n}\n"),
         }
     }
 
@@ -65,6 +68,7 @@ impl Report {
         match word {
             "flushed" => Ok(Report::Flushed(n)),
             "optimized" => Ok(Report::Optimized(n)),
+            "compacted" => Ok(Report::Compacted(n)),
             _ => Err(bad()),
         }
     }
@@ -94,7 +98,8 @@ fn child_writer() {
         let _ = std::io::copy(&mut std::io::stdin(), &mut std::io::sink());
         std::process::exit(0);
     });
-    let optimize_too = std::env::var(MODE_VAR).is_ok_and(|m| m == "optimize");
+    let mode = std::env::var(MODE_VAR).unwrap_or_default();
+    let (optimize_too, compact_too) = (mode == "optimize", mode == "compact");
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed.parse().unwrap());
     let path = Path::new(&path);
     let options = OpenOptions {
@@ -123,6 +128,10 @@ fn child_writer() {
             storage::optimize(path, |_, _| {}).unwrap();
             report(Report::Optimized(total));
             f = HoloFile::open(path, &options).unwrap();
+        }
+        if compact_too && rng.gen_bool(0.3) {
+            f.compact().unwrap();
+            report(Report::Compacted(total));
         }
     }
 }
@@ -245,8 +254,8 @@ fn kill_repeatedly(mode: &str, rounds: u32, max_delay_ms: u64) -> (u64, u32) {
                     );
                     durable = n;
                 }
-                Report::Optimized(n) => {
-                    assert_eq!(n, durable, "round {round}: report {i}: optimizing changed the rays");
+                Report::Optimized(n) | Report::Compacted(n) => {
+                    assert_eq!(n, durable, "round {round}: report {i}: {r:?} changed the rays");
                 }
             }
         }
@@ -273,6 +282,12 @@ fn sigkill_while_appending_and_committing() {
         "the writers made too little progress to test anything: {stored}"
     );
     assert!(progressed >= 30, "only {progressed} of 40 rounds stored new rays");
+}
+
+#[test]
+fn sigkill_while_compacting() {
+    let (stored, _) = kill_repeatedly("compact", 15, 120);
+    assert!(stored > 500, "{stored}");
 }
 
 #[test]

@@ -172,8 +172,10 @@ fn random_ray(rng: &mut StdRng) -> RayRecord {
     )
 }
 
-/// Appends `rays` in packets of 1-21 rays (as the paper's server did) to random beams.
-fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<f64> {
+/// Appends `rays` in packets of 1-21 rays (as the paper's server did) to
+/// random beams. Returns the seconds until every ray is flushed, and those the
+/// close then takes (compacting the file).
+fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<(f64, f64)> {
     HoloFile::create(path, settings)?;
     let mut f = HoloFile::open(path, &OpenOptions::default())?;
     let beams = f.sections()[0].beam_count();
@@ -191,9 +193,11 @@ fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<f64> {
             bar.set_position(done);
         }
     }
+    f.flush()?;
+    let appended = start.elapsed().as_secs_f64();
     f.close()?;
     bar.finish_and_clear();
-    Ok(start.elapsed().as_secs_f64())
+    Ok((appended, start.elapsed().as_secs_f64() - appended))
 }
 
 fn drop_os_cache(path: &Path) -> Result<()> {
@@ -412,9 +416,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Target::Fill => {
             let file = a.file.as_deref().context("bench fill needs --file")?;
             let (_, start) = rss();
-            let secs = fill(file, &reference_settings(cache)?, a.rays, 1)?;
+            let (secs, close) = fill(file, &reference_settings(cache)?, a.rays, 1)?;
             let (peak, _) = rss();
-            println!("{start} {peak} {secs}");
+            println!("{start} {peak} {secs} {close}");
             return Ok(ExitCode::SUCCESS);
         }
         Target::SceneFile => {
@@ -483,11 +487,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         &["bench", "fill", "--rays", &a.rays.to_string(), "--cache", &a.cache],
         &big,
     )?;
-    let fill_secs: f64 = fill_out
-        .split_whitespace()
-        .nth(2)
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(f64::NAN);
+    let field = |n: usize| -> f64 {
+        fill_out
+            .split_whitespace()
+            .nth(n)
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(f64::NAN)
+    };
+    let (fill_secs, close_secs) = (field(2), field(3));
     let (raw_secs, raw_bytes) = raw_read(&big, true)?;
     let raw = raw_bytes as f64 / 10.0 / raw_secs;
     let raw_text = format!(
@@ -496,10 +503,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bytes((raw_bytes as f64 / raw_secs) as u64)
     );
     row(
-        "append: random beams, packets of 1-21 rays, flush every 2 s and at close",
+        "append: random beams, packets of 1-21 rays, flush every 2 s and at the end",
         rate(a.rays, fill_secs),
         raw_text.clone(),
         a.rays as f64 / fill_secs / raw,
+    );
+    row(
+        "close: compacting the file as filled",
+        format!("{close_secs:.2} s"),
+        format!("appending {fill_secs:.2} s"),
+        close_secs / fill_secs,
     );
 
     row(
@@ -623,7 +636,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         above as f64 / cache as f64,
     );
 
-    let ref_fill = fill(&reference, &settings, a.reference_rays, 3)?;
+    let (ref_fill, _) = fill(&reference, &settings, a.reference_rays, 3)?;
     let before = HoloFile::open(&reference, &OpenOptions::read_only())?.summary();
     let (raw_ref, _) = raw_read(&reference, true)?;
     drop_os_cache(&reference)?;

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
-use holodeck_protocol::MAX_BEAMS_PER_SECTION;
-use holodeck_server::settings::{parse_section_line, parse_size, Settings};
+use holodeck_protocol::{SectionSpec, SectionTextError, MAX_BEAMS_PER_SECTION};
+use holodeck_server::settings::{parse_size, Settings};
 use holodeck_server::HoloFile;
 
 use crate::human::count_in;
@@ -19,10 +19,10 @@ Examples:
                           --section 'exterior origin=8,0,0 x=1,0,0 y=0,1,0 z=0,0,1 grid=8,8,8'
   holodeck create room.hdk --control room.toml
 
-A section is 'interior|exterior origin=X,Y,Z x=AX,AY,AZ y=... z=... [grid=W,D,H]': a
-parallelepiped from a corner and three edge vectors. Without grid=, the grid comes from
---grid (cell length, like Radiance's GRID) or --beams (a target beam count; the paper
-advises 50,000-500,000).")]
+A section is 'interior|exterior origin=X,Y,Z x=AX,AY,AZ y=... z=... [grid=W,D,H | beams=N]':
+a parallelepiped from a corner and three edge vectors. Without grid= or beams=, the grid
+comes from --grid (cell length, like Radiance's GRID), else --beams (a target beam count;
+the paper advises 50,000-500,000), else 150,000 beams.")]
 pub struct Args {
     /// The file to create (refuses to replace an existing one).
     file: PathBuf,
@@ -69,7 +69,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ..Settings::default()
         };
         for (i, spec) in a.sections.iter().enumerate() {
-            let section = parse_section_line(spec, a.grid, a.beams)
+            let section = spec
+                .parse::<SectionSpec>()
+                .and_then(|s| s.resolve(a.grid, a.beams).map_err(SectionTextError::from))
                 .with_context(|| format!("--section number {} ({spec:?})", i + 1))?;
             s.sections.push(section);
         }

@@ -165,7 +165,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let report = fill(&tracer, &mut file, &fill_options, &|n| bar.set_position(n))
         .with_context(|| format!("filling {}", a.file.display()))?;
     bar.finish_and_clear();
-    let summary = file.summary();
+    let non_finite = tracer.non_finite_count();
+    // Closing compacts the file: its size is what it is after that.
+    file.close()?;
+    let summary = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     println!(
         "{}: {} rays in {:.1} s ({:.0} rays/s, {:.1}% of the time storing); {} of {} beams hold rays ({:.1}%); file {} ({:.2} bytes/ray)",
         a.file.display(),
@@ -179,12 +182,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bytes(summary.file_bytes),
         summary.bytes_per_ray()
     );
-    if tracer.non_finite_count() > 0 {
-        println!(
-            "warning: {} non-finite estimates were replaced by black",
-            tracer.non_finite_count()
-        );
+    if non_finite > 0 {
+        println!("warning: {non_finite} non-finite estimates were replaced by black");
     }
-    file.close()?;
     Ok(ExitCode::SUCCESS)
 }

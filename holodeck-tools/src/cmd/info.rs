@@ -4,7 +4,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use holodeck_server::settings::section_text;
 use holodeck_server::{HoloFile, OpenOptions};
 
 use crate::human::{bytes, count};
@@ -39,7 +38,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     for (i, (section, (beams, filled, rays))) in f.sections().iter().zip(&s.sections).enumerate() {
         let g = section.grid();
-        println!("section {i}: {}", section_text(section));
+        println!("section {i}: {}", section.spec());
         println!(
             "  grid {} x {} x {}, {} beams, {} holding rays ({:.1}%), {} rays ({:.1} per filled beam)",
             g[0],

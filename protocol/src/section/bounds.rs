@@ -112,6 +112,9 @@ pub enum SectionError {
     /// A grid length (Radiance's GRID) that is not a positive finite number.
     #[error("grid length {0} must be a positive finite number")]
     BadGridLength(f64),
+    /// A description gives both a grid and a target beam count.
+    #[error("give a grid or a target beam count, not both")]
+    GridAndBeams,
 }
 
 /// The part of a section description a [`SectionError`] is about, so that
@@ -125,6 +128,10 @@ pub enum SectionField {
     Axis(usize),
     /// The cells per axis.
     Grid,
+    /// The target beam count.
+    Beams,
+    /// The depth coding.
+    Depth,
 }
 
 impl SectionField {
@@ -136,6 +143,8 @@ impl SectionField {
             SectionField::Axis(1) => "axes[1]",
             SectionField::Axis(_) => "axes[2]",
             SectionField::Grid => "grid",
+            SectionField::Beams => "beams",
+            SectionField::Depth => "depth",
         }
     }
 
@@ -147,6 +156,8 @@ impl SectionField {
             SectionField::Axis(1) => "y=",
             SectionField::Axis(_) => "z=",
             SectionField::Grid => "grid=",
+            SectionField::Beams => "beams=",
+            SectionField::Depth => "depth=",
         }
     }
 }
@@ -165,7 +176,9 @@ impl SectionError {
                 .strip_prefix("axis ")
                 .and_then(|n| n.parse().ok())
                 .map(SectionField::Axis),
-            SectionError::GridOutOfRange { .. } | SectionError::TooManyBeams { .. } => Some(SectionField::Grid),
+            SectionError::GridOutOfRange { .. } | SectionError::TooManyBeams { .. } | SectionError::GridAndBeams => {
+                Some(SectionField::Grid)
+            }
             _ => None,
         }
     }

@@ -20,4 +20,4 @@ pub use message::{
 pub const MAX_PACKET_RAYS: u32 = 1 << 16;
 
 /// Version of the protocol; peers with another version are refused.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;

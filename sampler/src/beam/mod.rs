@@ -122,7 +122,7 @@ pub fn traced_ray(section: &Section, rules: FileRules, s: &BeamSample) -> (f64, 
 /// distance from the entry wall to the first hit (or infinity).
 fn encode(section: &Section, s: &BeamSample, start: f64, sample: &Sample) -> RayRecord {
     let depth = if sample.distance.is_finite() {
-        DepthCode::encode(start + f64::from(sample.distance), section.diagonal())
+        section.encode_depth(start + f64::from(sample.distance))
     } else {
         DepthCode::INFINITE
     };

@@ -291,6 +291,11 @@ impl SceneBuilder {
         Ok(())
     }
 
+    /// The sky set so far ([`Sky::None`] until one is set).
+    pub fn current_sky(&self) -> &Sky {
+        &self.scene.sky
+    }
+
     /// Adds a holodeck section.
     pub fn section(&mut self, s: Section) {
         self.scene.sections.push(s);

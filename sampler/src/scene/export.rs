@@ -11,7 +11,6 @@ use serde::Serialize;
 
 use super::file::GeometryEntry;
 use super::hash::content_hash;
-use super::section::SectionTable;
 use super::Scene;
 use crate::error::SceneError;
 
@@ -71,7 +70,7 @@ pub fn scene_text(scene: &Scene, ply: &Path) -> Result<String, ExportError> {
     out += &to_toml("[[geometry]]", &geometry)?;
     for s in &scene.sections {
         out += "\n[[section]]\n";
-        out += &to_toml("[[section]]", &SectionTable::from_section(s))?;
+        out += &to_toml("[[section]]", &s.spec())?;
     }
     Ok(out)
 }

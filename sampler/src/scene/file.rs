@@ -5,7 +5,8 @@
 //!
 //! Materials are added in the order they are written, before anything else, so
 //! they override same-named materials of OBJ/MTL and glTF files and of
-//! built-in scenes. The sky is the file's `[sky]`, else the first builtin's;
+//! built-in scenes. The sky is the file's `[sky]`, else one a geometry file
+//! brings (the distant sources of a Radiance file), else the first builtin's;
 //! the sections are the file's `[[section]]` tables, else the builtins'.
 
 use std::collections::HashMap;
@@ -20,9 +21,9 @@ use super::builder::SceneBuilder;
 use super::gen::{self, GenParams};
 use super::import::{import_file_with, ImportOptions, UpAxis};
 use super::material::{Material, Sky};
-use super::section::SectionTable;
 use super::Scene;
 use crate::error::SceneError;
+use holodeck_protocol::SectionSpec;
 
 /// A whole scene file.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -42,7 +43,7 @@ pub struct SceneFile {
     pub builtin: Vec<BuiltinEntry>,
     /// Holodeck sections.
     #[serde(default)]
-    pub section: Vec<SectionTable>,
+    pub section: Vec<SectionSpec>,
 }
 
 /// `[materials.NAME]` tables in the order written (so material ids are stable).
@@ -73,7 +74,7 @@ impl<'de> Deserialize<'de> for NamedMaterials {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GeometryEntry {
-    /// The file (.obj, .ply, .gltf, .glb), relative to the scene file.
+    /// The file (.obj, .ply, .gltf, .glb, .rad), relative to the scene file.
     pub file: PathBuf,
     /// Material for faces the file gives none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -175,13 +176,25 @@ pub fn parse_scene_file(text: &str, path: &Path) -> Result<SceneFile, SceneError
 }
 
 /// Reads the scene file at `path` and builds its scene: geometry files are
-/// found relative to it.
+/// found relative to it. A Radiance scene file (`.rad`) is a scene of its
+/// own: its surfaces, materials and sources, with no sections.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let file = parse_scene_file(&text, path)?;
+    let is_rad = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("rad"));
+    let file = if is_rad {
+        SceneFile {
+            geometry: vec![GeometryEntry {
+                file: path.file_name().map(PathBuf::from).unwrap_or_default(),
+                ..GeometryEntry::default()
+            }],
+            ..SceneFile::default()
+        }
+    } else {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        parse_scene_file(&text, path)?
+    };
     let base = path.parent().unwrap_or(Path::new(""));
     let at = |what: String, e: SceneError| SceneError::Invalid {
         what: format!("{}: {what}", path.display()),
@@ -241,8 +254,12 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
         };
         import_file_with(&mut b, &base.join(&g.file), transform, &options)?;
     }
+    // A geometry file's own sky (Radiance sources) comes after `[sky]` and
+    // before a builtin's.
+    let imported = b.current_sky().clone();
     let sky = match (&file.sky, settings.first()) {
         (Some(sky), _) => sky.clone(),
+        _ if imported != Sky::None => imported,
         (None, Some(s)) => s.sky.clone(),
         (None, None) => Sky::None,
     };
@@ -257,7 +274,7 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
         }
     } else {
         for (k, t) in file.section.iter().enumerate() {
-            let s = t.to_section().map_err(|source| SceneError::Section {
+            let s = t.resolve(None, None).map_err(|source| SceneError::Section {
                 what: format!("{}: [[section]] {}", path.display(), k + 1),
                 source,
             })?;

@@ -22,7 +22,6 @@ pub use gen::{generate, GenParams};
 pub use hash::content_hash;
 pub use import::{import_file, import_file_with, ImportOptions, UpAxis};
 pub use material::{Material, Sky};
-pub use section::SectionTable;
 
 /// One triangle: three indices into [`Scene::positions`] and a material index.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

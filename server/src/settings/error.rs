@@ -2,7 +2,7 @@
 //! error names the value and what would be accepted instead; none of them
 //! touches a file.
 
-use holodeck_protocol::{SectionError, SectionField};
+use holodeck_protocol::{SectionError, SectionTextError};
 
 /// A byte size (`64M`, `1.5G`) that does not parse.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -33,52 +33,6 @@ pub enum DurationError {
     /// Longer than a duration can hold (about 584 billion years).
     #[error("duration {0:?} is too long")]
     TooLong(String),
-}
-
-/// A section line (`interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5 grid=24,16,10`)
-/// that does not describe a valid section.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum SectionTextError {
-    /// The first word is not `interior` or `exterior`.
-    #[error("section must start with interior or exterior, not {0:?}")]
-    Kind(Option<String>),
-    /// A word without `=`.
-    #[error("{0:?} is not key=value")]
-    NotKeyValue(String),
-    /// A key other than origin, x, y, z and grid.
-    #[error("unknown section field {0:?} (expected origin, x, y, z, grid)")]
-    UnknownField(String),
-    /// A value that is not three comma-separated numbers.
-    #[error("{}{text} is not three comma-separated numbers", key.text_key())]
-    NotThreeNumbers {
-        /// The key.
-        key: SectionField,
-        /// Its value as written.
-        text: String,
-    },
-    /// A grid size that is not a whole number of cells.
-    #[error("grid size {0} is not a whole number of cells")]
-    GridNotWhole(f64),
-    /// A required key is missing.
-    #[error("section has no {}", missing(*.0))]
-    Missing(SectionField),
-    /// The numbers do not make a valid section; the message names the key
-    /// the problem is in, where it is in one.
-    #[error("{key}{0}", key = .0.field().map(|f| format!("{}: ", f.text_key())).unwrap_or_default())]
-    Section(SectionError),
-}
-
-impl From<SectionError> for SectionTextError {
-    fn from(e: SectionError) -> Self {
-        SectionTextError::Section(e)
-    }
-}
-
-fn missing(key: SectionField) -> String {
-    match key {
-        SectionField::Axis(_) => format!("{} axis", key.text_key()),
-        _ => key.text_key().to_string(),
-    }
 }
 
 /// A settings value that does not parse.

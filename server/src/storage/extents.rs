@@ -249,6 +249,22 @@ impl Extents {
         }
     }
 
+    /// The lowest free hole at or above `at`, if any (pending ranges are not free yet).
+    pub fn first_hole_from(&self, at: u64) -> Option<Extent> {
+        self.free
+            .range(at..)
+            .next()
+            .map(|(&offset, &len)| Extent { offset, len })
+    }
+
+    /// Room for `len` bytes at the end, never in a hole: for copies that must
+    /// lie above everything in use.
+    pub fn allocate_at_end(&mut self, len: u64) -> u64 {
+        let off = self.end;
+        self.end += len;
+        off
+    }
+
     /// Releases a range that the last durable commit may still refer to.
     pub fn release(&mut self, e: Extent) {
         if e.len > 0 {
@@ -327,6 +343,21 @@ mod tests {
         assert_eq!(x.allocate_below(10, 15), None, "the hole 10..20 ends past 15");
         assert_eq!(x.allocate_below(10, 20), Some(10));
         assert_eq!(x.allocate_below(0, 0), Some(85), "empty allocations need no room");
+    }
+
+    #[test]
+    fn the_first_hole_is_the_lowest_and_end_allocations_skip_holes() {
+        let mut x = Extents::from_used(100, vec![ext(120, 10), ext(150, 10), ext(200, 10)]).unwrap();
+        assert_eq!(x.first_hole_from(0), Some(ext(100, 20)));
+        assert_eq!(x.first_hole_from(101), Some(ext(130, 20)));
+        assert_eq!(x.allocate_at_end(5), 210);
+        assert_eq!(x.end(), 215);
+        x.release(ext(120, 10));
+        // Pending space is no hole until the commit is durable.
+        assert_eq!(x.first_hole_from(0), Some(ext(100, 20)));
+        x.commit_done();
+        assert_eq!(x.first_hole_from(0), Some(ext(100, 50)));
+        assert_eq!(x.first_hole_from(160), Some(ext(160, 40)));
     }
 
     #[test]

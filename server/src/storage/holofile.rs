@@ -23,6 +23,10 @@ const MERGE_GAP: u64 = 16 << 10;
 const MERGE_LIMIT: u64 = 8 << 20;
 /// How far ahead of the current read the kernel is told what comes next.
 const READ_AHEAD: u64 = 32 << 20;
+/// Closing compacts a file whose free space passes 1/`COMPACT_SHARE` of it.
+pub const COMPACT_SHARE: u64 = 20;
+/// Bytes of runs each compaction step moves: the most the file grows meanwhile.
+pub const COMPACT_WINDOW: u64 = 64 << 20;
 /// Default interval between automatic flushes.
 pub const DEFAULT_FLUSH_INTERVAL: Duration = Duration::from_secs(2);
 
@@ -299,6 +303,21 @@ impl HoloFile {
         self.store.dirs[key.section as usize][key.beam as usize]
     }
 
+    /// The error for a beam whose rays on disk fail their checksum, naming its byte range.
+    pub(crate) fn corrupt(&self, key: BeamKey) -> StorageError {
+        let e = self
+            .directory(key.section)
+            .and_then(|d| d.get(key.beam as usize))
+            .map(|b| b.extent())
+            .unwrap_or_default();
+        StorageError::BeamCorrupt {
+            path: self.path().to_path_buf(),
+            key,
+            start: e.offset,
+            end: e.end(),
+        }
+    }
+
     /// Rays stored in a beam, written or not.
     pub fn beam_len(&self, key: BeamKey) -> Result<u64> {
         self.check_key(key)?;
@@ -397,6 +416,44 @@ impl HoloFile {
         }
     }
 
+    /// Flushes, then packs the beam runs toward the start of the file in
+    /// steps of [`COMPACT_WINDOW`] bytes, each two commits (copies to the
+    /// end, then down into the holes, in beam order within the step), until
+    /// less than 1% of the file is free, and trims it. (`optimize` collates
+    /// the whole file in beam order.)
+    /// A crash at any point leaves the last commit, with every ray. Returns
+    /// the bytes moved.
+    pub fn compact(&mut self) -> Result<u64> {
+        if !self.store.writable {
+            return Err(StorageError::ReadOnly {
+                path: self.store.path.clone(),
+            });
+        }
+        self.flush()?;
+        let before = self.store.data_end();
+        tracing::info!(
+            path = %self.store.path.display(),
+            bytes = before,
+            free = self.store.slack_bytes(),
+            "compacting"
+        );
+        let target = before / 100;
+        let moved = self.store.compact(target, COMPACT_WINDOW, |step, free| {
+            tracing::debug!(step, free, "compacting");
+        })?;
+        tracing::info!(
+            path = %self.store.path.display(),
+            moved,
+            before,
+            after = self.store.data_end(),
+            "compacted"
+        );
+        if let Some(space) = &mut self.space {
+            space.flushed(self.store.data_end());
+        }
+        Ok(moved)
+    }
+
     /// Writes every unwritten ray and commits, so that all appended rays survive a crash.
     pub fn flush(&mut self) -> Result<()> {
         self.store.check_usable()?;
@@ -464,10 +521,15 @@ impl HoloFile {
         Ok(())
     }
 
-    /// Flushes and closes, reporting any error (dropping flushes too, but can only log).
+    /// Flushes and closes, reporting any error (dropping flushes too, but can
+    /// only log). A file whose free space and growth reserves pass
+    /// 1/[`COMPACT_SHARE`] of it is compacted first (see [`HoloFile::compact`]).
     pub fn close(mut self) -> Result<()> {
         if self.store.writable {
             self.flush()?;
+            if self.store.slack_bytes() > self.store.data_end() / COMPACT_SHARE {
+                self.compact()?;
+            }
         }
         self.store.writable = false;
         Ok(())

@@ -198,16 +198,7 @@ pub fn optimize(path: &Path, mut progress: impl FnMut(u64, u64)) -> Result<Optim
                 Ok(())
             })?;
             if let Some(key) = corrupt {
-                let e = src
-                    .directory(s)
-                    .map(|d| d[key.beam as usize].extent())
-                    .unwrap_or_default();
-                return Err(StorageError::BeamCorrupt {
-                    path: path.to_path_buf(),
-                    key,
-                    start: e.offset,
-                    end: e.end(),
-                });
+                return Err(src.corrupt(key));
             }
             chunk.sort_by_key(|(k, _)| *k);
             for (k, rays) in chunk {

@@ -7,6 +7,7 @@
 
 pub mod bulk;
 pub mod cache;
+pub mod copy;
 pub mod error;
 pub mod extents;
 #[cfg(feature = "fault-injection")]
@@ -21,6 +22,7 @@ pub mod store;
 pub mod survey;
 
 pub use bulk::SequentialWriter;
+pub use copy::{copy, CopyReport};
 pub use error::{Result, StorageError};
 pub use holofile::{FileSummary, HoloFile, OpenOptions, ReadReport, DEFAULT_FLUSH_INTERVAL};
 pub use maintain::{check, optimize, repair, CheckReport, OptimizeReport, RepairReport};

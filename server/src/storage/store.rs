@@ -115,6 +115,8 @@ pub struct Store {
     /// Offsets of runs written since the last commit: no commit refers to them,
     /// so they can be freed at once when their beam moves again.
     fresh: HashSet<u64>,
+    /// Where the next commit's metadata goes (compaction steers it).
+    placement: Placement,
     file_len: u64,
     pub(crate) stats: IoStats,
     pub(crate) info: OpenInfo,
@@ -126,6 +128,18 @@ pub struct Store {
 }
 
 const RECORD: u64 = holodeck_protocol::RAY_RECORD_BYTES as u64;
+
+/// Where a commit puts its directory blocks and root.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Placement {
+    /// The first copy where it fits best, the second as low as it fits, so
+    /// that the two tend to lie apart.
+    Normal,
+    /// Both at the end of the file, above everything.
+    End,
+    /// Both as low as they fit.
+    Low,
+}
 
 fn same_range(r: &ChunkRef, c: &Chunk) -> bool {
     (r.section, r.first, r.beams) == (c.section, c.first, c.beams)
@@ -254,6 +268,7 @@ impl Store {
             extents,
             writes: WriteBatch::default(),
             fresh: HashSet::new(),
+            placement: Placement::Normal,
             file_len: sv.file_len,
             stats: IoStats::default(),
             info: OpenInfo {
@@ -548,19 +563,7 @@ impl Store {
             self.push_write(offset, &existing)?;
             self.push_write(offset + existing.len() as u64, tail_bytes)?;
             if old.count > 0 {
-                let unreferenced = Extent {
-                    offset: run_end,
-                    len: reserve_end - run_end,
-                };
-                if self.fresh.remove(&old.offset) {
-                    self.extents.release_now(Extent {
-                        offset: old.offset,
-                        len: cap * RECORD,
-                    });
-                } else {
-                    self.extents.release(old.extent());
-                    self.extents.release_now(unreferenced);
-                }
+                self.release_run(s, b);
                 self.stats.relocations += 1;
             }
             self.fresh.insert(offset);
@@ -580,6 +583,164 @@ impl Store {
         Ok(())
     }
 
+    /// Free bytes inside the allocated space: holes, space waiting for the
+    /// next commit, and growth reserves.
+    pub(crate) fn slack_bytes(&self) -> u64 {
+        self.extents.free_bytes() + self.reserved_bytes()
+    }
+
+    /// Releases beam (s, b)'s run and its growth reserve, before the beam
+    /// moves or empties: a run written since the last commit is free at once;
+    /// one the last commit refers to stays pending until the next commit is
+    /// durable, while its reserve, which no commit refers to, is free at once.
+    fn release_run(&mut self, s: usize, b: usize) {
+        let old = self.dirs[s][b];
+        let cap = u64::from(self.capacity[s][b]) * RECORD;
+        if self.fresh.remove(&old.offset) {
+            self.extents.release_now(Extent {
+                offset: old.offset,
+                len: cap,
+            });
+        } else {
+            self.extents.release(old.extent());
+            self.extents.release_now(Extent {
+                offset: old.extent().end(),
+                len: cap - old.extent().len,
+            });
+        }
+    }
+
+    /// Gives up every run's growth reserve: the bytes after each run that no
+    /// commit refers to become holes.
+    fn drop_reserves(&mut self) {
+        for s in 0..self.dirs.len() {
+            for b in 0..self.dirs[s].len() {
+                let e = self.dirs[s][b];
+                let cap = self.capacity[s][b];
+                if e.count > 0 && cap > e.count {
+                    self.extents.release_now(Extent {
+                        offset: e.extent().end(),
+                        len: u64::from(cap - e.count) * RECORD,
+                    });
+                    self.capacity[s][b] = e.count;
+                }
+            }
+        }
+    }
+
+    /// Moves one beam's run to `to` (already allocated): copies and verifies
+    /// its bytes, points the directory at the copy, and releases the old place
+    /// as a moving write does.
+    fn move_run(&mut self, s: usize, b: usize, to: u64) -> Result<()> {
+        let old = self.dirs[s][b];
+        let bytes = self.read_run(BeamKey::new(s as u32, b as u32))?;
+        self.push_write(to, &bytes)?;
+        self.release_run(s, b);
+        self.fresh.insert(to);
+        self.dirs[s][b] = BeamEntry { offset: to, ..old };
+        self.capacity[s][b] = old.count;
+        let c = self.chunk_of(BeamKey::new(s as u32, b as u32));
+        self.chunk_dirty[c] = true;
+        self.stats.relocations += 1;
+        Ok(())
+    }
+
+    /// Packs the beam runs toward the start of the file until at most
+    /// `target` bytes are free inside it, then trims it. Each step takes the
+    /// runs after the lowest hole, up to `window` bytes of them: it copies
+    /// them to the end of the file and commits, then copies them down, in
+    /// beam order, into the space they and the hole left and commits again.
+    /// Every commit is a consistent state that a crash falls back to, and the
+    /// file never grows by more than a window and two copies of the
+    /// directories. Growth reserves are given up. Does nothing under a size
+    /// limit (DISKSPACE), where that growth might not fit.
+    /// `progress(step, bytes_free)` is called after each step.
+    pub(crate) fn compact(&mut self, target: u64, window: u64, mut progress: impl FnMut(u64, u64)) -> Result<u64> {
+        self.check_usable()?;
+        // Under a size limit the steps' copies and rewritten directories
+        // might not fit: such a file is left as it is.
+        if self.limit != u64::MAX {
+            return Ok(0);
+        }
+        self.drop_reserves();
+        // Metadata stays above the runs being packed, then comes down right
+        // after them in one last commit, which frees everything above it.
+        self.placement = Placement::End;
+        let result = self.compact_steps(target, window, &mut progress);
+        self.placement = Placement::Low;
+        self.root_dirty = true;
+        self.chunk_dirty.iter_mut().for_each(|d| *d = true);
+        let last = if result.is_ok() { self.commit() } else { Ok(()) };
+        self.placement = Placement::Normal;
+        let moved = result?;
+        last?;
+        Ok(moved)
+    }
+
+    fn compact_steps(&mut self, target: u64, window: u64, progress: &mut impl FnMut(u64, u64)) -> Result<u64> {
+        let mut moved = 0u64;
+        let mut step = 0u64;
+        // Everything below the cursor is packed as far as it goes.
+        let mut cursor = 0u64;
+        loop {
+            // A commit makes what the last step released free (nothing to
+            // commit before the first step: the flush before it committed).
+            self.commit()?;
+            if self.extents.free_bytes() <= target {
+                break;
+            }
+            let Some(hole) = self.extents.first_hole_from(cursor) else {
+                break;
+            };
+            let mut runs: Vec<(u64, usize, usize)> = Vec::new();
+            for (s, dir) in self.dirs.iter().enumerate() {
+                for (b, e) in dir.iter().enumerate() {
+                    if e.count > 0 && e.offset > hole.offset {
+                        runs.push((e.offset, s, b));
+                    }
+                }
+            }
+            runs.sort_unstable();
+            let mut taken = 0u64;
+            let mut batch = Vec::new();
+            let staging = self.extents.end();
+            for &(_, s, b) in &runs {
+                let len = self.dirs[s][b].extent().len;
+                // A run larger than the window still moves, alone.
+                if taken + len > window && !batch.is_empty() {
+                    break;
+                }
+                taken += len;
+                batch.push((s, b));
+            }
+            if batch.is_empty() {
+                break;
+            }
+            for &(s, b) in &batch {
+                let to = self.extents.allocate_at_end(self.dirs[s][b].extent().len);
+                self.move_run(s, b, to)?;
+            }
+            self.commit()?;
+            // Down in beam order: a window comes out collated, its directory
+            // offsets one byte each, its beams read in order.
+            batch.sort_unstable();
+            let mut frontier = hole.end();
+            for &(s, b) in &batch {
+                let len = self.dirs[s][b].extent().len;
+                // The lowest room below the staged copies: the hole, grown by what left it.
+                if let Some(to) = self.extents.allocate_low_below(len, staging) {
+                    self.move_run(s, b, to)?;
+                    moved += len;
+                    frontier = frontier.max(to + len);
+                }
+            }
+            cursor = frontier;
+            step += 1;
+            progress(step, self.extents.free_bytes());
+        }
+        Ok(moved)
+    }
+
     /// Empties every beam (the Clobber command): their runs are freed as a
     /// commit frees them, so the last commit stays readable until the next
     /// one is durable.
@@ -587,23 +748,10 @@ impl Store {
         self.check_usable()?;
         for s in 0..self.dirs.len() {
             for b in 0..self.dirs[s].len() {
-                let old = self.dirs[s][b];
-                if old.count == 0 {
+                if self.dirs[s][b].count == 0 {
                     continue;
                 }
-                let cap = u64::from(self.capacity[s][b]) * RECORD;
-                if self.fresh.remove(&old.offset) {
-                    self.extents.release_now(Extent {
-                        offset: old.offset,
-                        len: cap,
-                    });
-                } else {
-                    self.extents.release(old.extent());
-                    self.extents.release_now(Extent {
-                        offset: old.extent().end(),
-                        len: cap - old.extent().len,
-                    });
-                }
+                self.release_run(s, b);
                 self.dirs[s][b] = BeamEntry::default();
                 self.capacity[s][b] = 0;
             }
@@ -703,12 +851,21 @@ impl Store {
     /// Allocates two copies of `len` bytes: the first where it fits best, the
     /// second as low in the file as it fits. Both are pushed to `claimed`.
     fn allocate_copies(&mut self, len: u64, claimed: &mut Vec<Extent>) -> Result<[Extent; COPIES]> {
+        let first = match self.placement {
+            Placement::End => Some(self.extents.allocate_at_end(len)),
+            Placement::Low => self.extents.allocate_low_below(len, self.limit),
+            _ => self.extents.allocate_below(len, self.limit),
+        };
         let first = Extent {
-            offset: self.allocate(len)?,
+            offset: first.ok_or_else(|| self.no_space(self.extents.end().saturating_add(len)))?,
             len,
         };
         claimed.push(first);
-        let second = match self.extents.allocate_low_below(len, self.limit) {
+        let second = match self.placement {
+            Placement::End => Some(self.extents.allocate_at_end(len)),
+            _ => self.extents.allocate_low_below(len, self.limit),
+        };
+        let second = match second {
             Some(offset) => Extent { offset, len },
             None => return Err(self.no_space(self.extents.end().saturating_add(len))),
         };

@@ -18,9 +18,9 @@ use holodeck_protocol::Section;
 
 use super::builder::SceneBuilder;
 use super::material::{Material, Sky};
-use super::section::SectionTableError;
 use super::Scene;
 use crate::error::SceneError;
+use holodeck_protocol::SectionError;
 
 pub use bunny::add_bunny;
 pub use landscape::add_landscape;
@@ -89,7 +89,7 @@ fn material(b: &mut SceneBuilder, name: &str, m: Material) -> Result<u32, SceneE
 }
 
 /// An error for an impossible generated section (a bug in a generator's numbers).
-fn section_error(what: &str, source: SectionTableError) -> SceneError {
+fn section_error(what: &str, source: SectionError) -> SceneError {
     SceneError::Section {
         what: format!("{what} section"),
         source,

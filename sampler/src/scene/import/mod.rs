@@ -1,16 +1,19 @@
-//! Geometry importers: OBJ (with MTL materials), PLY (ASCII and binary) and
-//! glTF/GLB, each adding its triangles and materials to a [`SceneBuilder`].
+//! Geometry importers: OBJ (with MTL materials), PLY (ASCII and binary),
+//! glTF/GLB and Radiance scene files, each adding its triangles and materials
+//! to a [`SceneBuilder`].
 //! They only read files; they never decide where a scene's files live (the
 //! scene file does that) and never panic on what a file contains.
 //!
 //! Scenes are +z up. glTF files are +y up by specification, so they are
 //! turned to +z up on import, (x, y, z) -> (x, -z, y), a rotation that keeps
-//! handedness and face orientation; OBJ and PLY files are taken as +z up.
+//! handedness and face orientation; OBJ, PLY and Radiance files are taken as
+//! +z up.
 //! [`UpAxis`] overrides either for files whose authors used the other.
 
 mod gltf;
 mod obj;
 mod ply;
+pub mod rad;
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -72,7 +75,7 @@ pub struct ImportOptions<'a> {
     pub up: Option<UpAxis>,
 }
 
-/// Imports `path` (`.obj`, `.ply`, `.gltf` or `.glb`, by extension) into `b`,
+/// Imports `path` (`.obj`, `.ply`, `.gltf`, `.glb` or `.rad`, by extension) into `b`,
 /// transformed by `transform`. `default_material` is used for faces without a
 /// material; `overrides` maps file material names to scene materials that
 /// replace them.
@@ -93,7 +96,9 @@ pub fn import_file(
 
 /// [`import_file`] with every option, including the material list that PLY
 /// per-face `material_index` values index and the file's up axis. The file is
-/// turned +z up first; `transform` then places it in the scene.
+/// turned +z up first; `transform` then places it in the scene. What a
+/// Radiance file approximated is logged once per kind ([`rad::read_rad`]
+/// returns it as a list).
 pub fn import_file_with(
     b: &mut SceneBuilder,
     path: &Path,
@@ -111,6 +116,7 @@ pub fn import_file_with(
         Some("obj") => obj::import(b, path, transform, options),
         Some("ply") => ply::import(b, path, transform, options),
         Some("gltf") | Some("glb") => gltf::import(b, path, transform, options),
+        Some("rad") => rad::read_rad(b, path, transform, options).map(|report| report.log()),
         _ => Err(SceneError::UnsupportedFormat {
             path: path.to_path_buf(),
         }),

@@ -67,7 +67,8 @@ pub fn decode_prefix(bytes: &[u8], base: u64) -> Result<Prefix, FormatError> {
     if bytes.len() < 8 || bytes[..8] != MAGIC {
         let found = String::from_utf8_lossy(&bytes[..bytes.len().min(10)]).into_owned();
         let hint = if bytes.starts_with(b"#?RADIANCE") {
-            " (this looks like a Radiance file; holodeck files use their own portable format)"
+            " (this is a Radiance file; holodeck files use their own portable format: a Radiance \
+             holodeck converts with `holodeck import radiance FILE -o NEW.hdk`)"
         } else {
             ""
         };

@@ -1,0 +1,53 @@
+//! `holodeck copy`: rays from one holodeck into another (like Radiance's rhcopy).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use holodeck_server::storage;
+
+use crate::human::count;
+
+/// Arguments of `holodeck copy`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+A section of DST equal to one of SRC (same corner, axes, grid, kind and depth coding)
+gets that section's rays beam for beam. Rays of other sections are resampled: each goes
+into every section of DST that its line enters no earlier than SRC's section and no later
+than its hit, where the ray holds what DST's samplers would trace (colors keep their
+bytes; cells and depth codes become DST's). Rays valid nowhere in DST are counted as
+dropped. Without DST, a copy with SRC's settings is made.
+
+Examples:
+  holodeck copy day1.hdk all.hdk        merge a night's fill into the main file
+  holodeck create fine.hdk --section 'interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5 beams=400000'
+  holodeck copy coarse.hdk fine.hdk     resample into a finer grid")]
+pub struct Args {
+    /// The holodeck to read.
+    src: PathBuf,
+    /// The holodeck to add the rays to (created with SRC's settings if missing).
+    dst: PathBuf,
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let bar = crate::progress::rays_bar("copying");
+    let r = storage::copy(&a.src, &a.dst, |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    let r = r.with_context(|| format!("copying {} into {}", a.src.display(), a.dst.display()))?;
+    println!(
+        "{} -> {}{}: {} rays read, {} stored ({} section(s) merged beam for beam, {} resampled), {} valid in no section",
+        a.src.display(),
+        a.dst.display(),
+        if r.created { " (new)" } else { "" },
+        count(r.rays_read),
+        count(r.rays_written),
+        r.merged_sections,
+        r.resampled_sections,
+        count(r.rays_dropped)
+    );
+    Ok(ExitCode::SUCCESS)
+}

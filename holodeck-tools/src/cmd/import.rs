@@ -1,0 +1,90 @@
+//! `holodeck import radiance`: a Radiance holodeck (rholo's .hdk) into a new holodeck file.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use holodeck_protocol::SectionKind;
+use holodeck_server::radiance::{self, ByteOrder, ImportOptions};
+
+use crate::human::count;
+
+/// Arguments of `holodeck import`.
+#[derive(clap::Args)]
+#[command(after_help = "Example:\n  holodeck import radiance office.hdk -o office-holo.hdk")]
+pub struct Args {
+    #[command(subcommand)]
+    format: Format,
+}
+
+#[derive(clap::Subcommand)]
+enum Format {
+    /// A Radiance holodeck written by rholo, rhcopy or rhoptimize, of any byte order.
+    Radiance(RadianceArgs),
+}
+
+/// Arguments of `holodeck import radiance`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Every ray keeps its cell bytes, color and depth code exactly; the sections keep Radiance's
+depth coding, so rays added later match them. Sections, grids and the settings rholo
+recorded (CACHE, DISKSPACE, GRID, OBSTRUCTIONS, VDISTANCE, TIME, REPORT) carry over;
+rendering options and the octree name are listed as not carried over. The new file is
+collated in beam order.
+
+Examples:
+  holodeck import radiance office.hdk -o office-holo.hdk
+  holodeck import radiance object.hdk -o object-holo.hdk --kind exterior")]
+struct RadianceArgs {
+    /// The Radiance holodeck.
+    file: PathBuf,
+    /// The new holodeck file (refuses to replace an existing one).
+    #[arg(short, long, value_name = "NEW.hdk")]
+    output: PathBuf,
+    /// Kind of every section: interior (looked out of) or exterior (looked into).
+    /// Radiance does not record it; files this program exported do.
+    #[arg(long, value_parser = parse_kind)]
+    kind: Option<SectionKind>,
+}
+
+fn parse_kind(s: &str) -> Result<SectionKind, String> {
+    match s {
+        "interior" => Ok(SectionKind::Interior),
+        "exterior" => Ok(SectionKind::Exterior),
+        other => Err(format!("{other:?} is not interior or exterior")),
+    }
+}
+
+/// Runs the command.
+pub fn run(a: Args) -> Result<ExitCode> {
+    let Format::Radiance(a) = a.format;
+    let bar = crate::progress::rays_bar("importing");
+    let r = radiance::import(&a.file, &a.output, &ImportOptions { kind: a.kind }, |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    let r = r.with_context(|| format!("importing {}", a.file.display()))?;
+    let order = match r.layout.order {
+        ByteOrder::Little => "little-endian",
+        ByteOrder::Big => "big-endian",
+    };
+    println!(
+        "{} -> {}: {} section(s), {} beams holding {} rays ({order}, {}-byte offsets) in {:.2} s ({}/s)",
+        a.file.display(),
+        a.output.display(),
+        r.sections,
+        count(r.beams),
+        count(r.rays),
+        r.layout.offset_bytes,
+        r.seconds,
+        count((r.rays as f64 / r.seconds.max(1e-9)) as u64)
+    );
+    for line in &r.unused {
+        println!("  not carried over: {line}");
+    }
+    for note in &r.notes {
+        println!("  note: {note}");
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,189 @@
+//! `copy`: rays merged beam for beam into equal sections, and resampled into
+//! other sections with their hits kept to within the new grid's precision.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::DVec3;
+use holodeck_protocol::{BeamKey, Hit, RayRecord, Section, SectionKind};
+use holodeck_server::settings::Settings;
+use holodeck_server::storage::{self, HoloFile, OpenOptions};
+use holodeck_server::testing::{all_keys, pattern_rays, two_sections};
+use rand::{Rng, SeedableRng};
+
+fn contents(path: &Path) -> (Settings, HashMap<BeamKey, Vec<RayRecord>>) {
+    let mut f = HoloFile::open(path, &OpenOptions::read_only()).unwrap();
+    let keys = all_keys(&f);
+    let mut rays = HashMap::new();
+    f.read_beams(&keys, |k, r| {
+        if !r.is_empty() {
+            rays.insert(k, r.to_vec());
+        }
+    })
+    .unwrap();
+    (f.settings().clone(), rays)
+}
+
+fn fill(path: &Path, settings: &Settings, from: u64, step: usize) -> HashMap<BeamKey, Vec<RayRecord>> {
+    HoloFile::create(path, settings).unwrap();
+    let mut f = HoloFile::open(path, &OpenOptions::default()).unwrap();
+    let mut want = HashMap::new();
+    for (s, section) in settings.sections.iter().enumerate() {
+        for beam in (0..section.beam_count()).step_by(step) {
+            let key = BeamKey::new(s as u32, beam);
+            let rays = pattern_rays(key, from, 1 + u64::from(beam % 3));
+            f.append(key, &rays).unwrap();
+            want.insert(key, rays);
+        }
+    }
+    f.close().unwrap();
+    want
+}
+
+#[test]
+fn equal_sections_merge_beam_for_beam_and_a_missing_destination_is_a_copy() {
+    let dir = tempfile::tempdir().unwrap();
+    let settings = two_sections([5, 4, 3], [3, 3, 3], 1 << 20);
+    let (a, b, c) = (
+        dir.path().join("a.hdk"),
+        dir.path().join("b.hdk"),
+        dir.path().join("c.hdk"),
+    );
+    let from_a = fill(&a, &settings, 100, 7);
+    let from_b = fill(&b, &settings, 0, 11);
+    let r = storage::copy(&a, &b, |_, _| {}).unwrap();
+    let n: usize = from_a.values().map(Vec::len).sum();
+    assert_eq!((r.created, r.merged_sections, r.resampled_sections), (false, 2, 0));
+    assert_eq!((r.rays_read, r.rays_written, r.rays_dropped), (n as u64, n as u64, 0));
+    let (_, got) = contents(&b);
+    for key in from_a.keys().chain(from_b.keys()) {
+        let mut want = from_b.get(key).cloned().unwrap_or_default();
+        want.extend(from_a.get(key).cloned().unwrap_or_default());
+        assert_eq!(got[key], want, "{key:?}");
+    }
+    let r = storage::copy(&a, &c, |_, _| {}).unwrap();
+    assert!(r.created);
+    assert_eq!(contents(&c), contents(&a));
+    assert!(storage::copy(&a, &a, |_, _| {}).is_err());
+}
+
+/// Rays of a room section whose lines cross it and hit the walls of a box
+/// around it, as a sampler would store them.
+fn room_rays(path: &Path, room: &Section) -> Vec<(BeamKey, RayRecord)> {
+    let settings = Settings {
+        sections: vec![room.clone()],
+        ..Settings::default()
+    };
+    HoloFile::create(path, &settings).unwrap();
+    let mut f = HoloFile::open(path, &OpenOptions::default()).unwrap();
+    let (lo, hi) = (DVec3::new(-5.0, -5.0, -5.0), DVec3::new(9.0, 8.0, 7.5));
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let mut stored = Vec::new();
+    for k in 0..3000 {
+        let p = DVec3::new(
+            rng.gen_range(0.1..3.9),
+            rng.gen_range(0.1..2.9),
+            rng.gen_range(0.1..2.4),
+        );
+        let d = DVec3::new(
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-1.0..1.0),
+        )
+        .normalize();
+        // Where the line leaves the box: the nearest of the far planes.
+        let t = (0..3)
+            .map(|a| {
+                if d[a] > 0.0 {
+                    (hi[a] - p[a]) / d[a]
+                } else {
+                    (lo[a] - p[a]) / d[a]
+                }
+            })
+            .fold(f64::INFINITY, f64::min);
+        let hit = (k % 10 != 0).then_some(p + d * t);
+        let (beam, rec) = room.encode_ray(p, d, [0.1 * (k % 7) as f32, 0.5, 2.0], hit).unwrap();
+        let key = BeamKey::new(0, beam);
+        f.append(key, &[rec]).unwrap();
+        stored.push((key, rec));
+    }
+    f.close().unwrap();
+    stored
+}
+
+fn section(origin: [f64; 3], size: [f64; 3], grid: [u16; 3]) -> Section {
+    let axes = [[size[0], 0.0, 0.0], [0.0, size[1], 0.0], [0.0, 0.0, size[2]]];
+    Section::new(origin, axes, grid, SectionKind::Interior).unwrap()
+}
+
+#[test]
+fn resampled_rays_keep_their_hits_to_within_the_new_grids_precision() {
+    let dir = tempfile::tempdir().unwrap();
+    let room = section([0.0; 3], [4.0, 3.0, 2.5], [8, 6, 5]);
+    let src = dir.path().join("room.hdk");
+    let stored = room_rays(&src, &room);
+    // The same box on a finer grid, a section inside the room, one around it.
+    let fine = section([0.0; 3], [4.0, 3.0, 2.5], [20, 15, 12]);
+    let inner = section([1.0, 1.0, 0.5], [2.0, 1.0, 1.5], [6, 3, 4]);
+    let around = section([-1.0; 3], [6.0, 5.0, 4.5], [6, 5, 4]);
+    let dest = dir.path().join("resampled.hdk");
+    HoloFile::create(
+        &dest,
+        &Settings {
+            sections: vec![fine.clone(), inner.clone(), around],
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    let r = storage::copy(&src, &dest, |_, _| {}).unwrap();
+    assert_eq!((r.merged_sections, r.resampled_sections), (0, 1));
+    // Every ray is valid in the finer grid; in the inner section when its line
+    // crosses it; never in the section around the room, which its lines enter
+    // before the room, where nothing was traced.
+    let crossing = stored
+        .iter()
+        .filter(|(k, rec)| {
+            let d = room.decode_record(k.beam, rec).unwrap();
+            inner.locate(d.ray.origin, d.ray.direction).is_some()
+        })
+        .count();
+    assert!(crossing > 300 && crossing < 2900, "{crossing}");
+    assert_eq!(r.rays_read, 3000);
+    assert_eq!(r.rays_written, 3000 + crossing as u64);
+    assert_eq!(r.rays_dropped, 0);
+    let (_, got) = contents(&dest);
+    assert!(got.keys().all(|k| k.section < 2), "nothing lands in the outer section");
+    let placed: usize = got.iter().filter(|(k, _)| k.section == 0).map(|(_, r)| r.len()).sum();
+    assert_eq!(placed, 3000);
+    // Each source ray's hit is found again in the finer section.
+    let sub = 4.0 / (20.0 * 256.0);
+    let decoded: Vec<_> = got
+        .iter()
+        .filter(|(k, _)| k.section == 0)
+        .flat_map(|(k, rs)| {
+            rs.iter()
+                .map(|r| fine.decode_record(k.beam, r).unwrap())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    for (key, rec) in &stored {
+        let want = room.decode_record(key.beam, rec).unwrap();
+        let found = decoded.iter().any(|d| {
+            if d.color != want.color || d.ray.direction.dot(want.ray.direction) < 0.99 {
+                return false;
+            }
+            match (d.hit, want.hit) {
+                (Hit::Infinite, Hit::Infinite) => {
+                    d.ray.direction.angle_between(want.ray.direction) < 4.0 * sub / d.ray.length
+                }
+                (Hit::Point(a), Hit::Point(b)) => {
+                    let far = (b - want.ray.origin).length();
+                    let tol = 2.0 * sub * (1.0 + 2.0 * far / d.ray.length) + 5e-4 * far.max(fine.diagonal());
+                    (a - b).length() <= tol
+                }
+                _ => false,
+            }
+        });
+        assert!(found, "{key:?} {want:?} has no match in the finer grid");
+    }
+}
