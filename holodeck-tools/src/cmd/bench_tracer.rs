@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Result;
 use holodeck_protocol::RayRecord;
 use holodeck_protocol::View;
-use holodeck_sampler::accel::{BuildOptions, RayOrder, PACKET};
+use holodeck_sampler::accel::{BuildOptions, Hit, RayOrder, WideBvh, PACKET};
 use holodeck_sampler::beam::{trace_samples, traced_ray, uniform_rays, BeamSample, FileRules};
 use holodeck_sampler::geom::{offset_origin, Ray};
 use holodeck_sampler::render::{render, Picture, RenderOptions};
@@ -57,6 +57,61 @@ fn throughput(tree: &KdTree, rays: &[Ray]) -> (f64, Vec<Option<RayHit>>) {
         .map(|r| tree.intersect(r).map(|h| (*r, h.t, h.tri)))
         .collect();
     (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+}
+
+/// Rays per second on this thread with `intersect`, best of three, and the
+/// distances of the hits.
+fn best_of_three(intersect: impl Fn(&Ray) -> Option<Hit>, rays: &[Ray]) -> (f64, Vec<Option<f32>>) {
+    let mut best = 0f64;
+    let mut hits = Vec::new();
+    for _ in 0..3 {
+        let start = Instant::now();
+        hits = rays.iter().map(|r| intersect(r).map(|h| h.t)).collect();
+        best = best.max(rays.len() as f64 / start.elapsed().as_secs_f64());
+    }
+    (best, hits)
+}
+
+/// The kd-tree beside the wide BVH on the same rays: a table row of build
+/// times, sizes and single-ray rates (best of three each, alternated), and
+/// how many rays found their nearest hit at another distance.
+fn wide_row(
+    label: &str,
+    scene: &Scene,
+    tree: &KdTree,
+    kd_build: f64,
+    primary: &[Ray],
+    bounce: &[Ray],
+) -> Result<(String, [f64; 3])> {
+    let start = Instant::now();
+    let bvh = WideBvh::build(scene).ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
+    let build = start.elapsed().as_secs_f64();
+    let tris = scene.triangles.len().max(1) as f64;
+    let mut cells = Vec::new();
+    let mut differ = 0;
+    let mut rates = [build, 0.0, 0.0];
+    for (i, rays) in [primary, bounce].into_iter().enumerate() {
+        let (kd, kd_hits) = best_of_three(|r| tree.intersect(r), rays);
+        let (wide, wide_hits) = best_of_three(|r| bvh.intersect(r), rays);
+        differ += kd_hits.iter().zip(&wide_hits).filter(|(a, b)| a != b).count();
+        cells.push(format!("{:.2} / {:.2} = {:.2}", wide / 1e6, kd / 1e6, wide / kd));
+        rates[i + 1] = wide;
+    }
+    let st = bvh.stats();
+    let row = format!(
+        "| {label} | {:.2} s / {kd_build:.2} s | {:.1} / {:.1} | {} nodes, {} leaves of {:.2} triangles, depth {} | {} | {} | {differ} of {} |",
+        build,
+        st.bytes as f64 / tris,
+        tree.stats().bytes as f64 / tris,
+        count(st.nodes as u64),
+        count(st.leaves as u64),
+        st.fill,
+        st.depth,
+        cells[0],
+        cells[1],
+        primary.len() + bounce.len()
+    );
+    Ok((row, rates))
 }
 
 /// Rays per second on this thread, tracing in packets of eight consecutive
@@ -129,6 +184,8 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     let mut reordered: Vec<String> = Vec::new();
     // Rows of the build-memory table.
     let mut memory: Vec<String> = Vec::new();
+    // Rows of the wide BVH's table.
+    let mut wide: Vec<String> = Vec::new();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -200,6 +257,9 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, &bounce);
         wrong += differing(&bounce_packet_hits, &bounce_hits);
         reordered.push(reordering_row(&case.label, &tree, &bounce, &bounce_hits));
+        #[cfg_attr(not(feature = "embree"), allow(unused_variables))]
+        let (wide_table_row, wide_rates) = wide_row(&case.label, scene, &tree, build, &primary, &bounce)?;
+        wide.push(wide_table_row);
         let tris = scene.triangles.len().max(1) as f64;
         println!(
             "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
@@ -218,8 +278,15 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
             beside.push(side_by_side(
                 &case.label,
                 scene,
-                build,
-                [primary_rate, primary_packets, bounce_rate, bounce_packets],
+                [build, wide_rates[0]],
+                [
+                    primary_rate,
+                    primary_packets,
+                    bounce_rate,
+                    bounce_packets,
+                    wide_rates[1],
+                    wide_rates[2],
+                ],
                 &primary,
                 &hits,
                 &bounce,
@@ -237,6 +304,16 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     for row in memory {
         println!("{row}");
     }
+    println!();
+    println!(
+        "The wide BVH (4 children per node, leaves of up to 4 triangles) beside the kd-tree on the same rays, single rays on one core, best of three; wide BVH / kd-tree:"
+    );
+    println!();
+    println!("| scene | build (2 cores) | bytes/tri | shape | primary, single | diffuse bounce, single | rays with another nearest distance |");
+    println!("|---|---|---|---|---|---|---|");
+    for row in wide {
+        println!("{row}");
+    }
     if embree {
         println!();
         println!(
@@ -244,9 +321,9 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         );
         println!();
         println!(
-            "| scene | build, ours / Embree | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | rays hitting another triangle |"
+            "| scene | build, kd-tree / wide BVH / Embree | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | primary, single, wide BVH | diffuse bounce, single, wide BVH | rays hitting another triangle |"
         );
-        println!("|---|---|---|---|---|---|---|");
+        println!("|---|---|---|---|---|---|---|---|---|");
         for row in beside {
             println!("{row}");
         }
@@ -460,15 +537,17 @@ fn beam_row(per_beam: usize) -> Result<String> {
 }
 
 /// Embree's build time and rates on the same rays as a table row, each
-/// beside ours (`ours`: primary single, primary packets, bounce single,
-/// bounce packets, in rays/s), and how many rays hit a different triangle.
+/// beside ours (`build`: the kd-tree's and the wide BVH's seconds; `ours`:
+/// primary single, primary packets, bounce single, bounce packets, then the
+/// wide BVH's primary and bounce single, in rays/s), and how many rays hit a
+/// different triangle.
 #[cfg(feature = "embree")]
 #[allow(clippy::too_many_arguments)]
 fn side_by_side(
     label: &str,
     scene: &Scene,
-    build: f64,
-    ours: [f64; 4],
+    build: [f64; 2],
+    ours: [f64; 6],
     primary: &[Ray],
     primary_hits: &[Option<RayHit>],
     bounce: &[Ray],
@@ -508,11 +587,15 @@ fn side_by_side(
         ph.iter().zip(&pph).filter(|(a, b)| a != b).count() + bh.iter().zip(&bph).filter(|(a, b)| a != b).count();
     let cell = |o: f64, t: f64| format!("{:.2} / {:.2} = {:.2}", o / 1e6, t / 1e6, o / t);
     Ok(format!(
-        "| {label} | {build:.2} s / {e_build:.2} s | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
+        "| {label} | {:.2} s / {:.2} s / {e_build:.2} s | {} | {} | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
+        build[0],
+        build[1],
         cell(ours[0], ps),
         cell(ours[1], pp),
         cell(ours[2], bs),
         cell(ours[3], bp),
+        cell(ours[4], ps),
+        cell(ours[5], bs),
         primary.len() + bounce.len(),
     ))
 }

@@ -135,9 +135,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     );
     let build = start.elapsed().as_secs_f64();
     tracing::info!(
-        "kd-tree over {} triangles built in {build:.2} s: {:?}",
+        "kd-tree and wide BVH over {} triangles built in {build:.2} s: {:?}, {:?}",
         count(triangles),
-        tracer.tree().stats()
+        tracer.tree().stats(),
+        tracer.bvh().map(|b| b.stats())
     );
     let bar = indicatif::ProgressBar::new(u64::from(a.height));
     bar.set_style(

@@ -3,6 +3,7 @@
 //! cutting, in parallel. Traversal finds the nearest hit or any hit.
 
 mod build;
+mod bvh;
 mod leaf;
 mod node;
 mod packet;
@@ -13,6 +14,7 @@ pub(crate) mod testing;
 mod traverse;
 
 pub use build::BuildOptions;
+pub use bvh::{BvhStats, WideBvh, MAX_TRIANGLES};
 pub use node::Node;
 pub use packet::PACKET;
 pub use parts::PartsError;

@@ -4,7 +4,29 @@
 use glam::{Mat4, Vec3};
 use rand::{Rng, SeedableRng};
 
+use crate::accel::Hit;
+use crate::geom::{intersect_triangle, Ray, RayPrep};
 use crate::scene::{Material, Scene, SceneBuilder};
+
+/// The nearest hit by testing every triangle in order (the last of equally
+/// near ones).
+pub fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
+    let prep = RayPrep::new(ray.origin, ray.dir);
+    let mut best: Option<Hit> = None;
+    for i in 0..scene.triangles.len() {
+        let [a, b, c] = scene.vertices(i);
+        let limit = best.map_or(ray.t_max, |h| h.t);
+        if let Some(h) = intersect_triangle(&prep, a, b, c, limit) {
+            best = Some(Hit {
+                t: h.t,
+                tri: i as u32,
+                u: h.u,
+                v: h.v,
+            });
+        }
+    }
+    best
+}
 
 /// A random point (or direction) in the cube `[-r, r)^3`.
 pub fn random_vec3(rng: &mut impl Rng, r: f32) -> Vec3 {
@@ -79,4 +101,43 @@ pub fn grid_triangles(n: u32) -> Vec<[u32; 3]> {
         }
     }
     t
+}
+
+/// A gently sloped heightfield of `n` x `n` quads sharing edges and
+/// vertices, and `count` rays from above aimed exactly at its vertices and
+/// edge midpoints (the third kind is a quad's diagonal): each must hit it,
+/// at `t = 1`.
+pub fn heightfield_and_rays(n: u32, count: usize, seed: u64) -> (Scene, Vec<Ray>) {
+    // Gentle slopes: every ray below crosses the surface, none grazes a ridge.
+    let height = |i: u32, j: u32| ((i * 7 + j * 13) % 5) as f32 * 0.005;
+    let mut p = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            p.push(Vec3::new(i as f32 * 0.25, j as f32 * 0.25, height(i, j)));
+        }
+    }
+    let mut b = SceneBuilder::new();
+    let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
+    b.add_mesh("field", &p, &grid_triangles(n), &[m], Mat4::IDENTITY)
+        .unwrap();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let rays = (0..count)
+        .map(|_| {
+            let (i, j) = (rng.gen_range(1..n), rng.gen_range(1..n));
+            let at = |i: u32, j: u32| p[(i * (n + 1) + j) as usize];
+            let target = match rng.gen_range(0..4) {
+                0 => at(i, j),
+                1 => (at(i, j) + at(i, j + 1)) * 0.5,
+                2 => (at(i, j) + at(i + 1, j)) * 0.5,
+                _ => (at(i, j + 1) + at(i + 1, j)) * 0.5,
+            };
+            let origin = Vec3::new(
+                rng.gen_range(-2.0..8.0),
+                rng.gen_range(-2.0..8.0),
+                rng.gen_range(1.0..6.0),
+            );
+            Ray::new(origin, target - origin)
+        })
+        .collect();
+    (b.finish(), rays)
 }

@@ -148,13 +148,10 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::testing::random_vec3;
-    use crate::accel::testing::{grid_triangles, soup};
+    use crate::accel::testing::{brute, grid_triangles, heightfield_and_rays, random_vec3, soup};
     use crate::accel::BuildOptions;
-    use crate::geom::{intersect_triangle, RayPrep};
-    use crate::scene::Scene;
     use glam::Vec3;
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
 
     #[test]
     fn a_fine_floor_between_objects_is_split_into_small_leaves() {
@@ -180,24 +177,6 @@ mod tests {
         let tree = KdTree::build(&scene, &BuildOptions::default());
         let stats = tree.stats();
         assert!(stats.max_leaf <= 64, "{stats:?}");
-    }
-
-    fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
-        let prep = RayPrep::new(ray.origin, ray.dir);
-        let mut best: Option<Hit> = None;
-        for i in 0..scene.triangles.len() {
-            let [a, b, c] = scene.vertices(i);
-            let limit = best.map_or(ray.t_max, |h| h.t);
-            if let Some(h) = intersect_triangle(&prep, a, b, c, limit) {
-                best = Some(Hit {
-                    t: h.t,
-                    tri: i as u32,
-                    u: h.u,
-                    v: h.v,
-                });
-            }
-        }
-        best
     }
 
     #[test]
@@ -261,41 +240,8 @@ mod tests {
     #[test]
     fn rays_through_shared_edges_and_vertices_never_leak() {
         use crate::accel::PACKET;
-        use crate::scene::{Material, SceneBuilder};
-        let n = 24u32;
-        // Gentle slopes: every ray below crosses the surface, none grazes a ridge.
-        let height = |i: u32, j: u32| ((i * 7 + j * 13) % 5) as f32 * 0.005;
-        let mut p = Vec::new();
-        for i in 0..=n {
-            for j in 0..=n {
-                p.push(Vec3::new(i as f32 * 0.25, j as f32 * 0.25, height(i, j)));
-            }
-        }
-        let t = grid_triangles(n);
-        let mut b = SceneBuilder::new();
-        let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
-        b.add_mesh("field", &p, &t, &[m], glam::Mat4::IDENTITY).unwrap();
-        let scene = b.finish();
+        let (scene, rays) = heightfield_and_rays(24, 4000, 7);
         let tree = KdTree::build(&scene, &BuildOptions::default());
-        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
-        let mut rays = Vec::new();
-        for _ in 0..4000 {
-            let (i, j) = (rng.gen_range(1..n), rng.gen_range(1..n));
-            let v = p[(i * (n + 1) + j) as usize];
-            // A vertex, or the midpoint of an edge (the third is a quad's diagonal).
-            let target = match rng.gen_range(0..4) {
-                0 => v,
-                1 => (v + p[(i * (n + 1) + j + 1) as usize]) * 0.5,
-                2 => (v + p[((i + 1) * (n + 1) + j) as usize]) * 0.5,
-                _ => (p[(i * (n + 1) + j + 1) as usize] + p[((i + 1) * (n + 1) + j) as usize]) * 0.5,
-            };
-            let origin = Vec3::new(
-                rng.gen_range(-2.0..8.0),
-                rng.gen_range(-2.0..8.0),
-                rng.gen_range(1.0..6.0),
-            );
-            rays.push(Ray::new(origin, target - origin));
-        }
         for (k, chunk) in rays.chunks(PACKET).enumerate() {
             let packet = tree.intersect_packet(chunk);
             for (i, r) in chunk.iter().enumerate() {

@@ -15,7 +15,7 @@ use super::lights::Lights;
 use super::rng::Rng;
 use super::sampling::{power_heuristic, Frame};
 use super::sky::SkyModel;
-use crate::accel::{BuildOptions, Hit, KdTree, PACKET};
+use crate::accel::{BuildOptions, Hit, KdTree, WideBvh, PACKET};
 use crate::geom::{offset_origin, Ray};
 use crate::ooc::{Fetch, InCoreReport, OocError, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
@@ -66,11 +66,15 @@ pub struct Sample {
     pub distance: f32,
 }
 
-/// A scene ready to trace: geometry (in memory with its kd-tree, or a scene
-/// file traced out of core), lights and sky.
+/// A scene ready to trace: geometry (in memory with its wide BVH for single
+/// rays and its kd-tree for packets of coherent rays, or a scene file traced
+/// out of core), lights and sky.
 pub struct Tracer {
     scene: Scene,
     tree: KdTree,
+    /// `None` for a scene file, and for scenes beyond the BVH's size (the
+    /// kd-tree then traces single rays too).
+    bvh: Option<WideBvh>,
     ooc: Option<Arc<OocScene>>,
     lights: Lights,
     sky: SkyModel,
@@ -252,6 +256,7 @@ impl Tracer {
         options: TraceOptions,
     ) -> Tracer {
         let sky = SkyModel::new(&scene.sky);
+        let bvh = if ooc.is_some() { None } else { WideBvh::build(&scene) };
         let has_panes = scene
             .materials
             .iter()
@@ -259,6 +264,7 @@ impl Tracer {
         Tracer {
             scene,
             tree,
+            bvh,
             ooc,
             lights,
             sky,
@@ -309,6 +315,20 @@ impl Tracer {
     /// The kd-tree (empty for a scene file).
     pub fn tree(&self) -> &KdTree {
         &self.tree
+    }
+
+    /// The wide BVH that traces single rays in memory (`None` for a scene
+    /// file, or a scene too large for it).
+    pub fn bvh(&self) -> Option<&WideBvh> {
+        self.bvh.as_ref()
+    }
+
+    /// The nearest in-core hit of a single ray.
+    fn intersect_in_core(&self, ray: &Ray) -> Option<Hit> {
+        match &self.bvh {
+            Some(bvh) => bvh.intersect(ray),
+            None => self.tree.intersect(ray),
+        }
     }
 
     /// How [`FirstHits::Measured`] finds first hits now, by the times so far.
@@ -396,7 +416,7 @@ impl Tracer {
                 }
             }
         } else {
-            walk.iter().for_each(|&(k, r)| hits[k] = self.tree.intersect(&r));
+            walk.iter().for_each(|&(k, r)| hits[k] = self.intersect_in_core(&r));
         }
         if let Some(started) = started {
             let ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
@@ -453,7 +473,7 @@ impl Tracer {
     /// for missing data, which `fetch` notes).
     fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
         let Some(ooc) = &self.ooc else {
-            return self.tree.intersect(ray).map(|h| self.surface(h));
+            return self.intersect_in_core(ray).map(|h| self.surface(h));
         };
         let h = ooc.intersect(ray, lod, fetch)?;
         Some(match h.surface {
@@ -498,13 +518,19 @@ impl Tracer {
     /// (or a voxel) lies within `(0, ray.t_max)`.
     fn blocked(&self, ray: &Ray, fetch: &mut Fetch, mut blocks: impl FnMut(u32, u32, [Vec3; 3]) -> bool) -> bool {
         match &self.ooc {
-            None => self.tree.occluded_by(ray, |t| {
-                blocks(
-                    t,
-                    self.scene.triangles[t as usize].material,
-                    self.scene.vertices(t as usize),
-                )
-            }),
+            None => {
+                let blocks = |t: u32| {
+                    blocks(
+                        t,
+                        self.scene.triangles[t as usize].material,
+                        self.scene.vertices(t as usize),
+                    )
+                };
+                match &self.bvh {
+                    Some(bvh) => bvh.occluded_by(ray, blocks),
+                    None => self.tree.occluded_by(ray, blocks),
+                }
+            }
             Some(ooc) => ooc.occluded_by(ray, self.options.lod_secondary, fetch, blocks),
         }
     }
@@ -657,7 +683,10 @@ impl Tracer {
     fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
         if !self.has_panes {
             let blocked = match &self.ooc {
-                None => self.tree.occluded(&ray),
+                None => match &self.bvh {
+                    Some(bvh) => bvh.occluded(&ray),
+                    None => self.tree.occluded(&ray),
+                },
                 Some(_) => self.blocked(&ray, fetch, |_, _, _| true),
             };
             return if blocked { Vec3::ZERO } else { Vec3::ONE };

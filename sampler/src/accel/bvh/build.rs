@@ -1,0 +1,328 @@
+//! Building the wide BVH: binned SAH over triangle centroids splits a node's
+//! triangles in two, and the largest of its parts is split again until it has
+//! four children; parts of up to four triangles become leaves. Subtrees are
+//! built in parallel, then laid out depth first.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::node::{Child, Node4, EMPTY, MAX_BLOCKS};
+use super::WideBvh;
+use crate::geom::{Aabb, Tri4};
+use crate::scene::Scene;
+
+/// Most triangles in a leaf: one block.
+const LEAF_MAX: usize = 4;
+/// SAH bins per axis.
+const BINS: usize = 32;
+/// Parts at least this large are binned and built in parallel.
+const PARALLEL: usize = 1 << 14;
+/// Below this many levels, SAH chooses splits; deeper, parts are halved at
+/// the median, which bounds the depth (and the traversal stack) on any input.
+const SAH_DEPTH: usize = 32;
+
+/// A triangle's box and index.
+#[derive(Clone, Copy)]
+struct Prim {
+    lo: Vec3,
+    hi: Vec3,
+    id: u32,
+}
+
+impl Prim {
+    /// Twice the box's centre (the factor cancels in binning).
+    #[inline]
+    fn centre2(&self) -> Vec3 {
+        self.lo + self.hi
+    }
+}
+
+/// A subtree before layout: a leaf over a run of the primitive array, or up
+/// to four children with their boxes.
+enum Sub {
+    Leaf { start: usize, count: usize },
+    Inner(Vec<(Aabb, Sub)>),
+}
+
+#[derive(Clone, Copy)]
+struct Bin {
+    bounds: Aabb,
+    count: usize,
+}
+
+const EMPTY_BIN: Bin = Bin {
+    bounds: Aabb::EMPTY,
+    count: 0,
+};
+
+/// Bins of the three axes, and how centroids map to them.
+#[derive(Clone)]
+struct Bins {
+    bins: [[Bin; BINS]; 3],
+}
+
+impl Bins {
+    fn merge(mut self, o: Bins) -> Bins {
+        for (a, b) in self.bins.iter_mut().flatten().zip(o.bins.iter().flatten()) {
+            a.bounds = a.bounds.union(&b.bounds);
+            a.count += b.count;
+        }
+        self
+    }
+}
+
+/// Where centroids fall: the bin of axis `a` is `(c - lo[a]) * scale[a]`.
+#[derive(Clone, Copy)]
+struct Binning {
+    lo: Vec3,
+    scale: Vec3,
+}
+
+impl Binning {
+    #[inline]
+    fn bin(&self, c: Vec3, axis: usize) -> usize {
+        (((c[axis] - self.lo[axis]) * self.scale[axis]) as usize).min(BINS - 1)
+    }
+
+    fn fill(&self, prims: &[Prim]) -> Bins {
+        let mut b = Bins {
+            bins: [[EMPTY_BIN; BINS]; 3],
+        };
+        for p in prims {
+            let c = p.centre2();
+            let pb = Aabb { lo: p.lo, hi: p.hi };
+            for (axis, bins) in b.bins.iter_mut().enumerate() {
+                let bin = &mut bins[self.bin(c, axis)];
+                bin.bounds = bin.bounds.union(&pb);
+                bin.count += 1;
+            }
+        }
+        b
+    }
+}
+
+fn bounds_of(prims: &[Prim]) -> (Aabb, Aabb) {
+    let one = |p: &Prim| {
+        let c = p.centre2();
+        (Aabb { lo: p.lo, hi: p.hi }, Aabb { lo: c, hi: c })
+    };
+    let join = |a: (Aabb, Aabb), b: (Aabb, Aabb)| (a.0.union(&b.0), a.1.union(&b.1));
+    if prims.len() >= PARALLEL {
+        prims
+            .par_chunks(PARALLEL / 4)
+            .map(|c| c.iter().map(one).fold((Aabb::EMPTY, Aabb::EMPTY), join))
+            .reduce(|| (Aabb::EMPTY, Aabb::EMPTY), join)
+    } else {
+        prims.iter().map(one).fold((Aabb::EMPTY, Aabb::EMPTY), join)
+    }
+}
+
+/// Splits `prims` (more than [`LEAF_MAX`]) in two in place; returns the size
+/// of the first part and both parts' boxes.
+fn split(prims: &mut [Prim], depth: usize) -> (usize, Aabb, Aabb) {
+    let (_, centres) = bounds_of(prims);
+    let extent = centres.hi - centres.lo;
+    if depth < SAH_DEPTH && extent.max_element() > 0.0 {
+        // Extents too small to divide get a scale of 0: one bin, never split.
+        let scale = Vec3::select(
+            extent.cmpgt(Vec3::ZERO),
+            Vec3::splat(BINS as f32 * (1.0 - 1e-6)) / extent,
+            Vec3::ZERO,
+        );
+        let binning = Binning { lo: centres.lo, scale };
+        let bins = if prims.len() >= PARALLEL {
+            prims
+                .par_chunks(PARALLEL / 4)
+                .map(|c| binning.fill(c))
+                .reduce_with(Bins::merge)
+        } else {
+            Some(binning.fill(prims))
+        };
+        if let Some(best) = bins.and_then(|b| best_split(&b)) {
+            let (axis, at, lb, rb) = best;
+            let k = partition(prims, |p| binning.bin(p.centre2(), axis) < at);
+            if k > 0 && k < prims.len() {
+                return (k, lb, rb);
+            }
+        }
+    }
+    // All centres in one point, or too deep: halve at the median of the
+    // longest centre axis.
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let mid = prims.len() / 2;
+    prims.select_nth_unstable_by(mid, |a, b| a.centre2()[axis].total_cmp(&b.centre2()[axis]));
+    (mid, bounds_of(&prims[..mid]).0, bounds_of(&prims[mid..]).0)
+}
+
+/// The cheapest split by SAH: axis, first bin of the second part, and the
+/// two parts' boxes.
+fn best_split(b: &Bins) -> Option<(usize, usize, Aabb, Aabb)> {
+    let mut best: Option<(f32, usize, usize, Aabb, Aabb)> = None;
+    for (axis, bins) in b.bins.iter().enumerate() {
+        // Right-hand sweep: boxes and counts of bins i.. for every i.
+        let mut right = [(Aabb::EMPTY, 0usize); BINS];
+        let mut acc = (Aabb::EMPTY, 0usize);
+        for i in (1..BINS).rev() {
+            acc = (acc.0.union(&bins[i].bounds), acc.1 + bins[i].count);
+            right[i] = acc;
+        }
+        let mut left = (Aabb::EMPTY, 0usize);
+        for i in 1..BINS {
+            left = (left.0.union(&bins[i - 1].bounds), left.1 + bins[i - 1].count);
+            let (rb, rn) = right[i];
+            if left.1 == 0 || rn == 0 {
+                continue;
+            }
+            let cost = left.0.area() * left.1 as f32 + rb.area() * rn as f32;
+            if best.is_none_or(|b| cost < b.0) {
+                best = Some((cost, axis, i, left.0, rb));
+            }
+        }
+    }
+    best.map(|(_, axis, at, l, r)| (axis, at, l, r))
+}
+
+/// Moves the primitives for which `first` holds to the front; returns their count.
+fn partition(prims: &mut [Prim], first: impl Fn(&Prim) -> bool) -> usize {
+    let mut k = 0;
+    for i in 0..prims.len() {
+        if first(&prims[i]) {
+            prims.swap(i, k);
+            k += 1;
+        }
+    }
+    k
+}
+
+/// Builds the subtree over `prims`, which start at `offset` in the whole array.
+fn build(prims: &mut [Prim], offset: usize, bounds: Aabb, depth: usize) -> Sub {
+    if prims.len() <= LEAF_MAX {
+        return Sub::Leaf {
+            start: offset,
+            count: prims.len(),
+        };
+    }
+    // Parts as (start within `prims`, length, box), split until four.
+    let mut parts = vec![(0usize, prims.len(), bounds)];
+    while parts.len() < 4 {
+        let Some(i) = (0..parts.len())
+            .filter(|&i| parts[i].1 > LEAF_MAX)
+            .max_by(|&a, &b| parts[a].2.area().total_cmp(&parts[b].2.area()))
+        else {
+            break;
+        };
+        let (s, n, _) = parts[i];
+        let (k, lb, rb) = split(&mut prims[s..s + n], depth);
+        parts[i] = (s, k, lb);
+        parts.insert(i + 1, (s + k, n - k, rb));
+    }
+    // The parts are consecutive runs: cut the slice into them.
+    let mut slices = Vec::with_capacity(parts.len());
+    let mut rest = prims;
+    for &(_, n, b) in &parts {
+        let (head, tail) = rest.split_at_mut(n);
+        slices.push((head, b));
+        rest = tail;
+    }
+    let one = |((slice, b), &(s, _, _)): ((&mut [Prim], Aabb), &(usize, usize, Aabb))| {
+        (b, build(slice, offset + s, b, depth + 1))
+    };
+    let children = if parts.iter().map(|p| p.1).sum::<usize>() >= PARALLEL {
+        slices.into_par_iter().zip(parts.par_iter()).map(one).collect()
+    } else {
+        slices.into_iter().zip(parts.iter()).map(one).collect()
+    };
+    Sub::Inner(children)
+}
+
+/// The primitives of a scene's first `n` triangles.
+fn primitives(scene: &Scene, n: usize) -> Vec<Prim> {
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let [a, b, c] = scene.vertices(i);
+            Prim {
+                lo: a.min(b).min(c),
+                hi: a.max(b).max(c),
+                id: i as u32,
+            }
+        })
+        .collect()
+}
+
+/// The laid-out hierarchy, filled depth first.
+struct Layout<'a> {
+    scene: &'a Scene,
+    prims: &'a [Prim],
+    nodes: Vec<Node4>,
+    blocks: Vec<Tri4>,
+    ids: Vec<[u32; 4]>,
+}
+
+impl Layout<'_> {
+    fn place(&mut self, sub: &Sub) -> u32 {
+        match sub {
+            Sub::Leaf { count: 0, .. } => EMPTY,
+            Sub::Leaf { start, count } => {
+                let block = self.blocks.len();
+                let mut tri = Tri4::default();
+                let mut ids = [0u32; 4];
+                for (lane, p) in self.prims[*start..start + count].iter().enumerate() {
+                    tri.set(lane, self.scene.vertices(p.id as usize));
+                    ids[lane] = p.id;
+                }
+                self.blocks.push(tri);
+                self.ids.push(ids);
+                Child::leaf(block, *count)
+            }
+            Sub::Inner(children) => {
+                let index = self.nodes.len();
+                self.nodes.push(Node4::new(&[]));
+                let refs: Vec<(Aabb, u32)> = children.iter().map(|(b, c)| (*b, self.place(c))).collect();
+                self.nodes[index] = Node4::new(&refs);
+                index as u32
+            }
+        }
+    }
+}
+
+/// The most triangles a hierarchy can hold: every leaf block needs a reference.
+pub const MAX_TRIANGLES: usize = MAX_BLOCKS;
+
+impl WideBvh {
+    /// Builds the hierarchy of a scene's triangles on all cores, or `None`
+    /// for a scene of more than [`MAX_TRIANGLES`] triangles (the kd-tree
+    /// holds those).
+    pub fn build(scene: &Scene) -> Option<WideBvh> {
+        let n = scene.triangles.len();
+        if n > MAX_TRIANGLES {
+            return None;
+        }
+        let mut prims = primitives(scene, n);
+        let (bounds, _) = bounds_of(&prims);
+        let sub = build(&mut prims, 0, bounds, 0);
+        let mut layout = Layout {
+            scene,
+            prims: &prims,
+            nodes: Vec::with_capacity(n / 6 + 1),
+            blocks: Vec::with_capacity(n / 3 + 1),
+            ids: Vec::with_capacity(n / 3 + 1),
+        };
+        let root = layout.place(&sub);
+        let Layout { nodes, blocks, ids, .. } = layout;
+        drop(sub);
+        Some(WideBvh {
+            nodes,
+            blocks,
+            ids,
+            root,
+            bounds,
+        })
+    }
+}

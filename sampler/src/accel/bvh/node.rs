@@ -1,0 +1,97 @@
+//! The wide node: four children's boxes in structure-of-arrays form, and a
+//! 32-bit reference per child. A reference is an inner node's index, or a
+//! leaf (the top bit set, then the block index and the triangle count less
+//! one in the low two bits), or [`EMPTY`].
+
+use wide::f32x4;
+
+use crate::geom::Aabb;
+
+/// An unused child slot (its box is empty, so no ray enters it).
+pub(crate) const EMPTY: u32 = u32::MAX;
+const LEAF: u32 = 1 << 31;
+/// Blocks a leaf reference can name (the last code would be [`EMPTY`]).
+pub(crate) const MAX_BLOCKS: usize = (1 << 29) - 1;
+
+/// A child reference, decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Child {
+    Empty,
+    Leaf { block: usize, count: usize },
+    Inner(usize),
+}
+
+impl Child {
+    /// The reference of a leaf of `count` (1..=4) triangles in block `block`.
+    pub(crate) fn leaf(block: usize, count: usize) -> u32 {
+        debug_assert!(block < MAX_BLOCKS && (1..=4).contains(&count));
+        LEAF | ((block as u32) << 2) | (count as u32 - 1)
+    }
+
+    /// What a reference names.
+    #[inline]
+    pub(crate) fn decode(r: u32) -> Child {
+        if r == EMPTY {
+            Child::Empty
+        } else if r & LEAF != 0 {
+            Child::Leaf {
+                block: ((r & !LEAF) >> 2) as usize,
+                count: (r & 3) as usize + 1,
+            }
+        } else {
+            Child::Inner(r as usize)
+        }
+    }
+}
+
+/// Four children: `b[0..3]` their boxes' low x, y, z and `b[3..6]` the high
+/// ones, one child per lane; `child` their references. Aligned so that a
+/// node spans exactly two cache lines.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(crate) struct Node4 {
+    pub(crate) b: [f32x4; 6],
+    pub(crate) child: [u32; 4],
+}
+
+impl Node4 {
+    /// A node of up to four children (the rest empty).
+    pub(crate) fn new(children: &[(Aabb, u32)]) -> Node4 {
+        debug_assert!(children.len() <= 4);
+        let mut b = [
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+            [f32::NEG_INFINITY; 4],
+        ];
+        let mut child = [EMPTY; 4];
+        for (lane, (bx, r)) in children.iter().enumerate() {
+            for c in 0..3 {
+                b[c][lane] = bx.lo[c];
+                b[3 + c][lane] = bx.hi[c];
+            }
+            child[lane] = *r;
+        }
+        Node4 {
+            b: b.map(f32x4::new),
+            child,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn references_round_trip() {
+        for (block, count) in [(0, 1), (7, 4), (MAX_BLOCKS - 1, 4)] {
+            assert_eq!(Child::decode(Child::leaf(block, count)), Child::Leaf { block, count });
+        }
+        assert_eq!(Child::decode(0), Child::Inner(0));
+        assert_eq!(Child::decode(LEAF - 1), Child::Inner(LEAF as usize - 1));
+        assert_eq!(Child::decode(EMPTY), Child::Empty);
+    }
+}

@@ -1,0 +1,372 @@
+//! Walking the wide BVH nearest child first: one ray against a node's four
+//! boxes at once, with a slab test made conservative so that rounding never
+//! drops a box the ray grazes (the triangle test is watertight, and the box
+//! test must not undo that).
+
+use wide::{f32x4, CmpLe};
+
+use super::node::{Child, EMPTY};
+use super::WideBvh;
+use crate::accel::Hit;
+use crate::geom::{Ray, Ray4};
+
+/// Entries of the walk's stack. A level pushes at most three, and the build
+/// bounds the depth (32 levels of SAH, then halving: at most 64).
+const STACK: usize = 256;
+
+/// `1 + 2 gamma(3)` (Pharr, Jakob and Humphreys, 3.9.2): far distances
+/// scaled by it cover the rounding of the slab distances.
+const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// The reciprocal of a direction component, finite: a zero component gives
+/// the largest float of its sign, so that `0 * inv` is 0, never NaN, and a
+/// ray lying in a box's face counts as inside it.
+#[inline]
+fn safe_recip(d: f32) -> f32 {
+    if d == 0.0 {
+        f32::MAX.copysign(d)
+    } else {
+        1.0 / d
+    }
+}
+
+impl WideBvh {
+    /// Visits leaves roughly front to back. `leaf(block, lanes)` tests a
+    /// leaf and returns `Some(t)` for a hit that makes everything beyond `t`
+    /// irrelevant, or stops the walk with `Err(())`.
+    #[inline]
+    fn walk(&self, ray: &Ray, mut leaf: impl FnMut(usize, u32) -> Result<Option<f32>, ()>) {
+        if self.root == EMPTY {
+            return;
+        }
+        let inv = [safe_recip(ray.dir.x), safe_recip(ray.dir.y), safe_recip(ray.dir.z)];
+        let o = [0, 1, 2].map(|c| f32x4::splat(ray.origin[c]));
+        let id = inv.map(f32x4::splat);
+        // Which of a node's corner arrays is nearer on each axis.
+        let near = [0, 1, 2].map(|c| if inv[c] < 0.0 { 3 + c } else { c });
+        let far = [0, 1, 2].map(|c| if inv[c] < 0.0 { c } else { 3 + c });
+        let mut closest = ray.t_max;
+        let mut stack = [(0u32, 0f32); STACK];
+        let mut sp = 0usize;
+        let mut cur = self.root;
+        loop {
+            match Child::decode(cur) {
+                Child::Inner(i) => {
+                    let n = &self.nodes[i];
+                    let slab = |k: usize, c: usize| (n.b[k] - o[c]) * id[c];
+                    let t_near = slab(near[0], 0)
+                        .fast_max(slab(near[1], 1))
+                        .fast_max(slab(near[2], 2).fast_max(f32x4::ZERO));
+                    let t_far = slab(far[0], 0)
+                        .fast_min(slab(far[1], 1))
+                        .fast_min(slab(far[2], 2).fast_min(f32x4::splat(closest)));
+                    let mut hit = t_near.cmp_le(t_far * f32x4::splat(ROBUST)).move_mask() as u32;
+                    if hit != 0 {
+                        let t = t_near.to_array();
+                        if hit & (hit - 1) == 0 {
+                            cur = n.child[hit.trailing_zeros() as usize];
+                            continue;
+                        }
+                        // Two to four children: push them farthest first, go to the nearest.
+                        let (l0, l1) = (
+                            hit.trailing_zeros() as usize,
+                            (hit & (hit - 1)).trailing_zeros() as usize,
+                        );
+                        hit &= hit - 1;
+                        hit &= hit - 1;
+                        let (mut a, mut b) = ((t[l0], n.child[l0]), (t[l1], n.child[l1]));
+                        if b.0 < a.0 {
+                            std::mem::swap(&mut a, &mut b);
+                        }
+                        if hit == 0 {
+                            stack[sp] = (b.1, b.0);
+                            sp += 1;
+                            cur = a.1;
+                            continue;
+                        }
+                        let mut order = [a, b, (0f32, 0u32), (0f32, 0u32)];
+                        let mut k = 2;
+                        while hit != 0 {
+                            let lane = hit.trailing_zeros() as usize;
+                            hit &= hit - 1;
+                            // Insert keeping `order` nearest first.
+                            let mut j = k;
+                            while j > 0 && order[j - 1].0 > t[lane] {
+                                order[j] = order[j - 1];
+                                j -= 1;
+                            }
+                            order[j] = (t[lane], n.child[lane]);
+                            k += 1;
+                        }
+                        for &(tn, c) in order[1..k].iter().rev() {
+                            stack[sp] = (c, tn);
+                            sp += 1;
+                        }
+                        cur = order[0].1;
+                        continue;
+                    }
+                }
+                Child::Leaf { block, count } => match leaf(block, (1u32 << count) - 1) {
+                    Err(()) => return,
+                    Ok(Some(t)) => closest = closest.min(t),
+                    Ok(None) => {}
+                },
+                Child::Empty => {}
+            }
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let (next, t) = stack[sp];
+                if t <= closest * ROBUST {
+                    cur = next;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// The nearest hit within `(0, ray.t_max]`.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let prep = Ray4::new(ray.origin, ray.dir);
+        let mut best: Option<Hit> = None;
+        let mut closest = ray.t_max;
+        self.walk(ray, |block, lanes| {
+            let mut found = None;
+            prep.intersect(&self.blocks[block], lanes, closest, |lane, h| {
+                closest = h.t;
+                found = Some(h.t);
+                best = Some(Hit {
+                    t: h.t,
+                    tri: self.ids[block][lane],
+                    u: h.u,
+                    v: h.v,
+                });
+                Some(h.t)
+            });
+            Ok(found)
+        });
+        best
+    }
+
+    /// True if a triangle for which `blocks(triangle)` is true lies within
+    /// `(0, ray.t_max)`. Triangles that do not block are passed to the
+    /// filter and skipped.
+    pub fn occluded_by(&self, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
+        let prep = Ray4::new(ray.origin, ray.dir);
+        let mut hit = false;
+        self.walk(ray, |block, lanes| {
+            let go = prep.intersect(&self.blocks[block], lanes, ray.t_max, |lane, h| {
+                if h.t < ray.t_max && blocks(self.ids[block][lane]) {
+                    hit = true;
+                    return None;
+                }
+                Some(ray.t_max)
+            });
+            if go {
+                Ok(None)
+            } else {
+                Err(())
+            }
+        });
+        hit
+    }
+
+    /// True if anything lies within `(0, ray.t_max)`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.occluded_by(ray, |_| true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Mat4, Vec3};
+    use rand::SeedableRng;
+
+    use super::*;
+    use crate::accel::testing::{brute, heightfield_and_rays, random_vec3, soup};
+    use crate::accel::{BuildOptions, KdTree};
+    use crate::geom::{intersect_triangle, RayPrep};
+    use crate::scene::{Material, Scene, SceneBuilder};
+
+    fn scene_of(p: &[Vec3], t: &[[u32; 3]]) -> Scene {
+        let mut b = SceneBuilder::new();
+        let m = b.material("grey", Material::lambertian([0.5; 3])).unwrap();
+        b.add_mesh("mesh", p, t, &[m], Mat4::IDENTITY).unwrap();
+        b.finish()
+    }
+
+    /// Checks one ray against brute force: the same nearest distance (to
+    /// rounding: at a shared vertex or edge each triangle's own arithmetic
+    /// gives a slightly different distance, and which of them a walk meets
+    /// first decides), on a triangle that the scalar test hits at that
+    /// distance; and the same answer to "anything before this distance".
+    fn check(scene: &Scene, bvh: &WideBvh, ray: &Ray, what: &str) -> bool {
+        let (a, b) = (bvh.intersect(ray), brute(scene, ray));
+        match (a, b) {
+            (None, None) => {}
+            (Some(a), Some(b)) => {
+                assert!(close(a.t, b.t), "{what}: {a:?} against brute force {b:?}");
+                let [p, q, r] = scene.vertices(a.tri as usize);
+                let own = intersect_triangle(&RayPrep::new(ray.origin, ray.dir), p, q, r, ray.t_max);
+                assert_eq!(own.map(|h| (h.t, h.u, h.v)), Some((a.t, a.u, a.v)), "{what}");
+            }
+            _ => panic!("{what} {ray:?}: hierarchy {a:?}, brute force {b:?}"),
+        }
+        let beyond = Ray {
+            t_max: b.map_or(1e30, |h| h.t * 1.001),
+            ..*ray
+        };
+        assert_eq!(bvh.occluded(&beyond), b.is_some(), "{what}: occluded");
+        if let Some(h) = b {
+            let short = Ray {
+                t_max: h.t * 0.999,
+                ..*ray
+            };
+            assert_eq!(
+                bvh.occluded(&short),
+                brute(scene, &short).is_some(),
+                "{what}: occluded short"
+            );
+        }
+        b.is_some()
+    }
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() <= 1e-6 * b.abs()
+    }
+
+    #[test]
+    fn nearest_and_any_hits_match_brute_force_on_nasty_soups() {
+        for seed in 0..8 {
+            let scene = soup(seed, 400);
+            let bvh = WideBvh::build(&scene).unwrap();
+            let stats = bvh.stats();
+            assert!(stats.nodes > 20 && stats.depth > 2 && stats.fill > 1.5, "{stats:?}");
+            let mut rng = rand::rngs::StdRng::seed_from_u64(200 + seed);
+            let mut hits = 0;
+            for k in 0..3000 {
+                let origin = random_vec3(&mut rng, 7.0);
+                let mut dir = random_vec3(&mut rng, 1.0);
+                match k % 4 {
+                    // Axis-parallel rays, some lying in the grids' planes.
+                    1 => {
+                        dir = [Vec3::X, Vec3::Y, Vec3::Z][k % 3] * if k % 8 == 1 { -1.0 } else { 1.0 };
+                    }
+                    2 => {
+                        let target = Vec3::new(
+                            (k % 9) as f32 - 4.0,
+                            ((k / 9) % 9) as f32 - 4.0 + 0.5 * (k % 2) as f32,
+                            0.0,
+                        );
+                        dir = target - origin;
+                    }
+                    3 if k % 16 == 3 => {
+                        // Starting exactly in a grid plane, as bounce rays do.
+                        let o = Vec3::new(origin.x, origin.y, 0.0);
+                        let ray = Ray::new(o, dir);
+                        hits += usize::from(check(&scene, &bvh, &ray, &format!("seed {seed} ray {k}")));
+                        continue;
+                    }
+                    _ => {}
+                }
+                if dir.length() < 1e-3 {
+                    continue;
+                }
+                let ray = Ray::new(origin, dir);
+                hits += usize::from(check(&scene, &bvh, &ray, &format!("seed {seed} ray {k}")));
+            }
+            assert!(hits > 700, "{hits}");
+        }
+    }
+
+    #[test]
+    fn empty_tiny_and_coincident_scenes() {
+        let empty = WideBvh::build(&Scene::default()).unwrap();
+        assert_eq!(empty.intersect(&Ray::new(Vec3::ZERO, Vec3::X)), None);
+        assert!(!empty.occluded(&Ray::new(Vec3::ZERO, Vec3::X)));
+        // One triangle: the root is a leaf.
+        let one = scene_of(
+            &[
+                Vec3::new(1.0, -1.0, -1.0),
+                Vec3::new(1.0, 1.0, -1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+            ],
+            &[[0, 1, 2]],
+        );
+        let bvh = WideBvh::build(&one).unwrap();
+        assert_eq!(bvh.stats().nodes, 0);
+        let h = bvh.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).unwrap();
+        assert_eq!((h.t, h.tri), (1.0, 0));
+        // 2,000 copies of one triangle: every centre in one point, split at
+        // the median; the nearest is any copy at the same distance.
+        let t: Vec<[u32; 3]> = (0..2000).map(|_| [0, 1, 2]).collect();
+        let same = scene_of(
+            &[
+                Vec3::new(1.0, -1.0, -1.0),
+                Vec3::new(1.0, 1.0, -1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+            ],
+            &t,
+        );
+        let bvh = WideBvh::build(&same).unwrap();
+        let stats = bvh.stats();
+        assert!(stats.depth <= 8 && stats.fill > 3.5, "{stats:?}");
+        assert_eq!(bvh.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).map(|h| h.t), Some(1.0));
+        assert!(bvh.occluded(&Ray {
+            t_max: 1.5,
+            ..Ray::new(Vec3::ZERO, Vec3::X)
+        }));
+        assert!(!bvh.occluded(&Ray {
+            t_max: 0.5,
+            ..Ray::new(Vec3::ZERO, Vec3::X)
+        }));
+    }
+
+    /// Triangles at exponentially growing distances, which SAH peels off one
+    /// at a time: the depth stays bounded (the walk's stack with it), and
+    /// every triangle is found.
+    #[test]
+    fn a_lopsided_scene_keeps_its_depth_bounded() {
+        let mut p = Vec::new();
+        let mut t = Vec::new();
+        for i in 0..120u32 {
+            let x = 1.5f32.powi(i as i32 - 60);
+            p.extend([
+                Vec3::new(x, -1.0, -1.0),
+                Vec3::new(x, 1.0, -1.0),
+                Vec3::new(x, 0.0, 1.0),
+            ]);
+            t.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let scene = scene_of(&p, &t);
+        let bvh = WideBvh::build(&scene).unwrap();
+        assert!(bvh.stats().depth <= 64, "{:?}", bvh.stats());
+        for i in 0..120u32 {
+            let x = 1.5f32.powi(i as i32 - 60);
+            // The previous triangle lies at x / 1.5, the next at 1.5 x.
+            let ray = Ray::new(Vec3::new(x * 0.8, 0.0, 0.0), Vec3::X);
+            assert_eq!(bvh.intersect(&ray).map(|h| h.tri), Some(i), "triangle {i}");
+            let back = Ray::new(Vec3::new(x * 1.25, 0.0, 0.0), -Vec3::X);
+            assert_eq!(bvh.intersect(&back).map(|h| h.tri), Some(i), "triangle {i} from behind");
+        }
+    }
+
+    /// Rays aimed exactly at the shared vertices and edges of a heightfield
+    /// never slip through, and find what the kd-tree finds.
+    #[test]
+    fn rays_through_shared_edges_and_vertices_never_leak() {
+        let (scene, rays) = heightfield_and_rays(24, 4000, 9);
+        let bvh = WideBvh::build(&scene).unwrap();
+        let tree = KdTree::build(&scene, &BuildOptions::default());
+        for (k, &ray) in rays.iter().enumerate() {
+            let Some(h) = bvh.intersect(&ray) else {
+                panic!("ray {k} {ray:?} leaked through the field")
+            };
+            assert!((h.t - 1.0).abs() < 1e-4, "{h:?} {ray:?}");
+            let kd = tree.intersect(&ray).map_or(f32::NAN, |h| h.t);
+            assert!(close(h.t, kd), "ray {k}: {h:?}, kd-tree {kd}");
+        }
+    }
+}
