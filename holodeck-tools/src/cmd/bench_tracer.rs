@@ -72,9 +72,27 @@ fn best_of_three(intersect: impl Fn(&Ray) -> Option<Hit>, rays: &[Ray]) -> (f64,
     (best, hits)
 }
 
+/// Rays per second on this thread in packets of eight consecutive rays with
+/// `packet`, best of three, and the distances of the hits.
+fn packets_best_of_three(packet: impl Fn(&[Ray]) -> [Option<Hit>; PACKET], rays: &[Ray]) -> (f64, Vec<Option<f32>>) {
+    let mut best = 0f64;
+    let mut hits = Vec::new();
+    for _ in 0..3 {
+        let start = Instant::now();
+        hits.clear();
+        for chunk in rays.chunks(PACKET) {
+            hits.extend(packet(chunk)[..chunk.len()].iter().map(|h| h.map(|h| h.t)));
+        }
+        best = best.max(rays.len() as f64 / start.elapsed().as_secs_f64());
+    }
+    (best, hits)
+}
+
 /// The kd-tree beside the wide BVH on the same rays: a table row of build
-/// times, sizes and single-ray rates (best of three each, alternated), and
-/// how many rays found their nearest hit at another distance.
+/// times, sizes, single-ray rates (best of three each, alternated) and the
+/// BVH's packet rates, and how many rays found their nearest hit at another
+/// distance. The rates come back too: build seconds, then primary and bounce
+/// rays single, then in packets.
 fn wide_row(
     label: &str,
     scene: &Scene,
@@ -82,24 +100,27 @@ fn wide_row(
     kd_build: f64,
     primary: &[Ray],
     bounce: &[Ray],
-) -> Result<(String, [f64; 3])> {
+) -> Result<(String, [f64; 5])> {
     let start = Instant::now();
     let bvh = WideBvh::build(scene).ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
     let build = start.elapsed().as_secs_f64();
     let tris = scene.triangles.len().max(1) as f64;
     let mut cells = Vec::new();
     let mut differ = 0;
-    let mut rates = [build, 0.0, 0.0];
+    let mut rates = [build, 0.0, 0.0, 0.0, 0.0];
     for (i, rays) in [primary, bounce].into_iter().enumerate() {
         let (kd, kd_hits) = best_of_three(|r| tree.intersect(r), rays);
         let (wide, wide_hits) = best_of_three(|r| bvh.intersect(r), rays);
+        let (packets, packet_hits) = packets_best_of_three(|p| bvh.intersect_packet(p), rays);
         differ += kd_hits.iter().zip(&wide_hits).filter(|(a, b)| a != b).count();
+        differ += packet_hits.iter().zip(&wide_hits).filter(|(a, b)| a != b).count();
         cells.push(format!("{:.2} / {:.2} = {:.2}", wide / 1e6, kd / 1e6, wide / kd));
         rates[i + 1] = wide;
+        rates[i + 3] = packets;
     }
     let st = bvh.stats();
     let row = format!(
-        "| {label} | {:.2} s / {kd_build:.2} s | {:.1} / {:.1} | {} nodes, {} leaves of {:.2} triangles, depth {} | {} | {} | {differ} of {} |",
+        "| {label} | {:.2} s / {kd_build:.2} s | {:.1} / {:.1} | {} nodes, {} leaves of {:.2} triangles, depth {} | {} | {} | {:.2} ({:.2}x single) | {:.2} ({:.2}x single) | {differ} of {} |",
         build,
         st.bytes as f64 / tris,
         tree.stats().bytes as f64 / tris,
@@ -109,7 +130,11 @@ fn wide_row(
         st.depth,
         cells[0],
         cells[1],
-        primary.len() + bounce.len()
+        rates[3] / 1e6,
+        rates[3] / rates[1],
+        rates[4] / 1e6,
+        rates[4] / rates[2],
+        2 * (primary.len() + bounce.len())
     );
     Ok((row, rates))
 }
@@ -286,6 +311,8 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
                     bounce_packets,
                     wide_rates[1],
                     wide_rates[2],
+                    wide_rates[3],
+                    wide_rates[4],
                 ],
                 &primary,
                 &hits,
@@ -306,11 +333,11 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     }
     println!();
     println!(
-        "The wide BVH (4 children per node, leaves of up to 4 triangles) beside the kd-tree on the same rays, single rays on one core, best of three; wide BVH / kd-tree:"
+        "The wide BVH (4 children per node, leaves of up to 4 triangles) beside the kd-tree on the same rays, one core, best of three; single rays wide BVH / kd-tree, and the BVH's packets of 8 (Mrays/s):"
     );
     println!();
-    println!("| scene | build (2 cores) | bytes/tri | shape | primary, single | diffuse bounce, single | rays with another nearest distance |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| scene | build (2 cores) | bytes/tri | shape | primary, single | diffuse bounce, single | primary, packets of 8, wide BVH | diffuse bounce, packets of 8, wide BVH | rays with another nearest distance (kd-tree and packets against single BVH rays) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for row in wide {
         println!("{row}");
     }
@@ -321,9 +348,9 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         );
         println!();
         println!(
-            "| scene | build, kd-tree / wide BVH / Embree | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | primary, single, wide BVH | diffuse bounce, single, wide BVH | rays hitting another triangle |"
+            "| scene | build, kd-tree / wide BVH / Embree | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | primary, single, wide BVH | diffuse bounce, single, wide BVH | primary, packets of 8, wide BVH | diffuse bounce, packets of 8, wide BVH | rays hitting another triangle |"
         );
-        println!("|---|---|---|---|---|---|---|---|---|");
+        println!("|---|---|---|---|---|---|---|---|---|---|---|");
         for row in beside {
             println!("{row}");
         }
@@ -485,18 +512,19 @@ fn beam_row(per_beam: usize) -> Result<String> {
             })
             .fold(0f64, f64::max)
     };
-    let tree = tracer.tree();
+    // First hits as the tracer finds them: through the wide BVH when it has one.
+    let (tree, bvh) = (tracer.tree(), tracer.bvh());
     let single_hits = best(&mut || {
         for beam in &rays {
             for r in beam {
-                std::hint::black_box(tree.intersect(r));
+                std::hint::black_box(bvh.map_or_else(|| tree.intersect(r), |b| b.intersect(r)));
             }
         }
     });
     let packet_hits = best(&mut || {
         for beam in &rays {
             for chunk in beam.chunks(PACKET) {
-                std::hint::black_box(tree.intersect_packet(chunk));
+                std::hint::black_box(bvh.map_or_else(|| tree.intersect_packet(chunk), |b| b.intersect_packet(chunk)));
             }
         }
     });
@@ -539,15 +567,15 @@ fn beam_row(per_beam: usize) -> Result<String> {
 /// Embree's build time and rates on the same rays as a table row, each
 /// beside ours (`build`: the kd-tree's and the wide BVH's seconds; `ours`:
 /// primary single, primary packets, bounce single, bounce packets, then the
-/// wide BVH's primary and bounce single, in rays/s), and how many rays hit a
-/// different triangle.
+/// wide BVH's primary and bounce single and primary and bounce packets, in
+/// rays/s), and how many rays hit a different triangle.
 #[cfg(feature = "embree")]
 #[allow(clippy::too_many_arguments)]
 fn side_by_side(
     label: &str,
     scene: &Scene,
     build: [f64; 2],
-    ours: [f64; 6],
+    ours: [f64; 8],
     primary: &[Ray],
     primary_hits: &[Option<RayHit>],
     bounce: &[Ray],
@@ -587,7 +615,7 @@ fn side_by_side(
         ph.iter().zip(&pph).filter(|(a, b)| a != b).count() + bh.iter().zip(&bph).filter(|(a, b)| a != b).count();
     let cell = |o: f64, t: f64| format!("{:.2} / {:.2} = {:.2}", o / 1e6, t / 1e6, o / t);
     Ok(format!(
-        "| {label} | {:.2} s / {:.2} s / {e_build:.2} s | {} | {} | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
+        "| {label} | {:.2} s / {:.2} s / {e_build:.2} s | {} | {} | {} | {} | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
         build[0],
         build[1],
         cell(ours[0], ps),
@@ -596,6 +624,8 @@ fn side_by_side(
         cell(ours[3], bp),
         cell(ours[4], ps),
         cell(ours[5], bs),
+        cell(ours[6], pp),
+        cell(ours[7], bp),
         primary.len() + bounce.len(),
     ))
 }

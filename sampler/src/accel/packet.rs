@@ -18,7 +18,7 @@ pub const PACKET: usize = 8;
 const STACK: usize = 64;
 /// Active rays from which a leaf is tested ray-parallel (one triangle against
 /// all rays at once) rather than ray by ray.
-const SHARED_LEAF: u32 = 3;
+pub(crate) const SHARED_LEAF: u32 = 3;
 const SLACK_UP: f32 = 1.0 + 1e-5;
 const SLACK_DOWN: f32 = 1.0 - 1e-5;
 
@@ -41,30 +41,50 @@ fn coherent(rays: &[Ray], mask: u32) -> bool {
         })
 }
 
+/// The rays in `mask` prepared to test a leaf's triangles against all of
+/// them at once, when they run nearly one way with one axis permutation.
+pub(crate) fn shared_leaf_rays(rays: &[Ray], mask: u32) -> Option<Rays8> {
+    if !coherent(rays, mask) {
+        return None;
+    }
+    let mut pairs = [(glam::Vec3::ZERO, glam::Vec3::ONE); PACKET];
+    for (p, r) in pairs.iter_mut().zip(rays) {
+        *p = (r.origin, r.dir);
+    }
+    Rays8::new(&pairs, mask)
+}
+
+/// Calls `each` with the mask of the first [`PACKET`] rays in each direction
+/// octant, so that a packet walk can take one near-to-far order for all of
+/// its rays. By sign bit, so that a -0.0 component walks as it does alone,
+/// where its inverse is negative.
+pub(crate) fn for_each_octant(rays: &[Ray], mut each: impl FnMut(u32)) {
+    let n = rays.len().min(PACKET);
+    let octant = |r: &Ray| {
+        r.dir.x.is_sign_negative() as u8
+            | (r.dir.y.is_sign_negative() as u8) << 1
+            | (r.dir.z.is_sign_negative() as u8) << 2
+    };
+    let mut done = 0u32;
+    for i in 0..n {
+        if done & (1 << i) != 0 {
+            continue;
+        }
+        let o = octant(&rays[i]);
+        let mask = (i..n)
+            .filter(|&j| done & (1 << j) == 0 && octant(&rays[j]) == o)
+            .fold(0u32, |m, j| m | 1 << j);
+        done |= mask;
+        each(mask);
+    }
+}
+
 impl KdTree {
     /// Nearest hits of up to [`PACKET`] rays; rays may point anywhere (they are
     /// grouped by direction octant), but coherent rays gain the most.
     pub fn intersect_packet(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
-        let n = rays.len().min(PACKET);
-        // By sign bit, so that a -0.0 component walks like the single ray, whose inverse is -inf.
-        let octant = |r: &Ray| {
-            r.dir.x.is_sign_negative() as u8
-                | (r.dir.y.is_sign_negative() as u8) << 1
-                | (r.dir.z.is_sign_negative() as u8) << 2
-        };
-        let mut done = 0u32;
-        for i in 0..n {
-            if done & (1 << i) != 0 {
-                continue;
-            }
-            let o = octant(&rays[i]);
-            let mask = (i..n)
-                .filter(|&j| done & (1 << j) == 0 && octant(&rays[j]) == o)
-                .fold(0u32, |m, j| m | 1 << j);
-            done |= mask;
-            self.packet_octant(rays, mask, &mut out);
-        }
+        for_each_octant(rays, |mask| self.packet_octant(rays, mask, &mut out));
         out
     }
 
@@ -95,15 +115,7 @@ impl KdTree {
         if active == 0 {
             return;
         }
-        let shared = if coherent(rays, active) {
-            let mut pairs = [(glam::Vec3::ZERO, glam::Vec3::ONE); PACKET];
-            for (p, r) in pairs.iter_mut().zip(rays) {
-                *p = (r.origin, r.dir);
-            }
-            Rays8::new(&pairs, active)
-        } else {
-            None
-        };
+        let shared = shared_leaf_rays(rays, active);
         let first_lane = active.trailing_zeros() as usize;
         let negative = [
             rays[first_lane].dir.x.is_sign_negative(),

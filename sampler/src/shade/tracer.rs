@@ -410,7 +410,10 @@ impl Tracer {
                 for (p, c) in packet.iter_mut().zip(chunk) {
                     *p = c.1;
                 }
-                let found = self.tree.intersect_packet(&packet[..chunk.len()]);
+                let found = match &self.bvh {
+                    Some(bvh) => bvh.intersect_packet(&packet[..chunk.len()]),
+                    None => self.tree.intersect_packet(&packet[..chunk.len()]),
+                };
                 for (&(k, _), h) in chunk.iter().zip(found) {
                     hits[k] = h;
                 }

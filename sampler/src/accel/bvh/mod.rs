@@ -14,6 +14,7 @@
 
 mod build;
 mod node;
+mod packet;
 mod traverse;
 
 pub use build::MAX_TRIANGLES;

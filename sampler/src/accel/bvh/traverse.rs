@@ -3,6 +3,8 @@
 //! drops a box the ray grazes (the triangle test is watertight, and the box
 //! test must not undo that).
 
+use std::mem::MaybeUninit;
+
 use wide::{f32x4, CmpLe};
 
 use super::node::{Child, EMPTY};
@@ -12,17 +14,17 @@ use crate::geom::{Ray, Ray4};
 
 /// Entries of the walk's stack. A level pushes at most three, and the build
 /// bounds the depth (32 levels of SAH, then halving: at most 64).
-const STACK: usize = 256;
+pub(super) const STACK: usize = 256;
 
 /// `1 + 2 gamma(3)` (Pharr, Jakob and Humphreys, 3.9.2): far distances
 /// scaled by it cover the rounding of the slab distances.
-const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+pub(super) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 /// The reciprocal of a direction component, finite: a zero component gives
 /// the largest float of its sign, so that `0 * inv` is 0, never NaN, and a
 /// ray lying in a box's face counts as inside it.
 #[inline]
-fn safe_recip(d: f32) -> f32 {
+pub(super) fn safe_recip(d: f32) -> f32 {
     if d == 0.0 {
         f32::MAX.copysign(d)
     } else {
@@ -46,7 +48,9 @@ impl WideBvh {
         let near = [0, 1, 2].map(|c| if inv[c] < 0.0 { 3 + c } else { c });
         let far = [0, 1, 2].map(|c| if inv[c] < 0.0 { c } else { 3 + c });
         let mut closest = ray.t_max;
-        let mut stack = [(0u32, 0f32); STACK];
+        // Entries below `sp` are written before they are read; left
+        // uninitialized, the stack costs no clearing per ray.
+        let mut stack = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
         let mut sp = 0usize;
         let mut cur = self.root;
         loop {
@@ -79,7 +83,7 @@ impl WideBvh {
                             std::mem::swap(&mut a, &mut b);
                         }
                         if hit == 0 {
-                            stack[sp] = (b.1, b.0);
+                            stack[sp] = MaybeUninit::new((b.1, b.0));
                             sp += 1;
                             cur = a.1;
                             continue;
@@ -99,7 +103,7 @@ impl WideBvh {
                             k += 1;
                         }
                         for &(tn, c) in order[1..k].iter().rev() {
-                            stack[sp] = (c, tn);
+                            stack[sp] = MaybeUninit::new((c, tn));
                             sp += 1;
                         }
                         cur = order[0].1;
@@ -118,7 +122,8 @@ impl WideBvh {
                     return;
                 }
                 sp -= 1;
-                let (next, t) = stack[sp];
+                // SAFETY: entries below the old `sp` were written by the pushes above.
+                let (next, t) = unsafe { stack[sp].assume_init() };
                 if t <= closest * ROBUST {
                     cur = next;
                     break;
