@@ -100,7 +100,7 @@ fn wide_row(
     kd_build: f64,
     primary: &[Ray],
     bounce: &[Ray],
-) -> Result<(String, [f64; 5])> {
+) -> Result<(String, [f64; 5], WideBvh)> {
     let start = Instant::now();
     let bvh = WideBvh::build(scene).ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
     let build = start.elapsed().as_secs_f64();
@@ -136,7 +136,7 @@ fn wide_row(
         rates[4] / rates[2],
         2 * (primary.len() + bounce.len())
     );
-    Ok((row, rates))
+    Ok((row, rates, bvh))
 }
 
 /// Rays per second on this thread, tracing in packets of eight consecutive
@@ -211,6 +211,8 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     let mut memory: Vec<String> = Vec::new();
     // Rows of the wide BVH's table.
     let mut wide: Vec<String> = Vec::new();
+    // Rows of the table of rays spread over the whole scene.
+    let mut scattered: Vec<String> = Vec::new();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -283,8 +285,10 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         wrong += differing(&bounce_packet_hits, &bounce_hits);
         reordered.push(reordering_row(&case.label, &tree, &bounce, &bounce_hits));
         #[cfg_attr(not(feature = "embree"), allow(unused_variables))]
-        let (wide_table_row, wide_rates) = wide_row(&case.label, scene, &tree, build, &primary, &bounce)?;
+        let (wide_table_row, wide_rates, bvh) = wide_row(&case.label, scene, &tree, build, &primary, &bounce)?;
         wide.push(wide_table_row);
+        scattered.push(scattered_row(&case.label, scene, &tree, &bvh));
+        drop(bvh);
         let tris = scene.triangles.len().max(1) as f64;
         println!(
             "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
@@ -365,6 +369,18 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for row in reordered {
+        println!("{row}");
+    }
+    println!();
+    println!(
+        "Incoherent rays over the whole scene: {SCATTERED} diffuse bounce rays from points spread evenly over all triangles, in random order (a batch from many beams whose views see all of the scene), traced as given and sorted in one batch (the sort's time included), by the kd-tree and by the wide BVH; single rays on one core, best of three:"
+    );
+    println!();
+    println!(
+        "| scene | rays | kd-tree, as given | kd-tree, by hit point (/ as given) | kd-tree, by origin (/ as given) | wide BVH, as given | wide BVH, by hit point (/ as given) | wide BVH, by origin (/ as given) | hits differing from as given |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for row in scattered {
         println!("{row}");
     }
     println!();
@@ -471,6 +487,59 @@ fn reordering_row(label: &str, tree: &KdTree, bounce: &[Ray], hits: &[Option<Ray
         hit_point / given,
         origin / given
     )
+}
+
+/// Rays in the table of rays spread over the whole scene.
+const SCATTERED: usize = 1_048_576;
+
+/// A row of the table of rays spread over the whole scene: diffuse bounces
+/// from points on triangles drawn evenly by index (so by area on an even
+/// mesh), each structure's rate as given and reordered (best of three), and
+/// how many hits differ from those traced as given.
+fn scattered_row(label: &str, scene: &Scene, tree: &KdTree, bvh: &WideBvh) -> String {
+    let mut rng = Rng::new(7, 0);
+    let n = scene.triangles.len();
+    let rays: Vec<Ray> = (0..if n == 0 { 0 } else { SCATTERED })
+        .map(|_| {
+            let tri = ((u64::from(rng.next_u32()) * n as u64) >> 32) as usize;
+            let [a, b, c] = scene.vertices(tri);
+            let (mut u, mut v) = rng.f32x2();
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            let ng = (b - a).cross(c - a).normalize_or_zero();
+            let d = Frame::new(ng).to_world(cosine_hemisphere(rng.f32x2()));
+            Ray::new(offset_origin(a + u * (b - a) + v * (c - a), ng), d)
+        })
+        .filter(|r| r.dir.is_finite() && r.dir != glam::Vec3::ZERO)
+        .collect();
+    let mut differ = 0;
+    let mut cells = Vec::new();
+    for intersect in [
+        &(|r: &Ray| tree.intersect(r)) as &dyn Fn(&Ray) -> Option<Hit>,
+        &|r: &Ray| bvh.intersect(r),
+    ] {
+        let (given, want) = best_of_three(intersect, &rays);
+        cells.push(format!("{:.2}", given / 1e6));
+        for o in [RayOrder::HitPoint, RayOrder::Origin] {
+            let mut best = 0f64;
+            let mut got = vec![None; rays.len()];
+            for _ in 0..3 {
+                let start = Instant::now();
+                let order = match o {
+                    RayOrder::Origin => tree.origin_order(&rays),
+                    _ => tree.hit_point_order(&rays),
+                };
+                for i in order {
+                    got[i as usize] = intersect(&rays[i as usize]).map(|h| h.t);
+                }
+                best = best.max(rays.len() as f64 / start.elapsed().as_secs_f64());
+            }
+            differ += got.iter().zip(&want).filter(|(g, w)| g != w).count();
+            cells.push(format!("{:.2} ({:.2})", best / 1e6, best / given));
+        }
+    }
+    format!("| {label} | {} | {} | {differ} |", rays.len(), cells.join(" | "))
 }
 
 /// A row of the beam-packet table: `per_beam` rays in each of a spread of

@@ -10,9 +10,11 @@ use super::traverse::STACK;
 use super::{Hit, KdTree};
 use crate::geom::Ray;
 
-/// Depth of the coarse level the hit points are estimated on: 4,096 cells
-/// at most, a few tens of KiB of nodes.
-const COARSE_DEPTH: usize = 12;
+/// Depth of the coarse level the hit points are estimated on: 65,536 cells
+/// at most, half a MiB of nodes, which stays in a core's L2 cache. Twelve
+/// levels gave keys too coarse to order rays over a 10M-triangle scene
+/// (1.8x the unordered rate against 2.0x, `holodeck bench tracer`).
+const COARSE_DEPTH: usize = 16;
 
 /// Bits per axis of the quantized hit point (a 30-bit Z-curve key).
 const BITS: u32 = 10;

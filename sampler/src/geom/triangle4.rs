@@ -51,14 +51,14 @@ impl Tri4 {
 }
 
 /// A ray prepared for [`Ray4::intersect`]: the shear of the watertight test
-/// with its constants in every lane, and the scalar test's constants for
-/// lanes on an edge.
+/// with its constants in every lane, and the ray itself for lanes on an
+/// edge (rare, so the scalar test's constants are made only then).
 #[derive(Clone, Copy, Debug)]
 pub struct Ray4 {
     k: [usize; 3],
     o: [f32x4; 3],
     s: [f32x4; 3],
-    scalar: RayPrep,
+    ray: (Vec3, Vec3),
 }
 
 impl Ray4 {
@@ -79,13 +79,13 @@ impl Ray4 {
                 f32x4::splat(dir[ky] / dir[kz]),
                 f32x4::splat(1.0 / dir[kz]),
             ],
-            scalar: RayPrep::new(origin, dir),
+            ray: (origin, dir),
         }
     }
 
     /// The scalar test's constants of this ray.
-    pub fn scalar(&self) -> &RayPrep {
-        &self.scalar
+    pub fn scalar(&self) -> RayPrep {
+        RayPrep::new(self.ray.0, self.ray.1)
     }
 
     /// Tests the lanes set in `lanes` in lane order, exactly as calling
@@ -135,7 +135,7 @@ impl Ray4 {
             todo &= todo - 1;
             let found = if edge & (1 << lane) != 0 {
                 let [a, b, c] = tri.get(lane);
-                intersect_triangle(&self.scalar, a, b, c, limit)
+                intersect_triangle(&self.scalar(), a, b, c, limit)
             } else {
                 // Passed against the limit the block started with; check the
                 // limit that earlier lanes may have lowered, as the scalar test would.
@@ -196,7 +196,7 @@ mod tests {
                 if lanes & (1 << i) == 0 {
                     continue;
                 }
-                if let Some(h) = intersect_triangle(ray.scalar(), a, b, c, l) {
+                if let Some(h) = intersect_triangle(&ray.scalar(), a, b, c, l) {
                     want.push((i, h.t));
                     l = h.t;
                 }
