@@ -240,8 +240,8 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::testing::random_vec3;
     use crate::accel::testing::soup;
+    use crate::accel::testing::{point_off_surface, random_vec3};
     use crate::accel::BuildOptions;
     use rand::{Rng, SeedableRng};
 
@@ -321,11 +321,7 @@ mod tests {
                         .collect()
                 } else {
                     // Bounce rays from one point just off a triangle, as a sampler makes them.
-                    let t = rng.gen_range(0..scene.triangles.len());
-                    let [a, b, c] = scene.vertices(t);
-                    let n = (b - a).cross(c - a).normalize();
-                    let (u, v) = (rng.gen_range(0.05..0.45), rng.gen_range(0.05..0.45));
-                    let p = a + u * (b - a) + v * (c - a) + n * 1e-5;
+                    let (p, n) = point_off_surface(&scene, &mut rng);
                     (0..PACKET)
                         .map(|_| {
                             let d = random_vec3(&mut rng, 1.0);

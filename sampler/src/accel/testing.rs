@@ -28,6 +28,16 @@ pub fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
     best
 }
 
+/// A point just off a random triangle of `scene` (inside its edges, 1e-5
+/// along its normal), and that normal: where a sampler's bounce rays start.
+pub fn point_off_surface(scene: &Scene, rng: &mut impl Rng) -> (Vec3, Vec3) {
+    let t = rng.gen_range(0..scene.triangles.len());
+    let [a, b, c] = scene.vertices(t);
+    let n = (b - a).cross(c - a).normalize();
+    let (u, v) = (rng.gen_range(0.05..0.45), rng.gen_range(0.05..0.45));
+    (a + u * (b - a) + v * (c - a) + n * 1e-5, n)
+}
+
 /// A random point (or direction) in the cube `[-r, r)^3`.
 pub fn random_vec3(rng: &mut impl Rng, r: f32) -> Vec3 {
     Vec3::new(rng.gen_range(-r..r), rng.gen_range(-r..r), rng.gen_range(-r..r))

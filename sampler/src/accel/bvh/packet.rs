@@ -180,10 +180,10 @@ fn lanes(mut mask: u32) -> impl Iterator<Item = usize> {
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
 
     use super::*;
-    use crate::accel::testing::{brute, heightfield_and_rays, random_vec3, soup};
+    use crate::accel::testing::{brute, heightfield_and_rays, point_off_surface, random_vec3, soup};
     use crate::geom::{intersect_triangle, RayPrep};
     use crate::scene::Scene;
 
@@ -257,11 +257,7 @@ mod tests {
                         .collect(),
                     // Bounce rays from a point just off a triangle.
                     _ => {
-                        let t = rng.gen_range(0..scene.triangles.len());
-                        let [a, b, c] = scene.vertices(t);
-                        let n = (b - a).cross(c - a).normalize();
-                        let (u, v) = (rng.gen_range(0.05..0.45), rng.gen_range(0.05..0.45));
-                        let p = a + u * (b - a) + v * (c - a) + n * 1e-5;
+                        let (p, n) = point_off_surface(&scene, &mut rng);
                         (0..PACKET)
                             .map(|_| {
                                 let d = (n + 0.3 * random_vec3(&mut rng, 1.0)).normalize();
