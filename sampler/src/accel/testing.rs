@@ -28,6 +28,31 @@ pub fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
     best
 }
 
+/// The nearest hit within `(0, ray.t_max]` with every triangle tested on its
+/// own, ties in distance going to the lowest triangle index: what the wide
+/// BVH must find, exactly.
+pub fn nearest_of_all(scene: &Scene, ray: &Ray) -> Option<Hit> {
+    let prep = RayPrep::new(ray.origin, ray.dir);
+    let mut best: Option<Hit> = None;
+    for i in 0..scene.triangles.len() {
+        let [a, b, c] = scene.vertices(i);
+        // A limit a little beyond, so that the scaled comparison's rounding
+        // never drops a triangle at exactly `t_max`; then the exact check.
+        let Some(h) = intersect_triangle(&prep, a, b, c, ray.t_max * (1.0 + 1e-6)) else {
+            continue;
+        };
+        if h.t <= ray.t_max && best.is_none_or(|b| h.t < b.t) {
+            best = Some(Hit {
+                t: h.t,
+                tri: i as u32,
+                u: h.u,
+                v: h.v,
+            });
+        }
+    }
+    best
+}
+
 /// A point just off a random triangle of `scene` (inside its edges, 1e-5
 /// along its normal), and that normal: where a sampler's bounce rays start.
 pub fn point_off_surface(scene: &Scene, rng: &mut impl Rng) -> (Vec3, Vec3) {

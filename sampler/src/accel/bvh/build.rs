@@ -1,12 +1,12 @@
 //! Building the wide BVH: binned SAH over triangle centroids splits a node's
 //! triangles in two, and the largest of its parts is split again until it has
-//! four children; parts of up to four triangles become leaves. Subtrees are
+//! eight children; parts of up to four triangles become leaves. Subtrees are
 //! built in parallel, then laid out depth first.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::node::{Child, Node4, EMPTY, MAX_BLOCKS};
+use super::node::{Child, Node, EMPTY, MAX_BLOCKS, WIDTH};
 use super::WideBvh;
 use crate::geom::{Aabb, Tri4};
 use crate::scene::Scene;
@@ -38,7 +38,7 @@ impl Prim {
 }
 
 /// A subtree before layout: a leaf over a run of the primitive array, or up
-/// to four children with their boxes.
+/// to [`WIDTH`] children with their boxes.
 enum Sub {
     Leaf { start: usize, count: usize },
     Inner(Vec<(Aabb, Sub)>),
@@ -208,9 +208,9 @@ fn build(prims: &mut [Prim], offset: usize, bounds: Aabb, depth: usize) -> Sub {
             count: prims.len(),
         };
     }
-    // Parts as (start within `prims`, length, box), split until four.
+    // Parts as (start within `prims`, length, box), split until [`WIDTH`].
     let mut parts = vec![(0usize, prims.len(), bounds)];
-    while parts.len() < 4 {
+    while parts.len() < WIDTH {
         let Some(i) = (0..parts.len())
             .filter(|&i| parts[i].1 > LEAF_MAX)
             .max_by(|&a, &b| parts[a].2.area().total_cmp(&parts[b].2.area()))
@@ -260,7 +260,7 @@ fn primitives(scene: &Scene, n: usize) -> Vec<Prim> {
 struct Layout<'a> {
     scene: &'a Scene,
     prims: &'a [Prim],
-    nodes: Vec<Node4>,
+    nodes: Vec<Node>,
     blocks: Vec<Tri4>,
     ids: Vec<[u32; 4]>,
 }
@@ -283,9 +283,9 @@ impl Layout<'_> {
             }
             Sub::Inner(children) => {
                 let index = self.nodes.len();
-                self.nodes.push(Node4::new(&[]));
+                self.nodes.push(Node::new(&[]));
                 let refs: Vec<(Aabb, u32)> = children.iter().map(|(b, c)| (*b, self.place(c))).collect();
-                self.nodes[index] = Node4::new(&refs);
+                self.nodes[index] = Node::new(&refs);
                 index as u32
             }
         }
@@ -310,7 +310,7 @@ impl WideBvh {
         let mut layout = Layout {
             scene,
             prims: &prims,
-            nodes: Vec::with_capacity(n / 6 + 1),
+            nodes: Vec::with_capacity(n / 14 + 1),
             blocks: Vec::with_capacity(n / 3 + 1),
             ids: Vec::with_capacity(n / 3 + 1),
         };

@@ -1,33 +1,35 @@
-//! A 4-wide bounding volume hierarchy for in-core ray casting: each node
-//! holds the boxes of up to four children in SIMD lanes, so one ray tests all
-//! four with a handful of vector operations, and each leaf is one block of up
-//! to four triangles tested at once by the watertight test of
+//! An 8-wide bounding volume hierarchy for in-core ray casting: each node
+//! holds the boxes of up to eight children in SIMD lanes, so one ray tests all
+//! eight with a handful of vector operations (256-bit ones where the CPU has
+//! AVX2, chosen at run time), and each leaf is one block of up to four
+//! triangles tested at once by the watertight test of
 //! [`Ray4`](crate::geom::Ray4). Built with binned SAH over triangle
 //! centroids, in parallel.
 //!
 //! Why a second structure beside the kd-tree: a kd-tree step decides one
 //! split plane, one dependent load at a time, and a walk down a 10M-triangle
-//! tree takes dozens of them; a wide node decides four boxes at once, in
-//! about a third of the levels. The kd-tree stays what out-of-core scene
+//! tree takes dozens of them; a wide node decides eight boxes at once, in
+//! about a fifth of the levels. The kd-tree stays what out-of-core scene
 //! files are cut along (voxel LOD at inner nodes, 8-byte nodes); this
 //! hierarchy is for scenes held in memory.
 
 mod build;
 mod node;
 mod packet;
+mod slab;
 mod traverse;
 
 pub use build::MAX_TRIANGLES;
 
 use crate::geom::{Aabb, Tri4};
 
-use node::Node4;
+use node::Node;
 
-/// A 4-wide BVH over a scene's triangles: nodes in depth-first order (the
+/// An 8-wide BVH over a scene's triangles: nodes in depth-first order (the
 /// root first), and the leaves' triangles in blocks of four with their
 /// triangle indices.
 pub struct WideBvh {
-    nodes: Vec<Node4>,
+    nodes: Vec<Node>,
     blocks: Vec<Tri4>,
     /// Triangle index of each lane of each block.
     ids: Vec<[u32; 4]>,
@@ -51,6 +53,27 @@ pub struct BvhStats {
     pub bytes: usize,
 }
 
+/// Whether a hit at `t` on triangle `tri` beats the nearest so far, at
+/// `closest` on triangle `best` (`u32::MAX` for none): nearer, or as near on
+/// a lower triangle index. Where a ray meets an edge two triangles share,
+/// each triangle's own arithmetic gives its own distance, and the scaled
+/// comparison of the watertight test can pass a distance an ulp beyond its
+/// limit; deciding here by distance, then index, makes the answer the same
+/// whatever order the walk meets the triangles in (single rays and packets
+/// order children differently).
+#[inline]
+fn better(t: f32, tri: u32, closest: f32, best: u32) -> bool {
+    t < closest || (t == closest && tri < best)
+}
+
+/// The limit handed to the triangle tests for a nearest distance `closest`:
+/// a little beyond it, so that a triangle at exactly `closest` passes the
+/// test's scaled comparison whatever its rounding, and [`better`] decides.
+#[inline]
+fn reach(closest: f32) -> f32 {
+    closest * slab::ROBUST
+}
+
 impl WideBvh {
     /// The scene bounds.
     pub fn bounds(&self) -> Aabb {
@@ -62,7 +85,7 @@ impl WideBvh {
         let mut s = BvhStats {
             nodes: self.nodes.len(),
             leaves: self.blocks.len(),
-            bytes: self.nodes.len() * std::mem::size_of::<Node4>()
+            bytes: self.nodes.len() * std::mem::size_of::<Node>()
                 + self.blocks.len() * (std::mem::size_of::<Tri4>() + 16),
             ..BvhStats::default()
         };

@@ -1,11 +1,15 @@
-//! The wide node: four children's boxes in structure-of-arrays form, and a
+//! The wide node: eight children's boxes in structure-of-arrays form, and a
 //! 32-bit reference per child. A reference is an inner node's index, or a
 //! leaf (the top bit set, then the block index and the triangle count less
 //! one in the low two bits), or [`EMPTY`].
 
-use wide::f32x4;
+use wide::f32x8;
 
 use crate::geom::Aabb;
+
+/// Children per node: one ray tests all eight boxes with one 256-bit
+/// operation per slab where the CPU has AVX.
+pub(crate) const WIDTH: usize = 8;
 
 /// An unused child slot (its box is empty, so no ray enters it).
 pub(crate) const EMPTY: u32 = u32::MAX;
@@ -44,29 +48,29 @@ impl Child {
     }
 }
 
-/// Four children: `b[0..3]` their boxes' low x, y, z and `b[3..6]` the high
-/// ones, one child per lane; `child` their references. Aligned so that a
-/// node spans exactly two cache lines.
+/// Eight children: `b[0..3]` their boxes' low x, y, z and `b[3..6]` the high
+/// ones, one child per lane; `child` their references. Aligned to cache
+/// lines (224 bytes, padded to four lines).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub(crate) struct Node4 {
-    pub(crate) b: [f32x4; 6],
-    pub(crate) child: [u32; 4],
+pub(crate) struct Node {
+    pub(crate) b: [f32x8; 6],
+    pub(crate) child: [u32; WIDTH],
 }
 
-impl Node4 {
-    /// A node of up to four children (the rest empty).
-    pub(crate) fn new(children: &[(Aabb, u32)]) -> Node4 {
-        debug_assert!(children.len() <= 4);
+impl Node {
+    /// A node of up to [`WIDTH`] children (the rest empty).
+    pub(crate) fn new(children: &[(Aabb, u32)]) -> Node {
+        debug_assert!(children.len() <= WIDTH);
         let mut b = [
-            [f32::INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
-            [f32::NEG_INFINITY; 4],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
         ];
-        let mut child = [EMPTY; 4];
+        let mut child = [EMPTY; WIDTH];
         for (lane, (bx, r)) in children.iter().enumerate() {
             for c in 0..3 {
                 b[c][lane] = bx.lo[c];
@@ -74,8 +78,8 @@ impl Node4 {
             }
             child[lane] = *r;
         }
-        Node4 {
-            b: b.map(f32x4::new),
+        Node {
+            b: b.map(f32x8::new),
             child,
         }
     }

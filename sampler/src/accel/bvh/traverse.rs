@@ -1,53 +1,39 @@
-//! Walking the wide BVH nearest child first: one ray against a node's four
-//! boxes at once, with a slab test made conservative so that rounding never
-//! drops a box the ray grazes (the triangle test is watertight, and the box
-//! test must not undo that).
+//! Walking the wide BVH nearest child first: one ray against a node's eight
+//! boxes at once (see [`super::slab`]).
 
 use std::mem::MaybeUninit;
 
-use wide::{f32x4, CmpLe};
+use wide::f32x8;
 
-use super::node::{Child, EMPTY};
-use super::WideBvh;
+use super::node::{Child, EMPTY, WIDTH};
+#[cfg(target_arch = "x86_64")]
+use super::slab::avx;
+use super::slab::{Lanes, SlabRay, ROBUST};
+use super::{better, reach, WideBvh};
 use crate::accel::Hit;
 use crate::geom::{Ray, Ray4};
 
-/// Entries of the walk's stack. A level pushes at most three, and the build
-/// bounds the depth (32 levels of SAH, then halving: at most 64).
-pub(super) const STACK: usize = 256;
-
-/// `1 + 2 gamma(3)` (Pharr, Jakob and Humphreys, 3.9.2): far distances
-/// scaled by it cover the rounding of the slab distances.
-pub(super) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
-
-/// The reciprocal of a direction component, finite: a zero component gives
-/// the largest float of its sign, so that `0 * inv` is 0, never NaN, and a
-/// ray lying in a box's face counts as inside it.
-#[inline]
-pub(super) fn safe_recip(d: f32) -> f32 {
-    if d == 0.0 {
-        f32::MAX.copysign(d)
-    } else {
-        1.0 / d
-    }
-}
+/// Entries of the walk's stack. A level pushes at most `WIDTH - 1`, and the
+/// build bounds the depth (32 levels of SAH, then halving: at most 64).
+pub(super) const STACK: usize = 64 * (WIDTH - 1);
 
 impl WideBvh {
-    /// Visits leaves roughly front to back. `leaf(block, lanes)` tests a
-    /// leaf and returns `Some(t)` for a hit that makes everything beyond `t`
-    /// irrelevant, or stops the walk with `Err(())`.
-    #[inline]
-    fn walk(&self, ray: &Ray, mut leaf: impl FnMut(usize, u32) -> Result<Option<f32>, ()>) {
+    /// Visits leaves roughly front to back, testing boxes with `boxes`.
+    /// `leaf(block, lanes)` tests a leaf and returns `Some(t)` for a hit
+    /// that makes everything beyond `t` irrelevant, or stops the walk with
+    /// `Err(())`. Always inlined, so that the caller decides which
+    /// instructions the whole walk may use.
+    #[inline(always)]
+    fn walk<L: Lanes>(
+        &self,
+        boxes: &SlabRay<L>,
+        t_max: f32,
+        mut leaf: impl FnMut(usize, u32) -> Result<Option<f32>, ()>,
+    ) {
         if self.root == EMPTY {
             return;
         }
-        let inv = [safe_recip(ray.dir.x), safe_recip(ray.dir.y), safe_recip(ray.dir.z)];
-        let o = [0, 1, 2].map(|c| f32x4::splat(ray.origin[c]));
-        let id = inv.map(f32x4::splat);
-        // Which of a node's corner arrays is nearer on each axis.
-        let near = [0, 1, 2].map(|c| if inv[c] < 0.0 { 3 + c } else { c });
-        let far = [0, 1, 2].map(|c| if inv[c] < 0.0 { c } else { 3 + c });
-        let mut closest = ray.t_max;
+        let mut closest = t_max;
         // Entries below `sp` are written before they are read; left
         // uninitialized, the stack costs no clearing per ray.
         let mut stack = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
@@ -57,21 +43,13 @@ impl WideBvh {
             match Child::decode(cur) {
                 Child::Inner(i) => {
                     let n = &self.nodes[i];
-                    let slab = |k: usize, c: usize| (n.b[k] - o[c]) * id[c];
-                    let t_near = slab(near[0], 0)
-                        .fast_max(slab(near[1], 1))
-                        .fast_max(slab(near[2], 2).fast_max(f32x4::ZERO));
-                    let t_far = slab(far[0], 0)
-                        .fast_min(slab(far[1], 1))
-                        .fast_min(slab(far[2], 2).fast_min(f32x4::splat(closest)));
-                    let mut hit = t_near.cmp_le(t_far * f32x4::splat(ROBUST)).move_mask() as u32;
+                    let (mut hit, t) = boxes.test(n, closest);
                     if hit != 0 {
-                        let t = t_near.to_array();
                         if hit & (hit - 1) == 0 {
                             cur = n.child[hit.trailing_zeros() as usize];
                             continue;
                         }
-                        // Two to four children: push them farthest first, go to the nearest.
+                        // Two or more children: push them farthest first, go to the nearest.
                         let (l0, l1) = (
                             hit.trailing_zeros() as usize,
                             (hit & (hit - 1)).trailing_zeros() as usize,
@@ -88,7 +66,8 @@ impl WideBvh {
                             cur = a.1;
                             continue;
                         }
-                        let mut order = [a, b, (0f32, 0u32), (0f32, 0u32)];
+                        let mut order = [(0f32, 0u32); WIDTH];
+                        (order[0], order[1]) = (a, b);
                         let mut k = 2;
                         while hit != 0 {
                             let lane = hit.trailing_zeros() as usize;
@@ -134,21 +113,41 @@ impl WideBvh {
 
     /// The nearest hit within `(0, ray.t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if avx::available() {
+            // SAFETY: the CPU has AVX.
+            return unsafe { self.intersect_avx(ray) };
+        }
+        self.intersect_with(&SlabRay::<f32x8>::new(ray), ray)
+    }
+
+    /// [`WideBvh::intersect`] compiled for AVX, boxes tested 256 bits at once.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn intersect_avx(&self, ray: &Ray) -> Option<Hit> {
+        self.intersect_with(&SlabRay::<avx::Avx>::new(ray), ray)
+    }
+
+    #[inline(always)]
+    fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
         let prep = Ray4::new(ray.origin, ray.dir);
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
-        self.walk(ray, |block, lanes| {
+        self.walk(boxes, ray.t_max, |block, lanes| {
             let mut found = None;
-            prep.intersect(&self.blocks[block], lanes, closest, |lane, h| {
-                closest = h.t;
-                found = Some(h.t);
-                best = Some(Hit {
-                    t: h.t,
-                    tri: self.ids[block][lane],
-                    u: h.u,
-                    v: h.v,
-                });
-                Some(h.t)
+            prep.intersect(&self.blocks[block], lanes, reach(closest), |lane, h| {
+                let tri = self.ids[block][lane];
+                if better(h.t, tri, closest, best.map_or(u32::MAX, |b| b.tri)) {
+                    closest = h.t;
+                    found = Some(h.t);
+                    best = Some(Hit {
+                        t: h.t,
+                        tri,
+                        u: h.u,
+                        v: h.v,
+                    });
+                }
+                Some(reach(closest))
             });
             Ok(found)
         });
@@ -158,10 +157,27 @@ impl WideBvh {
     /// True if a triangle for which `blocks(triangle)` is true lies within
     /// `(0, ray.t_max)`. Triangles that do not block are passed to the
     /// filter and skipped.
-    pub fn occluded_by(&self, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
+    pub fn occluded_by(&self, ray: &Ray, blocks: impl FnMut(u32) -> bool) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if avx::available() {
+            // SAFETY: the CPU has AVX.
+            return unsafe { self.occluded_avx(ray, blocks) };
+        }
+        self.occluded_with(&SlabRay::<f32x8>::new(ray), ray, blocks)
+    }
+
+    /// [`WideBvh::occluded_by`] compiled for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn occluded_avx(&self, ray: &Ray, blocks: impl FnMut(u32) -> bool) -> bool {
+        self.occluded_with(&SlabRay::<avx::Avx>::new(ray), ray, blocks)
+    }
+
+    #[inline(always)]
+    fn occluded_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
         let prep = Ray4::new(ray.origin, ray.dir);
         let mut hit = false;
-        self.walk(ray, |block, lanes| {
+        self.walk(boxes, ray.t_max, |block, lanes| {
             let go = prep.intersect(&self.blocks[block], lanes, ray.t_max, |lane, h| {
                 if h.t < ray.t_max && blocks(self.ids[block][lane]) {
                     hit = true;
@@ -190,9 +206,8 @@ mod tests {
     use rand::SeedableRng;
 
     use super::*;
-    use crate::accel::testing::{brute, heightfield_and_rays, random_vec3, soup};
+    use crate::accel::testing::{brute, heightfield_and_rays, nearest_of_all, random_vec3, soup};
     use crate::accel::{BuildOptions, KdTree};
-    use crate::geom::{intersect_triangle, RayPrep};
     use crate::scene::{Material, Scene, SceneBuilder};
 
     fn scene_of(p: &[Vec3], t: &[[u32; 3]]) -> Scene {
@@ -202,23 +217,21 @@ mod tests {
         b.finish()
     }
 
-    /// Checks one ray against brute force: the same nearest distance (to
-    /// rounding: at a shared vertex or edge each triangle's own arithmetic
-    /// gives a slightly different distance, and which of them a walk meets
-    /// first decides), on a triangle that the scalar test hits at that
-    /// distance; and the same answer to "anything before this distance".
+    /// Checks one ray against every triangle tested on its own: exactly the
+    /// nearest hit, ties going to the lower triangle index (at a shared
+    /// vertex or edge each triangle's own arithmetic gives a slightly
+    /// different distance, and the nearest of them must win whichever the
+    /// walk meets first); the same answer as the portable box test; and the
+    /// same answer to "anything before this distance".
     fn check(scene: &Scene, bvh: &WideBvh, ray: &Ray, what: &str) -> bool {
         let (a, b) = (bvh.intersect(ray), brute(scene, ray));
-        match (a, b) {
-            (None, None) => {}
-            (Some(a), Some(b)) => {
-                assert!(close(a.t, b.t), "{what}: {a:?} against brute force {b:?}");
-                let [p, q, r] = scene.vertices(a.tri as usize);
-                let own = intersect_triangle(&RayPrep::new(ray.origin, ray.dir), p, q, r, ray.t_max);
-                assert_eq!(own.map(|h| (h.t, h.u, h.v)), Some((a.t, a.u, a.v)), "{what}");
-            }
-            _ => panic!("{what} {ray:?}: hierarchy {a:?}, brute force {b:?}"),
-        }
+        assert_eq!(a, nearest_of_all(scene, ray), "{what} {ray:?}");
+        assert_eq!(
+            a,
+            bvh.intersect_with(&SlabRay::<f32x8>::new(ray), ray),
+            "{what}: portable box test"
+        );
+        assert_eq!(a.is_some(), b.is_some(), "{what}");
         let beyond = Ray {
             t_max: b.map_or(1e30, |h| h.t * 1.001),
             ..*ray
