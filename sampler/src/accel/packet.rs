@@ -10,7 +10,7 @@
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use super::{Hit, KdTree};
-use crate::geom::{Ray, Ray4, Rays8};
+use crate::geom::{Lanes, Ray, Ray4, Rays8};
 
 /// Rays per packet.
 pub const PACKET: usize = 8;
@@ -43,7 +43,8 @@ fn coherent(rays: &[Ray], mask: u32) -> bool {
 
 /// The rays in `mask` prepared to test a leaf's triangles against all of
 /// them at once, when they run nearly one way with one axis permutation.
-pub(crate) fn shared_leaf_rays(rays: &[Ray], mask: u32) -> Option<Rays8> {
+#[inline(always)]
+pub(crate) fn shared_leaf_rays<L: Lanes>(rays: &[Ray], mask: u32) -> Option<Rays8<L>> {
     if !coherent(rays, mask) {
         return None;
     }
@@ -115,7 +116,7 @@ impl KdTree {
         if active == 0 {
             return;
         }
-        let shared = shared_leaf_rays(rays, active);
+        let shared = shared_leaf_rays::<wide::f32x8>(rays, active);
         let first_lane = active.trailing_zeros() as usize;
         let negative = [
             rays[first_lane].dir.x.is_sign_negative(),

@@ -1,6 +1,7 @@
 //! Ray geometry in single precision: rays, boxes, the watertight ray/triangle
 //! test, and robust offsetting of secondary ray origins.
 
+mod lanes;
 mod offset;
 mod rays8;
 #[cfg(test)]
@@ -8,6 +9,9 @@ mod testing;
 mod triangle;
 mod triangle4;
 
+#[cfg(target_arch = "x86_64")]
+pub(crate) use lanes::avx;
+pub use lanes::Lanes;
 pub use offset::offset_origin;
 pub use rays8::Rays8;
 pub use triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};

@@ -11,27 +11,31 @@
 //! without AVX and cost coherent packets 15%.
 
 use glam::Vec3;
-use wide::{f32x8, CmpEq, CmpGt, CmpLe, CmpLt};
+use wide::f32x8;
 
+use super::lanes::Lanes;
 use super::triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
 
 /// Lanes, one ray each.
 const LANES: usize = 8;
 
-/// Up to eight rays with one axis permutation, prepared for [`Rays8::intersect`].
+/// Up to eight rays with one axis permutation, prepared for
+/// [`Rays8::intersect`], in lanes of kind `L` (portable by default; the
+/// crate's AVX walks use AVX registers).
 #[derive(Clone, Copy, Debug)]
-pub struct Rays8 {
+pub struct Rays8<L = f32x8> {
     k: [usize; 3],
-    o: [f32x8; 3],
-    s: [f32x8; 3],
+    o: [L; 3],
+    s: [L; 3],
     /// The rays, for the scalar test of lanes on an edge (rare: prepared then).
     rays: [(Vec3, Vec3); LANES],
 }
 
-impl Rays8 {
+impl<L: Lanes> Rays8<L> {
     /// Prepares the rays `(origin, dir)` of `rays` whose lanes are set in
     /// `lanes`, or `None` when their axis permutations differ (or no lane is set).
-    pub fn new(rays: &[(Vec3, Vec3)], lanes: u32) -> Option<Rays8> {
+    #[inline(always)]
+    pub fn new(rays: &[(Vec3, Vec3)], lanes: u32) -> Option<Rays8<L>> {
         let first = lanes.trailing_zeros() as usize;
         let k = axis_permutation(rays.get(first)?.1);
         let [kx, ky, kz] = k;
@@ -54,8 +58,8 @@ impl Rays8 {
         }
         Some(Rays8 {
             k,
-            o: o.map(f32x8::new),
-            s: s.map(f32x8::new),
+            o: [L::new(o[0]), L::new(o[1]), L::new(o[2])],
+            s: [L::new(s[0]), L::new(s[1]), L::new(s[2])],
             rays: kept,
         })
     }
@@ -63,7 +67,7 @@ impl Rays8 {
     /// Tests the triangle `(a, b, c)` against the rays set in `lanes`, each
     /// within `(0, limits[lane]]`, exactly as [`intersect_triangle`] would:
     /// `hit(lane, hit)` gets each hit, and the lane's limit becomes its `t`.
-    #[inline]
+    #[inline(always)]
     pub fn intersect(
         &self,
         tri: [Vec3; 3],
@@ -75,29 +79,29 @@ impl Rays8 {
         let [ox, oy, oz] = self.o;
         let [sx, sy, sz] = self.s;
         let [a, b, c] = tri;
-        let at = |p: Vec3, k: usize| f32x8::splat(p[k]);
-        let (az, bz, cz) = (at(a, kz) - oz, at(b, kz) - oz, at(c, kz) - oz);
-        let ax = (at(a, kx) - ox) - sx * az;
-        let ay = (at(a, ky) - oy) - sy * az;
-        let bx = (at(b, kx) - ox) - sx * bz;
-        let by = (at(b, ky) - oy) - sy * bz;
-        let cx = (at(c, kx) - ox) - sx * cz;
-        let cy = (at(c, ky) - oy) - sy * cz;
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let zero = f32x8::ZERO;
-        let edge = u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero);
-        let negative = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
-        let positive = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
-        let det = u + v + w;
-        let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+        let at = |p: Vec3, k: usize| L::splat(p[k]);
+        let (az, bz, cz) = (at(a, kz).sub(oz), at(b, kz).sub(oz), at(c, kz).sub(oz));
+        let ax = at(a, kx).sub(ox).sub(sx.mul(az));
+        let ay = at(a, ky).sub(oy).sub(sy.mul(az));
+        let bx = at(b, kx).sub(ox).sub(sx.mul(bz));
+        let by = at(b, ky).sub(oy).sub(sy.mul(bz));
+        let cx = at(c, kx).sub(ox).sub(sx.mul(cz));
+        let cy = at(c, ky).sub(oy).sub(sy.mul(cz));
+        let u = cx.mul(by).sub(cy.mul(bx));
+        let v = ax.mul(cy).sub(ay.mul(cx));
+        let w = bx.mul(ay).sub(by.mul(ax));
+        let zero = L::splat(0.0);
+        let edge = u.eq(zero) | v.eq(zero) | w.eq(zero);
+        let negative = u.lt(zero) | v.lt(zero) | w.lt(zero);
+        let positive = u.gt(zero) | v.gt(zero) | w.gt(zero);
+        let det = u.add(v).add(w);
+        let t_scaled = u.mul(sz.mul(az)).add(v.mul(sz.mul(bz))).add(w.mul(sz.mul(cz)));
         // `x * det.signum()` is `x` with det's sign bit folded in, exactly.
-        let sign = det & f32x8::splat(-0.0);
-        let (ts, bound) = (t_scaled ^ sign, (f32x8::new(*limits) * det) ^ sign);
-        let rejected = ((negative & positive) | det.cmp_eq(zero)).move_mask() as u32;
-        let pass = (ts.cmp_gt(zero) & ts.cmp_le(bound)).move_mask() as u32 & !rejected & lanes;
-        let edge = edge.move_mask() as u32 & lanes;
+        let sign = det.sign();
+        let (ts, bound) = (t_scaled.xor(sign), L::new(*limits).mul(det).xor(sign));
+        let rejected = (negative & positive) | det.eq(zero);
+        let pass = ts.gt(zero) & ts.le(bound) & !rejected & lanes;
+        let edge = edge & lanes;
         let mut todo = edge | pass;
         if todo == 0 {
             return;
@@ -156,7 +160,7 @@ mod tests {
                 .enumerate()
                 .filter(|(i, _)| lanes & (1 << i) != 0)
                 .all(|(_, r)| r.1 != Vec3::ZERO && axis_permutation(r.1) == axis_permutation(rays[lanes.trailing_zeros() as usize].1));
-            let Some(packed) = Rays8::new(&rays, lanes) else {
+            let Some(packed) = Rays8::<f32x8>::new(&rays, lanes) else {
                 prop_assert!(!same);
                 return Ok(());
             };
@@ -165,6 +169,20 @@ mod tests {
             let mut got = Vec::new();
             for (k, &(a, b, c)) in tris.iter().enumerate() {
                 packed.intersect([a, b, c], lanes, &mut limits, |lane, h| got.push((lane, k, h.t.to_bits(), h.u.to_bits())));
+            }
+            // The AVX lanes, where this CPU has them, give the same bits.
+            #[cfg(target_arch = "x86_64")]
+            if super::super::avx::available() {
+                let packed = Rays8::<super::super::avx::Avx>::new(&rays, lanes);
+                prop_assert!(packed.is_some());
+                let mut limits = [limit; LANES];
+                let mut avx = Vec::new();
+                for (k, &(a, b, c)) in tris.iter().enumerate() {
+                    if let Some(p) = &packed {
+                        p.intersect([a, b, c], lanes, &mut limits, |lane, h| avx.push((lane, k, h.t.to_bits(), h.u.to_bits())));
+                    }
+                }
+                prop_assert_eq!(&avx, &got);
             }
             let mut want = Vec::new();
             for (lane, &(o, d)) in rays.iter().enumerate() {
@@ -189,8 +207,8 @@ mod tests {
     #[test]
     fn rays_with_different_permutations_are_refused() {
         let rays = [(Vec3::ZERO, Vec3::X), (Vec3::ZERO, Vec3::Y)];
-        assert!(Rays8::new(&rays, 0b11).is_none());
-        assert!(Rays8::new(&rays, 0b01).is_some());
-        assert!(Rays8::new(&rays, 0).is_none());
+        assert!(Rays8::<f32x8>::new(&rays, 0b11).is_none());
+        assert!(Rays8::<f32x8>::new(&rays, 0b01).is_some());
+        assert!(Rays8::<f32x8>::new(&rays, 0).is_none());
     }
 }

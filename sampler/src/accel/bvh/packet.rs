@@ -15,14 +15,14 @@ use std::mem::MaybeUninit;
 use wide::f32x8;
 
 use super::node::{Child, EMPTY, WIDTH};
-#[cfg(target_arch = "x86_64")]
-use super::slab::avx;
-use super::slab::{corners, safe_recip, Lanes, ROBUST};
+use super::slab::{corners, safe_recip, ROBUST};
 use super::traverse::STACK;
 use super::{better, reach, WideBvh};
 use crate::accel::packet::{for_each_octant, shared_leaf_rays, PACKET, SHARED_LEAF};
 use crate::accel::Hit;
-use crate::geom::{Ray, Ray4};
+#[cfg(target_arch = "x86_64")]
+use crate::geom::avx;
+use crate::geom::{Lanes, Ray, Ray4};
 
 impl WideBvh {
     /// Nearest hits of up to [`PACKET`] rays (the rest are ignored); rays
@@ -81,7 +81,7 @@ impl WideBvh {
         let robust = L::splat(ROBUST);
         // The corner arrays nearer and farther on each axis, as for one ray.
         let (near, far) = corners([0, 1, 2].map(|c| safe_recip(first.dir[c])));
-        let shared = shared_leaf_rays(rays, mask);
+        let shared = shared_leaf_rays::<L>(rays, mask);
         let mut preps: [Option<Ray4>; PACKET] = [None; PACKET];
         // Entries below `sp` are written before they are read.
         let mut stack = [MaybeUninit::<(u32, u32, L)>::uninit(); STACK];

@@ -6,12 +6,12 @@ use std::mem::MaybeUninit;
 use wide::f32x8;
 
 use super::node::{Child, EMPTY, WIDTH};
-#[cfg(target_arch = "x86_64")]
-use super::slab::avx;
-use super::slab::{Lanes, SlabRay, ROBUST};
+use super::slab::{SlabRay, ROBUST};
 use super::{better, reach, WideBvh};
 use crate::accel::Hit;
-use crate::geom::{Ray, Ray4};
+#[cfg(target_arch = "x86_64")]
+use crate::geom::avx;
+use crate::geom::{Lanes, Ray, Ray4};
 
 /// Entries of the walk's stack. A level pushes at most `WIDTH - 1`, and the
 /// build bounds the depth (32 levels of SAH, then halving: at most 64).
