@@ -8,29 +8,9 @@ use crate::accel::Hit;
 use crate::geom::{intersect_triangle, Ray, RayPrep};
 use crate::scene::{Material, Scene, SceneBuilder};
 
-/// The nearest hit by testing every triangle in order (the last of equally
-/// near ones).
-pub fn brute(scene: &Scene, ray: &Ray) -> Option<Hit> {
-    let prep = RayPrep::new(ray.origin, ray.dir);
-    let mut best: Option<Hit> = None;
-    for i in 0..scene.triangles.len() {
-        let [a, b, c] = scene.vertices(i);
-        let limit = best.map_or(ray.t_max, |h| h.t);
-        if let Some(h) = intersect_triangle(&prep, a, b, c, limit) {
-            best = Some(Hit {
-                t: h.t,
-                tri: i as u32,
-                u: h.u,
-                v: h.v,
-            });
-        }
-    }
-    best
-}
-
 /// The nearest hit within `(0, ray.t_max]` with every triangle tested on its
 /// own, ties in distance going to the lowest triangle index: what the wide
-/// BVH must find, exactly.
+/// BVH must find exactly, and the kd-tree to rounding at shared edges.
 pub fn nearest_of_all(scene: &Scene, ray: &Ray) -> Option<Hit> {
     let prep = RayPrep::new(ray.origin, ray.dir);
     let mut best: Option<Hit> = None;

@@ -148,7 +148,7 @@ impl KdTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::testing::{brute, grid_triangles, heightfield_and_rays, random_vec3, soup};
+    use crate::accel::testing::{grid_triangles, heightfield_and_rays, nearest_of_all, random_vec3, soup};
     use crate::accel::BuildOptions;
     use glam::Vec3;
     use rand::SeedableRng;
@@ -209,7 +209,7 @@ mod tests {
                     continue;
                 }
                 let ray = Ray::new(origin, dir);
-                let (a, b) = (tree.intersect(&ray), brute(&scene, &ray));
+                let (a, b) = (tree.intersect(&ray), nearest_of_all(&scene, &ray));
                 match (a, b) {
                     (None, None) => {}
                     (Some(a), Some(b)) => {

@@ -29,22 +29,18 @@ impl WideBvh {
     /// may point anywhere (they are grouped by direction octant), but
     /// coherent rays gain the most.
     pub fn intersect_packet(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
-        let mut out = [None; PACKET];
-        if self.root != EMPTY {
-            #[cfg(target_arch = "x86_64")]
-            if avx::available() {
-                // SAFETY: the CPU has AVX.
-                for_each_octant(rays, |mask| unsafe { self.packet_octant_avx(rays, mask, &mut out) });
-                return out;
-            }
-            for_each_octant(rays, |mask| self.packet_octant::<f32x8>(rays, mask, &mut out));
+        #[cfg(target_arch = "x86_64")]
+        if self.root != EMPTY && avx::available() {
+            let mut out = [None; PACKET];
+            // SAFETY: the CPU has AVX.
+            for_each_octant(rays, |mask| unsafe { self.packet_octant_avx(rays, mask, &mut out) });
+            return out;
         }
-        out
+        self.intersect_packet_portable(rays)
     }
 
     /// [`WideBvh::intersect_packet`] in `wide`'s portable lanes, whatever
-    /// the CPU has: what the AVX walk must agree with.
-    #[cfg(test)]
+    /// the CPU has (the AVX walk must agree with it bit for bit).
     fn intersect_packet_portable(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
         if self.root != EMPTY {
