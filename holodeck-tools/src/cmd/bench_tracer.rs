@@ -348,7 +348,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     if embree {
         println!();
         println!(
-            "The same rays through Embree 3 in this process (high build quality, default threads); ours / Embree:"
+            "The same rays through Embree 3 in this process (high build quality, default threads, best of three as ours); ours / Embree:"
         );
         println!();
         println!(
@@ -654,19 +654,28 @@ fn side_by_side(
     let start = Instant::now();
     let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))?;
     let e_build = start.elapsed().as_secs_f64();
+    // Best of three, as ours are measured.
     let single = |rays: &[Ray]| {
-        let start = Instant::now();
-        let hits: Vec<Option<u32>> = rays.iter().map(|r| e.intersect(r).map(|h| h.1)).collect();
-        (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+        let mut best = (0f64, Vec::new());
+        for _ in 0..3 {
+            let start = Instant::now();
+            let hits: Vec<Option<u32>> = rays.iter().map(|r| e.intersect(r).map(|h| h.1)).collect();
+            best = (best.0.max(rays.len() as f64 / start.elapsed().as_secs_f64()), hits);
+        }
+        best
     };
     let packets = |rays: &[Ray]| {
-        let start = Instant::now();
-        let mut hits = Vec::with_capacity(rays.len());
-        for chunk in rays.chunks(8) {
-            let found = e.intersect8(chunk);
-            hits.extend(found[..chunk.len()].iter().map(|h| h.map(|h| h.1)));
+        let mut best = (0f64, Vec::new());
+        for _ in 0..3 {
+            let start = Instant::now();
+            let mut hits = Vec::with_capacity(rays.len());
+            for chunk in rays.chunks(8) {
+                let found = e.intersect8(chunk);
+                hits.extend(found[..chunk.len()].iter().map(|h| h.map(|h| h.1)));
+            }
+            best = (best.0.max(rays.len() as f64 / start.elapsed().as_secs_f64()), hits);
         }
-        (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+        best
     };
     let (ps, ph) = single(primary);
     let (pp, pph) = packets(primary);

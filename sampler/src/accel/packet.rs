@@ -24,7 +24,7 @@ const SLACK_DOWN: f32 = 1.0 - 1e-5;
 
 /// Smallest cosine between the first active ray's direction and any other's
 /// for the packet to share its leaf tests.
-const COHERENT_COS: f32 = 0.9;
+pub(crate) const COHERENT_COS: f32 = 0.9;
 
 /// Whether the rays in `mask` run nearly one way, so that they tend to meet
 /// the same leaves and the same triangles in them.

@@ -20,12 +20,17 @@ pub trait Lanes: Copy {
     fn new(a: [f32; WIDTH]) -> Self;
     /// The lanes stored in `a`.
     fn load(a: &f32x8) -> Self;
+    /// Lane `i` from `f(i)`, built in registers: scalars stored one by one
+    /// and then loaded as a vector would stall the load.
+    fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
     /// Lane-wise `self - o`.
     fn sub(self, o: Self) -> Self;
     /// Lane-wise `self + o`.
     fn add(self, o: Self) -> Self;
     /// Lane-wise `self * o`.
     fn mul(self, o: Self) -> Self;
+    /// Lane-wise `self / o`.
+    fn div(self, o: Self) -> Self;
     /// Lane-wise maximum.
     fn max(self, o: Self) -> Self;
     /// Lane-wise minimum.
@@ -40,10 +45,16 @@ pub trait Lanes: Copy {
     fn eq(self, o: Self) -> u32;
     /// Each lane's sign bit alone (`self & -0.0`).
     fn sign(self) -> Self;
+    /// The lanes' sign bits, as bits.
+    fn sign_bits(self) -> u32;
     /// Lane-wise bitwise exclusive or.
     fn xor(self, o: Self) -> Self;
     /// The lanes as an array.
     fn to_array(self) -> [f32; WIDTH];
+    /// The smallest lane (lanes must not be NaN).
+    fn min_lane(self) -> f32;
+    /// The largest lane (lanes must not be NaN).
+    fn max_lane(self) -> f32;
 }
 
 impl Lanes for f32x8 {
@@ -60,6 +71,10 @@ impl Lanes for f32x8 {
         *a
     }
     #[inline(always)]
+    fn from_fn(f: impl FnMut(usize) -> f32) -> Self {
+        f32x8::new(std::array::from_fn(f))
+    }
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         self - o
     }
@@ -70,6 +85,10 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
         self * o
+    }
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        self / o
     }
     #[inline(always)]
     fn max(self, o: Self) -> Self {
@@ -100,12 +119,24 @@ impl Lanes for f32x8 {
         self & f32x8::splat(-0.0)
     }
     #[inline(always)]
+    fn sign_bits(self) -> u32 {
+        self.move_mask() as u32
+    }
+    #[inline(always)]
     fn xor(self, o: Self) -> Self {
         self ^ o
     }
     #[inline(always)]
     fn to_array(self) -> [f32; WIDTH] {
         f32x8::to_array(self)
+    }
+    #[inline(always)]
+    fn min_lane(self) -> f32 {
+        self.to_array().iter().fold(f32::INFINITY, |m, &x| m.min(x))
+    }
+    #[inline(always)]
+    fn max_lane(self) -> f32 {
+        self.to_array().iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x))
     }
 }
 
@@ -148,6 +179,12 @@ pub(crate) mod avx {
             Avx(unsafe { _mm256_load_ps(a as *const f32x8 as *const f32) })
         }
         #[inline(always)]
+        fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {
+            let (a, b, c, d) = (f(0), f(1), f(2), f(3));
+            let (e, g, h, i) = (f(4), f(5), f(6), f(7));
+            Avx(unsafe { _mm256_setr_ps(a, b, c, d, e, g, h, i) })
+        }
+        #[inline(always)]
         fn sub(self, o: Self) -> Self {
             Avx(unsafe { _mm256_sub_ps(self.0, o.0) })
         }
@@ -158,6 +195,10 @@ pub(crate) mod avx {
         #[inline(always)]
         fn mul(self, o: Self) -> Self {
             Avx(unsafe { _mm256_mul_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn div(self, o: Self) -> Self {
+            Avx(unsafe { _mm256_div_ps(self.0, o.0) })
         }
         #[inline(always)]
         fn max(self, o: Self) -> Self {
@@ -188,6 +229,10 @@ pub(crate) mod avx {
             Avx(unsafe { _mm256_and_ps(self.0, _mm256_set1_ps(-0.0)) })
         }
         #[inline(always)]
+        fn sign_bits(self) -> u32 {
+            unsafe { _mm256_movemask_ps(self.0) as u32 }
+        }
+        #[inline(always)]
         fn xor(self, o: Self) -> Self {
             Avx(unsafe { _mm256_xor_ps(self.0, o.0) })
         }
@@ -196,6 +241,22 @@ pub(crate) mod avx {
             let mut a = [0f32; WIDTH];
             unsafe { _mm256_storeu_ps(a.as_mut_ptr(), self.0) };
             a
+        }
+        #[inline(always)]
+        fn min_lane(self) -> f32 {
+            unsafe {
+                let h = _mm_min_ps(_mm256_castps256_ps128(self.0), _mm256_extractf128_ps::<1>(self.0));
+                let h = _mm_min_ps(h, _mm_movehl_ps(h, h));
+                _mm_cvtss_f32(_mm_min_ss(h, _mm_shuffle_ps::<1>(h, h)))
+            }
+        }
+        #[inline(always)]
+        fn max_lane(self) -> f32 {
+            unsafe {
+                let h = _mm_max_ps(_mm256_castps256_ps128(self.0), _mm256_extractf128_ps::<1>(self.0));
+                let h = _mm_max_ps(h, _mm_movehl_ps(h, h));
+                _mm_cvtss_f32(_mm_max_ss(h, _mm_shuffle_ps::<1>(h, h)))
+            }
         }
     }
 }

@@ -27,8 +27,10 @@ pub struct Rays8<L = f32x8> {
     k: [usize; 3],
     o: [L; 3],
     s: [L; 3],
-    /// The rays, for the scalar test of lanes on an edge (rare: prepared then).
-    rays: [(Vec3, Vec3); LANES],
+    /// Origins and directions by axis, for the scalar test of lanes on an
+    /// edge (rare: prepared then).
+    origin: [[f32; LANES]; 3],
+    dir: [[f32; LANES]; 3],
 }
 
 impl<L: Lanes> Rays8<L> {
@@ -36,31 +38,58 @@ impl<L: Lanes> Rays8<L> {
     /// `lanes`, or `None` when their axis permutations differ (or no lane is set).
     #[inline(always)]
     pub fn new(rays: &[(Vec3, Vec3)], lanes: u32) -> Option<Rays8<L>> {
-        let first = lanes.trailing_zeros() as usize;
-        let k = axis_permutation(rays.get(first)?.1);
+        let first = *rays.get(lanes.trailing_zeros() as usize)?;
+        let (mut origin, mut dir) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
+        for i in 0..LANES {
+            // Lanes not asked for repeat the first ray, so that every lane
+            // must agree and none computes with zeros.
+            let (o, d) = if lanes & (1 << i) != 0 {
+                rays.get(i).copied().unwrap_or(first)
+            } else {
+                first
+            };
+            for c in 0..3 {
+                origin[c][i] = o[c];
+                dir[c][i] = d[c];
+            }
+        }
+        Rays8::from_lanes(origin, dir)
+    }
+
+    /// Prepares eight rays given by axis (`origin[axis][lane]`, the same for
+    /// `dir`; repeat a ray in lanes that hold none), or `None` when their
+    /// axis permutations differ. Each lane computes what
+    /// [`axis_permutation`] and the scalar preparation compute.
+    #[inline(always)]
+    pub(crate) fn from_lanes(origin: [[f32; LANES]; 3], dir: [[f32; LANES]; 3]) -> Option<Rays8<L>> {
+        let k = axis_permutation(Vec3::new(dir[0][0], dir[1][0], dir[2][0]));
         let [kx, ky, kz] = k;
-        let (mut o, mut s) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3]);
-        let mut kept = [(Vec3::ZERO, Vec3::ONE); LANES];
-        for (i, &(origin, dir)) in rays.iter().enumerate().take(LANES) {
-            if lanes & (1 << i) == 0 {
-                continue;
-            }
-            if axis_permutation(dir) != k {
-                return None;
-            }
-            o[0][i] = origin[kx];
-            o[1][i] = origin[ky];
-            o[2][i] = origin[kz];
-            s[0][i] = dir[kx] / dir[kz];
-            s[1][i] = dir[ky] / dir[kz];
-            s[2][i] = 1.0 / dir[kz];
-            kept[i] = (origin, dir);
+        let zero = L::splat(0.0);
+        let d = [L::new(dir[0]), L::new(dir[1]), L::new(dir[2])];
+        // |d| for the comparisons (the sign of a zero does not matter there).
+        let (ax, ay, az) = (
+            d[0].max(zero.sub(d[0])),
+            d[1].max(zero.sub(d[1])),
+            d[2].max(zero.sub(d[2])),
+        );
+        let (xy, xz, yz) = (ax.gt(ay), ax.gt(az), ay.gt(az));
+        let all = (1u32 << LANES) - 1;
+        let (z_is_x, z_is_y) = (xy & xz, !xy & yz & all);
+        let same_axis = match kz {
+            0 => z_is_x == all,
+            1 => z_is_y == all,
+            _ => (z_is_x | z_is_y) == 0,
+        };
+        let negative = d[kz].lt(zero);
+        if !same_axis || (negative != 0 && negative != all) {
+            return None;
         }
         Some(Rays8 {
             k,
-            o: [L::new(o[0]), L::new(o[1]), L::new(o[2])],
-            s: [L::new(s[0]), L::new(s[1]), L::new(s[2])],
-            rays: kept,
+            o: [L::new(origin[kx]), L::new(origin[ky]), L::new(origin[kz])],
+            s: [d[kx].div(d[kz]), d[ky].div(d[kz]), L::splat(1.0).div(d[kz])],
+            origin,
+            dir,
         })
     }
 
@@ -79,14 +108,16 @@ impl<L: Lanes> Rays8<L> {
         let [ox, oy, oz] = self.o;
         let [sx, sy, sz] = self.s;
         let [a, b, c] = tri;
-        let at = |p: Vec3, k: usize| L::splat(p[k]);
-        let (az, bz, cz) = (at(a, kz).sub(oz), at(b, kz).sub(oz), at(c, kz).sub(oz));
-        let ax = at(a, kx).sub(ox).sub(sx.mul(az));
-        let ay = at(a, ky).sub(oy).sub(sy.mul(az));
-        let bx = at(b, kx).sub(ox).sub(sx.mul(bz));
-        let by = at(b, ky).sub(oy).sub(sy.mul(bz));
-        let cx = at(c, kx).sub(ox).sub(sx.mul(cz));
-        let cy = at(c, ky).sub(oy).sub(sy.mul(cz));
+        // Indexing arrays, not `Vec3`, whose index is a branch per axis.
+        let (pa, pb, pc) = (a.to_array(), b.to_array(), c.to_array());
+        let at = |p: &[f32; 3], k: usize| L::splat(p[k]);
+        let (az, bz, cz) = (at(&pa, kz).sub(oz), at(&pb, kz).sub(oz), at(&pc, kz).sub(oz));
+        let ax = at(&pa, kx).sub(ox).sub(sx.mul(az));
+        let ay = at(&pa, ky).sub(oy).sub(sy.mul(az));
+        let bx = at(&pb, kx).sub(ox).sub(sx.mul(bz));
+        let by = at(&pb, ky).sub(oy).sub(sy.mul(bz));
+        let cx = at(&pc, kx).sub(ox).sub(sx.mul(cz));
+        let cy = at(&pc, ky).sub(oy).sub(sy.mul(cz));
         let u = cx.mul(by).sub(cy.mul(bx));
         let v = ax.mul(cy).sub(ay.mul(cx));
         let w = bx.mul(ay).sub(by.mul(ax));
@@ -94,6 +125,11 @@ impl<L: Lanes> Rays8<L> {
         let edge = u.eq(zero) | v.eq(zero) | w.eq(zero);
         let negative = u.lt(zero) | v.lt(zero) | w.lt(zero);
         let positive = u.gt(zero) | v.gt(zero) | w.gt(zero);
+        let edge = edge & lanes;
+        // Most triangles of a leaf miss every ray on the edge functions' signs.
+        if (negative & positive) & lanes == lanes && edge == 0 {
+            return;
+        }
         let det = u.add(v).add(w);
         let t_scaled = u.mul(sz.mul(az)).add(v.mul(sz.mul(bz))).add(w.mul(sz.mul(cz)));
         // `x * det.signum()` is `x` with det's sign bit folded in, exactly.
@@ -101,24 +137,28 @@ impl<L: Lanes> Rays8<L> {
         let (ts, bound) = (t_scaled.xor(sign), L::new(*limits).mul(det).xor(sign));
         let rejected = (negative & positive) | det.eq(zero);
         let pass = ts.gt(zero) & ts.le(bound) & !rejected & lanes;
-        let edge = edge & lanes;
         let mut todo = edge | pass;
         if todo == 0 {
             return;
         }
-        let (ts, det, v, w) = (t_scaled.to_array(), det.to_array(), v.to_array(), w.to_array());
+        // The scalar test's `x * (1 / det)`, in all lanes at once.
+        let inv = L::splat(1.0).div(det);
+        let (ts, v, w) = (
+            t_scaled.mul(inv).to_array(),
+            v.mul(inv).to_array(),
+            w.mul(inv).to_array(),
+        );
         while todo != 0 {
             let lane = todo.trailing_zeros() as usize;
             todo &= todo - 1;
             let found = if edge & (1 << lane) != 0 {
-                let (origin, dir) = self.rays[lane];
-                intersect_triangle(&RayPrep::new(origin, dir), a, b, c, limits[lane])
+                let at = |v: &[[f32; LANES]; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+                intersect_triangle(&RayPrep::new(at(&self.origin), at(&self.dir)), a, b, c, limits[lane])
             } else {
-                let inv = 1.0 / det[lane];
                 Some(TriangleHit {
-                    t: ts[lane] * inv,
-                    u: v[lane] * inv,
-                    v: w[lane] * inv,
+                    t: ts[lane],
+                    u: v[lane],
+                    v: w[lane],
                 })
             };
             if let Some(h) = found {

@@ -14,8 +14,11 @@
 //! hierarchy is for scenes held in memory.
 
 mod build;
+mod frustum;
 mod node;
 mod packet;
+mod packet_rays;
+
 mod slab;
 mod traverse;
 

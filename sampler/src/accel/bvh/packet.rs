@@ -10,30 +10,30 @@
 //! watertight test's axis permutation, ray by ray otherwise; either way each
 //! ray finds the nearest distance its single-ray walk finds.
 
-use std::mem::MaybeUninit;
-
 use wide::f32x8;
 
-use super::node::{Child, EMPTY, WIDTH};
-use super::slab::{corners, safe_recip, ROBUST};
-use super::traverse::STACK;
-use super::{better, reach, WideBvh};
-use crate::accel::packet::{for_each_octant, shared_leaf_rays, PACKET, SHARED_LEAF};
+use super::frustum::Frustum;
+use super::node::EMPTY;
+use super::packet_rays::PacketRays;
+use super::slab::ROBUST;
+use super::{better, WideBvh};
+use crate::accel::packet::{PACKET, SHARED_LEAF};
 use crate::accel::Hit;
 #[cfg(target_arch = "x86_64")]
 use crate::geom::avx;
-use crate::geom::{Lanes, Ray, Ray4};
+use crate::geom::{Lanes, Ray, Rays8};
 
 impl WideBvh {
-    /// Nearest hits of up to [`PACKET`] rays (the rest are ignored); rays
-    /// may point anywhere (they are grouped by direction octant), but
-    /// coherent rays gain the most.
+    /// Nearest hits of up to [`PACKET`] rays (the rest are ignored), each
+    /// exactly the hit [`WideBvh::intersect`] finds; rays may point anywhere,
+    /// but rays that run nearly one way gain the most (others are traced one
+    /// by one). A ray with a non-finite origin or direction finds nothing.
     pub fn intersect_packet(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         #[cfg(target_arch = "x86_64")]
-        if self.root != EMPTY && avx::available() {
+        if avx::available() {
             let mut out = [None; PACKET];
             // SAFETY: the CPU has AVX.
-            for_each_octant(rays, |mask| unsafe { self.packet_octant_avx(rays, mask, &mut out) });
+            unsafe { self.packet_avx(rays, &mut out) };
             return out;
         }
         self.intersect_packet_portable(rays)
@@ -43,152 +43,97 @@ impl WideBvh {
     /// the CPU has (the AVX walk must agree with it bit for bit).
     fn intersect_packet_portable(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
-        if self.root != EMPTY {
-            for_each_octant(rays, |mask| self.packet_octant::<f32x8>(rays, mask, &mut out));
-        }
+        self.packet::<f32x8>(rays, &mut out);
         out
     }
 
-    /// [`WideBvh::packet_octant`] compiled for AVX.
+    /// [`WideBvh::packet`] compiled for AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    unsafe fn packet_octant_avx(&self, rays: &[Ray], mask: u32, out: &mut [Option<Hit>; PACKET]) {
-        self.packet_octant::<avx::Avx>(rays, mask, out);
+    unsafe fn packet_avx(&self, rays: &[Ray], out: &mut [Option<Hit>; PACKET]) {
+        self.packet::<avx::Avx>(rays, out);
     }
 
-    /// The walk of the rays in `mask`, whose direction signs agree.
+    /// The rays set up in lanes once, then walked octant by octant.
     #[inline(always)]
-    fn packet_octant<L: Lanes>(&self, rays: &[Ray], mask: u32, out: &mut [Option<Hit>; PACKET]) {
-        let first = &rays[mask.trailing_zeros() as usize];
-        let (mut origin, mut inv) = ([[0f32; PACKET]; 3], [[0f32; PACKET]; 3]);
-        // Lanes without a ray get an empty range, so that no box takes them.
+    fn packet<L: Lanes>(&self, rays: &[Ray], out: &mut [Option<Hit>; PACKET]) {
+        if self.root == EMPTY || rays.is_empty() {
+            return;
+        }
+        let p = PacketRays::new::<L>(rays);
+        if p.lanes.count_ones() < SHARED_LEAF || !p.coherent::<L>() {
+            for i in lanes(p.lanes) {
+                out[i] = self.intersect(&rays[i]);
+            }
+            return;
+        }
+        let signs = p.signs::<L>();
+        let mut left = p.lanes;
+        while left != 0 {
+            let mask = PacketRays::octant(signs, left);
+            left &= !mask;
+            let only;
+            let q = if mask == p.lanes {
+                &p
+            } else {
+                only = p.only(mask);
+                &only
+            };
+            self.packet_octant::<L>(q, mask, out);
+        }
+    }
+
+    /// The walk of the rays in `mask`, whose direction signs agree (`p`'s
+    /// other lanes repeat one of them). Coherent rays walk as one ray
+    /// would, with the packet's bounds for the ray ([`Frustum`]) and the
+    /// farthest of their nearest hits for its limit, and test each leaf's
+    /// triangles against all rays at once. Others, and packets of one or
+    /// two rays, walk one by one: bounds around rays that run apart take
+    /// in most of the scene.
+    #[inline(always)]
+    fn packet_octant<L: Lanes>(&self, p: &PacketRays, mask: u32, out: &mut [Option<Hit>; PACKET]) {
+        // The packet runs nearly one way (see `packet`); `None` for mixed axis permutations.
+        let shared = match Rays8::<L>::from_lanes(p.o, p.d) {
+            Some(shared) if mask.count_ones() >= SHARED_LEAF => shared,
+            _ => {
+                for i in lanes(mask) {
+                    let (origin, dir) = p.ray(i);
+                    out[i] = self.intersect(&Ray {
+                        origin,
+                        dir,
+                        t_max: p.t_max[i],
+                    });
+                }
+                return;
+            }
+        };
         let mut closest = [f32::NEG_INFINITY; PACKET];
-        for (i, r) in rays.iter().enumerate().take(PACKET) {
-            if mask & (1 << i) != 0 {
-                for c in 0..3 {
-                    origin[c][i] = r.origin[c];
-                    inv[c][i] = safe_recip(r.dir[c]);
-                }
-                closest[i] = r.t_max;
-            }
+        for i in lanes(mask) {
+            closest[i] = p.t_max[i];
         }
-        let o = origin.map(L::new);
-        let id = inv.map(L::new);
-        let robust = L::splat(ROBUST);
-        // The corner arrays nearer and farther on each axis, as for one ray.
-        let (near, far) = corners([0, 1, 2].map(|c| safe_recip(first.dir[c])));
-        let shared = shared_leaf_rays::<L>(rays, mask);
-        let mut preps: [Option<Ray4>; PACKET] = [None; PACKET];
-        // Entries below `sp` are written before they are read.
-        let mut stack = [MaybeUninit::<(u32, u32, L)>::uninit(); STACK];
-        let mut sp = 0usize;
-        let (mut cur, mut active) = (self.root, mask);
-        let mut limit = L::new(closest);
-        loop {
-            match Child::decode(cur) {
-                Child::Inner(i) => {
-                    let n = &self.nodes[i];
-                    // Per child lane: the rays entering it and their entry distances;
-                    // `order[..k]` the entered lanes, nearest first.
-                    let mut entries = [(0u32, L::splat(0.0)); WIDTH];
-                    let mut order = [(0f32, 0usize); WIDTH];
-                    let mut k = 0usize;
-                    for (lane, &r) in n.child.iter().enumerate() {
-                        if r == EMPTY {
-                            continue;
-                        }
-                        let slab =
-                            |corner: usize, c: usize| L::splat(n.b[corner].as_array_ref()[lane]).sub(o[c]).mul(id[c]);
-                        let t_near = slab(near[0], 0)
-                            .max(slab(near[1], 1))
-                            .max(slab(near[2], 2).max(L::splat(0.0)));
-                        let t_far = slab(far[0], 0).min(slab(far[1], 1)).min(slab(far[2], 2).min(limit));
-                        let hit = t_near.le(t_far.mul(robust)) & active;
-                        if hit == 0 {
-                            continue;
-                        }
-                        // Ordered by the entry of the packet's first ray in the box:
-                        // coherent rays agree on the order, and a horizontal minimum
-                        // costs more than it saves.
-                        let key = t_near.to_array()[hit.trailing_zeros() as usize];
-                        entries[lane] = (hit, t_near);
-                        let mut j = k;
-                        while j > 0 && order[j - 1].0 > key {
-                            order[j] = order[j - 1];
-                            j -= 1;
-                        }
-                        order[j] = (key, lane);
-                        k += 1;
+        let widest = |closest: &[f32; PACKET]| closest.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        self.walk(&Frustum::<L>::new(p), widest(&closest), |block, count| {
+            let (tris, ids) = (&self.blocks[block], &self.ids[block]);
+            let mut found = false;
+            // `count` is a run of low bits (`popcnt` is not among the AVX
+            // walk's instructions).
+            for (lane, &tri) in ids.iter().enumerate().take((count + 1).trailing_zeros() as usize) {
+                let mut limits = L::new(closest).mul(L::splat(ROBUST)).to_array();
+                shared.intersect(tris.get(lane), mask, &mut limits, |i, h| {
+                    if better(h.t, tri, closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
+                        closest[i] = h.t;
+                        found = true;
+                        out[i] = Some(Hit {
+                            t: h.t,
+                            tri,
+                            u: h.u,
+                            v: h.v,
+                        });
                     }
-                    if k > 0 {
-                        for &(_, lane) in order[1..k].iter().rev() {
-                            let (hit, t_near) = entries[lane];
-                            stack[sp] = MaybeUninit::new((n.child[lane], hit, t_near));
-                            sp += 1;
-                        }
-                        let lane = order[0].1;
-                        (cur, active) = (n.child[lane], entries[lane].0);
-                        continue;
-                    }
-                }
-                Child::Leaf { block, count } => {
-                    let tris = &self.blocks[block];
-                    let ids = &self.ids[block];
-                    match &shared {
-                        Some(shared) if active.count_ones() >= SHARED_LEAF => {
-                            for (lane, &tri) in ids.iter().enumerate().take(count) {
-                                let mut limits = closest.map(reach);
-                                shared.intersect(tris.get(lane), active, &mut limits, |i, h| {
-                                    if better(h.t, tri, closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
-                                        closest[i] = h.t;
-                                        out[i] = Some(Hit {
-                                            t: h.t,
-                                            tri,
-                                            u: h.u,
-                                            v: h.v,
-                                        });
-                                    }
-                                });
-                            }
-                        }
-                        _ => {
-                            for i in lanes(active) {
-                                // Prepared when first needed: coherent packets may never test ray by ray.
-                                let prep = preps[i].get_or_insert_with(|| Ray4::new(rays[i].origin, rays[i].dir));
-                                prep.intersect(tris, (1u32 << count) - 1, reach(closest[i]), |lane, h| {
-                                    if better(h.t, ids[lane], closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
-                                        closest[i] = h.t;
-                                        out[i] = Some(Hit {
-                                            t: h.t,
-                                            tri: ids[lane],
-                                            u: h.u,
-                                            v: h.v,
-                                        });
-                                    }
-                                    Some(reach(closest[i]))
-                                });
-                            }
-                        }
-                    }
-                    limit = L::new(closest);
-                }
-                Child::Empty => {}
+                });
             }
-            // The next entry that some of its rays may still need.
-            loop {
-                if sp == 0 {
-                    return;
-                }
-                sp -= 1;
-                // SAFETY: entries below the old `sp` were written by the pushes above.
-                let (next, rays_in, t) = unsafe { stack[sp].assume_init() };
-                let live = rays_in & t.le(limit.mul(robust));
-                if live != 0 {
-                    (cur, active) = (next, live);
-                    break;
-                }
-            }
-        }
+            Ok(found.then(|| widest(&closest)))
+        });
     }
 }
 
@@ -347,6 +292,51 @@ mod tests {
             })
             .collect();
         assert_eq!(bvh.intersect_packet(&rays), [None; PACKET]);
+    }
+
+    /// A coherent packet with one ray that has no finite origin or
+    /// direction: that ray finds nothing, the others what they find alone.
+    #[test]
+    fn a_ray_that_is_not_finite_spoils_no_other() {
+        let scene = soup(3, 400);
+        let bvh = WideBvh::build(&scene).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let mut hits = 0;
+        for k in 0..300 {
+            let origin = random_vec3(&mut rng, 7.0);
+            let towards = random_vec3(&mut rng, 1.0) - origin;
+            let mut rays: Vec<Ray> = (0..PACKET)
+                .map(|_| {
+                    Ray::new(
+                        origin + random_vec3(&mut rng, 0.05),
+                        towards + random_vec3(&mut rng, 0.05),
+                    )
+                })
+                .collect();
+            let bad = k % PACKET;
+            rays[bad] = match k % 3 {
+                0 => Ray {
+                    origin: Vec3::splat(f32::NAN),
+                    ..rays[bad]
+                },
+                1 => Ray {
+                    dir: Vec3::new(f32::INFINITY, 0.0, 1.0),
+                    ..rays[bad]
+                },
+                _ => Ray {
+                    origin: Vec3::new(f32::NEG_INFINITY, 0.0, 0.0),
+                    ..rays[bad]
+                },
+            };
+            let got = bvh.intersect_packet(&rays);
+            assert_eq!(got[bad], None, "packet {k}");
+            for (i, r) in rays.iter().enumerate().filter(|&(i, _)| i != bad) {
+                if agree(&scene, &bvh, r, got[i], "beside a ray that is not finite") {
+                    hits += 1;
+                }
+            }
+        }
+        assert!(hits > 500, "{hits} hits");
     }
 
     /// Rays from inside the furnished room to points on the edges where its

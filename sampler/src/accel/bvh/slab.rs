@@ -53,12 +53,20 @@ impl<L: Lanes> SlabRay<L> {
             far,
         }
     }
+}
 
-    /// The children whose boxes the ray enters within `[0, closest]`
+/// A test of a node's eight boxes, for a walk of the hierarchy: one ray's,
+/// or a packet's bounds.
+pub(super) trait BoxTest {
+    /// The children whose boxes may be entered within `[0, closest]`
     /// (widened by [`ROBUST`]), one bit per child lane, and each lane's
-    /// entry distance.
+    /// entry distance (or a lower bound of it).
+    fn test(&self, n: &Node, closest: f32) -> (u32, [f32; WIDTH]);
+}
+
+impl<L: Lanes> BoxTest for SlabRay<L> {
     #[inline(always)]
-    pub(super) fn test(&self, n: &Node, closest: f32) -> (u32, [f32; WIDTH]) {
+    fn test(&self, n: &Node, closest: f32) -> (u32, [f32; WIDTH]) {
         let slab = |k: usize, c: usize| L::load(&n.b[k]).sub(self.o[c]).mul(self.inv[c]);
         let (near, far) = (self.near, self.far);
         let t_near = slab(near[0], 0)

@@ -6,7 +6,7 @@ use std::mem::MaybeUninit;
 use wide::f32x8;
 
 use super::node::{Child, EMPTY, WIDTH};
-use super::slab::{SlabRay, ROBUST};
+use super::slab::{BoxTest, SlabRay, ROBUST};
 use super::{better, reach, WideBvh};
 use crate::accel::Hit;
 #[cfg(target_arch = "x86_64")]
@@ -24,9 +24,9 @@ impl WideBvh {
     /// `Err(())`. Always inlined, so that the caller decides which
     /// instructions the whole walk may use.
     #[inline(always)]
-    fn walk<L: Lanes>(
+    pub(super) fn walk(
         &self,
-        boxes: &SlabRay<L>,
+        boxes: &impl BoxTest,
         t_max: f32,
         mut leaf: impl FnMut(usize, u32) -> Result<Option<f32>, ()>,
     ) {
@@ -129,7 +129,7 @@ impl WideBvh {
     }
 
     #[inline(always)]
-    fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
+    pub(super) fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
         let prep = Ray4::new(ray.origin, ray.dir);
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
