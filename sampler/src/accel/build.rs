@@ -307,17 +307,18 @@ impl Bins {
     /// One pass over the references for all three axes.
     fn add(mut self, refs: &[Ref], lo: glam::Vec3, scale: glam::Vec3, bins: usize) -> Bins {
         let last = (bins - 1) as f32;
+        // Plain comparisons, not `f32::min`: its NaN rule costs a blend per
+        // operation, and bounds are never NaN (a NaN would land in the last bin).
+        let bin = |x: f32, axis: usize| {
+            let b = (x - lo[axis]) * scale[axis];
+            let b = if b < last { b } else { last };
+            (if b > 0.0 { b } else { 0.0 }) as usize
+        };
         for r in refs {
-            self.content = self.content.union(&r.bounds);
-            let s = ((r.bounds.lo - lo) * scale)
-                .min(glam::Vec3::splat(last))
-                .max(glam::Vec3::ZERO);
-            let e = ((r.bounds.hi - lo) * scale)
-                .min(glam::Vec3::splat(last))
-                .max(glam::Vec3::ZERO);
+            self.content.include(&r.bounds);
             for axis in 0..3 {
-                self.starts[axis][s[axis] as usize] += 1;
-                self.ends[axis][e[axis] as usize] += 1;
+                self.starts[axis][bin(r.bounds.lo[axis], axis).min(MAX_BINS - 1)] += 1;
+                self.ends[axis][bin(r.bounds.hi[axis], axis).min(MAX_BINS - 1)] += 1;
             }
         }
         self
@@ -405,25 +406,35 @@ fn clip_triangle(v: [glam::Vec3; 3], b: &Aabb) -> Option<Aabb> {
         return None;
     }
     // Sutherland-Hodgman against the six planes; a triangle clipped by six
-    // planes has at most nine vertices.
-    let mut poly = [glam::Vec3::ZERO; 12];
+    // planes has at most nine vertices. Points are arrays: a `Vec3` indexed
+    // by a run-time axis is a branch per access.
+    let mut poly = [[0f32; 3]; 12];
     let mut len = 3;
-    poly[..3].copy_from_slice(&v);
+    for (p, q) in poly.iter_mut().zip(v) {
+        *p = q.to_array();
+    }
+    let (lo, hi) = (b.lo.to_array(), b.hi.to_array());
     for axis in 0..3 {
-        for (bound, keep_above) in [(b.lo[axis], true), (b.hi[axis], false)] {
-            let inside = |p: glam::Vec3| if keep_above { p[axis] >= bound } else { p[axis] <= bound };
-            let mut out = [glam::Vec3::ZERO; 12];
+        for (bound, keep_above) in [(lo[axis], true), (hi[axis], false)] {
+            let inside = |p: &[f32; 3]| if keep_above { p[axis] >= bound } else { p[axis] <= bound };
+            if poly[..len].iter().all(inside) {
+                continue;
+            }
+            let mut out = [[0f32; 3]; 12];
             let mut n = 0;
             for i in 0..len {
                 let (p, q) = (poly[i], poly[(i + 1) % len]);
-                let (pin, qin) = (inside(p), inside(q));
+                let (pin, qin) = (inside(&p), inside(&q));
                 if pin {
                     out[n] = p;
                     n += 1;
                 }
                 if pin != qin && n < out.len() {
                     let t = (bound - p[axis]) / (q[axis] - p[axis]);
-                    let mut x = p + (q - p) * t;
+                    let mut x = [0f32; 3];
+                    for c in 0..3 {
+                        x[c] = p[c] + (q[c] - p[c]) * t;
+                    }
                     x[axis] = bound;
                     out[n] = x;
                     n += 1;
@@ -438,7 +449,7 @@ fn clip_triangle(v: [glam::Vec3; 3], b: &Aabb) -> Option<Aabb> {
     }
     let mut r = Aabb::EMPTY;
     for p in &poly[..len] {
-        r.grow(*p);
+        r.grow(glam::Vec3::from_array(*p));
     }
     // Rounding must never shrink the box below what the triangle covers.
     Some(r.clip(b))

@@ -93,7 +93,7 @@ impl Binning {
             let pb = Aabb { lo: p.lo, hi: p.hi };
             for (axis, bins) in b.bins.iter_mut().enumerate() {
                 let bin = &mut bins[self.bin(c, axis)];
-                bin.bounds = bin.bounds.union(&pb);
+                bin.bounds.include(&pb);
                 bin.count += 1;
             }
         }
