@@ -2,8 +2,8 @@
 //! packets do): the origins and reciprocal directions of the packet's rays
 //! lie in intervals, and one test of a node's eight boxes against those
 //! intervals says which boxes no ray of the packet can enter. It costs about
-//! what one ray's test costs, so a packet pays per-ray tests only for the
-//! boxes that survive it.
+//! what one ray's test costs, so a coherent packet walks the hierarchy for
+//! about what one ray's walk costs.
 //!
 //! It is conservative bit for bit: float subtraction and multiplication
 //! round monotonically, so each bound is computed from the interval ends

@@ -1,14 +1,12 @@
-//! Packet traversal of the wide BVH (Wald et al. 2001, over a wide
-//! hierarchy as in Embree's hybrid kernels): up to eight rays with the same
-//! direction signs walk the hierarchy together, one ray per SIMD lane. A
-//! node's children are tested one at a time against all eight rays, a child
-//! is entered when any of its rays reaches its box, and children are visited
-//! nearest first by the nearest entry among their rays. Coherent rays (a
-//! beam's, a pixel tile's) share nearly every node, so each node's boxes are
-//! loaded once for eight rays and its branches are taken once. At a leaf the
-//! triangles are tested against all live rays at once when they share the
-//! watertight test's axis permutation, ray by ray otherwise; either way each
-//! ray finds the nearest distance its single-ray walk finds.
+//! Packet traversal of the wide BVH (Wald et al. 2001; Embree's coherent
+//! packets): up to eight rays that run nearly one way walk the hierarchy as
+//! one ray would, with the packet's interval bounds ([`super::frustum`]) in
+//! place of the ray and the farthest of their nearest hits as its limit.
+//! Coherent rays (a beam's, a pixel tile's) share nearly every node, so a
+//! node costs the packet about what it costs one ray. At a leaf each
+//! triangle is tested against all rays at once, with the tie rule per ray,
+//! so each ray finds exactly the hit its single-ray walk finds. Rays that
+//! run apart are traced one by one.
 
 use wide::f32x8;
 
@@ -40,7 +38,8 @@ impl WideBvh {
     }
 
     /// [`WideBvh::intersect_packet`] in `wide`'s portable lanes, whatever
-    /// the CPU has (the AVX walk must agree with it bit for bit).
+    /// the CPU has (the AVX walk must agree with it bit for bit; rays traced
+    /// one by one take the single-ray walk, which chooses its own lanes).
     fn intersect_packet_portable(&self, rays: &[Ray]) -> [Option<Hit>; PACKET] {
         let mut out = [None; PACKET];
         self.packet::<f32x8>(rays, &mut out);
@@ -62,9 +61,7 @@ impl WideBvh {
         }
         let p = PacketRays::new::<L>(rays);
         if p.lanes.count_ones() < SHARED_LEAF || !p.coherent::<L>() {
-            for i in lanes(p.lanes) {
-                out[i] = self.intersect(&rays[i]);
-            }
+            self.one_by_one(rays, p.lanes, out);
             return;
         }
         let signs = p.signs::<L>();
@@ -79,7 +76,7 @@ impl WideBvh {
                 only = p.only(mask);
                 &only
             };
-            self.packet_octant::<L>(q, mask, out);
+            self.packet_octant::<L>(rays, q, mask, out);
         }
     }
 
@@ -91,19 +88,12 @@ impl WideBvh {
     /// two rays, walk one by one: bounds around rays that run apart take
     /// in most of the scene.
     #[inline(always)]
-    fn packet_octant<L: Lanes>(&self, p: &PacketRays, mask: u32, out: &mut [Option<Hit>; PACKET]) {
+    fn packet_octant<L: Lanes>(&self, rays: &[Ray], p: &PacketRays, mask: u32, out: &mut [Option<Hit>; PACKET]) {
         // The packet runs nearly one way (see `packet`); `None` for mixed axis permutations.
         let shared = match Rays8::<L>::from_lanes(p.o, p.d) {
             Some(shared) if mask.count_ones() >= SHARED_LEAF => shared,
             _ => {
-                for i in lanes(mask) {
-                    let (origin, dir) = p.ray(i);
-                    out[i] = self.intersect(&Ray {
-                        origin,
-                        dir,
-                        t_max: p.t_max[i],
-                    });
-                }
+                self.one_by_one(rays, mask, out);
                 return;
             }
         };
@@ -134,6 +124,13 @@ impl WideBvh {
             }
             Ok(found.then(|| widest(&closest)))
         });
+    }
+
+    /// The rays of `mask` traced alone (out of line: the packet walk stays small).
+    fn one_by_one(&self, rays: &[Ray], mask: u32, out: &mut [Option<Hit>; PACKET]) {
+        for i in lanes(mask) {
+            out[i] = self.intersect(&rays[i]);
+        }
     }
 }
 

@@ -1,8 +1,7 @@
 //! A packet's rays by axis, one ray per lane, prepared once for every walk
 //! over them: reciprocal directions eight at a time, direction octants from
-//! the lanes' sign bits, and whether they run nearly one way. Done ray by ray, this setup cost a third of a coherent packet's time.
-
-use glam::Vec3;
+//! the lanes' sign bits, and whether they run nearly one way. Done ray by
+//! ray, this setup cost a third of a coherent packet's time.
 
 use super::slab::safe_recip;
 use crate::accel::packet::{COHERENT_COS, PACKET};
@@ -115,15 +114,6 @@ impl PacketRays {
         }
         p.lanes = mask;
         p
-    }
-
-    /// Lane `i`'s origin and direction.
-    #[inline(always)]
-    pub(super) fn ray(&self, i: usize) -> (Vec3, Vec3) {
-        (
-            Vec3::new(self.o[0][i], self.o[1][i], self.o[2][i]),
-            Vec3::new(self.d[0][i], self.d[1][i], self.d[2][i]),
-        )
     }
 
     /// Whether the rays run nearly one way: within [`COHERENT_COS`] of the
