@@ -91,27 +91,21 @@ fn packets_best_of_three(packet: impl Fn(&[Ray]) -> [Option<Hit>; PACKET], rays:
 /// The kd-tree beside the wide BVH on the same rays: a table row of build
 /// times, sizes, single-ray rates (best of three each, alternated) and the
 /// BVH's packet rates, and how many rays found their nearest hit at another
-/// distance. The rates come back too: build seconds, then primary and bounce
-/// rays single, then in packets.
+/// distance. The rates come back too: primary and bounce rays single, then
+/// in packets.
 fn wide_row(
     label: &str,
     scene: &Scene,
+    bvh: &WideBvh,
     tree: &KdTree,
-    kd_build: f64,
+    build: Builds,
     primary: &[Ray],
     bounce: &[Ray],
-) -> Result<(String, [f64; 5], WideBvh)> {
-    let start = Instant::now();
-    let bvh = WideBvh::build(scene).ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
-    let mut build = start.elapsed().as_secs_f64();
-    // Best of two, as the kd-tree's and Embree's builds: the machine is shared.
-    let start = Instant::now();
-    drop(WideBvh::build(scene));
-    build = build.min(start.elapsed().as_secs_f64());
+) -> (String, [f64; 4]) {
     let tris = scene.triangles.len().max(1) as f64;
     let mut cells = Vec::new();
     let mut differ = 0;
-    let mut rates = [build, 0.0, 0.0, 0.0, 0.0];
+    let mut rates = [0.0; 4];
     for (i, rays) in [primary, bounce].into_iter().enumerate() {
         let (kd, kd_hits) = best_of_three(|r| tree.intersect(r), rays);
         let (wide, wide_hits) = best_of_three(|r| bvh.intersect(r), rays);
@@ -119,13 +113,14 @@ fn wide_row(
         differ += kd_hits.iter().zip(&wide_hits).filter(|(a, b)| a != b).count();
         differ += packet_hits.iter().zip(&wide_hits).filter(|(a, b)| a != b).count();
         cells.push(format!("{:.2} / {:.2} = {:.2}", wide / 1e6, kd / 1e6, wide / kd));
-        rates[i + 1] = wide;
-        rates[i + 3] = packets;
+        rates[i] = wide;
+        rates[i + 2] = packets;
     }
     let st = bvh.stats();
     let row = format!(
-        "| {label} | {:.2} s / {kd_build:.2} s | {:.1} / {:.1} | {} nodes, {} leaves of {:.2} triangles, depth {} | {} | {} | {:.2} ({:.2}x single) | {:.2} ({:.2}x single) | {differ} of {} |",
-        build,
+        "| {label} | {:.2} s / {:.2} s | {:.1} / {:.1} | {} nodes, {} leaves of {:.2} triangles, depth {} | {} | {} | {:.2} ({:.2}x single) | {:.2} ({:.2}x single) | {differ} of {} |",
+        build.bvh,
+        build.kd,
         st.bytes as f64 / tris,
         tree.stats().bytes as f64 / tris,
         count(st.nodes as u64),
@@ -134,13 +129,69 @@ fn wide_row(
         st.depth,
         cells[0],
         cells[1],
+        rates[2] / 1e6,
+        rates[2] / rates[0],
         rates[3] / 1e6,
         rates[3] / rates[1],
-        rates[4] / 1e6,
-        rates[4] / rates[2],
         2 * (primary.len() + bounce.len())
     );
-    Ok((row, rates, bvh))
+    (row, rates)
+}
+
+/// Build seconds of the kd-tree, the wide BVH and Embree (infinite when
+/// not built), each the best of two.
+#[derive(Clone, Copy)]
+struct Builds {
+    kd: f64,
+    bvh: f64,
+    embree: f64,
+}
+
+/// Times the other builds beside a kd-tree built in `kd` seconds: the
+/// wide BVH, then Embree's (with `embree`), then all three again, best of
+/// two each. Taking turns puts a busy moment of a shared machine on all
+/// of them alike. Returns the times and the wide BVH.
+#[cfg_attr(not(feature = "embree"), allow(unused_variables))]
+fn builds(label: &str, scene: &Scene, kd: f64, embree: bool) -> Result<(Builds, WideBvh)> {
+    let mut b = Builds {
+        kd,
+        bvh: f64::INFINITY,
+        embree: f64::INFINITY,
+    };
+    let timed = |f: &dyn Fn() -> Result<()>| -> Result<f64> {
+        let start = Instant::now();
+        f()?;
+        Ok(start.elapsed().as_secs_f64())
+    };
+    let embree_build = || -> Result<f64> {
+        #[cfg(feature = "embree")]
+        if embree {
+            return timed(&|| {
+                drop(crate::embree::Embree::new(
+                    &scene.positions,
+                    scene.triangles.iter().map(|t| t.v),
+                )?);
+                Ok(())
+            });
+        }
+        Ok(f64::INFINITY)
+    };
+    // The first round: the kd-tree was built by the caller, the BVH is kept.
+    let start = Instant::now();
+    let bvh = WideBvh::build(scene).ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
+    b.bvh = start.elapsed().as_secs_f64();
+    b.embree = embree_build()?;
+    // The second round.
+    b.kd = b.kd.min(timed(&|| {
+        drop(KdTree::build(scene, &BuildOptions::default()));
+        Ok(())
+    })?);
+    b.bvh = b.bvh.min(timed(&|| {
+        drop(WideBvh::build(scene));
+        Ok(())
+    })?);
+    b.embree = b.embree.min(embree_build()?);
+    Ok((b, bvh))
 }
 
 /// Rays per second on this thread, tracing in packets of eight consecutive
@@ -229,12 +280,10 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         let before = super::bench::rss().1;
         let start = Instant::now();
         let tree = KdTree::build(scene, &BuildOptions::default());
-        let mut build = start.elapsed().as_secs_f64();
+        let kd_build = start.elapsed().as_secs_f64();
+        // The first build gives the peak memory; the rest take turns.
         let peak = super::bench::rss().0;
-        // Best of two builds (the first also gives the peak memory).
-        let start = Instant::now();
-        drop(KdTree::build(scene, &BuildOptions::default()));
-        build = build.min(start.elapsed().as_secs_f64());
+        let (build, bvh) = builds(&case.label, scene, kd_build, embree)?;
         let st = tree.stats();
         let bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + st.bytes;
         let mib = |b: u64| b as f64 / f64::from(1 << 20);
@@ -293,7 +342,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         wrong += differing(&bounce_packet_hits, &bounce_hits);
         reordered.push(reordering_row(&case.label, &tree, &bounce, &bounce_hits));
         #[cfg_attr(not(feature = "embree"), allow(unused_variables))]
-        let (wide_table_row, wide_rates, bvh) = wide_row(&case.label, scene, &tree, build, &primary, &bounce)?;
+        let (wide_table_row, wide_rates) = wide_row(&case.label, scene, &bvh, &tree, build, &primary, &bounce);
         wide.push(wide_table_row);
         scattered.push(scattered_row(&case.label, scene, &tree, &bvh));
         drop(bvh);
@@ -302,7 +351,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
             "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
             case.label,
             count(scene.triangles.len() as u64),
-            build,
+            build.kd,
             st.bytes as f64 / tris,
             (bytes - st.bytes) as f64 / tris,
             primary_rate / 1e6,
@@ -315,16 +364,16 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
             beside.push(side_by_side(
                 &case.label,
                 scene,
-                [build, wide_rates[0]],
+                build,
                 [
                     primary_rate,
                     primary_packets,
                     bounce_rate,
                     bounce_packets,
+                    wide_rates[0],
                     wide_rates[1],
                     wide_rates[2],
                     wide_rates[3],
-                    wide_rates[4],
                 ],
                 &primary,
                 &hits,
@@ -356,7 +405,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     if embree {
         println!();
         println!(
-            "The same rays through Embree 3 in this process (high build quality, default threads; builds best of two, rays best of three, as ours); ours / Embree:"
+            "The same rays through Embree 3 in this process (high build quality, default threads; builds best of two, taking turns with ours; rays best of three, as ours); ours / Embree:"
         );
         println!();
         println!(
@@ -641,17 +690,17 @@ fn beam_row(per_beam: usize) -> Result<String> {
     ))
 }
 
-/// Embree's build time and rates on the same rays as a table row, each
-/// beside ours (`build`: the kd-tree's and the wide BVH's seconds; `ours`:
-/// primary single, primary packets, bounce single, bounce packets, then the
-/// wide BVH's primary and bounce single and primary and bounce packets, in
-/// rays/s), and how many rays hit a different triangle.
+/// Embree's rates on the same rays as a table row, each beside ours, with
+/// the three builds' times (`ours`: primary single, primary packets, bounce
+/// single, bounce packets, then the wide BVH's primary and bounce single and
+/// primary and bounce packets, in rays/s), and how many rays hit a
+/// different triangle.
 #[cfg(feature = "embree")]
 #[allow(clippy::too_many_arguments)]
 fn side_by_side(
     label: &str,
     scene: &Scene,
-    build: [f64; 2],
+    build: Builds,
     ours: [f64; 8],
     primary: &[Ray],
     primary_hits: &[Option<RayHit>],
@@ -659,12 +708,6 @@ fn side_by_side(
     bounce_hits: &[Option<RayHit>],
 ) -> Result<String> {
     use crate::embree::Embree;
-    let mut e_build = f64::INFINITY;
-    for _ in 0..2 {
-        let start = Instant::now();
-        drop(Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))?);
-        e_build = e_build.min(start.elapsed().as_secs_f64());
-    }
     let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))?;
     // Best of three, as ours are measured.
     let single = |rays: &[Ray]| {
@@ -705,9 +748,10 @@ fn side_by_side(
         ph.iter().zip(&pph).filter(|(a, b)| a != b).count() + bh.iter().zip(&bph).filter(|(a, b)| a != b).count();
     let cell = |o: f64, t: f64| format!("{:.2} / {:.2} = {:.2}", o / 1e6, t / 1e6, o / t);
     Ok(format!(
-        "| {label} | {:.2} s / {:.2} s / {e_build:.2} s | {} | {} | {} | {} | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
-        build[0],
-        build[1],
+        "| {label} | {:.2} s / {:.2} s / {:.2} s | {} | {} | {} | {} | {} | {} | {} | {} | {differ} of {} ({packet_differ} between Embree's packets and its single rays) |",
+        build.kd,
+        build.bvh,
+        build.embree,
         cell(ours[0], ps),
         cell(ours[1], pp),
         cell(ours[2], bs),

@@ -141,20 +141,28 @@ fn release_freed_memory() {
 /// One reference per triangle, its bounds clipped to `within` if given
 /// (triangles that miss it are left out).
 fn references(scene: &Scene, within: Option<&Aabb>) -> Vec<Ref> {
+    let bounds = |t: usize| {
+        let mut b = Aabb::EMPTY;
+        for p in scene.vertices(t) {
+            b.grow(p);
+        }
+        b
+    };
+    let Some(w) = within else {
+        // Every triangle: an indexed collect writes the list in place.
+        return (0..scene.triangles.len())
+            .into_par_iter()
+            .map(|t| Ref {
+                tri: t as u32,
+                bounds: bounds(t),
+            })
+            .collect();
+    };
     (0..scene.triangles.len())
         .into_par_iter()
         .filter_map(|t| {
-            let mut b = Aabb::EMPTY;
-            for p in scene.vertices(t) {
-                b.grow(p);
-            }
-            if let Some(w) = within {
-                b = b.clip(w);
-                if b.is_empty() {
-                    return None;
-                }
-            }
-            Some(Ref {
+            let b = bounds(t).clip(w);
+            (!b.is_empty()).then_some(Ref {
                 tri: t as u32,
                 bounds: b,
             })

@@ -24,13 +24,7 @@ impl LeafTris {
     pub(crate) fn new(scene: &Scene, leaf_tris: &[u32]) -> LeafTris {
         let blocks = leaf_tris
             .par_chunks(LANES)
-            .map(|ids| {
-                let mut b = Tri4::default();
-                for (lane, &t) in ids.iter().enumerate() {
-                    b.set(lane, scene.vertices(t as usize));
-                }
-                b
-            })
+            .map(|ids| Tri4::from_triangles(ids.iter().map(|&t| scene.vertices(t as usize))))
             .collect();
         LeafTris { blocks }
     }

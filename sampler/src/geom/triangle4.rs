@@ -38,6 +38,22 @@ impl Tri4 {
         }
     }
 
+    /// Up to four triangles, one per lane from lane 0 (the lanes left over
+    /// hold zeros). Builds each coordinate's lanes in an array, then one
+    /// vector: cheaper than [`Tri4::set`] lane by lane, which matters for
+    /// blocks copied by the million.
+    pub fn from_triangles(tris: impl IntoIterator<Item = [Vec3; 3]>) -> Tri4 {
+        let mut p = [[0f32; 4]; 9];
+        for (lane, tri) in tris.into_iter().take(4).enumerate() {
+            for (v, point) in tri.iter().enumerate() {
+                for c in 0..3 {
+                    p[3 * v + c][lane] = point[c];
+                }
+            }
+        }
+        Tri4 { p: p.map(f32x4::new) }
+    }
+
     /// The triangle in lane `lane`.
     #[inline]
     pub fn get(&self, lane: usize) -> [Vec3; 3] {

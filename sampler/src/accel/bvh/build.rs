@@ -1,7 +1,9 @@
 //! Building the wide BVH: binned SAH over triangle centroids splits a node's
 //! triangles in two, and the largest of its parts is split again until it has
 //! eight children; parts of up to four triangles become leaves. Subtrees are
-//! built in parallel, then laid out depth first.
+//! built in parallel, then laid out depth first, also in parallel.
+
+use std::mem::MaybeUninit;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -38,10 +40,29 @@ impl Prim {
 }
 
 /// A subtree before layout: a leaf over a run of the primitive array, or up
-/// to [`WIDTH`] children with their boxes.
+/// to [`WIDTH`] children with their boxes and the subtree's size.
 enum Sub {
     Leaf { start: usize, count: usize },
-    Inner(Vec<(Aabb, Sub)>),
+    Inner { children: Vec<(Aabb, Sub)>, size: Size },
+}
+
+/// Inner nodes and leaf blocks of a subtree: where its layout ends.
+#[derive(Clone, Copy, Default)]
+struct Size {
+    nodes: usize,
+    blocks: usize,
+}
+
+impl Sub {
+    fn size(&self) -> Size {
+        match self {
+            Sub::Leaf { count, .. } => Size {
+                nodes: 0,
+                blocks: usize::from(*count > 0),
+            },
+            Sub::Inner { size, .. } => *size,
+        }
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -179,7 +200,11 @@ fn best_split(b: &Bins) -> Option<(usize, usize, Aabb, Aabb)> {
             if left.1 == 0 || rn == 0 {
                 continue;
             }
-            let cost = left.0.area() * left.1 as f32 + rb.area() * rn as f32;
+            // Triangles are tested in blocks of four: a part costs its
+            // blocks, which fills leaves (3.9 triangles a leaf on the
+            // landscapes against 3.4 counting triangles, 15% fewer bytes).
+            let blocks = |n: usize| n.div_ceil(4) as f32;
+            let cost = left.0.area() * blocks(left.1) + rb.area() * blocks(rn);
             if best.is_none_or(|b| cost < b.0) {
                 best = Some((cost, axis, i, left.0, rb));
             }
@@ -233,12 +258,19 @@ fn build(prims: &mut [Prim], offset: usize, bounds: Aabb, depth: usize) -> Sub {
     let one = |((slice, b), &(s, _, _)): ((&mut [Prim], Aabb), &(usize, usize, Aabb))| {
         (b, build(slice, offset + s, b, depth + 1))
     };
-    let children = if parts.iter().map(|p| p.1).sum::<usize>() >= PARALLEL {
+    let children: Vec<(Aabb, Sub)> = if parts.iter().map(|p| p.1).sum::<usize>() >= PARALLEL {
         slices.into_par_iter().zip(parts.par_iter()).map(one).collect()
     } else {
         slices.into_iter().zip(parts.iter()).map(one).collect()
     };
-    Sub::Inner(children)
+    let size = children.iter().fold(Size { nodes: 1, blocks: 0 }, |a, (_, c)| {
+        let c = c.size();
+        Size {
+            nodes: a.nodes + c.nodes,
+            blocks: a.blocks + c.blocks,
+        }
+    });
+    Sub::Inner { children, size }
 }
 
 /// The primitives of a scene's first `n` triangles.
@@ -256,37 +288,88 @@ fn primitives(scene: &Scene, n: usize) -> Vec<Prim> {
         .collect()
 }
 
-/// The laid-out hierarchy, filled depth first.
+/// What laying out a subtree reads: the scene's vertices and the
+/// primitives' order.
 struct Layout<'a> {
     scene: &'a Scene,
     prims: &'a [Prim],
-    nodes: Vec<Node>,
-    blocks: Vec<Tri4>,
-    ids: Vec<[u32; 4]>,
+}
+
+/// Where a subtree is laid out: its nodes from index `node_at` (the slice
+/// `nodes` holds exactly them), its blocks from `block_at`.
+struct Place<'s> {
+    nodes: &'s mut [MaybeUninit<Node>],
+    node_at: usize,
+    blocks: &'s mut [MaybeUninit<Tri4>],
+    ids: &'s mut [MaybeUninit<[u32; 4]>],
+    block_at: usize,
 }
 
 impl Layout<'_> {
-    fn place(&mut self, sub: &Sub) -> u32 {
+    /// Lays `sub` out depth first into `at`, writing every slot of it once,
+    /// and returns its reference. Subtrees are laid out side by side in
+    /// parallel: each knows its size, so each gets its own run of nodes and
+    /// blocks, and the arrays come out as a sequential depth-first walk
+    /// would fill them.
+    fn place(&self, sub: &Sub, at: Place<'_>) -> u32 {
         match sub {
-            Sub::Leaf { count: 0, .. } => EMPTY,
-            Sub::Leaf { start, count } => {
-                let block = self.blocks.len();
-                let mut tri = Tri4::default();
-                let mut ids = [0u32; 4];
-                for (lane, p) in self.prims[*start..start + count].iter().enumerate() {
-                    tri.set(lane, self.scene.vertices(p.id as usize));
-                    ids[lane] = p.id;
-                }
-                self.blocks.push(tri);
-                self.ids.push(ids);
-                Child::leaf(block, *count)
+            Sub::Leaf { count: 0, .. } => {
+                assert!(at.blocks.is_empty() && at.nodes.is_empty());
+                EMPTY
             }
-            Sub::Inner(children) => {
-                let index = self.nodes.len();
-                self.nodes.push(Node::new(&[]));
-                let refs: Vec<(Aabb, u32)> = children.iter().map(|(b, c)| (*b, self.place(c))).collect();
-                self.nodes[index] = Node::new(&refs);
-                index as u32
+            Sub::Leaf { start, count } => {
+                let prims = &self.prims[*start..start + count];
+                let mut ids = [0u32; 4];
+                for (lane, prim) in prims.iter().enumerate() {
+                    ids[lane] = prim.id;
+                }
+                assert!(at.blocks.len() == 1 && at.ids.len() == 1 && at.nodes.is_empty());
+                at.blocks[0].write(Tri4::from_triangles(
+                    prims.iter().map(|p| self.scene.vertices(p.id as usize)),
+                ));
+                at.ids[0].write(ids);
+                Child::leaf(at.block_at, *count)
+            }
+            Sub::Inner { children, size } => {
+                let (this, mut nodes) = at.nodes.split_at_mut(1);
+                let (mut blocks, mut ids) = (at.blocks, at.ids);
+                let (mut node_at, mut block_at) = (at.node_at + 1, at.block_at);
+                let mut places = Vec::with_capacity(children.len());
+                for (_, c) in children {
+                    let s = c.size();
+                    let (n, rest) = std::mem::take(&mut nodes).split_at_mut(s.nodes);
+                    nodes = rest;
+                    let (b, rest) = std::mem::take(&mut blocks).split_at_mut(s.blocks);
+                    blocks = rest;
+                    let (i, rest) = std::mem::take(&mut ids).split_at_mut(s.blocks);
+                    ids = rest;
+                    places.push(Place {
+                        nodes: n,
+                        node_at,
+                        blocks: b,
+                        ids: i,
+                        block_at,
+                    });
+                    node_at += s.nodes;
+                    block_at += s.blocks;
+                }
+                // The children's runs took up the whole of this subtree's.
+                assert!(nodes.is_empty() && blocks.is_empty() && ids.is_empty());
+                let refs: Vec<(Aabb, u32)> = if size.blocks >= PARALLEL / 4 {
+                    places
+                        .into_par_iter()
+                        .zip(children.par_iter())
+                        .map(|(p, (b, c))| (*b, self.place(c, p)))
+                        .collect()
+                } else {
+                    places
+                        .into_iter()
+                        .zip(children)
+                        .map(|(p, (b, c))| (*b, self.place(c, p)))
+                        .collect()
+                };
+                this[0].write(Node::new(&refs));
+                at.node_at as u32
             }
         }
     }
@@ -307,15 +390,32 @@ impl WideBvh {
         let mut prims = primitives(scene, n);
         let (bounds, _) = bounds_of(&prims);
         let sub = build(&mut prims, 0, bounds, 0);
-        let mut layout = Layout {
-            scene,
-            prims: &prims,
-            nodes: Vec::with_capacity(n / 14 + 1),
-            blocks: Vec::with_capacity(n / 3 + 1),
-            ids: Vec::with_capacity(n / 3 + 1),
-        };
-        let root = layout.place(&sub);
-        let Layout { nodes, blocks, ids, .. } = layout;
+        let size = sub.size();
+        // Written in place, in parallel: filling the arrays first would be
+        // a serial pass over hundreds of MiB.
+        let mut nodes: Vec<Node> = Vec::with_capacity(size.nodes);
+        let mut blocks: Vec<Tri4> = Vec::with_capacity(size.blocks);
+        let mut ids: Vec<[u32; 4]> = Vec::with_capacity(size.blocks);
+        let layout = Layout { scene, prims: &prims };
+        let root = layout.place(
+            &sub,
+            Place {
+                nodes: &mut nodes.spare_capacity_mut()[..size.nodes],
+                node_at: 0,
+                blocks: &mut blocks.spare_capacity_mut()[..size.blocks],
+                ids: &mut ids.spare_capacity_mut()[..size.blocks],
+                block_at: 0,
+            },
+        );
+        // SAFETY: `place` wrote every slot of the runs it was given (it
+        // asserts that the children's runs make up each subtree's, and each
+        // node and leaf writes its own slots), and the runs were exactly the
+        // first `size` slots.
+        unsafe {
+            nodes.set_len(size.nodes);
+            blocks.set_len(size.blocks);
+            ids.set_len(size.blocks);
+        }
         drop(sub);
         Some(WideBvh {
             nodes,
@@ -324,5 +424,70 @@ impl WideBvh {
             root,
             bounds,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::testing::heightfield_and_rays;
+    use crate::accel::{BuildOptions, KdTree};
+
+    /// A hierarchy big enough to be laid out in parallel (over 4,096
+    /// blocks): every triangle sits in exactly one leaf lane, every node's
+    /// boxes hold what lies below them, the node and block arrays are filled
+    /// to the last slot, and rays find what the kd-tree finds.
+    #[test]
+    fn a_parallel_layout_holds_every_triangle_once() {
+        let (scene, rays) = heightfield_and_rays(96, 3000, 4);
+        let n = scene.triangles.len();
+        let bvh = WideBvh::build(&scene).unwrap();
+        assert!(bvh.blocks.len() > PARALLEL / 4, "{}", bvh.blocks.len());
+        let mut seen = vec![0u32; n];
+        let mut nodes_seen = 0;
+        // (reference, box its parent gave it)
+        let mut stack = vec![(bvh.root, bvh.bounds)];
+        while let Some((r, within)) = stack.pop() {
+            match Child::decode(r) {
+                Child::Empty => {}
+                Child::Leaf { block, count } => {
+                    for lane in 0..count {
+                        let id = bvh.ids[block][lane] as usize;
+                        seen[id] += 1;
+                        assert_eq!(bvh.blocks[block].get(lane), scene.vertices(id));
+                        for p in scene.vertices(id) {
+                            assert!(
+                                p.cmpge(within.lo).all() && p.cmple(within.hi).all(),
+                                "{id} outside {within:?}"
+                            );
+                        }
+                    }
+                }
+                Child::Inner(i) => {
+                    nodes_seen += 1;
+                    let node = &bvh.nodes[i];
+                    for lane in 0..WIDTH {
+                        if node.child[lane] == EMPTY {
+                            continue;
+                        }
+                        let b = |k: usize| node.b[k].as_array_ref()[lane];
+                        let child = Aabb {
+                            lo: Vec3::new(b(0), b(1), b(2)),
+                            hi: Vec3::new(b(3), b(4), b(5)),
+                        };
+                        stack.push((node.child[lane], child));
+                    }
+                }
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1), "a triangle missing or repeated");
+        assert_eq!(nodes_seen, bvh.nodes.len());
+        let tree = KdTree::build(&scene, &BuildOptions::default());
+        // The rays aim at shared edges and vertices, where each triangle's
+        // own arithmetic gives a distance a rounding apart.
+        for ray in &rays {
+            let (a, b) = (bvh.intersect(ray).unwrap().t, tree.intersect(ray).unwrap().t);
+            assert!((a - b).abs() <= 1e-6 * b, "{ray:?}: {a} against {b}");
+        }
     }
 }
