@@ -65,7 +65,21 @@ enum BuildNode {
         axis: usize,
         split: f32,
         children: Box<(BuildNode, BuildNode)>,
+        /// Nodes in this subtree, itself included, and leaf references:
+        /// where its part of the flattened arrays ends.
+        nodes: usize,
+        refs: usize,
     },
+}
+
+impl BuildNode {
+    /// Nodes in the subtree (itself included) and its leaf references.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            BuildNode::Leaf(tris) => (1, tris.len()),
+            BuildNode::Inner { nodes, refs, .. } => (*nodes, *refs),
+        }
+    }
 }
 
 struct Split {
@@ -97,8 +111,10 @@ impl KdTree {
         } else {
             build_node(scene, refs, bounds, 0, max_depth, options)
         };
-        let (mut nodes, mut leaf_tris) = (vec![Node::leaf(0, 0)], Vec::new());
-        flatten(root, 0, &mut nodes, &mut leaf_tris);
+        let (count, refs) = root.size();
+        let (mut nodes, mut leaf_tris) = (vec![Node::leaf(0, 0); count], vec![0u32; refs]);
+        let (first, below) = nodes.split_at_mut(1);
+        flatten(root, &mut first[0], below, 1, &mut leaf_tris, 0);
         if leaf_tris.len() >= RELEASE_ABOVE {
             release_freed_memory();
         }
@@ -170,22 +186,50 @@ fn references(scene: &Scene, within: Option<&Aabb>) -> Vec<Ref> {
         .collect()
 }
 
-fn flatten(node: BuildNode, at: usize, nodes: &mut Vec<Node>, leaf_tris: &mut Vec<u32>) {
+/// Writes `node` into `slot` and its descendants into `below`, which
+/// starts at index `at` of the node array and holds exactly them (children
+/// in pairs, each pair before the descendants of its left child, then its
+/// right child's); its leaf references go into `tris`, which starts at `first`
+/// of the leaf lists. Big subtrees are flattened side by side in parallel:
+/// each knows its size, so each gets its own run, and the arrays come out as
+/// a sequential depth-first walk would fill them.
+fn flatten(node: BuildNode, slot: &mut Node, below: &mut [Node], at: usize, tris: &mut [u32], first: usize) {
     match node {
-        BuildNode::Leaf(tris) => {
-            nodes[at] = Node::leaf(leaf_tris.len(), tris.len());
-            leaf_tris.extend(tris);
+        BuildNode::Leaf(list) => {
+            *slot = Node::leaf(first, list.len());
+            tris.copy_from_slice(&list);
         }
-        BuildNode::Inner { axis, split, children } => {
-            let left = nodes.len();
-            nodes.extend([Node::leaf(0, 0); 2]);
-            nodes[at] = Node::inner(axis, split, left);
+        BuildNode::Inner {
+            axis,
+            split,
+            children,
+            refs,
+            ..
+        } => {
+            *slot = Node::inner(axis, split, at);
             let (l, r) = *children;
-            flatten(l, left, nodes, leaf_tris);
-            flatten(r, left + 1, nodes, leaf_tris);
+            let ((ln, lr), (rn, rr)) = (l.size(), r.size());
+            let (pair, rest) = below.split_at_mut(2);
+            let (left_below, right_below) = rest.split_at_mut(ln - 1);
+            debug_assert_eq!(right_below.len(), rn - 1);
+            let (left_tris, right_tris) = tris.split_at_mut(lr);
+            debug_assert_eq!(right_tris.len(), rr);
+            let (left_slot, right_slot) = pair.split_at_mut(1);
+            let (left_at, right_at) = (at + 2, at + 2 + ln - 1);
+            let left = || flatten(l, &mut left_slot[0], left_below, left_at, left_tris, first);
+            let right = || flatten(r, &mut right_slot[0], right_below, right_at, right_tris, first + lr);
+            if refs > FLATTEN_IN_PARALLEL {
+                rayon::join(left, right);
+            } else {
+                left();
+                right();
+            }
         }
     }
 }
+
+/// Subtrees with more leaf references than this are flattened in parallel.
+const FLATTEN_IN_PARALLEL: usize = 1 << 15;
 
 fn build_node(
     scene: &Scene,
@@ -248,10 +292,13 @@ fn build_node(
             build_node(scene, right, right_box, depth + 1, max_depth, o),
         )
     };
+    let ((ln, lr), (rn, rr)) = (l.size(), r.size());
     BuildNode::Inner {
         axis: split.axis,
         split: split.pos,
         children: Box::new((l, r)),
+        nodes: 1 + ln + rn,
+        refs: lr + rr,
     }
 }
 
@@ -461,4 +508,64 @@ fn clip_triangle(v: [glam::Vec3; 3], b: &Aabb) -> Option<Aabb> {
     }
     // Rounding must never shrink the box below what the triangle covers.
     Some(r.clip(b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::testing::heightfield_and_rays;
+    use crate::accel::WideBvh;
+
+    /// A tree big enough to be flattened in parallel (over 32,768 leaf
+    /// references): children come after their parents in pairs, each leaf
+    /// list follows the previous one in depth-first order with none
+    /// skipped, every triangle is in some leaf, and rays find what the wide
+    /// BVH finds.
+    #[test]
+    fn a_parallel_flatten_lays_the_tree_out_depth_first() {
+        let (scene, rays) = heightfield_and_rays(136, 3000, 6);
+        let tree = KdTree::build(&scene, &BuildOptions::default());
+        let (nodes, tris) = (tree.nodes(), tree.leaf_tris());
+        assert!(tris.len() > FLATTEN_IN_PARALLEL, "{}", tris.len());
+        // Depth first from the root: leaf lists in order, children in range.
+        let mut next_leaf = 0;
+        let mut stack = vec![0usize];
+        let mut reached = vec![false; nodes.len()];
+        while let Some(i) = stack.pop() {
+            assert!(!reached[i], "node {i} reached twice");
+            reached[i] = true;
+            let n = nodes[i];
+            if n.is_leaf() {
+                assert_eq!(n.first(), next_leaf, "leaf {i}");
+                next_leaf += n.count();
+            } else {
+                assert!(n.left() > i && n.left() + 1 < nodes.len(), "node {i}");
+                stack.push(n.left() + 1);
+                stack.push(n.left());
+            }
+        }
+        assert_eq!(next_leaf, tris.len());
+        assert!(reached.iter().all(|&r| r), "a node no walk reaches");
+        let mut seen = vec![false; scene.triangles.len()];
+        for &t in tris {
+            seen[t as usize] = true;
+        }
+        assert!(seen.iter().all(|&s| s), "a triangle in no leaf");
+        // The rays aim at shared edges and vertices, where each triangle's
+        // own arithmetic gives a distance a rounding apart. (On a field this
+        // wide, a few graze past its far edge: both structures must agree.)
+        let bvh = WideBvh::build(&scene).unwrap();
+        let mut hits = 0;
+        for ray in &rays {
+            match (tree.intersect(ray), bvh.intersect(ray)) {
+                (Some(a), Some(b)) => {
+                    assert!((a.t - b.t).abs() <= 1e-6 * b.t, "{ray:?}: {a:?} against {b:?}");
+                    hits += 1;
+                }
+                (None, None) => {}
+                (a, b) => panic!("{ray:?}: kd-tree {a:?}, BVH {b:?}"),
+            }
+        }
+        assert!(hits > 2900, "{hits}");
+    }
 }
