@@ -4,6 +4,7 @@
 
 mod build;
 mod bvh;
+mod coarse_grid;
 mod leaf;
 mod node;
 mod packet;
@@ -30,6 +31,8 @@ pub struct KdTree {
     leaf_tris: Vec<u32>,
     leaves: leaf::LeafTris,
     bounds: Aabb,
+    /// Where reordering estimates hit points.
+    grid: coarse_grid::CoarseGrid,
 }
 
 /// Sizes of a built tree, for reports and benchmarks.

@@ -58,6 +58,7 @@ impl KdTree {
         }
         Ok(KdTree {
             leaves: LeafTris::new(scene, &leaf_tris),
+            grid: super::coarse_grid::CoarseGrid::new(&nodes, &bounds),
             nodes,
             leaf_tris,
             bounds,

@@ -1,20 +1,14 @@
 //! Hit-point ray reordering (Moon et al. 2010): before a batch of incoherent
 //! rays is traced, each ray's hit point is estimated on a coarse level of
-//! the tree (its nodes down to [`COARSE_DEPTH`], always in cache), quantized
+//! the tree (an occupancy grid made from its top levels, small enough to
+//! stay in cache: `coarse_grid`), quantized
 //! in the scene's bounds and given a Z-curve key; the batch is radix-sorted
 //! by key and traced in that order, so that rays which will touch the same
 //! nodes and triangles follow one another. Results come back in the rays'
 //! own order and are exactly those of tracing each ray alone.
 
-use super::traverse::STACK;
 use super::{Hit, KdTree};
 use crate::geom::Ray;
-
-/// Depth of the coarse level the hit points are estimated on: 65,536 cells
-/// at most, half a MiB of nodes, which stays in a core's L2 cache. Twelve
-/// levels gave keys too coarse to order rays over a 10M-triangle scene
-/// (1.8x the unordered rate against 2.0x, `holodeck bench tracer`).
-const COARSE_DEPTH: usize = 16;
 
 /// Bits per axis of the quantized hit point (a 30-bit Z-curve key).
 const BITS: u32 = 10;
@@ -57,7 +51,7 @@ impl KdTree {
     /// The indices of `rays` sorted by the Z-curve key of their estimated hit
     /// points; rays that miss the coarse level come last, in their order.
     pub fn hit_point_order(&self, rays: &[Ray]) -> Vec<u32> {
-        self.order_by(rays, |r| self.coarse_hit(r).map(|t| r.at(t)))
+        self.order_by(rays, |r| self.grid.first_hit(r, &self.bounds).map(|t| r.at(t)))
     }
 
     /// The indices of `rays` sorted by the Z-curve key of their origins
@@ -86,50 +80,6 @@ impl KdTree {
             .collect();
         radsort::sort_by_key(&mut keyed, |&(key, _)| key);
         keyed.into_iter().map(|(_, i)| i).collect()
-    }
-
-    /// Where the ray meets the first non-empty node of the coarse level:
-    /// the middle of its range in that node.
-    fn coarse_hit(&self, ray: &Ray) -> Option<f32> {
-        let inv = ray.dir.recip();
-        let (mut t_min, mut t_max) = self.bounds.range(ray, inv)?;
-        let (org, inv) = (ray.origin.to_array(), inv.to_array());
-        let mut stack = [(0u32, 0u8, 0f32, 0f32); STACK];
-        let (mut sp, mut node, mut depth) = (0, 0usize, 0usize);
-        loop {
-            let n = self.nodes[node];
-            if n.is_leaf() || depth >= COARSE_DEPTH {
-                if !n.is_leaf() || n.count() > 0 {
-                    return Some(0.5 * (t_min + t_max));
-                }
-                if sp == 0 {
-                    return None;
-                }
-                sp -= 1;
-                let (next, d, a, b) = stack[sp];
-                (node, depth, t_min, t_max) = (next as usize, d as usize, a, b);
-                continue;
-            }
-            let axis = n.axis();
-            let t_split = (n.split() - org[axis]) * inv[axis];
-            let (first, second) = if org[axis] < n.split() || (org[axis] == n.split() && inv[axis] <= 0.0) {
-                (n.left(), n.left() + 1)
-            } else {
-                (n.left() + 1, n.left())
-            };
-            depth += 1;
-            // An estimate: no slack, and a ray in the plane takes the near side.
-            if t_split.is_nan() || t_split > t_max || t_split <= 0.0 {
-                node = first;
-            } else if t_split < t_min {
-                node = second;
-            } else {
-                stack[sp] = (second as u32, depth as u8, t_split, t_max);
-                sp += 1;
-                node = first;
-                t_max = t_split;
-            }
-        }
     }
 }
 
