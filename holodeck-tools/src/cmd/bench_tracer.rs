@@ -144,6 +144,7 @@ fn wide_row(
 struct Builds {
     kd: f64,
     bvh: f64,
+    #[cfg_attr(not(feature = "embree"), allow(dead_code))]
     embree: f64,
 }
 
@@ -153,45 +154,34 @@ struct Builds {
 /// of them alike. Returns the times and the wide BVH.
 #[cfg_attr(not(feature = "embree"), allow(unused_variables))]
 fn builds(label: &str, scene: &Scene, kd: f64, embree: bool) -> Result<(Builds, WideBvh)> {
-    let mut b = Builds {
-        kd,
-        bvh: f64::INFINITY,
-        embree: f64::INFINITY,
-    };
-    let timed = |f: &dyn Fn() -> Result<()>| -> Result<f64> {
-        let start = Instant::now();
-        f()?;
-        Ok(start.elapsed().as_secs_f64())
-    };
+    // Embree's device may refuse to start; our builds cannot fail.
     let embree_build = || -> Result<f64> {
         #[cfg(feature = "embree")]
         if embree {
-            return timed(&|| {
-                drop(crate::embree::Embree::new(
-                    &scene.positions,
-                    scene.triangles.iter().map(|t| t.v),
-                )?);
-                Ok(())
-            });
+            let (e, t) = timed(|| crate::embree::Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v)));
+            drop(e?);
+            return Ok(t);
         }
         Ok(f64::INFINITY)
     };
     // The first round: the kd-tree was built by the caller, the BVH is kept.
-    let start = Instant::now();
-    let bvh = WideBvh::build(scene).ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
-    b.bvh = start.elapsed().as_secs_f64();
-    b.embree = embree_build()?;
+    let (bvh, bvh_first) = timed(|| WideBvh::build(scene));
+    let bvh = bvh.ok_or_else(|| anyhow::anyhow!("{label}: too many triangles for the wide BVH"))?;
+    let embree_first = embree_build()?;
     // The second round.
-    b.kd = b.kd.min(timed(&|| {
-        drop(KdTree::build(scene, &BuildOptions::default()));
-        Ok(())
-    })?);
-    b.bvh = b.bvh.min(timed(&|| {
-        drop(WideBvh::build(scene));
-        Ok(())
-    })?);
-    b.embree = b.embree.min(embree_build()?);
+    let b = Builds {
+        kd: kd.min(timed(|| drop(KdTree::build(scene, &BuildOptions::default()))).1),
+        bvh: bvh_first.min(timed(|| drop(WideBvh::build(scene))).1),
+        embree: embree_first.min(embree_build()?),
+    };
     Ok((b, bvh))
+}
+
+/// What `f` returns, and the seconds it took.
+fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let start = Instant::now();
+    let out = f();
+    (out, start.elapsed().as_secs_f64())
 }
 
 /// Rays per second on this thread, tracing in packets of eight consecutive

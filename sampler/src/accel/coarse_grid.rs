@@ -171,7 +171,7 @@ mod tests {
     fn estimates_fall_in_the_first_occupied_cell() {
         let (scene, rays) = heightfield_and_rays(64, 500, 3);
         let tree = KdTree::build(&scene, &BuildOptions::default());
-        let (grid, bounds) = (&tree.grid, &tree.bounds);
+        let (grid, bounds) = (tree.grid(), &tree.bounds);
         assert!(grid.res.iter().product::<usize>() > 1000, "{:?}", grid.res);
         for ray in &rays {
             let hit = tree.intersect(ray).unwrap();
@@ -206,7 +206,7 @@ mod tests {
             (Vec3::new(1e30, 1.0, 0.0), -Vec3::X),
             (Vec3::new(2.0, 2.0, 0.01), Vec3::new(f32::INFINITY, 0.0, 0.0)),
         ] {
-            if let Some(t) = tree.grid.first_hit(&Ray::new(o, d), &tree.bounds) {
+            if let Some(t) = tree.grid().first_hit(&Ray::new(o, d), &tree.bounds) {
                 assert!(t.is_finite() && t >= 0.0, "{o} {d}: {t}");
             }
         }

@@ -31,8 +31,9 @@ pub struct KdTree {
     leaf_tris: Vec<u32>,
     leaves: leaf::LeafTris,
     bounds: Aabb,
-    /// Where reordering estimates hit points.
-    grid: coarse_grid::CoarseGrid,
+    /// Where reordering estimates hit points: made on first use, as most
+    /// trees (a scene file's chunks, trees that never reorder) never need it.
+    grid: std::sync::OnceLock<coarse_grid::CoarseGrid>,
 }
 
 /// Sizes of a built tree, for reports and benchmarks.

@@ -58,7 +58,7 @@ impl KdTree {
         }
         Ok(KdTree {
             leaves: LeafTris::new(scene, &leaf_tris),
-            grid: super::coarse_grid::CoarseGrid::new(&nodes, &bounds),
+            grid: std::sync::OnceLock::new(),
             nodes,
             leaf_tris,
             bounds,

@@ -7,6 +7,7 @@
 //! nodes and triangles follow one another. Results come back in the rays'
 //! own order and are exactly those of tracing each ray alone.
 
+use super::coarse_grid::CoarseGrid;
 use super::{Hit, KdTree};
 use crate::geom::Ray;
 
@@ -51,7 +52,13 @@ impl KdTree {
     /// The indices of `rays` sorted by the Z-curve key of their estimated hit
     /// points; rays that miss the coarse level come last, in their order.
     pub fn hit_point_order(&self, rays: &[Ray]) -> Vec<u32> {
-        self.order_by(rays, |r| self.grid.first_hit(r, &self.bounds).map(|t| r.at(t)))
+        let grid = self.grid();
+        self.order_by(rays, |r| grid.first_hit(r, &self.bounds).map(|t| r.at(t)))
+    }
+
+    /// The coarse grid of the hit-point estimates, made on first use.
+    pub(super) fn grid(&self) -> &CoarseGrid {
+        self.grid.get_or_init(|| CoarseGrid::new(&self.nodes, &self.bounds))
     }
 
     /// The indices of `rays` sorted by the Z-curve key of their origins

@@ -27,21 +27,10 @@ impl Default for Tri4 {
 }
 
 impl Tri4 {
-    /// Puts triangle `(a, b, c)` in lane `lane` (0..4).
-    pub fn set(&mut self, lane: usize, tri: [Vec3; 3]) {
-        for (v, p) in tri.iter().enumerate() {
-            for c in 0..3 {
-                let mut a = self.p[3 * v + c].to_array();
-                a[lane] = p[c];
-                self.p[3 * v + c] = f32x4::new(a);
-            }
-        }
-    }
-
     /// Up to four triangles, one per lane from lane 0 (the lanes left over
-    /// hold zeros). Builds each coordinate's lanes in an array, then one
-    /// vector: cheaper than [`Tri4::set`] lane by lane, which matters for
-    /// blocks copied by the million.
+    /// hold zeros). Each coordinate's lanes are gathered in an array and
+    /// loaded as one vector: blocks are built by the million, and rewriting
+    /// a vector per lane cost twice as much.
     pub fn from_triangles(tris: impl IntoIterator<Item = [Vec3; 3]>) -> Tri4 {
         let mut p = [[0f32; 4]; 9];
         for (lane, tri) in tris.into_iter().take(4).enumerate() {
@@ -195,9 +184,8 @@ mod tests {
             limit in prop_oneof![Just(f32::INFINITY), 0.1f32..20.0],
         ) {
             prop_assume!(dir != Vec3::ZERO);
-            let mut block = Tri4::default();
+            let block = Tri4::from_triangles(tris.iter().map(|&(a, b, c)| [a, b, c]));
             for (i, &(a, b, c)) in tris.iter().enumerate() {
-                block.set(i, [a, b, c]);
                 prop_assert_eq!(block.get(i), [a, b, c]);
             }
             let ray = Ray4::new(origin, dir);
@@ -228,10 +216,7 @@ mod tests {
             Vec3::new(1.0, -1.0, 1.0),
             Vec3::new(0.0, 1.0, 1.0),
         ];
-        let mut block = Tri4::default();
-        for lane in 0..4 {
-            block.set(lane, t.map(|p| p + Vec3::Z * lane as f32));
-        }
+        let block = Tri4::from_triangles((0..4).map(|lane| t.map(|p| p + Vec3::Z * lane as f32)));
         let ray = Ray4::new(Vec3::ZERO, Vec3::Z);
         let mut seen = Vec::new();
         let finished = ray.intersect(&block, 0b1110, f32::INFINITY, |lane, h| {

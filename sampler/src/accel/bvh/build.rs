@@ -47,7 +47,7 @@ enum Sub {
 }
 
 /// Inner nodes and leaf blocks of a subtree: where its layout ends.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Size {
     nodes: usize,
     blocks: usize,
