@@ -7,12 +7,12 @@ use std::time::{Duration, Instant};
 use std::collections::HashMap;
 
 use holodeck_protocol::wire::SamplingMode;
-use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
-use holodeck_sampler::beam::trace_beam;
-use holodeck_sampler::{Rng, Tracer};
+use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
+use holodeck_sampler::beam::trace_batch;
+use holodeck_sampler::shade::wavefront::AUTO_MIN_PATHS;
+use holodeck_sampler::Tracer;
 use holodeck_server::schedule::BatchSchedule;
 use holodeck_server::HoloFile;
-use rayon::prelude::*;
 
 /// When to stop, and how work is cut up.
 #[derive(Clone, Debug)]
@@ -23,7 +23,8 @@ pub struct FillOptions {
     pub time: Option<Duration>,
     /// Rays per beam per visit.
     pub packet: u32,
-    /// Beams traced between appends.
+    /// Beams traced between appends (more for scenes larger than the
+    /// caches, whose samplers sort big batches of rays).
     pub batch: usize,
     /// Seed of this run's random sequence.
     pub seed: u64,
@@ -109,6 +110,16 @@ pub fn fill(
         Some(v) => BatchSchedule::for_views(&sections, &v.seen, stored),
         None => BatchSchedule::new(&sections, stored)?,
     };
+    // A scene larger than the caches gets rounds big enough for every core
+    // to sort its share of the paths (the samples are the same whether or
+    // not they are sorted; the rounds depend on the scene alone).
+    let round_beams = if tracer.exceeds_cache() {
+        let paths = 2 * AUTO_MIN_PATHS * rayon::current_num_threads().max(1);
+        let per_beam = o.packet.max(1) as usize * tracer.options.samples.max(1) as usize;
+        o.batch.max(paths.div_ceil(per_beam))
+    } else {
+        o.batch
+    };
     let start = Instant::now();
     let mut report = FillReport::default();
     let mut round = 0u64;
@@ -117,7 +128,9 @@ pub fn fill(
             break;
         }
         let left = o.rays.map_or(u64::MAX, |n| n - report.rays);
-        let beams = (o.batch as u64).min(left.div_ceil(u64::from(o.packet.max(1)))).max(1) as usize;
+        let beams = (round_beams as u64)
+            .min(left.div_ceil(u64::from(o.packet.max(1))))
+            .max(1) as usize;
         let mut batch = schedule.next(beams, o.packet.max(1));
         if batch.is_empty() {
             break;
@@ -160,47 +173,4 @@ pub fn fill(
     report.beams = summary.sections.iter().map(|s| u64::from(s.0)).sum();
     report.beams_filled = summary.sections.iter().map(|s| u64::from(s.1)).sum();
     Ok(report)
-}
-
-/// Rays traced as one task: beams asked for many rays are cut into pieces
-/// of this size, so that every core stays busy when a few beams get most of
-/// the rays (a display's requests go where its pixels need them).
-const TASK_RAYS: u32 = 256;
-
-/// Traces a batch of (beam, rays) with all cores of the current rayon pool,
-/// choosing each beam's rays as `mode` says, one random sequence per piece.
-/// Beams come back in the batch's order, each with all its rays.
-pub fn trace_batch(
-    tracer: &Tracer,
-    sections: &[Section],
-    obstructions: bool,
-    batch: &[(BeamKey, u32)],
-    mode: &(dyn Fn(BeamKey) -> SamplingMode + Sync),
-    seed: u64,
-) -> Vec<(BeamKey, Vec<RayRecord>)> {
-    let mut tasks = Vec::with_capacity(batch.len());
-    for (i, &(key, n)) in batch.iter().enumerate() {
-        let mut left = n;
-        while left > 0 {
-            let take = left.min(TASK_RAYS);
-            tasks.push((i, key, take));
-            left -= take;
-        }
-    }
-    let traced: Vec<(usize, Vec<RayRecord>)> = tasks
-        .par_iter()
-        .enumerate()
-        .map(|(t, &(i, key, n))| {
-            let mut rng = Rng::new(seed, t as u64);
-            let section = &sections[key.section as usize];
-            let records = trace_beam(tracer, section, obstructions, key.beam, n as usize, mode(key), &mut rng)
-                .unwrap_or_default();
-            (i, records)
-        })
-        .collect();
-    let mut out: Vec<(BeamKey, Vec<RayRecord>)> = batch.iter().map(|&(k, _)| (k, Vec::new())).collect();
-    for (i, records) in traced {
-        out[i].1.extend(records);
-    }
-    out
 }

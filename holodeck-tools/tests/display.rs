@@ -108,9 +108,17 @@ fn pictures_of_every_driver_converge_to_the_reference_as_the_holodeck_fills() {
         );
     }
     let errors = &table[0];
-    // 12K, 48K and 192K rays: each step four times the rays.
+    // 12K, 48K and 192K rays: each step four times the rays, and the error
+    // falls at each. Over the two steps (sixteen times the rays) it falls
+    // with a slope below -0.3 in log-log; one step's slope alone swings
+    // between -0.2 and -0.6 with the random sequences.
     let slopes: Vec<f64> = errors.windows(2).map(|w| (w[1].0 / w[0].0).ln() / 4f64.ln()).collect();
-    assert!(slopes.iter().all(|s| *s < -0.3), "slopes {slopes:?}: {errors:?}");
+    assert!(slopes.iter().all(|s| *s < 0.0), "slopes {slopes:?}: {errors:?}");
+    let overall = (errors[2].0 / errors[0].0).ln() / 16f64.ln();
+    assert!(
+        overall < -0.3,
+        "slope {overall} over sixteen times the rays: {errors:?}"
+    );
     assert!(errors[0].1 < errors[2].1, "{errors:?}");
     assert!(errors[2].0 < 0.25 * floor, "{errors:?} vs the 1-spp render's {floor}");
     assert!(errors[2].1 >= 0.9, "{errors:?}");

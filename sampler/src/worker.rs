@@ -7,11 +7,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::client::{self, ClientError, ClientStream};
-use holodeck_protocol::wire::{Frame, FrameLink, LinkError, Message, Role, MAX_PACKET_RAYS};
+use holodeck_protocol::wire::{Frame, FrameLink, LinkError, Message, Role, TracePacket, MAX_PACKET_RAYS};
 use holodeck_protocol::SectionError;
 
-use crate::beam::{trace_beam_under, FileRules};
-use crate::shade::{Rng, Tracer};
+use crate::beam::{trace_tasks, BeamTask, FileRules};
+use crate::shade::{Reorder, Rng, Tracer};
 
 /// Why a worker stopped.
 #[derive(Debug, thiserror::Error)]
@@ -49,6 +49,11 @@ pub enum WorkerError {
 /// see progress even while the queue from the server never runs dry.
 const SEND_EVERY: Duration = Duration::from_millis(20);
 
+/// Rays a worker gathers from packets that arrived together before it
+/// traces them as one batch, where its tracer sorts batches: enough for
+/// [`crate::Reorder::Auto`] to sort them.
+const GATHER_RAYS: u64 = 2 * crate::shade::wavefront::AUTO_MIN_PATHS as u64;
+
 /// Traces packets from the server at `addr` until it closes the connection;
 /// returns the rays traced. `scene` is the content hash of `tracer`'s scene.
 pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<u64, WorkerError> {
@@ -73,60 +78,89 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
     let mut traced = 0u64;
     let mut n = 0u64;
     let mut last_send = Instant::now();
-    loop {
-        let frame = match link.read() {
+    // Packets that arrive together are traced as one batch where the tracer
+    // may sort batches of rays (a scene larger than the caches, or sorting
+    // asked for); elsewhere
+    // one packet at a time, so results go back as soon as each is done. The
+    // records are the same either way.
+    let gather = if tracer.exceeds_cache() || !matches!(tracer.options.reorder, Reorder::Auto | Reorder::Off) {
+        GATHER_RAYS
+    } else {
+        0
+    };
+    'session: loop {
+        let mut packets: Vec<TracePacket> = Vec::new();
+        let mut frame = match link.read() {
             Ok(Some(f)) => f,
             Ok(None) => break,
             // The server stopping (or restarting) ends this worker's run.
             Err(e) if e.is_gone() => break,
             Err(e) => return Err(io(e)),
         };
-        let packet = match frame {
-            Frame::Message(Message::Trace(p)) => p,
-            Frame::Message(Message::Error { message }) => {
-                tracing::warn!("server: {message}");
-                continue;
-            }
-            Frame::Message(Message::Refused { reason, retry }) => {
-                if retry {
-                    tracing::warn!("{addr}: {reason}");
-                    return Ok((traced, true));
+        loop {
+            match frame {
+                Frame::Message(Message::Trace(p)) => packets.push(p),
+                Frame::Message(Message::Error { message }) => tracing::warn!("server: {message}"),
+                Frame::Message(Message::Refused { reason, retry }) => {
+                    if retry {
+                        tracing::warn!("{addr}: {reason}");
+                        return Ok((traced, true));
+                    }
+                    return Err(WorkerError::Connect(ClientError::Refused {
+                        addr: addr.to_string(),
+                        role: client::role_name(Role::Sampler),
+                        reason,
+                        retry,
+                    }));
                 }
-                return Err(WorkerError::Connect(ClientError::Refused {
-                    addr: addr.to_string(),
-                    role: client::role_name(Role::Sampler),
-                    reason,
-                    retry,
-                }));
+                _ => return Err(WorkerError::Protocol("expected trace packets".into())),
             }
-            _ => return Err(WorkerError::Protocol("expected trace packets".into())),
-        };
-        let section = sections
-            .get(packet.key.section as usize)
-            .ok_or_else(|| WorkerError::Protocol(format!("packet for unknown section {}", packet.key.section)))?;
-        let mut rng = Rng::new(seed, n);
-        n += 1;
-        let count = packet.rays.min(MAX_PACKET_RAYS) as usize;
-        let records = trace_beam_under(tracer, section, rules, packet.key.beam, count, packet.mode, &mut rng)?;
-        let rays = records.len() as u64;
-        let sent = link
-            .write(&Frame::Finished {
-                id: packet.id,
-                key: packet.key,
-                records,
-            })
-            .and_then(|()| {
-                if last_send.elapsed() >= SEND_EVERY {
-                    last_send = Instant::now();
-                    link.flush()
-                } else {
-                    Ok(())
-                }
+            let gathered: u64 = packets.iter().map(|p| u64::from(p.rays)).sum();
+            if gathered >= gather {
+                break;
+            }
+            frame = match link.read_buffered() {
+                Ok(Some(f)) => f,
+                Ok(None) => break,
+                Err(e) => return Err(io(e)),
+            };
+        }
+        let mut tasks = Vec::with_capacity(packets.len());
+        for packet in &packets {
+            let section = sections
+                .get(packet.key.section as usize)
+                .ok_or_else(|| WorkerError::Protocol(format!("packet for unknown section {}", packet.key.section)))?;
+            tasks.push(BeamTask {
+                section,
+                beam: packet.key.beam,
+                rays: packet.rays.min(MAX_PACKET_RAYS) as usize,
+                mode: packet.mode,
+                rng: Rng::new(seed, n),
             });
-        match sent {
-            Ok(()) => traced += rays,
-            Err(e) if e.is_gone() => break,
-            Err(e) => return Err(io(e)),
+            n += 1;
+        }
+        for (packet, records) in packets.iter().zip(trace_tasks(tracer, rules, tasks)) {
+            let records = records?;
+            let rays = records.len() as u64;
+            let sent = link
+                .write(&Frame::Finished {
+                    id: packet.id,
+                    key: packet.key,
+                    records,
+                })
+                .and_then(|()| {
+                    if last_send.elapsed() >= SEND_EVERY {
+                        last_send = Instant::now();
+                        link.flush()
+                    } else {
+                        Ok(())
+                    }
+                });
+            match sent {
+                Ok(()) => traced += rays,
+                Err(e) if e.is_gone() => break 'session,
+                Err(e) => return Err(io(e)),
+            }
         }
     }
     tracing::info!("{addr}: the server closed the connection after {traced} rays");
@@ -243,5 +277,81 @@ mod tests {
         assert_eq!((at.as_str(), *retried), (addr.as_str(), Duration::ZERO));
         assert_eq!(io.kind(), std::io::ErrorKind::ConnectionRefused);
         assert!(e.to_string().contains(&addr), "{e}");
+    }
+
+    /// A fake server on a real socket hands out packets in one write; the
+    /// worker, sorting batches, traces them together and answers each with
+    /// exactly the records that packet gets traced alone.
+    #[test]
+    fn packets_that_arrive_together_get_the_records_they_get_alone() {
+        use crate::scene::{generate, GenParams};
+        use holodeck_protocol::wire::{Access, SamplingMode};
+        use holodeck_protocol::BeamKey;
+        use std::net::TcpListener;
+
+        let room = generate("room", &GenParams::default()).unwrap();
+        let sections = room.sections.clone();
+        let tracer = Tracer::new(
+            room,
+            TraceOptions {
+                reorder: crate::Reorder::HitPoint,
+                ..TraceOptions::default()
+            },
+        );
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let packets: Vec<TracePacket> = (0..40u32)
+            .map(|i| TracePacket {
+                id: 100 + u64::from(i),
+                key: BeamKey::new(i % sections.len() as u32, 31 * i),
+                rays: 1 + i % 9,
+                mode: SamplingMode::Uniform,
+            })
+            .collect();
+        let served = packets.clone();
+        let spec = sections.iter().map(|s| s.spec()).collect();
+        let server = std::thread::spawn(move || {
+            let (socket, _) = listener.accept().unwrap();
+            let mut link = FrameLink::new(socket);
+            assert!(matches!(link.read().unwrap(), Some(Frame::Message(Message::Hello(_)))));
+            link.write(&Frame::Message(Message::Welcome {
+                sections: spec,
+                obstructions: false,
+                vdistance: false,
+                access: Access::Writer,
+            }))
+            .unwrap();
+            for p in &served {
+                link.write(&Frame::Message(Message::Trace(*p))).unwrap();
+            }
+            link.flush().unwrap();
+            let mut answers = Vec::new();
+            while answers.len() < served.len() {
+                match link.read().unwrap() {
+                    Some(Frame::Finished { id, key, records }) => answers.push((id, key, records)),
+                    other => panic!("{other:?}"),
+                }
+            }
+            answers
+        });
+        let traced = run_worker(&addr, &tracer, "scene", "token", 7);
+        let answers = server.join().unwrap();
+        assert_eq!(traced.unwrap(), packets.iter().map(|p| u64::from(p.rays)).sum::<u64>());
+        let rules = FileRules::default();
+        for (n, (p, (id, key, records))) in packets.iter().zip(answers).enumerate() {
+            assert_eq!((id, key), (p.id, p.key));
+            let alone = trace_tasks(
+                &tracer,
+                rules,
+                vec![BeamTask {
+                    section: &sections[p.key.section as usize],
+                    beam: p.key.beam,
+                    rays: p.rays as usize,
+                    mode: p.mode,
+                    rng: Rng::new(7, n as u64),
+                }],
+            );
+            assert_eq!(records, *alone[0].as_ref().unwrap(), "packet {n}");
+        }
     }
 }

@@ -28,8 +28,9 @@ use holodeck_sampler::render::{render, silhouettes, RenderOptions};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::HoloFile;
 
-use crate::fill::{fill, trace_batch, FillOptions, ViewFill};
+use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
+use holodeck_sampler::beam::trace_batch;
 
 /// What to measure.
 pub struct AccuracyBench {

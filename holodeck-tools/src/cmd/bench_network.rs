@@ -24,8 +24,8 @@ use holodeck_server::{HoloFile, OpenOptions};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
-use crate::fill::trace_batch;
 use crate::human::count;
+use holodeck_sampler::beam::trace_batch;
 
 /// This `holodeck` executable, to start servers and samplers from.
 pub(super) fn me() -> Result<Command> {

@@ -258,6 +258,8 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     let mut wide: Vec<String> = Vec::new();
     // Rows of the table of rays spread over the whole scene.
     let mut scattered: Vec<String> = Vec::new();
+    // Rows of the table of whole paths in each order.
+    let mut paths: Vec<String> = Vec::new();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -349,6 +351,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
             bounce_rate / 1e6,
             bounce_packets / 1e6
         );
+        paths.extend(super::bench_paths::rows(&case.label, scene, &case.view)?);
         #[cfg(feature = "embree")]
         if embree {
             beside.push(side_by_side(
@@ -428,6 +431,11 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for row in scattered {
+        println!("{row}");
+    }
+    println!();
+    println!("{}", super::bench_paths::heading());
+    for row in paths {
         println!("{row}");
     }
     println!();
@@ -539,16 +547,15 @@ fn reordering_row(label: &str, tree: &KdTree, bounce: &[Ray], hits: &[Option<Ray
 /// Rays in the table of rays spread over the whole scene.
 const SCATTERED: usize = 1_048_576;
 
-/// A row of the table of rays spread over the whole scene: diffuse bounces
-/// from points on triangles drawn evenly by index (so by area on an even
-/// mesh), each structure's rate as given and reordered (best of three), and
-/// how many hits differ from those traced as given.
-fn scattered_row(label: &str, scene: &Scene, tree: &KdTree, bvh: &WideBvh) -> String {
+/// `n` diffuse bounce rays from points spread over the whole scene, on
+/// triangles drawn evenly by index (so by area on an even mesh), in random
+/// order: a batch from many beams whose views see all of the scene.
+pub(super) fn scattered_rays(scene: &Scene, n: usize) -> Vec<Ray> {
     let mut rng = Rng::new(7, 0);
-    let n = scene.triangles.len();
-    let rays: Vec<Ray> = (0..if n == 0 { 0 } else { SCATTERED })
+    let tris = scene.triangles.len();
+    (0..if tris == 0 { 0 } else { n })
         .map(|_| {
-            let tri = ((u64::from(rng.next_u32()) * n as u64) >> 32) as usize;
+            let tri = ((u64::from(rng.next_u32()) * tris as u64) >> 32) as usize;
             let [a, b, c] = scene.vertices(tri);
             let (mut u, mut v) = rng.f32x2();
             if u + v > 1.0 {
@@ -559,7 +566,15 @@ fn scattered_row(label: &str, scene: &Scene, tree: &KdTree, bvh: &WideBvh) -> St
             Ray::new(offset_origin(a + u * (b - a) + v * (c - a), ng), d)
         })
         .filter(|r| r.dir.is_finite() && r.dir != glam::Vec3::ZERO)
-        .collect();
+        .collect()
+}
+
+/// A row of the table of rays spread over the whole scene: diffuse bounces
+/// from points on triangles drawn evenly by index (so by area on an even
+/// mesh), each structure's rate as given and reordered (best of three), and
+/// how many hits differ from those traced as given.
+fn scattered_row(label: &str, scene: &Scene, tree: &KdTree, bvh: &WideBvh) -> String {
+    let rays = scattered_rays(scene, SCATTERED);
     let mut differ = 0;
     let mut cells = Vec::new();
     for intersect in [

@@ -49,6 +49,8 @@ pub struct Args {
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
+    #[command(flatten)]
+    reorder: super::args::ReorderArgs,
     /// Seed of this run (use another to add independent rays).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -147,6 +149,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         max_bounces: a.bounces,
         samples: a.samples,
         vdistance: file.settings().vdistance,
+        reorder: a.reorder.reorder,
         ..TraceOptions::default()
     };
     let tracer = scene.tracer(options);

@@ -74,6 +74,8 @@ pub struct Args {
     /// Path samples averaged per ray (less noise per ray, fewer rays).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
+    #[command(flatten)]
+    reorder: super::args::ReorderArgs,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
@@ -237,6 +239,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_string();
     let bounces = a.bounces.to_string();
     let samples = a.samples.to_string();
+    let reorder = a.reorder.reorder.to_string();
     let mut workers: Vec<Child> = (0..a.workers)
         .map(|i| {
             let mut cmd = me()?;
@@ -255,6 +258,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 &bounces,
                 "--samples",
                 &samples,
+                "--reorder",
+                &reorder,
                 "--retry-for",
                 "0s",
                 "--seed",

@@ -45,6 +45,8 @@ pub struct Args {
     /// Path samples averaged per ray.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
+    #[command(flatten)]
+    reorder: super::args::ReorderArgs,
     /// Seed (give each worker host its own to trace independent rays).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -80,6 +82,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,
+        reorder: a.reorder.reorder,
         ..TraceOptions::default()
     };
     let load = || -> Result<Loaded> {

@@ -74,6 +74,13 @@ impl<S: Read + Write> FrameLink<S> {
         }
     }
 
+    /// The next frame if its bytes have already arrived with earlier ones,
+    /// without waiting on the stream (a peer that sends several frames at
+    /// once: the rest of them).
+    pub fn read_buffered(&mut self) -> Result<Option<Frame>, LinkError> {
+        Ok(self.frames.next_frame()?)
+    }
+
     /// Queues a frame; it goes out with the next flush (at the latest before
     /// the next blocking read, or once 1 MiB is queued).
     pub fn write(&mut self, frame: &Frame) -> Result<(), LinkError> {
@@ -173,5 +180,30 @@ mod tests {
         });
         link.read().unwrap();
         assert!(matches!(link.read(), Err(LinkError::Truncated)));
+    }
+
+    /// Frames that came in one read are handed out without another; once
+    /// they are used up, nothing is read from the stream.
+    #[test]
+    fn buffered_frames_come_without_waiting() {
+        let frames: Vec<Frame> = (0..3)
+            .map(|rays| Frame::Message(Message::Delivered { beams: 1, rays }))
+            .collect();
+        let mut input = Vec::new();
+        for f in &frames {
+            encode_frame(f, &mut input).unwrap();
+        }
+        let mut link = FrameLink::new(Script {
+            input,
+            at: 0,
+            piece: 1 << 20,
+            written: Vec::new(),
+        });
+        assert!(link.read_buffered().unwrap().is_none(), "nothing read yet");
+        assert_eq!(link.read().unwrap().as_ref(), Some(&frames[0]));
+        assert_eq!(link.read_buffered().unwrap().as_ref(), Some(&frames[1]));
+        assert_eq!(link.read_buffered().unwrap().as_ref(), Some(&frames[2]));
+        assert!(link.read_buffered().unwrap().is_none());
+        assert!(link.read().unwrap().is_none());
     }
 }

@@ -5,12 +5,13 @@
 //! Viewpoint-proximity sampling (Appendix A) picks rays that pass near an eye
 //! point, so an interactive display converges faster.
 
+mod batch;
 mod proximity;
 
+pub use batch::{trace_batch, trace_tasks, BeamTask, TASK_RAYS};
 pub use proximity::{proximity_rays, ProximityStats};
 
 use glam::{DVec3, Vec3};
-use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamIndex, BeamRay, DepthCode, RayRecord, Rgbe, Section, SectionError, SectionKind};
 
 use crate::ooc::Fetch;
@@ -152,53 +153,6 @@ pub fn trace_samples(
         .collect()
 }
 
-/// Chooses `n` rays of `beam` as `mode` says (uniformly, or near an eye)
-/// and traces them into records: a sampler's whole job for one packet.
-pub fn trace_beam(
-    tracer: &Tracer,
-    section: &Section,
-    obstructions: bool,
-    beam: BeamIndex,
-    n: usize,
-    mode: SamplingMode,
-    rng: &mut Rng,
-) -> Result<Vec<RayRecord>, SectionError> {
-    let rules = FileRules {
-        obstructions,
-        vdistance: tracer.options.vdistance,
-    };
-    trace_beam_under(tracer, section, rules, beam, n, mode, rng)
-}
-
-/// [`trace_beam`] under a file's rules (a networked sampler's, from the
-/// server's welcome).
-pub fn trace_beam_under(
-    tracer: &Tracer,
-    section: &Section,
-    rules: FileRules,
-    beam: BeamIndex,
-    n: usize,
-    mode: SamplingMode,
-    rng: &mut Rng,
-) -> Result<Vec<RayRecord>, SectionError> {
-    let samples = match mode {
-        SamplingMode::Uniform => uniform_rays(section, beam, n, rng)?,
-        SamplingMode::NearEye { eye, radius, frustum } => {
-            proximity_rays(section, beam, n, DVec3::from(eye), radius, frustum.as_ref(), rng)?.0
-        }
-    };
-    // A beam's rays run between one pair of cells; whether that is coherent
-    // enough for packets to pay, the times tell.
-    Ok(trace_samples(
-        tracer,
-        section,
-        rules,
-        &samples,
-        FirstHits::Measured,
-        rng,
-    ))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,15 +179,16 @@ mod tests {
     }
 
     /// Finding a beam's first hits in packets, or once for all the
-    /// estimates along a ray, changes no record: every record equals the one
-    /// made ray by ray with each estimate walking from the start.
+    /// estimates along a ray, or tracing the paths a segment at a time in
+    /// any order, changes no record: every record equals the one made ray
+    /// by ray with each estimate walking from the start.
     #[test]
     fn first_hits_in_packets_change_no_record() {
         use crate::scene::{generate, GenParams};
-        use crate::TraceOptions;
+        use crate::{Reorder, TraceOptions};
         let scene = generate("room", &GenParams::default()).unwrap();
         let sections = scene.sections.clone();
-        let tracer = Tracer::new(
+        let mut tracer = Tracer::new(
             scene,
             TraceOptions {
                 samples: 3,
@@ -251,18 +206,20 @@ mod tests {
                     let n = 1 + (beam as usize % 21);
                     let samples = uniform_rays(section, beam, n, &mut Rng::new(5, beam.into())).unwrap();
                     let mut want = Vec::new();
-                    let mut rng = Rng::new(6, beam.into());
-                    for s in &samples {
+                    let seed = crate::shade::tracer::batch_seed(&mut Rng::new(6, beam.into()));
+                    for (k, s) in samples.iter().enumerate() {
                         // The estimates one by one, each walking from the start as before.
                         let (start, origin, dir) = traced_ray(section, rules, s);
                         let mut fetch = Fetch::load();
                         let mut sum = Vec3::ZERO;
                         let mut distance = 0.0;
-                        for k in 0..3 {
+                        for j in 0..3 {
+                            // Each estimate draws from its own stream.
+                            let mut rng = Rng::new(seed, k as u64 * 3 + j);
                             let (l, d) =
                                 tracer.estimate_walking(origin, dir.normalize(), rules.vdistance, &mut rng, &mut fetch);
                             sum += l;
-                            if k == 0 {
+                            if j == 0 {
                                 distance = d;
                             }
                         }
@@ -273,9 +230,12 @@ mod tests {
                         want.push(encode(section, s, start, &sample));
                     }
                     for first in [FirstHits::Packets, FirstHits::Single, FirstHits::Measured] {
-                        let got =
-                            trace_samples(&tracer, section, rules, &samples, first, &mut Rng::new(6, beam.into()));
-                        assert_eq!(got, want, "section {i} beam {beam} {first:?}");
+                        for reorder in [Reorder::Off, Reorder::HitPoint, Reorder::Origin] {
+                            tracer.options.reorder = reorder;
+                            let got =
+                                trace_samples(&tracer, section, rules, &samples, first, &mut Rng::new(6, beam.into()));
+                            assert_eq!(got, want, "section {i} beam {beam} {first:?} {reorder:?}");
+                        }
                     }
                     records += want.len();
                     hits += want.iter().filter(|r| r.depth_code() != DepthCode::INFINITE).count();

@@ -3,11 +3,15 @@
 
 pub mod bsdf;
 pub mod lights;
+mod measured;
 pub mod microfacet;
+mod path;
 pub mod rng;
 pub mod sampling;
 pub mod sky;
 pub mod tracer;
+pub mod wavefront;
 
 pub use rng::Rng;
-pub use tracer::{FirstHits, Sample, TraceOptions, Tracer};
+pub use tracer::{batch_seed, FirstHits, Sample, SeededRay, TraceOptions, Tracer};
+pub use wavefront::Reorder;

@@ -10,13 +10,15 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::bsdf::{self, is_delta, transmits};
+use super::bsdf;
 use super::lights::Lights;
+use super::measured::TwoWays;
+use super::path::{Path, SurfaceHit};
 use super::rng::Rng;
-use super::sampling::{power_heuristic, Frame};
 use super::sky::SkyModel;
+use super::wavefront::{Reorder, AUTO_MIN_PATHS};
 use crate::accel::{BuildOptions, Hit, KdTree, WideBvh, PACKET};
-use crate::geom::{offset_origin, Ray};
+use crate::geom::Ray;
 use crate::ooc::{Fetch, InCoreReport, OocError, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
 
@@ -41,6 +43,10 @@ pub struct TraceOptions {
     pub lod_primary: f32,
     /// The same for every later segment and shadow ray (from a solid angle).
     pub lod_secondary: f32,
+    /// The order in which the paths of a batch are traced (in core): each
+    /// to its end, or a segment at a time with each segment's rays sorted.
+    /// The samples are the same either way.
+    pub reorder: Reorder,
 }
 
 impl Default for TraceOptions {
@@ -53,6 +59,7 @@ impl Default for TraceOptions {
             samples: 1,
             lod_primary: 0.0,
             lod_secondary: 0.0,
+            reorder: Reorder::Auto,
         }
     }
 }
@@ -70,22 +77,29 @@ pub struct Sample {
 /// rays and its kd-tree for packets of coherent rays, or a scene file traced
 /// out of core), lights and sky.
 pub struct Tracer {
-    scene: Scene,
-    tree: KdTree,
+    pub(super) scene: Scene,
+    pub(super) tree: KdTree,
     /// `None` for a scene file, and for scenes beyond the BVH's size (the
     /// kd-tree then traces single rays too).
-    bvh: Option<WideBvh>,
-    ooc: Option<Arc<OocScene>>,
-    lights: Lights,
-    sky: SkyModel,
+    pub(super) bvh: Option<WideBvh>,
+    pub(super) ooc: Option<Arc<OocScene>>,
+    pub(super) lights: Lights,
+    pub(super) sky: SkyModel,
     /// Whether any material is a thin pane (shadow rays then look through panes).
-    has_panes: bool,
+    pub(super) has_panes: bool,
     /// Estimator settings.
     pub options: TraceOptions,
     non_finite: AtomicU64,
-    first_hits: FirstHitTimes,
+    /// Times of first hits in packets (way 0) and one by one (way 1).
+    first_hits: TwoWays,
+    /// Times of paths sorted a segment at a time (way 0) and each to its
+    /// end (way 1), for [`Reorder::Auto`].
+    pub(super) path_order: TwoWays,
     /// For a scene file assembled in memory: what that took.
     assembled: Option<InCoreReport>,
+    /// Bytes rays walk through in core: the structure that traces single
+    /// rays, and the mesh.
+    in_core_bytes: usize,
 }
 
 /// Transmittance of a thin pane for a ray crossing it at incidence cosine `cos`,
@@ -118,99 +132,52 @@ pub enum FirstHits {
     /// One ray at a time.
     Single,
     /// Whichever of the two has cost less per ray on this tracer's batches
-    /// so far, timed as they run, with one batch in [`PROBE_EVERY`] given
-    /// to the other (see [`FirstHitTimes`]). Beam rays share an origin cell,
+    /// so far, timed as they run, with one batch in [`PROBE_EVERY`](super::measured::PROBE_EVERY) given
+    /// to the other (see `measured.rs`). Beam rays share an origin cell,
     /// not a point, so whether packets pay depends on the grid and the scene.
     Measured,
 }
 
-/// How often a [`FirstHits::Measured`] batch tries the way not chosen.
-pub const PROBE_EVERY: u64 = 16;
-
-/// Rays and nanoseconds spent on first hits each way, for [`FirstHits::Measured`].
-#[derive(Default)]
-struct FirstHitTimes {
-    batches: AtomicU64,
-    /// (rays, nanoseconds) of packets and of single rays.
-    spent: [(AtomicU64, AtomicU64); 2],
+/// A ray to trace and where its estimates draw their random numbers:
+/// estimate `j` from stream `stream + j` of `seed`.
+#[derive(Clone, Copy, Debug)]
+pub struct SeededRay {
+    /// Where the ray starts.
+    pub origin: Vec3,
+    /// Its direction (any length but zero).
+    pub dir: Vec3,
+    /// The seed of its estimates' random streams.
+    pub seed: u64,
+    /// The stream of its first estimate.
+    pub stream: u64,
 }
 
-impl FirstHitTimes {
-    /// Rays timed each way before the faster one is trusted.
-    const WARM: u64 = 4096;
-    /// Past this many rays, both counts halve, so that the choice follows
-    /// the views and the parts of the scene the samplers are asked for now.
-    const WINDOW: u64 = 1 << 20;
+/// The seed of a batch's random streams ([`Tracer::trace_rays`]), drawn from `rng`.
+pub fn batch_seed(rng: &mut Rng) -> u64 {
+    u64::from(rng.next_u32()) << 32 | u64::from(rng.next_u32())
+}
 
-    /// Nanoseconds per ray spent one way (0: packets, 1: single rays), once
-    /// it has been timed on enough rays.
-    fn per_ray(&self, way: usize) -> Option<f64> {
-        let rays = self.spent[way].0.load(Ordering::Relaxed);
-        (rays >= Self::WARM).then(|| self.spent[way].1.load(Ordering::Relaxed) as f64 / rays as f64)
-    }
+/// Where the estimates along one ray draw their random numbers.
+enum Streams<'a> {
+    /// One after another from one generator.
+    Shared(&'a mut Rng),
+    /// Estimate `j` from its own stream `first + j` of `seed`, so that it
+    /// can be traced apart from the others, in any order.
+    PerPath { seed: u64, first: u64 },
+}
 
-    /// The cheaper way, once both are timed.
-    fn faster(&self) -> Option<FirstHits> {
-        let (p, s) = (self.per_ray(0)?, self.per_ray(1)?);
-        Some(if s < p { FirstHits::Single } else { FirstHits::Packets })
-    }
-
-    fn choose(&self) -> FirstHits {
-        let b = self.batches.fetch_add(1, Ordering::Relaxed);
-        let Some(faster) = self.faster() else {
-            // Packets first, then single rays, until both are timed.
-            return if self.per_ray(0).is_none() {
-                FirstHits::Packets
-            } else {
-                FirstHits::Single
-            };
-        };
-        match (b % PROBE_EVERY == PROBE_EVERY - 1, faster) {
-            (true, FirstHits::Single) => FirstHits::Packets,
-            (true, _) => FirstHits::Single,
-            (false, way) => way,
-        }
-    }
-
-    fn record(&self, way: FirstHits, rays: usize, ns: u64) {
-        let (r, t) = &self.spent[usize::from(way == FirstHits::Single)];
-        if r.fetch_add(rays as u64, Ordering::Relaxed) > Self::WINDOW {
-            // Racing halvings lose a little history, which only blurs the window.
-            r.store(r.load(Ordering::Relaxed) / 2, Ordering::Relaxed);
-            t.store(t.load(Ordering::Relaxed) / 2, Ordering::Relaxed);
-        }
-        t.fetch_add(ns, Ordering::Relaxed);
-    }
-
-    /// The way chosen now, for reports: packets until single rays prove faster.
-    fn preferred(&self) -> FirstHits {
-        self.faster().unwrap_or(FirstHits::Packets)
+/// The way of finding first hits a [`TwoWays`] index stands for.
+fn way_of(i: usize) -> FirstHits {
+    if i == 0 {
+        FirstHits::Packets
+    } else {
+        FirstHits::Single
     }
 }
 
 /// Whether a ray can be traced: a finite origin and a finite, non-zero direction.
 fn traceable(origin: Vec3, dir: Vec3) -> bool {
     origin.is_finite() && dir.is_finite() && dir.length_squared() > 0.0
-}
-
-/// A hit as shading needs it.
-#[derive(Clone, Copy)]
-struct SurfaceHit {
-    t: f32,
-    /// Unit geometric normal.
-    ng: Vec3,
-    /// Triangle id (for light pdfs); `u32::MAX` for a voxel.
-    tri: u32,
-    /// Material index, or `None` for a voxel (a diffuse proxy of `color`).
-    material: Option<u32>,
-    color: Vec3,
-    /// Voxel radius (0 for triangles): later rays start beyond the voxel.
-    radius: f32,
-}
-
-fn flat_specular(m: &Material) -> bool {
-    matches!(m, Material::Mirror { .. } | Material::Glass { thin: true, .. })
-        || matches!(m, Material::Metal { roughness, .. } if *roughness < 0.02)
 }
 
 impl Tracer {
@@ -261,7 +228,13 @@ impl Tracer {
             .materials
             .iter()
             .any(|m| matches!(m, Material::Glass { thin: true, .. }));
+        let in_core_bytes = match &bvh {
+            Some(b) => b.stats().bytes,
+            None => tree.stats().bytes,
+        } + scene.positions.len() * std::mem::size_of::<Vec3>()
+            + scene.triangles.len() * std::mem::size_of::<crate::scene::Triangle>();
         Tracer {
+            in_core_bytes,
             scene,
             tree,
             bvh,
@@ -271,9 +244,16 @@ impl Tracer {
             has_panes,
             options,
             non_finite: AtomicU64::new(0),
-            first_hits: FirstHitTimes::default(),
+            first_hits: TwoWays::new(4096, 1 << 20),
+            path_order: TwoWays::new(AUTO_MIN_PATHS as u64, 1 << 24),
             assembled: None,
         }
+    }
+
+    /// Bytes rays walk through in core (the structure that traces single
+    /// rays, and the mesh); 0 for a scene file.
+    pub fn in_core_bytes(&self) -> usize {
+        self.in_core_bytes
     }
 
     /// The scene file, for a tracer made with [`Tracer::out_of_core`].
@@ -333,7 +313,7 @@ impl Tracer {
 
     /// How [`FirstHits::Measured`] finds first hits now, by the times so far.
     pub fn first_hits_preferred(&self) -> FirstHits {
-        self.first_hits.preferred()
+        way_of(self.first_hits.preferred())
     }
 
     /// Estimates that came out NaN or infinite and were replaced by black.
@@ -357,12 +337,14 @@ impl Tracer {
     /// says. When `fetch.missed` comes back true, the path stopped where data
     /// was missing: the sample is incomplete and must not be kept.
     pub fn trace_fetching(&self, origin: Vec3, dir: Vec3, vdistance: bool, rng: &mut Rng, fetch: &mut Fetch) -> Sample {
+        self.trace_streams(origin, dir, vdistance, Streams::Shared(rng), fetch)
+    }
+
+    /// [`Tracer::trace_fetching`] with the estimates' random numbers drawn
+    /// from `streams`.
+    fn trace_streams(&self, origin: Vec3, dir: Vec3, vdistance: bool, streams: Streams, fetch: &mut Fetch) -> Sample {
         if !traceable(origin, dir) {
-            self.non_finite.fetch_add(1, Ordering::Relaxed);
-            return Sample {
-                radiance: Vec3::ZERO,
-                distance: f32::INFINITY,
-            };
+            return self.untraceable();
         }
         let dir = dir.normalize();
         // In core, the first hit is the same for every estimate along the
@@ -372,15 +354,23 @@ impl Tracer {
             .ooc
             .is_none()
             .then(|| self.nearest(&Ray::new(origin, dir), 0.0, fetch));
-        self.estimates(origin, dir, first, vdistance, rng, fetch)
+        self.estimates(origin, dir, first, vdistance, streams, fetch)
     }
 
-    /// Traces each ray `(origin, direction)` of `rays` as
-    /// [`Tracer::trace_measuring`] would, with the same random numbers in
-    /// the same order and so the same samples, but finding the first hits
-    /// together as `first` says. Out of core, rays are traced one by one
-    /// until every sample is exact (see [`Tracer::trace_batch`]); a sample
-    /// only unreadable blocks could have made comes back as `None`.
+    /// The sample of a ray with a non-finite origin or direction: black,
+    /// escaped, and counted.
+    fn untraceable(&self) -> Sample {
+        self.non_finite.fetch_add(1, Ordering::Relaxed);
+        Sample {
+            radiance: Vec3::ZERO,
+            distance: f32::INFINITY,
+        }
+    }
+
+    /// Traces each ray `(origin, direction)` of `rays`, finding the first
+    /// hits together as `first` says: [`Tracer::trace_seeded`] with the
+    /// estimates along ray `k` drawing from streams `k * samples ..` of one
+    /// seed taken from `rng`.
     pub fn trace_rays(
         &self,
         rays: &[(Vec3, Vec3)],
@@ -388,20 +378,92 @@ impl Tracer {
         first: FirstHits,
         rng: &mut Rng,
     ) -> Vec<Option<Sample>> {
+        let seed = batch_seed(rng);
+        let n = u64::from(self.options.samples.max(1));
+        let seeded: Vec<SeededRay> = rays
+            .iter()
+            .enumerate()
+            .map(|(k, &(origin, dir))| SeededRay {
+                origin,
+                dir,
+                seed,
+                stream: k as u64 * n,
+            })
+            .collect();
+        self.trace_seeded(&seeded, vdistance, first)
+    }
+
+    /// Traces each ray of `rays`, finding the first hits together as
+    /// `first` says, and the paths each to its end or a segment at a time
+    /// as [`TraceOptions::reorder`] says. A ray's sample depends on its own
+    /// seed alone: neither on `first`, nor on the order the paths are
+    /// traced in, nor on which other rays share the batch. Out of core,
+    /// rays are traced one by one until every sample is exact (see
+    /// [`Tracer::trace_batch`]); a sample only unreadable blocks could have
+    /// made comes back as `None`.
+    pub fn trace_seeded(&self, rays: &[SeededRay], vdistance: bool, first: FirstHits) -> Vec<Option<Sample>> {
+        let streams = |r: &SeededRay| Streams::PerPath {
+            seed: r.seed,
+            first: r.stream,
+        };
         if let Some(ooc) = &self.ooc {
             return ooc.exact_batch(rays.len(), |k, fetch| {
-                self.trace_fetching(rays[k].0, rays[k].1, vdistance, rng, fetch)
+                self.trace_streams(rays[k].origin, rays[k].dir, vdistance, streams(&rays[k]), fetch)
             });
         }
         let walk: Vec<(usize, Ray)> = rays
             .iter()
             .enumerate()
-            .filter(|(_, (o, d))| traceable(*o, *d))
-            .map(|(k, &(o, d))| (k, Ray::new(o, d.normalize())))
+            .filter(|(_, r)| traceable(r.origin, r.dir))
+            .map(|(k, r)| (k, Ray::new(r.origin, r.dir.normalize())))
             .collect();
-        let mut hits: Vec<Option<Hit>> = vec![None; rays.len()];
+        let mut out: Vec<Option<Sample>> = vec![None; rays.len()];
+        let n = self.options.samples.max(1) as usize;
+        let (order, timed) = self.path_order_for(walk.len() * n);
+        let started = Instant::now();
+        let mut fetch = Fetch::load();
+        if let Some(order) = order {
+            // The first segment sorted too: a batch of many beams' rays is
+            // coherent within each beam only.
+            let starts: Vec<Ray> = walk.iter().map(|w| w.1).collect();
+            let hits = self.in_order(&starts, order, |r| self.nearest(r, 0.0, &mut fetch));
+            let mut paths = Vec::with_capacity(walk.len() * n);
+            let mut rngs = Vec::with_capacity(paths.capacity());
+            let mut firsts = Vec::with_capacity(paths.capacity());
+            for (&(k, ray), hit) in walk.iter().zip(hits) {
+                for j in 0..n as u64 {
+                    paths.push(Path::new(ray.origin, ray.dir, vdistance));
+                    rngs.push(Rng::new(rays[k].seed, rays[k].stream + j));
+                    firsts.push(hit);
+                }
+            }
+            let estimates = self.trace_wavefront(paths, rngs, firsts, order);
+            for (&(k, _), e) in walk.iter().zip(estimates.chunks(n)) {
+                out[k] = Some(self.mean(e.iter().copied()));
+            }
+        } else {
+            let hits = self.first_hits_of(&walk, rays.len(), first);
+            for &(k, ray) in &walk {
+                let first = Some(hits[k].map(|h| self.surface(h)));
+                out[k] = Some(self.estimates(ray.origin, ray.dir, first, vdistance, streams(&rays[k]), &mut fetch));
+            }
+        }
+        if timed {
+            let ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
+            self.path_order.record(usize::from(order.is_none()), walk.len() * n, ns);
+        }
+        for (o, _) in out.iter_mut().zip(rays).filter(|(_, r)| !traceable(r.origin, r.dir)) {
+            *o = Some(self.untraceable());
+        }
+        out
+    }
+
+    /// The first hits of the rays `walk` (index into the batch of `n`, ray),
+    /// found as `first` says, by index.
+    fn first_hits_of(&self, walk: &[(usize, Ray)], n: usize, first: FirstHits) -> Vec<Option<Hit>> {
+        let mut hits: Vec<Option<Hit>> = vec![None; n];
         let (way, started) = match first {
-            FirstHits::Measured => (self.first_hits.choose(), Some(Instant::now())),
+            FirstHits::Measured => (way_of(self.first_hits.choose()), Some(Instant::now())),
             way => (way, None),
         };
         if way == FirstHits::Packets {
@@ -423,20 +485,10 @@ impl Tracer {
         }
         if let Some(started) = started {
             let ns = u64::try_from(started.elapsed().as_nanos()).unwrap_or(u64::MAX);
-            self.first_hits.record(way, walk.len(), ns);
+            self.first_hits
+                .record(usize::from(way == FirstHits::Single), walk.len(), ns);
         }
-        let mut fetch = Fetch::load();
-        rays.iter()
-            .zip(hits)
-            .map(|(&(origin, dir), hit)| {
-                Some(if traceable(origin, dir) {
-                    let first = Some(hit.map(|h| self.surface(h)));
-                    self.estimates(origin, dir.normalize(), first, vdistance, rng, &mut fetch)
-                } else {
-                    self.trace_fetching(origin, dir, vdistance, rng, &mut fetch)
-                })
-            })
-            .collect()
+        hits
     }
 
     /// The mean of the options' number of estimates along a valid ray (unit
@@ -447,18 +499,36 @@ impl Tracer {
         dir: Vec3,
         first: Option<Option<SurfaceHit>>,
         vdistance: bool,
-        rng: &mut Rng,
+        mut streams: Streams,
         fetch: &mut Fetch,
     ) -> Sample {
-        let (mut radiance, distance) = self.estimate(origin, dir, first, vdistance, rng, fetch);
         let n = self.options.samples.max(1);
-        for _ in 1..n {
+        let mut estimate = |j: u32, fetch: &mut Fetch| match &mut streams {
+            Streams::Shared(rng) => self.estimate(origin, dir, first, vdistance, rng, fetch),
+            Streams::PerPath { seed, first: stream } => {
+                let mut rng = Rng::new(*seed, *stream + u64::from(j));
+                self.estimate(origin, dir, first, vdistance, &mut rng, fetch)
+            }
+        };
+        let (mut radiance, distance) = estimate(0, fetch);
+        for j in 1..n {
             if fetch.missed {
                 break;
             }
-            radiance += self.estimate(origin, dir, first, vdistance, rng, fetch).0;
+            radiance += estimate(j, fetch).0;
         }
-        radiance /= n as f32;
+        self.mean(std::iter::once((radiance, distance)))
+    }
+
+    /// One sample from the estimates along a ray (radiance, distance), in
+    /// order: the mean of their radiance over the options' number of
+    /// estimates, the first one's distance; never NaN or infinite.
+    fn mean(&self, mut estimates: impl Iterator<Item = (Vec3, f32)>) -> Sample {
+        let (mut radiance, distance) = estimates.next().unwrap_or((Vec3::ZERO, f32::INFINITY));
+        for (l, _) in estimates {
+            radiance += l;
+        }
+        radiance /= self.options.samples.max(1) as f32;
         // A NaN distance (it cannot arise from finite input, but is never passed on) reads as "escaped".
         let distance = if distance.is_nan() { f32::INFINITY } else { distance };
         if radiance.is_finite() && radiance.min_element() >= 0.0 {
@@ -474,7 +544,7 @@ impl Tracer {
 
     /// The nearest hit: a triangle, or out of core a voxel (LOD, or a proxy
     /// for missing data, which `fetch` notes).
-    fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
+    pub(super) fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
         let Some(ooc) = &self.ooc else {
             return self.intersect_in_core(ray).map(|h| self.surface(h));
         };
@@ -552,138 +622,10 @@ impl Tracer {
         self.estimate(origin, dir, None, vdistance, rng, fetch)
     }
 
-    /// One path's radiance and first distance; `first`, when given, is the
-    /// hit of the first segment (found beforehand, in core).
-    fn estimate(
-        &self,
-        origin: Vec3,
-        dir: Vec3,
-        mut first: Option<Option<SurfaceHit>>,
-        vdistance: bool,
-        rng: &mut Rng,
-        fetch: &mut Fetch,
-    ) -> (Vec3, f32) {
-        let mut ray = Ray::new(origin, dir);
-        let (mut l, mut beta) = (Vec3::ZERO, Vec3::ONE);
-        let (mut distance, mut path, mut measuring) = (f32::INFINITY, 0.0f32, true);
-        let (mut prev_delta, mut prev_pdf) = (true, 0.0f32);
-        // Distance from the last scattering vertex: panes crossed on the way
-        // do not scatter, so light-sampling pdfs are measured from that vertex.
-        let mut travelled = 0.0f32;
-        // Bounces count scattering events; crossing a pane is not one, but a
-        // separate limit on segments stops any path that only crosses panes.
-        let mut depth = 0u32;
-        for segment in 0..self.options.max_bounces.saturating_add(64) {
-            let lod = if segment == 0 {
-                self.options.lod_primary
-            } else {
-                self.options.lod_secondary
-            };
-            let hit = match first.take() {
-                Some(hit) => hit,
-                None => self.nearest(&ray, lod, fetch),
-            };
-            if fetch.missed {
-                break;
-            }
-            let Some(hit) = hit else {
-                l += beta * self.sky.background(ray.dir);
-                let sun = self.sky.sun(ray.dir);
-                if sun.max_element() > 0.0 {
-                    let w = if prev_delta || !self.options.light_sampling {
-                        1.0
-                    } else {
-                        power_heuristic(prev_pdf, self.sky.sun_pdf())
-                    };
-                    l += beta * sun * w;
-                }
-                if measuring {
-                    distance = f32::INFINITY;
-                }
-                break;
-            };
-            let proxy;
-            let m = match hit.material {
-                Some(i) => &self.scene.materials[i as usize],
-                None => {
-                    proxy = Material::lambertian(hit.color.to_array());
-                    &proxy
-                }
-            };
-            let ng = hit.ng;
-            let p = ray.at(hit.t);
-            if measuring {
-                path += hit.t;
-                distance = path;
-                measuring = vdistance && flat_specular(m);
-            }
-            travelled += hit.t;
-            let wo_world = -ray.dir;
-            let cos_o = wo_world.dot(ng);
-            let le = Vec3::from_array(m.emission());
-            if cos_o > 0.0 && le.max_element() > 0.0 {
-                let w = if prev_delta || !self.options.light_sampling {
-                    1.0
-                } else {
-                    let pdf_light = self.lights.pdf_area(hit.tri) * travelled * travelled / cos_o;
-                    power_heuristic(prev_pdf, pdf_light)
-                };
-                l += beta * le * w;
-            }
-            let pane = matches!(m, Material::Glass { thin: true, .. });
-            if (depth == self.options.max_bounces && !pane) || matches!(m, Material::Emitter { .. }) {
-                break;
-            }
-            let n = if transmits(m) || cos_o > 0.0 { ng } else { -ng };
-            let frame = Frame::new(n);
-            let wo = frame.to_local(wo_world);
-            // Rays leaving a voxel start beyond it (Áfra 2012, 6.3).
-            let skip = 2.0 * hit.radius;
-            if !is_delta(m) && self.options.light_sampling {
-                l += beta * self.direct(m, p, &frame, wo, skip, rng, fetch);
-                if fetch.missed {
-                    break;
-                }
-            }
-            let Some(s) = bsdf::sample(m, wo, [rng.f32(), rng.f32(), rng.f32()]) else {
-                break;
-            };
-            beta *= s.weight;
-            let passed_pane = pane && s.wi == -wo;
-            if !passed_pane && depth == self.options.max_bounces {
-                // A pane's reflection at the last bounce would be one bounce too many.
-                break;
-            }
-            if !passed_pane {
-                depth += 1;
-                // Crossing a pane keeps the direction, so the vertex before it
-                // still decides how the light at the end was sampled.
-                prev_delta = s.delta;
-                prev_pdf = s.pdf;
-                travelled = 0.0;
-            }
-            let wi = if passed_pane {
-                ray.dir
-            } else {
-                frame.to_world(s.wi).normalize()
-            };
-            let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
-            ray = Ray::new(offset_origin(p, side) + wi * skip, wi);
-            if !passed_pane && depth > self.options.roulette_after {
-                let q = beta.max_element().min(0.95);
-                if q.is_nan() || q <= 0.0 || rng.f32() >= q {
-                    break;
-                }
-                beta /= q;
-            }
-        }
-        (l, distance)
-    }
-
     /// How much light gets through along a shadow ray: 1 if nothing is in the
     /// way, the product of pane transmittances if only thin panes are, else 0.
     /// One traversal: panes are noted and skipped, the first opaque hit ends it.
-    fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
+    pub(super) fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
         if !self.has_panes {
             let blocked = match &self.ooc {
                 None => match &self.bvh {
@@ -716,87 +658,5 @@ impl Tracer {
             through *= pane_transmittance(m, dir.dot(ng).abs()).unwrap_or(Vec3::ZERO);
         }
         through
-    }
-
-    /// Light arriving directly from one sampled point on the area lights and
-    /// one on the sun, MIS-weighted against BSDF sampling.
-    #[allow(clippy::too_many_arguments)]
-    fn direct(
-        &self,
-        m: &Material,
-        p: Vec3,
-        frame: &Frame,
-        wo: Vec3,
-        skip: f32,
-        rng: &mut Rng,
-        fetch: &mut Fetch,
-    ) -> Vec3 {
-        let origin = offset_origin(p, frame.n) + frame.n * skip;
-        let mut l = Vec3::ZERO;
-        let (u, uv) = (rng.f32(), rng.f32x2());
-        if let Some(ls) = self.lights.sample(u, uv) {
-            let to = ls.point - origin;
-            let dist2 = to.length_squared();
-            let wi_world = to / dist2.sqrt();
-            let cos_l = -wi_world.dot(ls.normal);
-            let wi = frame.to_local(wi_world);
-            if cos_l > 0.0 && wi.z > 0.0 && dist2 > 0.0 {
-                let e = bsdf::eval(m, wo, wi);
-                if e.f_cos.max_element() > 0.0 {
-                    // Panes let light through here too, attenuated: BSDF paths
-                    // cross them, so light sampling must see through them alike.
-                    let vis = self.visibility(
-                        Ray {
-                            origin,
-                            dir: to,
-                            t_max: 1.0 - 1e-4,
-                        },
-                        fetch,
-                    );
-                    if vis.max_element() > 0.0 {
-                        let pdf_light = ls.pdf_area * dist2 / cos_l;
-                        l += vis * e.f_cos * ls.radiance * (power_heuristic(pdf_light, e.pdf) / pdf_light);
-                    }
-                }
-            }
-        }
-        if let Some((wi_world, sun, pdf_sun)) = self.sky.sample_sun(rng.f32x2()) {
-            let wi = frame.to_local(wi_world);
-            if wi.z > 0.0 {
-                let e = bsdf::eval(m, wo, wi);
-                if e.f_cos.max_element() > 0.0 {
-                    let vis = self.visibility(Ray::new(origin, wi_world), fetch);
-                    l += vis * e.f_cos * sun * (power_heuristic(pdf_sun, e.pdf) / pdf_sun);
-                }
-            }
-        }
-        l
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn measured_first_hits_follow_the_faster_way_and_keep_probing() {
-        let times = FirstHitTimes::default();
-        // Untimed, packets come first, then single rays until both are warm.
-        assert_eq!(times.choose(), FirstHits::Packets);
-        times.record(FirstHits::Packets, 8192, 8192 * 300);
-        assert_eq!(times.choose(), FirstHits::Single);
-        times.record(FirstHits::Single, 8192, 8192 * 200);
-        let picks: Vec<FirstHits> = (0..64).map(|_| times.choose()).collect();
-        let packets = picks.iter().filter(|&&w| w == FirstHits::Packets).count();
-        assert_eq!(packets, 64 / PROBE_EVERY as usize, "{picks:?}");
-        assert_eq!(times.preferred(), FirstHits::Single);
-        // Packets turn faster: the window forgets the old times.
-        for _ in 0..300 {
-            times.record(FirstHits::Packets, 8192, 8192 * 100);
-        }
-        assert_eq!(times.preferred(), FirstHits::Packets);
-        let picks: Vec<FirstHits> = (0..64).map(|_| times.choose()).collect();
-        let single = picks.iter().filter(|&&w| w == FirstHits::Single).count();
-        assert_eq!(single, 64 / PROBE_EVERY as usize, "{picks:?}");
     }
 }
