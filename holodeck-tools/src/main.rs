@@ -7,12 +7,14 @@ use clap::{Parser, Subcommand};
 
 mod chart;
 mod cmd;
+mod demo;
 #[cfg(feature = "embree")]
 mod embree;
 mod fill;
 mod human;
 mod parent;
 mod progress;
+mod truth;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
 #[derive(Parser)]
@@ -33,6 +35,7 @@ struct Cli {
 
 const EXAMPLES: &str = "\
 Examples:
+  holodeck demo
   holodeck create room.hdk --section 'interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5' --grid 0.25
   holodeck create room.hdk --control room.toml
   holodeck info room.hdk
@@ -54,6 +57,8 @@ Examples:
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole system on the built-in scene in one command: fill, walk, every driver, references, charts.
+    Demo(cmd::demo::Args),
     /// Create an empty holodeck file from sections or a TOML control file.
     Create(cmd::create::Args),
     /// Show sections, grids, beams, rays, size and fragmentation (like rhinfo).
@@ -122,6 +127,7 @@ fn main() -> ExitCode {
         parent::exit_with_parent();
     }
     let result = match cli.command {
+        Command::Demo(a) => cmd::demo::run(a),
         Command::Create(a) => cmd::create::run(a),
         Command::Info(a) => cmd::info::run(a),
         Command::Check(a) => cmd::check::run(a),

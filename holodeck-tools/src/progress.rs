@@ -22,3 +22,10 @@ pub fn bytes_bar(message: &'static str) -> ProgressBar {
 pub fn rays_bar(message: &'static str) -> ProgressBar {
     bar(message, "{human_pos}/{human_len} rays ({per_sec}, {eta})")
 }
+
+/// A progress bar counting `len` steps of work, with a message.
+pub fn count_bar(message: &'static str, len: u64) -> ProgressBar {
+    let b = bar(message, "{pos}/{len} ({eta})");
+    b.set_length(len);
+    b
+}

@@ -18,18 +18,18 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use holodeck_display::compare::{relative_rmse, relative_rmse_masked};
 use holodeck_display::image_io::{read_picture, write_hdr};
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::{new_driver_with, Driver, EstimatorOptions, SampleDecoder, Viewport};
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamKey, Picture, View};
-use holodeck_sampler::render::{render, silhouettes, RenderOptions};
+use holodeck_sampler::render::{render, RenderOptions};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::HoloFile;
 
 use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
+use crate::truth::{Error, Truth};
 use holodeck_sampler::beam::trace_batch;
 
 /// What to measure.
@@ -60,46 +60,6 @@ pub struct AccuracyBench {
     pub dir: PathBuf,
     /// Keep the holodeck files.
     pub keep: bool,
-}
-
-/// Error of a picture over the frame and in the silhouette band.
-#[derive(Clone, Copy, Debug, Default)]
-struct Error {
-    all: f64,
-    band: f64,
-}
-
-/// A view's converged reference and its silhouette band.
-struct Truth {
-    picture: Picture,
-    band: Vec<bool>,
-}
-
-impl Truth {
-    fn error(&self, p: &Picture) -> Result<Error> {
-        Ok(Error {
-            all: relative_rmse(p, &self.picture)?,
-            band: relative_rmse_masked(p, &self.picture, &self.band)?,
-        })
-    }
-}
-
-/// Pixels within one pixel of a silhouette.
-fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
-    let mut out = vec![false; mask.len()];
-    for row in 0..h {
-        for col in 0..w {
-            if !mask[row * w + col] {
-                continue;
-            }
-            for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
-                for c in col.saturating_sub(1)..=(col + 1).min(w - 1) {
-                    out[r * w + c] = true;
-                }
-            }
-        }
-    }
-    out
 }
 
 impl AccuracyBench {
@@ -136,11 +96,7 @@ impl AccuracyBench {
                 p
             }
         };
-        let edges = silhouettes(tracer, view, self.width, self.height, 1.1)?;
-        Ok(Truth {
-            picture,
-            band: dilate(&edges, self.width as usize, self.height as usize),
-        })
+        Truth::new(tracer, view, picture)
     }
 
     fn viewport(&self, view: &View) -> Result<Viewport> {

@@ -14,6 +14,7 @@ pub mod check;
 pub mod compare;
 pub mod copy;
 pub mod create;
+pub mod demo;
 pub mod export;
 pub mod fill;
 pub mod grid;

@@ -80,6 +80,9 @@ pub struct Args {
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
     accept_loss: bool,
+    /// Triangles for builtin:landscape (K, M suffixes).
+    #[arg(long, value_parser = crate::human::count_in(1, super::args::MAX_TRIANGLES))]
+    triangles: Option<u64>,
     /// For a .hds scene file: decompressed blocks each sampler keeps in memory (K, M, G; default: all).
     #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
     scene_memory: Option<u64>,
@@ -192,7 +195,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let time = parse_duration(&a.time, 1.0).context("--time")?;
     let (before, default_view) = {
-        let (_, file) = super::fill::prepare(&a.scene, &a.file, None, a.scene_memory, a.accept_loss)?;
+        let (_, file) = super::fill::prepare(&a.scene, &a.file, a.triangles, a.scene_memory, a.accept_loss)?;
         let view = if a.scene == "builtin:room" {
             super::render::ROOM_VIEW.to_string()
         } else {
@@ -269,6 +272,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .stderr(Stdio::inherit());
             if let Some(m) = a.scene_memory {
                 cmd.args(["--scene-memory", &m.to_string()]);
+            }
+            if let Some(t) = a.triangles {
+                cmd.args(["--triangles", &t.to_string()]);
             }
             Child::spawn(format!("sampler {}", i + 1), cmd)
         })

@@ -1,0 +1,89 @@
+//! A view's converged reference picture and the band around its
+//! silhouettes: what every holodeck picture and every direct render is
+//! measured against (relative RMSE over the frame and in the band).
+
+use anyhow::Result;
+use holodeck_display::compare::{relative_rmse, relative_rmse_masked, ssim};
+use holodeck_display::tonemap::{Histogram, ToneMap, ToneMode};
+use holodeck_protocol::{Picture, View};
+use holodeck_sampler::render::silhouettes;
+use holodeck_sampler::Tracer;
+
+/// Error of a picture over the frame and in the silhouette band.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Error {
+    /// Relative RMSE over the frame.
+    pub all: f64,
+    /// Relative RMSE in the band around silhouettes.
+    pub band: f64,
+    /// Structural similarity of the luminance, both pictures tone mapped
+    /// by the reference's histogram (1: the same): unlike RMSE, not ruled
+    /// by a few very bright pixels.
+    pub ssim: f64,
+}
+
+/// A view's converged reference and its silhouette band.
+pub struct Truth {
+    /// The reference picture.
+    pub picture: Picture,
+    /// Pixels within one pixel of a silhouette.
+    pub band: Vec<bool>,
+    /// The reference's tone map (camera mode), for SSIM and for pictures.
+    pub tone: ToneMap,
+}
+
+impl Truth {
+    /// The truth of `view` from its reference `picture`: the silhouettes
+    /// are found by tracing the scene.
+    pub fn new(tracer: &Tracer, view: &View, picture: Picture) -> Result<Truth> {
+        let (w, h) = (picture.width, picture.height);
+        let edges = silhouettes(tracer, view, w as u32, h as u32, 1.1)?;
+        Ok(Truth {
+            band: dilate(&edges, w, h),
+            tone: ToneMap::new(&Histogram::from_picture(&picture), ToneMode::Camera, Default::default()),
+            picture,
+        })
+    }
+
+    /// The error of `p` against the reference.
+    pub fn error(&self, p: &Picture) -> Result<Error> {
+        Ok(Error {
+            all: relative_rmse(p, &self.picture)?,
+            band: relative_rmse_masked(p, &self.picture, &self.band)?,
+            ssim: ssim(p, &self.picture, &self.tone),
+        })
+    }
+}
+
+/// Pixels within one pixel of a marked one.
+fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
+    let mut out = vec![false; mask.len()];
+    for row in 0..h {
+        for col in 0..w {
+            if !mask[row * w + col] {
+                continue;
+            }
+            for r in row.saturating_sub(1)..=(row + 1).min(h - 1) {
+                for c in col.saturating_sub(1)..=(col + 1).min(w - 1) {
+                    out[r * w + c] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dilation_marks_the_eight_neighbours_and_stays_in_the_frame() {
+        let mut mask = vec![false; 5 * 4];
+        mask[0] = true;
+        mask[2 * 5 + 3] = true;
+        let d = dilate(&mask, 5, 4);
+        let marked: Vec<usize> = (0..d.len()).filter(|&i| d[i]).collect();
+        assert_eq!(marked, vec![0, 1, 5, 6, 7, 8, 9, 12, 13, 14, 17, 18, 19]);
+    }
+}
