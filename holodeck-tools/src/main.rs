@@ -75,7 +75,7 @@ enum Command {
     Export(cmd::export::Args),
     /// Write the section grids as an OBJ line mesh for any 3D viewer.
     Grid(cmd::grid::Args),
-    /// Measure the storage engine (append, recall, optimize, memory).
+    /// Benchmarks, each beside a baseline measured in the same run; `all` runs them all and `compare` diffs two runs.
     Bench(cmd::bench::Args),
     /// Generate built-in scenes and inspect scene files.
     Scene(cmd::scene::Args),

@@ -3,13 +3,6 @@
 pub mod admin;
 pub mod args;
 pub mod bench;
-pub mod bench_accuracy;
-pub mod bench_display;
-pub mod bench_network;
-pub mod bench_paths;
-pub mod bench_scene_file;
-pub mod bench_share;
-pub mod bench_tracer;
 pub mod check;
 pub mod compare;
 pub mod copy;

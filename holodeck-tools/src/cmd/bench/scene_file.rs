@@ -23,6 +23,35 @@ use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
 use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::human::{bytes, count};
 
+/// Arguments of `holodeck bench scene-file`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Builds an out-of-core scene file of a generated landscape within a memory budget and traces
+it against the in-core tracer: build, size, rays/s by cache budget, and LOD.
+
+Examples:
+  holodeck bench scene-file --triangles 1M --pixels 256
+  holodeck bench scene-file --triangles 10M --charts docs    (ooc-budget, ooc-lod charts)")]
+pub struct Args {
+    /// Landscape size (triangles).
+    #[arg(long, value_parser = crate::human::count_in(1, crate::cmd::args::MAX_TRIANGLES), default_value = "1M")]
+    pub triangles: u64,
+    /// Rays per measurement: a square of this many pixels per side.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=8192))]
+    pub pixels: u32,
+    /// Write charts (SVG and PNG) of the results into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub charts: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    pub files: super::Files,
+}
+
+/// Runs `holodeck bench scene-file`.
+pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
+    run(a.triangles, a.pixels, &a.files.dir, a.files.keep, a.charts.as_deref())?;
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
 /// Over the room and across the terrain and forest from 40 m up.
 const VIEW: &str = "-vtv -vp -20 2 40 -vd 1 0 -0.45 -vu 0 0 1 -vh 70 -vv 50";
 
@@ -252,8 +281,8 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             Arc::clone(&file),
             TraceOptions {
                 max_bounces: 1,
-                lod_primary: super::render::lod_ratio(poe, &view, w),
-                lod_secondary: super::render::lod_ratio(poe, &view, w),
+                lod_primary: crate::cmd::render::lod_ratio(poe, &view, w),
+                lod_secondary: crate::cmd::render::lod_ratio(poe, &view, w),
                 ..TraceOptions::default()
             },
         );
@@ -265,7 +294,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     };
     let (exact, exact_time, _) = frame(0.0)?;
     let voxel_hits = |poe: f64| {
-        let c = super::render::lod_ratio(poe, &view, w);
+        let c = crate::cmd::render::lod_ratio(poe, &view, w);
         prim.iter()
             .filter(|r| {
                 matches!(
@@ -344,4 +373,64 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         let _ = std::fs::remove_file(&path);
     }
     Ok(())
+}
+
+/// The fast version for `bench all`: a landscape of 300,000 triangles built
+/// into an LZ4 scene file, traced out of core with a cache of a tenth of it
+/// (warm) beside the in-core kd-tree on the same rays, 128 x 128 primary
+/// and diffuse bounce rays on one core.
+pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+    use super::report::Figure;
+    std::fs::create_dir_all(&ctx.dir).with_context(|| format!("creating {}", ctx.dir.display()))?;
+    let scene = generate(
+        "landscape",
+        &GenParams {
+            triangles: Some(300_000),
+            ..GenParams::default()
+        },
+    )?;
+    let tree = KdTree::build(&scene, &Default::default());
+    let path = ctx.dir.join("all-landscape.hds");
+    let settings = BuildSettings {
+        memory: (scene.triangles.len() as u64 / 4).max(1) * BUILD_BYTES_PER_TRIANGLE,
+        codec: Codec::Lz4,
+        ..BuildSettings::default()
+    };
+    let r = build_scene_file(&SceneSource::new(scene.clone()), &path, &settings, &|_, _, _| {})?;
+    let view = View::parse(VIEW)?;
+    let prim = primary(&view, 128);
+    let bounce = bounces(&tree, &scene, &prim);
+    let file = OocScene::open(&path, Some(((r.decompressed_bytes / 10) as usize).max(1 << 16)), 2)?;
+    let mut out = Vec::new();
+    for (label, rays) in [("primary", &prim), ("diffuse bounce", &bounce)] {
+        let want: Vec<Option<f32>> = rays.iter().map(|r| tree.intersect(r).map(|h| h.t)).collect();
+        // Once to warm the cache.
+        let (_, mut wrong) = trace_ooc(&file, rays, &want);
+        let (mut ooc, mut core) = (Vec::new(), Vec::new());
+        for _ in 0..ctx.repeats {
+            let t = Instant::now();
+            std::hint::black_box(rays.iter().filter(|r| tree.intersect(r).is_some()).count());
+            core.push(rays.len() as f64 / t.elapsed().as_secs_f64() / 1e6);
+            let (w, e) = trace_ooc(&file, rays, &want);
+            wrong += e;
+            ooc.push(w / 1e6);
+        }
+        anyhow::ensure!(
+            wrong == 0,
+            "{wrong} {label} rays found other hits out of core than in core"
+        );
+        out.push(
+            Figure::new(
+                "out-of-core",
+                &format!("{label} rays, cache a tenth of the scene, warm"),
+                "Mrays/s",
+                true,
+                ooc,
+            )
+            .against("in-core kd-tree", core),
+        );
+    }
+    drop(file);
+    let _ = std::fs::remove_file(&path);
+    Ok(out)
 }

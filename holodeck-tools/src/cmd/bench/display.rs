@@ -18,9 +18,37 @@ use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
 
-use super::render::ROOM_VIEW;
+use crate::cmd::render::ROOM_VIEW;
 use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
+
+/// Most driver samples `bench display` traces and holds at once.
+const MAX_DISPLAY_SAMPLES: u64 = 100_000_000;
+
+/// Arguments of `holodeck bench display`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Inserts traced samples of the room into every driver and draws frames: samples inserted per
+second, frame times, and pictures from a holodeck file (`pict`) with its recall rate.
+
+Example:
+  holodeck bench display --samples 1M --rays 4M")]
+pub struct Args {
+    /// Driver samples (at most 100M: about 10 GB of samples).
+    #[arg(long, default_value = "1M", value_parser = crate::human::count_in(1, MAX_DISPLAY_SAMPLES))]
+    pub samples: u64,
+    /// Rays in the holodeck file drawn from.
+    #[arg(long, default_value = "4M", value_parser = crate::human::count_in(1, u64::MAX))]
+    pub rays: u64,
+    #[command(flatten)]
+    pub files: super::Files,
+}
+
+/// Runs `holodeck bench display`.
+pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
+    run(a.samples as usize, a.rays, &a.files.dir, a.files.keep)?;
+    Ok(std::process::ExitCode::SUCCESS)
+}
 
 /// Samples through random pixels of `view`, traced from points within
 /// `radius` of the eye: the kind a display receives.
@@ -161,7 +189,7 @@ fn row(what: &str, result: String, baseline: String, ratio: f64) {
 /// Runs the benchmark: `samples` driver samples at 1024 x 768, and a
 /// holodeck of `rays` rays filled for one view, recalled into 512 x 512.
 pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
-    let scene = super::render::load("builtin:room", None)?;
+    let scene = crate::cmd::render::load("builtin:room", None)?;
     let tracer = Tracer::new(
         scene,
         TraceOptions {
@@ -207,7 +235,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("pict-bench.hdk");
     let _ = std::fs::remove_file(&path);
-    let (_, mut file) = super::fill::prepare("builtin:room", &path, None, None, false)?;
+    let (_, mut file) = crate::cmd::fill::prepare("builtin:room", &path, None, None, false)?;
     let seen = ViewFill::new(file.sections(), std::slice::from_ref(&view), 0.0);
     eprintln!("filling {} rays for one view...", count(rays));
     let o = FillOptions {
@@ -224,17 +252,17 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     for driver in ["quadtree", "splat"] {
         let mut file = HoloFile::open(&path, &OpenOptions::read_only())?;
         // Warm: the first call reads the file into the cache.
-        super::pict::draw(
+        crate::cmd::pict::draw(
             &mut file,
             vp.clone(),
-            &super::args::DriverChoice::plain(driver, Default::default()),
+            &crate::cmd::args::DriverChoice::plain(driver, Default::default()),
             2,
             0,
         )?;
-        let (_, _, st) = super::pict::draw(
+        let (_, _, st) = crate::cmd::pict::draw(
             &mut file,
             vp.clone(),
-            &super::args::DriverChoice::plain(driver, Default::default()),
+            &crate::cmd::args::DriverChoice::plain(driver, Default::default()),
             2,
             0,
         )?;
@@ -270,4 +298,80 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
         let _ = std::fs::remove_file(&path);
     }
     Ok(())
+}
+
+/// The fast version for `bench all`: 200,000 traced samples of the room
+/// inserted into each driver and a frame drawn; the GPU drivers beside the
+/// quadtree on the same samples, the quadtree beside a pass that only reads
+/// the samples (memory speed).
+pub fn fast(_ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+    use super::report::Figure;
+    let scene = crate::cmd::render::load("builtin:room", None)?;
+    let tracer = Tracer::new(scene, Default::default());
+    let view = View::parse(ROOM_VIEW)?;
+    let viewport = Viewport::new(view.clone(), 512, 384)?;
+    let samples = room_samples(&tracer, &view, 200_000, 0.003);
+    let repeats = _ctx.repeats;
+    let mut rates: Vec<Vec<f64>> = vec![Vec::new(); 3];
+    let mut frames: Vec<Vec<f64>> = vec![Vec::new(); 3];
+    let mut read = Vec::new();
+    let mut failed: Vec<bool> = vec![false; 3];
+    for _ in 0..repeats {
+        let start = Instant::now();
+        let sum: f64 = samples.iter().map(|s| f64::from(s.color[0])).sum();
+        std::hint::black_box(sum);
+        read.push(samples.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
+        for (i, name) in ["quadtree", "voronoi", "mesh"].iter().enumerate() {
+            if failed[i] {
+                continue;
+            }
+            match time_driver(name, &viewport, &samples, 4096) {
+                Ok((add, frame, _, _)) => {
+                    rates[i].push(add / 1e6);
+                    frames[i].push(frame);
+                }
+                Err(e) => {
+                    tracing::warn!("{name}: {e:#}");
+                    failed[i] = true;
+                }
+            }
+        }
+    }
+    let mut out = vec![
+        Figure::new("display", "quadtree: samples inserted", "M/s", true, rates[0].clone())
+            .against("reading the samples", read),
+    ];
+    out.push(Figure::new(
+        "display",
+        "quadtree: frame, 512 x 384",
+        "ms",
+        false,
+        frames[0].clone(),
+    ));
+    for (i, name) in [(1, "voronoi"), (2, "mesh")] {
+        if failed[i] {
+            continue;
+        }
+        out.push(
+            Figure::new(
+                "display",
+                &format!("{name}: samples inserted"),
+                "M/s",
+                true,
+                rates[i].clone(),
+            )
+            .against("quadtree", rates[0].clone()),
+        );
+        out.push(
+            Figure::new(
+                "display",
+                &format!("{name}: frame, 512 x 384"),
+                "ms",
+                false,
+                frames[i].clone(),
+            )
+            .against("quadtree", frames[0].clone()),
+        );
+    }
+    Ok(out)
 }

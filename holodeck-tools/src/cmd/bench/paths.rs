@@ -48,7 +48,7 @@ pub fn rows(label: &str, scene: &Scene, view: &View) -> Result<Vec<String>> {
                 .map(|(o, d)| (o.as_vec3(), d.as_vec3()))
         })
         .collect();
-    let scattered: Vec<(glam::Vec3, glam::Vec3)> = super::bench_tracer::scattered_rays(scene, PATHS)
+    let scattered: Vec<(glam::Vec3, glam::Vec3)> = super::tracer::scattered_rays(scene, PATHS)
         .into_iter()
         .map(|r| (r.origin, r.dir))
         .collect();

@@ -32,6 +32,75 @@ use crate::human::count;
 use crate::truth::{Error, Truth};
 use holodeck_sampler::beam::trace_batch;
 
+/// Arguments of `holodeck bench accuracy`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Holodeck pictures against direct renders given the same compute, both measured against a
+converged reference: one view (error against paths), and a walkthrough (time until every view
+is within a target error). References are rendered once and kept under --dir.
+
+Examples:
+  holodeck bench accuracy                                  (one view and a 10-view walk, room)
+  holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0")]
+pub struct Args {
+    /// Paths per budget (repeat for several).
+    #[arg(long, value_parser = crate::human::count_in(1, u64::from(u32::MAX)), default_values = ["62.5K", "250K", "1M", "4M"])]
+    pub paths: Vec<u64>,
+    /// Scene.
+    #[arg(long, default_value = "builtin:room")]
+    pub scene: String,
+    /// View (the walk starts there).
+    #[arg(long, default_value = crate::cmd::render::ROOM_VIEW, allow_hyphen_values = true)]
+    pub view: String,
+    /// Frame width.
+    #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(crate::cmd::args::SIDE))]
+    pub width: u32,
+    /// Frame height.
+    #[arg(short = 'y', long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(crate::cmd::args::SIDE))]
+    pub height: u32,
+    /// Samples per pixel of the references (rendered once, kept in --dir).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
+    pub reference_spp: u32,
+    /// Independent runs averaged per budget.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: u32,
+    /// Views in the walkthrough (0: none; each keeps a reference picture).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(0..=1000))]
+    pub walk_views: u16,
+    /// Relative RMSE every walkthrough view must reach.
+    #[arg(long, default_value_t = 0.2, value_parser = crate::cmd::args::positive)]
+    pub target: f64,
+    /// Eye radius of the holodeck's fills (fraction of the section diagonal).
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, value_parser = crate::cmd::args::non_negative)]
+    pub eye_radius: f64,
+    #[command(flatten)]
+    pub estimator: crate::cmd::args::EstimatorArgs,
+    #[command(flatten)]
+    pub files: super::Files,
+}
+
+/// Runs `holodeck bench accuracy`.
+pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
+    crate::cmd::args::frame_size(a.width, a.height)?;
+    AccuracyBench {
+        scene: a.scene.clone(),
+        view: View::parse(&a.view).context("--view")?,
+        width: a.width,
+        height: a.height,
+        paths: a.paths.clone(),
+        reference_spp: a.reference_spp,
+        repeats: a.repeats,
+        walk_views: usize::from(a.walk_views),
+        target: a.target,
+        estimator: a.estimator.options()?,
+        eye_radius: a.eye_radius,
+        dir: a.files.dir.clone(),
+        keep: a.files.keep,
+    }
+    .run()?;
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
 /// What to measure.
 pub struct AccuracyBench {
     /// Scene (file or builtin:NAME).
@@ -122,7 +191,7 @@ impl AccuracyBench {
     fn holodeck(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64)> {
         let path = self.dir.join(format!("accuracy-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, mut file) = super::fill::prepare(&self.scene, &path, None, None, false)?;
+        let (_, mut file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false)?;
         let start = Instant::now();
         let o = FillOptions {
             rays: Some(paths),
@@ -137,10 +206,10 @@ impl AccuracyBench {
             )),
         };
         fill(tracer, &mut file, &o, &|_| {})?;
-        let (picture, _, _) = super::pict::draw(
+        let (picture, _, _) = crate::cmd::pict::draw(
             &mut file,
             self.viewport(view)?,
-            &super::args::DriverChoice::plain("quadtree", self.estimator),
+            &crate::cmd::args::DriverChoice::plain("quadtree", self.estimator),
             2,
             seed,
         )?;
@@ -159,7 +228,7 @@ impl AccuracyBench {
     fn session(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
         let path = self.dir.join(format!("accuracy-session-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, file) = super::fill::prepare(&self.scene, &path, None, None, false)?;
+        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false)?;
         let start = Instant::now();
         let mut walker = Walker::new(file, self.viewport(view)?, self.estimator)?;
         let (mut rays, mut density, mut step) = (0u64, 0.0f32, 0u64);
@@ -309,7 +378,7 @@ impl AccuracyBench {
         let max_steps = 64u32;
         let path = self.dir.join("accuracy-walk.hdk");
         let _ = std::fs::remove_file(&path);
-        let (_, file) = super::fill::prepare(&self.scene, &path, None, None, false)?;
+        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false)?;
         let mut walker = Walker::new(file, self.viewport(&views[0])?, self.estimator)?;
         let (mut direct_total, mut holo_total) = (0.0, 0.0);
         let (mut direct_paths, mut holo_rays) = (0u64, 0u64);
@@ -418,7 +487,7 @@ impl AccuracyBench {
     /// Runs both parts.
     pub fn run(&self) -> Result<()> {
         std::fs::create_dir_all(&self.dir).with_context(|| format!("creating {}", self.dir.display()))?;
-        let scene = super::render::load(&self.scene, None)?;
+        let scene = crate::cmd::render::load(&self.scene, None)?;
         let tracer = Tracer::new(scene, TraceOptions::default());
         if !self.paths.is_empty() {
             self.one_view(&tracer)?;
@@ -535,4 +604,58 @@ impl Walker {
         self.driver.add(&samples);
         Ok(rays)
     }
+}
+
+/// The fast version for `bench all`: the room's view at 96 x 72, a fill of
+/// 250,000 rays for it drawn by the quadtree, beside a direct render with
+/// the same paths, both against a 256-spp reference kept in the folder.
+pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+    use super::report::Figure;
+    let bench = AccuracyBench {
+        scene: "builtin:room".into(),
+        view: View::parse(crate::cmd::render::ROOM_VIEW)?,
+        width: 96,
+        height: 72,
+        paths: vec![250_000],
+        reference_spp: 256,
+        repeats: 1,
+        walk_views: 0,
+        target: 0.2,
+        estimator: Default::default(),
+        eye_radius: holodeck_display::request::RequestOptions::default().eye_radius,
+        dir: ctx.dir.clone(),
+        keep: false,
+    };
+    std::fs::create_dir_all(&bench.dir).with_context(|| format!("creating {}", bench.dir.display()))?;
+    let scene = crate::cmd::render::load(&bench.scene, None)?;
+    let tracer = Tracer::new(scene, TraceOptions::default());
+    let truth = bench.truth(&tracer, &bench.view, "the room's view")?;
+    let (mut holodeck, mut direct, mut h_secs, mut d_secs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for r in 0..ctx.repeats {
+        let seed = 1 + r as u64;
+        let (p, secs, _) = bench.direct(&tracer, &bench.view, 250_000, seed)?;
+        direct.push(truth.error(&p)?.all);
+        d_secs.push(secs);
+        let (p, secs) = bench.holodeck(&tracer, &bench.view, 250_000, seed)?;
+        holodeck.push(truth.error(&p)?.all);
+        h_secs.push(secs);
+    }
+    Ok(vec![
+        Figure::new(
+            "accuracy",
+            "room view, 250K paths: holodeck (fill, quadtree) error",
+            "relative RMSE",
+            false,
+            holodeck,
+        )
+        .against("direct render, same paths", direct),
+        Figure::new(
+            "accuracy",
+            "room view, 250K paths: holodeck time (fill and picture)",
+            "s",
+            false,
+            h_secs,
+        )
+        .against("direct render, same paths", d_secs),
+    ])
 }

@@ -17,6 +17,36 @@ use holodeck_sampler::{FirstHits, KdTree, Rng, Scene, TraceOptions, Tracer};
 
 use crate::human::count;
 
+/// Arguments of `holodeck bench tracer`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Builds the kd-tree and the wide BVH of the bunny room and of generated landscapes, and casts
+primary and diffuse bounce rays on one core, singly and in packets of 8; then incoherent rays
+sorted and not, whole paths in each order, beam packets in the room, and path tracing against
+a converged reference. With --embree the same rays go through Embree 3 in the same process.
+
+Examples:
+  holodeck bench tracer --triangles 1M --triangles 10M
+  holodeck bench tracer --triangles 10M --embree      (needs a build with --features embree)")]
+pub struct Args {
+    /// Landscape sizes (triangles; repeat for several).
+    #[arg(long, value_parser = crate::human::count_in(1, crate::cmd::args::MAX_TRIANGLES), default_values = ["1M"])]
+    pub triangles: Vec<u64>,
+    /// Rays per measurement: a square of this many pixels per side.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=8192))]
+    pub pixels: u32,
+    /// Trace the same rays through Embree in the same process (a holodeck
+    /// built with `--features embree`, which needs libembree-dev).
+    #[arg(long)]
+    pub embree: bool,
+}
+
+/// Runs `holodeck bench tracer`.
+pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
+    run(&a.triangles, a.pixels, a.embree)?;
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
 /// One scene to measure: name, generator parameters and a view of its geometry.
 struct Case {
     label: String,
@@ -57,6 +87,37 @@ fn throughput(tree: &KdTree, rays: &[Ray]) -> (f64, Vec<Option<RayHit>>) {
         .map(|r| tree.intersect(r).map(|h| (*r, h.t, h.tri)))
         .collect();
     (rays.len() as f64 / start.elapsed().as_secs_f64(), hits)
+}
+
+/// `n` x `n` primary rays of `view` in 4 x 2 pixel tiles, so that each run
+/// of 8 is a coherent packet.
+fn tiled_primary(view: &View, n: usize) -> Vec<Ray> {
+    (0..n * n)
+        .filter_map(|i| {
+            let (tile, k) = (i / 8, i % 8);
+            let (tx, ty) = (tile % (n / 4), tile / (n / 4));
+            let (x, y) = ((tx * 4 + k % 4) as f64 + 0.5, (ty * 2 + k / 4) as f64 + 0.5);
+            view.ray(x / n as f64, 1.0 - y / n as f64)
+                .map(|(o, d)| Ray::new(o.as_vec3(), d.as_vec3()))
+        })
+        .collect()
+}
+
+/// One cosine-distributed diffuse bounce ray from each hit.
+fn bounces_from(scene: &Scene, hits: &[Option<RayHit>]) -> Vec<Ray> {
+    let mut rng = Rng::new(1, 0);
+    hits.iter()
+        .flatten()
+        .map(|(r, t, tri)| {
+            let [a, b, c] = scene.vertices(*tri as usize);
+            let mut ng = (b - a).cross(c - a).normalize();
+            if ng.dot(r.dir) > 0.0 {
+                ng = -ng;
+            }
+            let d = Frame::new(ng).to_world(cosine_hemisphere(rng.f32x2()));
+            Ray::new(offset_origin(r.at(*t), ng), d)
+        })
+        .collect()
 }
 
 /// Rays per second on this thread with `intersect`, best of three, and the
@@ -268,13 +329,13 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for case in cases(triangles)? {
         let scene = &case.scene;
-        let peak_known = super::bench::reset_peak_rss();
-        let before = super::bench::rss().1;
+        let peak_known = super::reset_peak_rss();
+        let before = super::rss().1;
         let start = Instant::now();
         let tree = KdTree::build(scene, &BuildOptions::default());
         let kd_build = start.elapsed().as_secs_f64();
         // The first build gives the peak memory; the rest take turns.
-        let peak = super::bench::rss().0;
+        let peak = super::rss().0;
         let (build, bvh) = builds(&case.label, scene, kd_build, embree)?;
         let st = tree.stats();
         let bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + st.bytes;
@@ -300,35 +361,11 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
                 mib(st.bytes as u64)
             )
         });
-        let n = pixels as usize;
-        // Rays in 4 x 2 pixel tiles, so that each run of 8 is a coherent packet.
-        let primary: Vec<Ray> = (0..n * n)
-            .filter_map(|i| {
-                let (tile, k) = (i / 8, i % 8);
-                let (tx, ty) = (tile % (n / 4), tile / (n / 4));
-                let (x, y) = ((tx * 4 + k % 4) as f64 + 0.5, (ty * 2 + k / 4) as f64 + 0.5);
-                case.view
-                    .ray(x / n as f64, 1.0 - y / n as f64)
-                    .map(|(o, d)| Ray::new(o.as_vec3(), d.as_vec3()))
-            })
-            .collect();
+        let primary = tiled_primary(&case.view, pixels as usize);
         let (primary_packets, primary_packet_hits) = packet_throughput(&tree, &primary);
         let (primary_rate, hits) = throughput(&tree, &primary);
         let mut wrong = differing(&primary_packet_hits, &hits);
-        let mut rng = Rng::new(1, 0);
-        let bounce: Vec<Ray> = hits
-            .iter()
-            .flatten()
-            .map(|(r, t, tri)| {
-                let [a, b, c] = scene.vertices(*tri as usize);
-                let mut ng = (b - a).cross(c - a).normalize();
-                if ng.dot(r.dir) > 0.0 {
-                    ng = -ng;
-                }
-                let d = Frame::new(ng).to_world(cosine_hemisphere(rng.f32x2()));
-                Ray::new(offset_origin(r.at(*t), ng), d)
-            })
-            .collect();
+        let bounce = bounces_from(scene, &hits);
         let (bounce_rate, bounce_hits) = throughput(&tree, &bounce);
         let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, &bounce);
         wrong += differing(&bounce_packet_hits, &bounce_hits);
@@ -351,7 +388,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
             bounce_rate / 1e6,
             bounce_packets / 1e6
         );
-        paths.extend(super::bench_paths::rows(&case.label, scene, &case.view)?);
+        paths.extend(super::paths::rows(&case.label, scene, &case.view)?);
         #[cfg(feature = "embree")]
         if embree {
             beside.push(side_by_side(
@@ -434,7 +471,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         println!("{row}");
     }
     println!();
-    println!("{}", super::bench_paths::heading());
+    println!("{}", super::paths::heading());
     for row in paths {
         println!("{row}");
     }
@@ -454,7 +491,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     // samples per second, and the error against a converged reference after
     // equal wall time, with and without light sampling.
     let room = generate("room", &GenParams::default())?;
-    let view = View::parse(super::render::ROOM_VIEW)?;
+    let view = View::parse(crate::cmd::render::ROOM_VIEW)?;
     let (w, h) = (96u32, 72u32);
     let one_bounce = |light_sampling| TraceOptions {
         max_bounces: 1,
@@ -767,4 +804,83 @@ fn side_by_side(
         cell(ours[7], bp),
         primary.len() + bounce.len(),
     ))
+}
+
+/// The fast version for `bench all`: the bunny room and a landscape of
+/// 300,000 triangles, 256 x 256 rays on one core. The wide BVH's single
+/// rays beside the kd-tree's on the same rays, its packets beside its own
+/// single rays, and path tracing beside the primary ray rate (a path's cost
+/// in rays). Each repeat takes its turn with its baseline.
+pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+    use super::report::Figure;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let mut out = Vec::new();
+    for case in cases(&[300_000])? {
+        let scene = &case.scene;
+        let tree = KdTree::build(scene, &BuildOptions::default());
+        let Some(bvh) = WideBvh::build(scene) else { continue };
+        let primary = tiled_primary(&case.view, 256);
+        let (_, hits) = throughput(&tree, &primary);
+        let bounce = bounces_from(scene, &hits);
+        for (what, rays) in [("primary", &primary), ("diffuse bounce", &bounce)] {
+            let (mut b, mut k, mut p) = (Vec::new(), Vec::new(), Vec::new());
+            pool.install(|| {
+                for _ in 0..ctx.repeats {
+                    k.push(best_of_three(|r| tree.intersect(r), rays).0 / 1e6);
+                    b.push(best_of_three(|r| bvh.intersect(r), rays).0 / 1e6);
+                    p.push(packets_best_of_three(|c| bvh.intersect_packet(c), rays).0 / 1e6);
+                }
+            });
+            let name = |x: &str| format!("{}, {what}, {x}", case.label);
+            out.push(
+                Figure::new("tracer", &name("wide BVH single rays"), "Mrays/s", true, b.clone())
+                    .against("kd-tree single rays", k),
+            );
+            out.push(
+                Figure::new("tracer", &name("wide BVH packets of 8"), "Mrays/s", true, p)
+                    .against("wide BVH single rays", b),
+            );
+        }
+    }
+    // Path tracing, one diffuse bounce with light sampling, in the room.
+    let room = generate("room", &GenParams::default())?;
+    let view = View::parse(crate::cmd::render::ROOM_VIEW)?;
+    let tracer = Tracer::new(
+        room,
+        TraceOptions {
+            max_bounces: 1,
+            ..TraceOptions::default()
+        },
+    );
+    let Some(bvh) = tracer.bvh() else {
+        return Ok(out);
+    };
+    let rays = tiled_primary(&view, 128);
+    let (mut paths, mut cast) = (Vec::new(), Vec::new());
+    pool.install(|| -> Result<()> {
+        for r in 0..ctx.repeats {
+            cast.push(best_of_three(|ray| bvh.intersect(ray), &rays).0 / 1e6);
+            let o = RenderOptions {
+                width: 96,
+                height: 72,
+                spp: 16,
+                seed: r as u64,
+            };
+            let start = Instant::now();
+            render(&tracer, &view, &o, &|_, _| {})?;
+            paths.push(f64::from(96 * 72 * 16) / start.elapsed().as_secs_f64() / 1e6);
+        }
+        Ok(())
+    })?;
+    out.push(
+        Figure::new(
+            "tracer",
+            "room, path tracing one bounce with light sampling",
+            "M samples/s",
+            true,
+            paths,
+        )
+        .against("primary rays cast, wide BVH", cast),
+    );
+    Ok(out)
 }

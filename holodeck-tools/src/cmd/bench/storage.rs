@@ -1,6 +1,7 @@
-//! `holodeck bench`: measurements of the storage engine, each reported with a
-//! baseline taken in the same run (raw sequential reads of the same file), so
-//! results compare across shared machines whose absolute speed drifts.
+//! `holodeck bench storage`: measurements of the storage engine, each
+//! reported with a baseline taken in the same run (raw sequential reads of
+//! the same file), so results compare across shared machines whose absolute
+//! speed drifts.
 
 use std::fs::File;
 use std::io::Read;
@@ -18,133 +19,52 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
-use super::args::{frame_size, non_negative, positive, MAX_TRIANGLES, SIDE};
+use super::rss;
 use crate::human::{bytes, count, count_in};
 
-/// Most driver samples `bench display` traces and holds at once.
-const MAX_DISPLAY_SAMPLES: u64 = 100_000_000;
-
-/// Arguments of `holodeck bench`.
+/// Arguments of `holodeck bench storage`.
 #[derive(clap::Args)]
 #[command(after_help = "\
-Example:
-  holodeck bench storage --rays 50M --dir target/bench
-  holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)
-  holodeck bench tracer --triangles 1M --triangles 10M
-  holodeck bench tracer --triangles 10M --embree      (beside Embree; needs --features embree)
-  holodeck bench scene-file --triangles 1M --pixels 256
-  holodeck bench scene-file --triangles 10M --charts docs    (ooc-budget, ooc-lod charts)
-  holodeck bench display --samples 1M --rays 4M
-  holodeck bench network --seconds 8
-  holodeck bench share                                     (a greedy and a modest display)
-  holodeck bench accuracy                                  (one view and a 10-view walk, room)
-  holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0
+Fills a file with random rays in packets of 1-21 (as the paper's server did), recalls request
+lists cold and OS-cached, optimizes it, and fills a Radiance-sized reference file; every figure
+beside a baseline measured in the same run (raw sequential reads of the same file).
 
-Files are written under --dir and removed afterwards unless --keep is given.")]
+Examples:
+  holodeck bench storage --rays 50M --dir target/bench
+  holodeck bench storage --rays 2M --reference-rays 1M     (a quick run)")]
 pub struct Args {
-    /// What to measure.
-    #[arg(value_enum)]
-    what: Target,
     /// Rays in the large file (suffixes K, M, G as powers of 1000).
     #[arg(long, default_value = "50M", value_parser = count_in(1, u64::MAX))]
-    rays: u64,
+    pub rays: u64,
     /// Rays in the Radiance-like reference file (1 section, 154,728 beams).
     #[arg(long, default_value = "6.2M", value_parser = count_in(1, u64::MAX))]
-    reference_rays: u64,
+    pub reference_rays: u64,
     /// Beams in each request list.
     #[arg(long, default_value = "10000", value_parser = count_in(1, MAX_BEAMS_PER_SECTION))]
-    request: u64,
+    pub request: u64,
+    /// Beam cache budget.
+    #[arg(long, default_value = "64M")]
+    pub cache: String,
+    #[command(flatten)]
+    pub files: super::Files,
+}
+
+/// Arguments of the child processes of the memory measurements (hidden
+/// subcommands): the file, its cache budget, and what to do with it.
+#[derive(clap::Args)]
+pub struct ChildArgs {
+    /// The file.
+    #[arg(long)]
+    file: PathBuf,
     /// Beam cache budget.
     #[arg(long, default_value = "64M")]
     cache: String,
-    /// Where to write the files.
-    #[arg(long, default_value = "target/holodeck-bench")]
-    dir: PathBuf,
-    /// Keep the files.
-    #[arg(long)]
-    keep: bool,
-    /// Trace the same rays through Embree in the same process (`tracer`; a
-    /// holodeck built with `--features embree`, which needs libembree-dev).
-    #[arg(long)]
-    embree: bool,
-    /// Write charts (SVG and PNG) of the results into this folder (`scene-file`).
-    #[arg(long, value_name = "DIR")]
-    charts: Option<PathBuf>,
-    /// Landscape sizes for `tracer` (triangles; repeat for several).
-    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES), default_values = ["1M"])]
-    triangles: Vec<u64>,
-    /// Rays per measurement for `tracer`: a square of this many pixels per side.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=8192))]
-    pixels: u32,
-    /// Driver samples for `display` (at most 100M: about 10 GB of samples).
-    #[arg(long, default_value = "1M", value_parser = count_in(1, MAX_DISPLAY_SAMPLES))]
-    samples: u64,
-    /// Sampler threads for `share`.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=256))]
-    samplers: u16,
-    /// Seconds per fill measurement for `network`.
-    #[arg(long, default_value_t = 8.0, value_parser = positive)]
-    seconds: f64,
-    /// Paths per budget for `accuracy` (repeat for several).
-    #[arg(long, value_parser = count_in(1, u64::from(u32::MAX)), default_values = ["62.5K", "250K", "1M", "4M"])]
-    paths: Vec<u64>,
-    /// Scene for `accuracy`.
-    #[arg(long, default_value = "builtin:room")]
-    scene: String,
-    /// View for `accuracy` (the walk starts there).
-    #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true)]
-    view: String,
-    /// Frame width for `accuracy`.
-    #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(SIDE))]
-    width: u32,
-    /// Frame height for `accuracy`.
-    #[arg(short = 'y', long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(SIDE))]
-    height: u32,
-    /// Samples per pixel of the references for `accuracy` (rendered once, kept in --dir).
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
-    reference_spp: u32,
-    /// Independent runs averaged per budget for `accuracy`.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
-    repeats: u32,
-    /// Views in the walkthrough of `accuracy` (0: none; each keeps a reference picture).
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(0..=1000))]
-    walk_views: u16,
-    /// Relative RMSE every walkthrough view must reach.
-    #[arg(long, default_value_t = 0.2, value_parser = positive)]
-    target: f64,
-    /// Eye radius of the holodeck's fills for `accuracy` (fraction of the section diagonal).
-    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, value_parser = non_negative)]
-    eye_radius: f64,
-    #[command(flatten)]
-    estimator: super::args::EstimatorArgs,
-    /// File to stream (internal, for `stream`).
-    #[arg(long, hide = true)]
-    file: Option<PathBuf>,
-}
-
-/// Benchmarks available.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum Target {
-    /// The holodeck file engine.
-    Storage,
-    /// Internal: stream one file's beams (the child process of the memory measurement).
-    #[value(hide = true)]
-    Stream,
-    /// Internal: fill one file (the child process of the memory measurement).
-    #[value(hide = true)]
-    Fill,
-    /// The kd-tree and the path tracer.
-    Tracer,
-    /// The out-of-core scene file against the in-core tracer: build, size, rays/s by cache budget, LOD.
-    SceneFile,
-    /// Display drivers and pictures from a holodeck.
-    Display,
-    /// The server over loopback: fill overhead, recall to displays, many peers.
-    Network,
-    /// Two displays, one greedy, sharing real samplers: each display's share of the rays.
-    Share,
-    /// Holodeck pictures against direct renders at equal compute: one view, a walkthrough.
-    Accuracy,
+    /// Beams in each request list (streaming).
+    #[arg(long, default_value = "10000", value_parser = count_in(1, MAX_BEAMS_PER_SECTION))]
+    request: u64,
+    /// Rays to append (filling).
+    #[arg(long, default_value = "1M", value_parser = count_in(1, u64::MAX))]
+    rays: u64,
 }
 
 /// The section of Radiance's reference fill: grid 13 x 10 x 4 gives 154,728 beams.
@@ -228,27 +148,6 @@ fn raw_read(path: &Path, cold: bool) -> Result<(f64, u64)> {
         total += n as u64;
     }
     Ok((start.elapsed().as_secs_f64(), total))
-}
-
-/// Peak resident memory of this process, and the current, in bytes (Linux).
-pub(crate) fn rss() -> (u64, u64) {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let field = |name: &str| {
-        status
-            .lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_whitespace().nth(1))
-            .and_then(|v| v.parse::<u64>().ok())
-            .unwrap_or(0)
-            * 1024
-    };
-    (field("VmHWM:"), field("VmRSS:"))
-}
-
-/// Starts this process's peak resident memory over from the current
-/// (Linux's `clear_refs`); false where that cannot be done.
-pub(crate) fn reset_peak_rss() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
 /// The beams seen along a short walk through the room (eye points and
@@ -406,67 +305,33 @@ fn row(what: &str, result: String, baseline: String, ratio: f64) {
     println!("| {what} | {result} | {baseline} | {ratio:.2} |");
 }
 
-/// Runs the command.
-pub fn run(a: Args) -> Result<ExitCode> {
+/// The child that streams one file's beams: prints its starting and peak
+/// RSS and the rays it read.
+pub fn run_stream(a: &ChildArgs) -> Result<ExitCode> {
+    let cache = parse_size(&a.cache).context("--cache")?;
+    stream(&a.file, cache, a.request as usize)
+}
+
+/// The child that fills one file: prints its starting and peak RSS and
+/// the seconds appending and closing took.
+pub fn run_fill(a: &ChildArgs) -> Result<ExitCode> {
+    let cache = parse_size(&a.cache).context("--cache")?;
+    let (_, start) = rss();
+    let (secs, close) = fill(&a.file, &reference_settings(cache)?, a.rays, 1)?;
+    let (peak, _) = rss();
+    println!("{start} {peak} {secs} {close}");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs the storage benchmark.
+pub fn run(a: &Args) -> Result<ExitCode> {
     let cache = parse_size(&a.cache).context("--cache")?;
     // At most MAX_BEAMS_PER_SECTION, as parsed.
     let request = a.request as usize;
-    match a.what {
-        Target::Stream => return stream(a.file.as_deref().context("bench stream needs --file")?, cache, request),
-        Target::Fill => {
-            let file = a.file.as_deref().context("bench fill needs --file")?;
-            let (_, start) = rss();
-            let (secs, close) = fill(file, &reference_settings(cache)?, a.rays, 1)?;
-            let (peak, _) = rss();
-            println!("{start} {peak} {secs} {close}");
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::SceneFile => {
-            let n = a.triangles.first().copied().unwrap_or(1_000_000);
-            super::bench_scene_file::run(n, a.pixels, &a.dir, a.keep, a.charts.as_deref())?;
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::Tracer => {
-            super::bench_tracer::run(&a.triangles, a.pixels, a.embree)?;
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::Display => {
-            super::bench_display::run(a.samples as usize, a.rays, &a.dir, a.keep)?;
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::Network => {
-            super::bench_network::run(&a.dir, a.seconds, a.keep)?;
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::Share => {
-            super::bench_share::run(&a.dir, usize::from(a.samplers))?;
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::Accuracy => {
-            frame_size(a.width, a.height)?;
-            super::bench_accuracy::AccuracyBench {
-                scene: a.scene.clone(),
-                view: holodeck_protocol::View::parse(&a.view).context("--view")?,
-                width: a.width,
-                height: a.height,
-                paths: a.paths.clone(),
-                reference_spp: a.reference_spp,
-                repeats: a.repeats,
-                walk_views: usize::from(a.walk_views),
-                target: a.target,
-                estimator: a.estimator.options()?,
-                eye_radius: a.eye_radius,
-                dir: a.dir.clone(),
-                keep: a.keep,
-            }
-            .run()?;
-            return Ok(ExitCode::SUCCESS);
-        }
-        Target::Storage => {}
-    }
-    std::fs::create_dir_all(&a.dir).with_context(|| format!("creating {}", a.dir.display()))?;
-    let big = a.dir.join("bench-large.hdk");
-    let reference = a.dir.join("bench-reference.hdk");
+    let dir = &a.files.dir;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let big = dir.join("bench-large.hdk");
+    let reference = dir.join("bench-reference.hdk");
     for p in [&big, &reference] {
         let _ = std::fs::remove_file(p);
     }
@@ -665,10 +530,69 @@ pub fn run(a: Args) -> Result<ExitCode> {
         "Radiance 10.40".into(),
         after.bytes_per_ray() / 10.40,
     );
-    if !a.keep {
+    if !a.files.keep {
         for p in [&big, &reference] {
             let _ = std::fs::remove_file(p);
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The fast version for `bench all`: a million random rays appended to the
+/// Radiance-sized section, every beam recalled in beam order from the OS
+/// cache, the file optimized; beside raw reads of the same file (from the OS
+/// cache: the engine's overhead, free of the disk), each repeat a new file.
+pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+    use super::report::Figure;
+    let cache = 64 << 20;
+    let settings = reference_settings(cache)?;
+    std::fs::create_dir_all(&ctx.dir).with_context(|| format!("creating {}", ctx.dir.display()))?;
+    let path = ctx.dir.join("all-storage.hdk");
+    let rays = 1_000_000u64;
+    let beams = settings.sections[0].beam_count();
+    let in_order: Vec<BeamKey> = (0..beams).map(|b| BeamKey::new(0, b)).collect();
+    let lists: Vec<&[BeamKey]> = in_order.chunks(10_000).collect();
+    let (mut append, mut recalled, mut raw, mut opt, mut raw_secs, mut per_ray) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for r in 0..ctx.repeats {
+        let _ = std::fs::remove_file(&path);
+        let (secs, _) = fill(&path, &settings, rays, 100 + r as u64)?;
+        append.push(rays as f64 / secs / 1e6);
+        let (rs, rb) = raw_read(&path, false)?;
+        raw.push(rb as f64 / 10.0 / rs / 1e6);
+        raw_secs.push(rs);
+        let (n, s) = recall(&path, cache, &lists, false)?;
+        recalled.push(n as f64 / s / 1e6);
+        let start = Instant::now();
+        storage::optimize(&path, |_, _| {})?;
+        opt.push(start.elapsed().as_secs_f64());
+        per_ray.push(
+            HoloFile::open(&path, &OpenOptions::read_only())?
+                .summary()
+                .bytes_per_ray(),
+        );
+    }
+    let _ = std::fs::remove_file(&path);
+    let radiance = vec![10.40; per_ray.len()];
+    Ok(vec![
+        Figure::new("storage", "append 1M rays, packets of 1-21", "Mrays/s", true, append)
+            .against("raw read of the file", raw.clone()),
+        Figure::new(
+            "storage",
+            "recall every beam in beam order, OS-cached",
+            "Mrays/s",
+            true,
+            recalled,
+        )
+        .against("raw read of the file", raw),
+        Figure::new("storage", "optimize the file", "s", false, opt).against("raw read of the file", raw_secs),
+        Figure::new(
+            "storage",
+            "whole-file bytes per ray after optimize",
+            "B",
+            false,
+            per_ray,
+        )
+        .against("Radiance's rholo", radiance),
+    ])
 }

@@ -27,6 +27,28 @@ use rand::{Rng, SeedableRng};
 use crate::human::count;
 use holodeck_sampler::beam::trace_batch;
 
+/// Arguments of `holodeck bench network`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Runs a real server over loopback: the fill overhead against tracing in one process, recall to
+displays, and many peers at once.
+
+Example:
+  holodeck bench network --seconds 8")]
+pub struct Args {
+    /// Seconds per fill measurement.
+    #[arg(long, default_value_t = 8.0, value_parser = crate::cmd::args::positive)]
+    pub seconds: f64,
+    #[command(flatten)]
+    pub files: super::Files,
+}
+
+/// Runs `holodeck bench network`.
+pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
+    run(&a.files.dir, a.seconds, a.files.keep)?;
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
 /// This `holodeck` executable, to start servers and samplers from.
 pub(super) fn me() -> Result<Command> {
     Ok(Command::new(
@@ -41,7 +63,7 @@ fn row(what: &str, result: String, baseline: String, ratio: f64) {
 /// The tracer alone on `threads` threads: batch-schedule beams of the room,
 /// trace them, store nothing. Rays per second.
 fn tracer_rate(threads: usize, seconds: f64) -> Result<f64> {
-    let scene = super::render::load("builtin:room", None)?;
+    let scene = crate::cmd::render::load("builtin:room", None)?;
     let sections = scene.sections.clone();
     let tracer = Tracer::new(scene, TraceOptions::default());
     let mut schedule = BatchSchedule::new(&sections, |_| 0)?;
@@ -368,4 +390,25 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The fast version for `bench all`: `holodeck run` (a server and two
+/// sampler processes over loopback) filling the room for three seconds,
+/// beside the tracer alone on as many threads for as long.
+pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+    use super::report::Figure;
+    std::fs::create_dir_all(&ctx.dir).with_context(|| format!("creating {}", ctx.dir.display()))?;
+    let (mut served, mut alone) = (Vec::new(), Vec::new());
+    for _ in 0..ctx.repeats {
+        alone.push(tracer_rate(2, 3.0)? / 1e3);
+        served.push(run_rate(&ctx.dir, 2, 3.0)? / 1e3);
+    }
+    Ok(vec![Figure::new(
+        "network",
+        "fill by a server and 2 sampler processes over loopback",
+        "K rays/s",
+        true,
+        served,
+    )
+    .against("the tracer alone on 2 threads", alone)])
 }

@@ -16,8 +16,30 @@ use anyhow::{bail, Context, Result};
 use holodeck_protocol::wire::{Frame, Message, Role};
 use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
 
-use super::bench_network::{me, quit, serve, Peer};
+use super::network::{me, quit, serve, Peer};
 use crate::human::count;
+
+/// Arguments of `holodeck bench share`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Two displays, one asking for far more than the other, share real sampler processes: each
+display's share of the rays.
+
+Example:
+  holodeck bench share --samplers 2")]
+pub struct Args {
+    /// Sampler threads.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub samplers: u16,
+    #[command(flatten)]
+    pub files: super::Files,
+}
+
+/// Runs `holodeck bench share`.
+pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
+    run(&a.files.dir, usize::from(a.samplers))?;
+    Ok(std::process::ExitCode::SUCCESS)
+}
 
 /// Rays the greedy display asks for in each of its beams.
 const GREEDY_RAYS: u32 = 20_000;
@@ -137,7 +159,7 @@ fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize) -> Resu
     if !o.status.success() {
         bail!("holodeck fill failed: {}", String::from_utf8_lossy(&o.stderr));
     }
-    let sections = super::render::load("builtin:room", None)?.sections;
+    let sections = crate::cmd::render::load("builtin:room", None)?.sections;
     let (greedy_want, modest_want) = requests(&sections)?;
     let (server, addr) = serve(&file, &["--no-fill", "--request-share", share])?;
     let mut server = Reap(Some(server));
@@ -227,7 +249,7 @@ fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize) -> Resu
 /// Runs the benchmark with `samplers` tracing threads.
 pub fn run(dir: &Path, samplers: usize) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    let sections = super::render::load("builtin:room", None)?.sections;
+    let sections = crate::cmd::render::load("builtin:room", None)?.sections;
     let (greedy, modest) = requests(&sections)?;
     println!(
         "greedy display: {} beams x {} rays ({} rays); modest display: {} beams x {} rays ({} rays); \
