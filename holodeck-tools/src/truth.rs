@@ -6,7 +6,7 @@ use anyhow::Result;
 use holodeck_display::compare::{relative_rmse, relative_rmse_masked, ssim};
 use holodeck_display::tonemap::{Histogram, ToneMap, ToneMode};
 use holodeck_protocol::{Picture, View};
-use holodeck_sampler::render::silhouettes;
+use holodeck_sampler::render::{render, silhouettes, RenderOptions};
 use holodeck_sampler::Tracer;
 
 /// Error of a picture over the frame and in the silhouette band.
@@ -53,6 +53,30 @@ impl Truth {
             ssim: ssim(p, &self.picture, &self.tone),
         })
     }
+}
+
+/// A direct render of `view` at `width` x `height` with about `paths`
+/// paths (rounded to whole samples per pixel): the picture, the seconds it
+/// took and the paths traced. What a holodeck picture is worth is measured
+/// against this, given the same paths.
+pub fn direct_render(
+    tracer: &Tracer,
+    view: &View,
+    (width, height): (u32, u32),
+    paths: u64,
+    seed: u64,
+) -> Result<(Picture, f64, u64)> {
+    let pixels = u64::from(width) * u64::from(height);
+    let spp = (paths as f64 / pixels as f64).round().max(1.0) as u32;
+    let o = RenderOptions {
+        width,
+        height,
+        spp,
+        seed,
+    };
+    let start = std::time::Instant::now();
+    let p = render(tracer, view, &o, &|_, _| {})?;
+    Ok((p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels))
 }
 
 /// Pixels within one pixel of a marked one.

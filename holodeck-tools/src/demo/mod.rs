@@ -127,22 +127,6 @@ impl Demo {
         })
     }
 
-    /// A direct render of `view` with about `paths` paths: the picture,
-    /// the seconds and the paths traced (whole samples per pixel).
-    fn direct(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
-        let pixels = u64::from(self.width) * u64::from(self.height);
-        let spp = (paths as f64 / pixels as f64).round().max(1.0) as u32;
-        let o = RenderOptions {
-            width: self.width,
-            height: self.height,
-            spp,
-            seed,
-        };
-        let start = Instant::now();
-        let p = render(tracer, view, &o, &|_, _| {})?;
-        Ok((p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels))
-    }
-
     /// A direct render of `view` in passes of one sample per pixel until
     /// `secs` have passed (at least one pass): the mean picture, the
     /// seconds taken and the paths traced.
@@ -282,7 +266,8 @@ impl Demo {
         // Direct renders of the first view with the paths of each stage.
         let mut direct_convergence: Vec<Point> = Vec::new();
         for (k, &stage) in stages.iter().enumerate() {
-            let (p, secs, paths) = self.direct(&tracer, &views[0], stage, 77 + k as u64)?;
+            let (p, secs, paths) =
+                crate::truth::direct_render(&tracer, &views[0], (self.width, self.height), stage, 77 + k as u64)?;
             direct_convergence.push((paths as f64, secs, truths[0].error(&p)?.all));
         }
 

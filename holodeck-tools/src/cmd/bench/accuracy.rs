@@ -174,17 +174,7 @@ impl AccuracyBench {
 
     /// A direct render of `paths` paths (rounded to whole samples per pixel).
     fn direct(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
-        let pixels = u64::from(self.width) * u64::from(self.height);
-        let spp = (paths as f64 / pixels as f64).round().max(1.0) as u32;
-        let o = RenderOptions {
-            width: self.width,
-            height: self.height,
-            spp,
-            seed,
-        };
-        let start = Instant::now();
-        let p = render(tracer, view, &o, &|_, _| {})?;
-        Ok((p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels))
+        crate::truth::direct_render(tracer, view, (self.width, self.height), paths, seed)
     }
 
     /// A fresh holodeck filled with `paths` rays for `view`, then its picture.
