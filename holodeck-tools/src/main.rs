@@ -75,6 +75,8 @@ enum Command {
     Export(cmd::export::Args),
     /// Write the section grids as an OBJ line mesh for any 3D viewer.
     Grid(cmd::grid::Args),
+    /// Speed against accuracy, drawn: error by paths and time, a walkthrough, LOD, grid resolution, scene memory.
+    Chart(cmd::chart::Args),
     /// Benchmarks, each beside a baseline measured in the same run; `all` runs them all and `compare` diffs two runs.
     Bench(cmd::bench::Args),
     /// Generate built-in scenes and inspect scene files.
@@ -137,6 +139,7 @@ fn main() -> ExitCode {
         Command::Export(a) => cmd::export::run(a),
         Command::Grid(a) => cmd::grid::run(a),
         Command::Bench(a) => cmd::bench::run(a),
+        Command::Chart(a) => cmd::chart::run(a),
         Command::Scene(a) => cmd::scene::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Fill(a) => cmd::fill::run(a),

@@ -3,6 +3,7 @@
 pub mod admin;
 pub mod args;
 pub mod bench;
+pub mod chart;
 pub mod check;
 pub mod compare;
 pub mod copy;

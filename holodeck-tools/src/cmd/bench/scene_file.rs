@@ -189,7 +189,18 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     // The file assembled in memory, as samplers do when every block fits.
     let (mesh, assembled, report) = OocScene::open(&path, None, 0)?.in_core()?;
     let mut assembled_rows = Vec::new();
-    for (label, rays) in [("primary", &prim), ("diffuse bounce", &bounce)] {
+    // The bounce rays again, sorted by estimated hit point (Moon 2010; the
+    // in-core tree's coarse grid stands in for the coarse level).
+    let sorted: Vec<Ray> = tree
+        .hit_point_order(&bounce)
+        .into_iter()
+        .map(|i| bounce[i as usize])
+        .collect();
+    for (label, rays) in [
+        ("primary", &prim),
+        ("diffuse bounce", &bounce),
+        ("diffuse bounce, sorted by hit point", &sorted),
+    ] {
         let (mut cold_curve, mut warm_curve) = (Vec::new(), Vec::new());
         let in_core = || {
             let t = Instant::now();
