@@ -448,10 +448,10 @@ impl Demo {
             &self.out.join("chart-error-vs-paths-and-time"),
             &[
                 Panel {
-                    title: format!(
-                        "First view: error against paths (the holodeck's serve {} views)",
-                        self.views
-                    ),
+                    title: match self.views {
+                        1 => "One view: error against paths".to_string(),
+                        n => format!("First view: error against paths (the holodeck's rays serve all {n} views)"),
+                    },
                     x_label: "million paths (holodeck: rays in the file)".into(),
                     y_label: "relative RMSE".into(),
                     series: by_paths,
