@@ -37,37 +37,30 @@ pub struct FillOptions {
 pub struct ViewFill {
     /// (beam, view rays in it), over all the views.
     pub seen: Vec<(BeamKey, u32)>,
-    /// How to choose each beam's rays: near the eye of the view that sees
-    /// the beam most (Appendix A), or uniformly.
-    pub modes: HashMap<BeamKey, SamplingMode>,
+    /// How to choose each beam's rays: near the eye of each view that sees
+    /// it (Appendix A), with the view rays it has there; none: uniformly.
+    pub modes: HashMap<BeamKey, Vec<(SamplingMode, u32)>>,
 }
 
 impl ViewFill {
     /// The beams `views` see in `sections`, one view ray per `stride` pixels
     /// of a 256 x 192 frame; new rays pass within `eye_radius` (a fraction
-    /// of the smallest section diagonal) of the eye that sees their beam
-    /// most, or anywhere in it for 0.
+    /// of the smallest section diagonal) of the eyes that see their beam, or
+    /// anywhere in it for 0.
     pub fn new(sections: &[Section], views: &[View], eye_radius: f64) -> ViewFill {
         let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
         let radius = eye_radius * smallest;
         let mut fill = ViewFill::default();
-        let mut best: HashMap<BeamKey, u32> = HashMap::new();
         for (i, v) in views.iter().enumerate() {
             let counts = ViewBeams::select(sections, v, 256, 192, i as u64).counts;
             if radius > 0.0 && radius.is_finite() {
+                let near = SamplingMode::NearEye {
+                    eye: v.position.to_array(),
+                    radius,
+                    frustum: v.frustum(),
+                };
                 for &(k, n) in &counts {
-                    let b = best.entry(k).or_insert(0);
-                    if n > *b {
-                        *b = n;
-                        fill.modes.insert(
-                            k,
-                            SamplingMode::NearEye {
-                                eye: v.position.to_array(),
-                                radius,
-                                frustum: v.frustum(),
-                            },
-                        );
-                    }
+                    fill.modes.entry(k).or_default().push((near, n));
                 }
             }
             fill.seen.extend(counts);
@@ -75,9 +68,26 @@ impl ViewFill {
         fill
     }
 
-    /// How to choose the rays of `key`.
-    pub fn mode(&self, key: BeamKey) -> SamplingMode {
-        self.modes.get(&key).copied().unwrap_or(SamplingMode::Uniform)
+    /// How to choose the rays of the `visit`th packet of `key`. A beam seen
+    /// by several views takes its packets near each view's eye in turn, in
+    /// proportion to the view rays each has in it: rays traced for another
+    /// eye a step away see a glossy or glass surface from there, and a view
+    /// made only of those shows highlights where its own eye sees none.
+    pub fn mode(&self, key: BeamKey, visit: u64) -> SamplingMode {
+        let Some(eyes) = self.modes.get(&key) else {
+            return SamplingMode::Uniform;
+        };
+        let total: u64 = eyes.iter().map(|e| u64::from(e.1)).sum();
+        // The golden-ratio sequence spreads the turns evenly at any count.
+        let x = ((visit as f64 * 0.618_033_988_749_895).fract() * total as f64) as u64;
+        let mut below = 0u64;
+        for &(mode, n) in eyes {
+            below += u64::from(n);
+            if x < below {
+                return mode;
+            }
+        }
+        eyes.last().map_or(SamplingMode::Uniform, |e| e.0)
     }
 }
 
@@ -123,6 +133,8 @@ pub fn fill(
     let start = Instant::now();
     let mut report = FillReport::default();
     let mut round = 0u64;
+    // Packets traced so far of each beam (see [`ViewFill::mode`]).
+    let mut visits: HashMap<BeamKey, u64> = HashMap::new();
     loop {
         if o.rays.is_some_and(|n| report.rays >= n) || o.time.is_some_and(|t| start.elapsed() >= t) {
             break;
@@ -147,7 +159,18 @@ pub fn fill(
             budget -= u64::from(keep);
         }
         batch.retain(|b| b.1 > 0);
-        let mode = |k: BeamKey| o.views.as_ref().map_or(SamplingMode::Uniform, |v| v.mode(k));
+        let modes: HashMap<BeamKey, SamplingMode> = match &o.views {
+            Some(v) => batch
+                .iter()
+                .map(|&(k, _)| {
+                    let n = visits.entry(k).or_insert(0u64);
+                    *n += 1;
+                    (k, v.mode(k, *n - 1))
+                })
+                .collect(),
+            None => HashMap::new(),
+        };
+        let mode = |k: BeamKey| modes.get(&k).copied().unwrap_or(SamplingMode::Uniform);
         let traced = trace_batch(
             tracer,
             &sections,
@@ -173,4 +196,111 @@ pub fn fill(
     report.beams = summary.sections.iter().map(|s| u64::from(s.0)).sum();
     report.beams_filled = summary.sections.iter().map(|s| u64::from(s.1)).sum();
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn eye(x: f32) -> SamplingMode {
+        SamplingMode::NearEye {
+            eye: [f64::from(x), 0.0, 0.0],
+            radius: 0.01,
+            frustum: None,
+        }
+    }
+
+    /// A beam seen by two views, with three and one view rays: its packets
+    /// go near each eye in turn, three to one, whatever the count so far.
+    #[test]
+    fn a_shared_beam_takes_packets_near_each_eye_by_its_share() {
+        let k = BeamKey::new(0, 7);
+        let mut fill = ViewFill::default();
+        fill.modes.insert(k, vec![(eye(1.0), 3), (eye(2.0), 1)]);
+        for visits in [4u64, 40, 400] {
+            let first = (0..visits).filter(|&v| fill.mode(k, v) == eye(1.0)).count() as u64;
+            let second = (0..visits).filter(|&v| fill.mode(k, v) == eye(2.0)).count() as u64;
+            assert_eq!(first + second, visits);
+            assert!(first.abs_diff(visits * 3 / 4) <= 1 + visits / 50, "{first} of {visits}");
+        }
+        // A beam no view sees is sampled uniformly.
+        assert_eq!(fill.mode(BeamKey::new(0, 8), 0), SamplingMode::Uniform);
+    }
+
+    /// Two views 15 cm apart share most of their beams: after a fill for
+    /// both, each finds rays passing within a millimetre of its own eye in
+    /// every shared beam, about as many as the other (a fill that sent each
+    /// beam's rays near one eye left the other view with the first's rays,
+    /// 15 cm off, which show a glossy surface as seen from there).
+    #[test]
+    fn views_that_share_beams_each_get_rays_near_their_own_eye() {
+        use holodeck_server::{OpenOptions, Settings};
+        let input = crate::cmd::scene_input::SceneInput::open("builtin:room", None, None).unwrap();
+        let sections = input.sections().to_vec();
+        let tracer = input.tracer(holodeck_sampler::TraceOptions {
+            max_bounces: 0,
+            ..holodeck_sampler::TraceOptions::default()
+        });
+        let views: Vec<View> = ["1.5 2 1.5", "1.65 2 1.5"]
+            .iter()
+            .map(|p| View::parse(&format!("-vtv -vp {p} -vd 1 0.2 -0.1 -vu 0 0 1 -vh 60 -vv 45")).unwrap())
+            .collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("walk.hdk");
+        let settings = Settings {
+            sections: sections.clone(),
+            ..Settings::default()
+        };
+        HoloFile::create(&path, &settings).unwrap();
+        let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
+        let views_fill = ViewFill::new(
+            &sections,
+            &views,
+            holodeck_display::request::RequestOptions::default().eye_radius,
+        );
+        let shared: Vec<BeamKey> = views_fill
+            .modes
+            .iter()
+            .filter(|(_, eyes)| eyes.len() == 2 && eyes.iter().all(|e| e.1 >= 4))
+            .map(|(k, _)| *k)
+            .collect();
+        assert!(shared.len() > 50, "{} shared beams", shared.len());
+        let o = FillOptions {
+            rays: Some(40_000),
+            time: None,
+            packet: 8,
+            batch: 1024,
+            seed: 3,
+            views: Some(views_fill),
+        };
+        fill(&tracer, &mut file, &o, &|_| {}).unwrap();
+        let decoder = holodeck_display::SampleDecoder::new(sections);
+        // Per shared beam of eight rays or more: rays near each eye.
+        let (mut both, mut beams, mut near_all) = (0u32, 0u32, [0u64; 2]);
+        file.read_beams(&shared, |k, rays| {
+            let mut near = [0u64; 2];
+            for s in decoder.samples(k.section, k.beam, rays).into_iter().flatten() {
+                for (n, v) in near.iter_mut().zip(&views) {
+                    let to_eye = v.position - s.origin;
+                    if (to_eye - s.direction * to_eye.dot(s.direction)).length() < 0.001 {
+                        *n += 1;
+                    }
+                }
+            }
+            if rays.len() >= 8 {
+                beams += 1;
+                both += u32::from(near[0] > 0 && near[1] > 0);
+            }
+            near_all[0] += near[0];
+            near_all[1] += near[1];
+        })
+        .unwrap();
+        assert!(beams > 20, "{beams} shared beams of eight rays");
+        assert!(
+            both * 10 >= beams * 8,
+            "{both} of {beams} shared beams hold rays near both eyes"
+        );
+        let (a, b) = (near_all[0] as f64, near_all[1] as f64);
+        assert!(a.min(b) > 0.5 * a.max(b), "rays near each eye: {near_all:?}");
+    }
 }

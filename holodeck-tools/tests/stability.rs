@@ -20,6 +20,32 @@ use holodeck_sampler::{Material, SceneBuilder, TraceOptions, Tracer};
 
 const ROOM_VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";
 
+/// Runs `holodeck` with `args`, which must succeed; what it printed.
+fn ok(args: &[&str]) -> String {
+    let o = holodeck(args);
+    assert!(o.status.success(), "{args:?}: {}", text(&o));
+    text(&o)
+}
+
+/// Adds `rays` primary rays of the built-in room to `file`.
+fn fill_room(file: &std::path::Path, rays: &str) {
+    ok(&[
+        "fill",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--rays",
+        rays,
+        "--bounces",
+        "0",
+    ]);
+}
+
+/// Draws the room's view from `file` at 48 x 36 into `out`; what `pict` printed.
+fn pict_room(file: &std::path::Path, out: &std::path::Path) -> String {
+    let (file, out) = (file.to_str().unwrap(), out.to_str().unwrap());
+    ok(&["pict", file, "--view", ROOM_VIEW, "-x", "48", "-y", "36", "-o", out])
+}
+
 fn room_section(grid: [u16; 3]) -> Section {
     Section::new(
         [0.0; 3],
@@ -193,11 +219,6 @@ fn one_cell_and_very_fine_grids() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
     let size = ["-x", "48", "-y", "36"];
-    let ok = |args: &[&str]| {
-        let o = holodeck(args);
-        assert!(o.status.success(), "{args:?}: {}", text(&o));
-        text(&o)
-    };
     ok(&[
         &[
             "render",
@@ -280,33 +301,20 @@ fn one_cell_and_very_fine_grids() {
 fn empty_beams_and_a_beam_of_one_ray() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("one.hdk");
-    let o = holodeck(&[
+    ok(&[
         "create",
         file.to_str().unwrap(),
         "--section",
         "interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5 grid=24,16,10",
     ]);
-    assert!(o.status.success(), "{}", text(&o));
     let out = dir.path().join("empty.hdr");
-    let o = holodeck(&[
-        "pict",
-        file.to_str().unwrap(),
-        "--view",
-        ROOM_VIEW,
-        "-x",
-        "48",
-        "-y",
-        "36",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    let printed = pict_room(&file, &out);
     let empty = holodeck_display::image_io::read_picture(&out).unwrap();
     assert!(
         empty.pixels.iter().all(|p| *p == glam::Vec3::ZERO),
         "an empty holodeck draws black"
     );
-    assert!(text(&o).contains("0 samples"), "{}", text(&o));
+    assert!(printed.contains("0 samples"), "{printed}");
 
     // One ray in every beam the view sees: each lights the pixels its
     // ray reaches, and no more than its share.
@@ -328,19 +336,7 @@ fn empty_beams_and_a_beam_of_one_ray() {
         f.close().unwrap();
     }
     let out = dir.path().join("one.hdr");
-    let o = holodeck(&[
-        "pict",
-        file.to_str().unwrap(),
-        "--view",
-        ROOM_VIEW,
-        "-x",
-        "48",
-        "-y",
-        "36",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    pict_room(&file, &out);
     let one = holodeck_display::image_io::read_picture(&out).unwrap();
     let lit = one.pixels.iter().filter(|p| p.max_element() > 0.0).count();
     println!(
@@ -561,16 +557,7 @@ fn cocircular_duplicate_and_non_finite_samples() {
 fn a_client_sending_random_bytes_is_dropped_and_the_rest_go_on() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "5K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    fill_room(&file, "5K");
     let mut server = Proc::start(
         std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))
             .args([
@@ -662,16 +649,7 @@ fn rays_in(file: &std::path::Path) -> u64 {
 fn a_sampler_killed_mid_packet_costs_its_packets_and_a_timeout() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "1K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    fill_room(&file, "1K");
     let (mut server, addr) = serve(&file, &["--stall-timeout", "2s", "--report", "1s"]);
     let mut first = sampler(&addr);
     // Working: the server reports rays stored beyond the first thousand.
@@ -695,8 +673,7 @@ fn a_sampler_killed_mid_packet_costs_its_packets_and_a_timeout() {
     holodeck_protocol::wire::client::send_control(&addr, "secret", holodeck_protocol::wire::Control::Quit).unwrap();
     assert!(server.wait().success(), "{}", server.text());
     let _ = second.wait();
-    let check = holodeck(&["check", file.to_str().unwrap()]);
-    assert!(check.status.success(), "{}", text(&check));
+    ok(&["check", file.to_str().unwrap()]);
     assert!(rays_in(&file) >= after, "{} stored, {after} reported", rays_in(&file));
 }
 
@@ -709,16 +686,7 @@ fn a_display_that_never_reads_holds_up_only_itself() {
     use holodeck_protocol::wire::{client, Frame, Message, Role};
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "200K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    fill_room(&file, "200K");
     let scene = holodeck_server::HoloFile::open(&file, &holodeck_server::OpenOptions::read_only())
         .unwrap()
         .settings()
@@ -805,16 +773,7 @@ fn a_display_that_never_reads_holds_up_only_itself() {
 fn a_server_killed_mid_write_keeps_its_last_flush() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "1K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    fill_room(&file, "1K");
     let (mut server, addr) = serve(&file, &["--report", "1s"]);
     let mut work = sampler(&addr);
     let durable = |l: &str| -> Option<u64> {
@@ -839,23 +798,13 @@ fn a_server_killed_mid_write_keeps_its_last_flush() {
         .next_back()
         .unwrap_or(flushed);
     work.kill();
-    let check = holodeck(&["check", file.to_str().unwrap()]);
-    assert!(check.status.success(), "{}", text(&check));
+    ok(&["check", file.to_str().unwrap()]);
     let kept = rays_in(&file);
     println!(
         "{flushed} rays durable at the last flush, {stored} reported stored before the kill, {kept} in the file after it"
     );
     assert!(kept >= flushed, "a flushed ray was lost: {kept} < {flushed}");
     // The file takes writes again.
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "2K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    fill_room(&file, "2K");
     assert_eq!(rays_in(&file), kept + 2_000);
 }

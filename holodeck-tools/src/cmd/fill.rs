@@ -60,8 +60,9 @@ pub struct Args {
     /// Fill only the beams these views see (a file of Radiance views, one per line).
     #[arg(long)]
     views: Option<PathBuf>,
-    /// With --views: new rays pass this near the eye of the view that sees their beam
-    /// most, as a fraction of the section diagonal (0: anywhere in the beam).
+    /// With --views: new rays pass this near the eyes of the views that see their beam
+    /// (each in turn, by its share of the beam), as a fraction of the section diagonal
+    /// (0: anywhere in the beam).
     #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = super::args::non_negative)]
     eye_radius: f64,
     /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).

@@ -482,7 +482,8 @@ impl Demo {
                         points: walk_direct.to_vec(),
                     },
                 ],
-                legend: SeriesLabelPosition::UpperRight,
+                // Neither curve starts near zero error: the legend goes there.
+                legend: SeriesLabelPosition::LowerLeft,
             }],
         )?;
         Ok(())
