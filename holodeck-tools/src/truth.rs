@@ -97,6 +97,28 @@ fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
     out
 }
 
+/// A walk of `n` views from `v`: each a `step` metres further along the
+/// view's horizontal direction and turned `turn` degrees left about the
+/// vertical, as someone walking and looking around.
+pub fn walk(v: &View, n: usize, step: f64, turn: f64) -> Vec<View> {
+    let flat = glam::DVec3::new(v.direction.x, v.direction.y, 0.0).normalize_or_zero();
+    (0..n)
+        .map(|i| {
+            let (s, c) = (turn * i as f64).to_radians().sin_cos();
+            let d = glam::DVec3::new(
+                v.direction.x * c - v.direction.y * s,
+                v.direction.x * s + v.direction.y * c,
+                v.direction.z,
+            );
+            View {
+                position: v.position + flat * (step * i as f64),
+                direction: d.normalize(),
+                ..v.clone()
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -558,21 +558,7 @@ fn a_client_sending_random_bytes_is_dropped_and_the_rest_go_on() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
     fill_room(&file, "5K");
-    let mut server = Proc::start(
-        std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))
-            .args([
-                "serve",
-                file.to_str().unwrap(),
-                "--listen",
-                "127.0.0.1:0",
-                "--token",
-                "secret",
-            ])
-            .env("HOLODECK_LOG", "info"),
-    );
-    let addr = server.wait_line("the address", &mut 0, |l| {
-        l.strip_prefix("listening on ").map(str::to_string)
-    });
+    let (mut server, addr) = serve(&file, &[]);
     let mut rng = holodeck_sampler::Rng::new(9, 9);
     for _ in 0..5 {
         let mut s = std::net::TcpStream::connect(&addr).unwrap();

@@ -91,23 +91,12 @@ impl Demo {
     /// The walk: from the first view, 12 cm a step along the view's
     /// direction, turning 3 degrees a step.
     pub fn walk(&self) -> Result<Vec<View>> {
-        let v = View::parse(FIRST_VIEW)?;
-        let flat = glam::DVec3::new(v.direction.x, v.direction.y, 0.0).normalize_or_zero();
-        Ok((0..self.views.max(1))
-            .map(|i| {
-                let (s, c) = (3.0 * i as f64).to_radians().sin_cos();
-                let d = glam::DVec3::new(
-                    v.direction.x * c - v.direction.y * s,
-                    v.direction.x * s + v.direction.y * c,
-                    v.direction.z,
-                );
-                View {
-                    position: v.position + flat * (0.12 * i as f64),
-                    direction: d.normalize(),
-                    ..v.clone()
-                }
-            })
-            .collect())
+        Ok(crate::truth::walk(
+            &View::parse(FIRST_VIEW)?,
+            self.views.max(1),
+            0.12,
+            3.0,
+        ))
     }
 
     fn viewport(&self, view: &View) -> Result<Viewport> {

@@ -310,24 +310,7 @@ impl AccuracyBench {
     /// The walk: `n` views from the single view's eye, 10 cm a step
     /// along its direction, turning 1.5 degrees a step.
     fn walk(&self, n: usize) -> Vec<View> {
-        let v = &self.view;
-        let flat = glam::DVec3::new(v.direction.x, v.direction.y, 0.0).normalize_or_zero();
-        (0..n)
-            .map(|i| {
-                let a = (1.5 * i as f64).to_radians();
-                let (s, c) = a.sin_cos();
-                let d = glam::DVec3::new(
-                    v.direction.x * c - v.direction.y * s,
-                    v.direction.x * s + v.direction.y * c,
-                    v.direction.z,
-                );
-                View {
-                    position: v.position + flat * (0.1 * i as f64),
-                    direction: d.normalize(),
-                    ..v.clone()
-                }
-            })
-            .collect()
+        crate::truth::walk(&self.view, n, 0.1, 1.5)
     }
 
     /// Part 2: the walkthrough, time to the target error per view, over
