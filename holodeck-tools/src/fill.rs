@@ -10,9 +10,17 @@ use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
 use holodeck_sampler::beam::trace_batch;
 use holodeck_sampler::shade::wavefront::AUTO_MIN_PATHS;
-use holodeck_sampler::Tracer;
+use holodeck_sampler::{Reorder, Tracer};
 use holodeck_server::schedule::BatchSchedule;
 use holodeck_server::HoloFile;
+
+/// Scenes whose in-core structure and mesh exceed this (a typical
+/// last-level cache) are filled in rounds large enough to sort.
+const LARGE_SCENE_BYTES: usize = 32 << 20;
+
+/// Paths in a round of such a scene: enough for four cores to sort their
+/// shares ([`AUTO_MIN_PATHS`] each, twice over).
+const LARGE_ROUND_PATHS: usize = 4 * 2 * AUTO_MIN_PATHS;
 
 /// When to stop, and how work is cut up.
 #[derive(Clone, Debug)]
@@ -120,21 +128,20 @@ pub fn fill(
         Some(v) => BatchSchedule::for_views(&sections, &v.seen, stored),
         None => BatchSchedule::new(&sections, stored)?,
     };
-    // A scene larger than the caches gets rounds big enough for every core
-    // to sort its share of the paths (the samples are the same whether or
-    // not they are sorted; the rounds depend on the scene alone).
-    let round_beams = if tracer.exceeds_cache() {
-        let paths = 2 * AUTO_MIN_PATHS * rayon::current_num_threads().max(1);
+    // A scene larger than a typical cache gets rounds big enough for the
+    // cores to sort their shares of the paths. Which rays a seed gives
+    // depends on the rounds, so they follow the scene and the options
+    // alone, never this machine's cache or cores; whether the cores then
+    // sort changes nothing in the records.
+    let round_beams = if tracer.options.reorder != Reorder::Off && tracer.in_core_bytes() > LARGE_SCENE_BYTES {
         let per_beam = o.packet.max(1) as usize * tracer.options.samples.max(1) as usize;
-        o.batch.max(paths.div_ceil(per_beam))
+        o.batch.max(LARGE_ROUND_PATHS.div_ceil(per_beam))
     } else {
         o.batch
     };
     let start = Instant::now();
     let mut report = FillReport::default();
     let mut round = 0u64;
-    // Packets traced so far of each beam (see [`ViewFill::mode`]).
-    let mut visits: HashMap<BeamKey, u64> = HashMap::new();
     loop {
         if o.rays.is_some_and(|n| report.rays >= n) || o.time.is_some_and(|t| start.elapsed() >= t) {
             break;
@@ -159,14 +166,13 @@ pub fn fill(
             budget -= u64::from(keep);
         }
         batch.retain(|b| b.1 > 0);
+        // A beam's packets so far, from what the file holds: the turns
+        // between eyes go on across fills.
+        let packet = u64::from(o.packet.max(1));
         let modes: HashMap<BeamKey, SamplingMode> = match &o.views {
             Some(v) => batch
                 .iter()
-                .map(|&(k, _)| {
-                    let n = visits.entry(k).or_insert(0u64);
-                    *n += 1;
-                    (k, v.mode(k, *n - 1))
-                })
+                .map(|&(k, _)| (k, v.mode(k, file.beam_len(k).unwrap_or(0) / packet)))
                 .collect(),
             None => HashMap::new(),
         };

@@ -4,7 +4,7 @@
 
 use anyhow::Result;
 use holodeck_display::compare::{relative_rmse, relative_rmse_masked, ssim};
-use holodeck_display::tonemap::{Histogram, ToneMap, ToneMode};
+use holodeck_display::tonemap::{ToneMap, ToneMode};
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, silhouettes, RenderOptions};
 use holodeck_sampler::Tracer;
@@ -40,9 +40,15 @@ impl Truth {
         let edges = silhouettes(tracer, view, w as u32, h as u32, 1.1)?;
         Ok(Truth {
             band: dilate(&edges, w, h),
-            tone: ToneMap::new(&Histogram::from_picture(&picture), ToneMode::Camera, Default::default()),
+            tone: ToneMap::from_picture(&picture, ToneMode::Camera),
             picture,
         })
+    }
+
+    /// The relative RMSE of `p` over the frame: [`Truth::error`]'s `all`
+    /// without the rest, for loops that need no more.
+    pub fn rmse(&self, p: &Picture) -> Result<f64> {
+        Ok(relative_rmse(p, &self.picture)?)
     }
 
     /// The error of `p` against the reference.
@@ -53,6 +59,18 @@ impl Truth {
             ssim: ssim(p, &self.picture, &self.tone),
         })
     }
+}
+
+/// A converged reference of `view`: `spp` samples per pixel at `size`,
+/// with the random sequence `seed`.
+pub fn reference(tracer: &Tracer, view: &View, size: (u32, u32), spp: u32, seed: u64) -> Result<Picture> {
+    let o = RenderOptions {
+        width: size.0,
+        height: size.1,
+        spp,
+        seed,
+    };
+    Ok(render(tracer, view, &o, &|_, _| {})?)
 }
 
 /// A direct render of `view` at `width` x `height` with about `paths`
@@ -68,14 +86,8 @@ pub fn direct_render(
 ) -> Result<(Picture, f64, u64)> {
     let pixels = u64::from(width) * u64::from(height);
     let spp = (paths as f64 / pixels as f64).round().max(1.0) as u32;
-    let o = RenderOptions {
-        width,
-        height,
-        spp,
-        seed,
-    };
     let start = std::time::Instant::now();
-    let p = render(tracer, view, &o, &|_, _| {})?;
+    let p = reference(tracer, view, (width, height), spp, seed)?;
     Ok((p, start.elapsed().as_secs_f64(), u64::from(spp) * pixels))
 }
 

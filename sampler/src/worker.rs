@@ -11,7 +11,7 @@ use holodeck_protocol::wire::{Frame, FrameLink, LinkError, Message, Role, TraceP
 use holodeck_protocol::SectionError;
 
 use crate::beam::{trace_tasks, BeamTask, FileRules};
-use crate::shade::{Reorder, Rng, Tracer};
+use crate::shade::{Rng, Tracer};
 
 /// Why a worker stopped.
 #[derive(Debug, thiserror::Error)]
@@ -83,13 +83,10 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
     // asked for); elsewhere
     // one packet at a time, so results go back as soon as each is done. The
     // records are the same either way.
-    let gather = if tracer.exceeds_cache() || !matches!(tracer.options.reorder, Reorder::Auto | Reorder::Off) {
-        GATHER_RAYS
-    } else {
-        0
-    };
+    let gather = if tracer.may_reorder(usize::MAX) { GATHER_RAYS } else { 0 };
     'session: loop {
         let mut packets: Vec<TracePacket> = Vec::new();
+        let mut gathered = 0u64;
         let mut frame = match link.read() {
             Ok(Some(f)) => f,
             Ok(None) => break,
@@ -99,7 +96,10 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
         };
         loop {
             match frame {
-                Frame::Message(Message::Trace(p)) => packets.push(p),
+                Frame::Message(Message::Trace(p)) => {
+                    gathered += u64::from(p.rays);
+                    packets.push(p);
+                }
                 Frame::Message(Message::Error { message }) => tracing::warn!("server: {message}"),
                 Frame::Message(Message::Refused { reason, retry }) => {
                     if retry {
@@ -115,7 +115,6 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
                 }
                 _ => return Err(WorkerError::Protocol("expected trace packets".into())),
             }
-            let gathered: u64 = packets.iter().map(|p| u64::from(p.rays)).sum();
             if gathered >= gather {
                 break;
             }

@@ -189,20 +189,16 @@ impl Demo {
             "holodeck demo: the furnished room with {} triangles of terrain and forest outside its window",
             count(self.triangles)
         );
-        let scene = crate::cmd::render::load(SCENE, Some(self.triangles))?;
-        let tracer = Tracer::new(scene, TraceOptions::default());
+        let hdk = self.out.join("demo.hdk");
+        let (input, mut file) = crate::cmd::fill::prepare(SCENE, &hdk, Some(self.triangles), None, false)?;
+        let tracer = input.tracer(TraceOptions::default());
 
         // References first: every picture below is measured against them.
         let bar = crate::progress::count_bar("rendering the reference views", views.len() as u64);
         let mut truths = Vec::with_capacity(views.len());
         for (i, v) in views.iter().enumerate() {
-            let o = RenderOptions {
-                width: self.width,
-                height: self.height,
-                spp: self.reference_spp,
-                seed: 0x005e_ed0f_7e57 + i as u64,
-            };
-            let picture = render(&tracer, v, &o, &|_, _| {})?;
+            let size = (self.width, self.height);
+            let picture = crate::truth::reference(&tracer, v, size, self.reference_spp, 0x005e_ed0f_7e57 + i as u64)?;
             truths.push(Truth::new(&tracer, v, picture)?);
             bar.inc(1);
         }
@@ -211,10 +207,15 @@ impl Demo {
 
         // The holodeck, filled for the walk in stages; after each, the
         // first view is drawn by every driver (the convergence chart).
-        let hdk = self.out.join("demo.hdk");
-        let (_, mut file) = crate::cmd::fill::prepare(SCENE, &hdk, Some(self.triangles), None, false)?;
         let eye_radius = holodeck_display::request::RequestOptions::default().eye_radius;
-        let fill_views = ViewFill::new(file.sections(), &views, eye_radius);
+        let mut o = FillOptions {
+            rays: None,
+            time: None,
+            packet: 16,
+            batch: 4096,
+            seed: self.seed,
+            views: Some(ViewFill::new(file.sections(), &views, eye_radius)),
+        };
         let stages = [self.rays / 16, self.rays / 4, self.rays];
         let bar = crate::progress::rays_bar("filling the holodeck for the walk");
         bar.set_length(self.rays);
@@ -223,14 +224,8 @@ impl Demo {
         let mut convergence: Vec<Vec<Point>> = vec![Vec::new(); DRIVERS.len()];
         let mut failures: Vec<Option<String>> = vec![None; DRIVERS.len()];
         for (k, &stage) in stages.iter().enumerate() {
-            let o = FillOptions {
-                rays: Some(stage.saturating_sub(filled).max(1)),
-                time: None,
-                packet: 16,
-                batch: 4096,
-                seed: self.seed + k as u64,
-                views: Some(fill_views.clone()),
-            };
+            o.rays = Some(stage.saturating_sub(filled).max(1));
+            o.seed = self.seed + k as u64;
             let base = filled;
             let report = fill(&tracer, &mut file, &o, &|n| bar.set_position(base + n))?;
             filled += report.rays;
@@ -257,7 +252,7 @@ impl Demo {
         for (k, &stage) in stages.iter().enumerate() {
             let (p, secs, paths) =
                 crate::truth::direct_render(&tracer, &views[0], (self.width, self.height), stage, 77 + k as u64)?;
-            direct_convergence.push((paths as f64, secs, truths[0].error(&p)?.all));
+            direct_convergence.push((paths as f64, secs, truths[0].rmse(&p)?));
         }
 
         // Every view, every driver: frames and totals.

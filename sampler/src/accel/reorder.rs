@@ -32,21 +32,21 @@ impl KdTree {
     /// Nearest hits of a batch of rays, traced in `order`; the hits are in
     /// the rays' order and equal those of [`KdTree::intersect`] on each ray.
     pub fn intersect_batch(&self, rays: &[Ray], order: RayOrder) -> Vec<Option<Hit>> {
-        match order {
-            RayOrder::AsGiven => rays.iter().map(|r| self.intersect(r)).collect(),
-            RayOrder::HitPoint | RayOrder::Origin => {
-                let order = if order == RayOrder::Origin {
-                    self.origin_order(rays)
-                } else {
-                    self.hit_point_order(rays)
-                };
-                let mut out = vec![None; rays.len()];
-                for i in order {
-                    out[i as usize] = self.intersect(&rays[i as usize]);
-                }
-                out
-            }
+        self.in_order(rays, order, |r| self.intersect(r))
+    }
+
+    /// `f` of every ray, called in `order`, returned in the rays' order.
+    pub fn in_order<T: Default + Clone>(&self, rays: &[Ray], order: RayOrder, mut f: impl FnMut(&Ray) -> T) -> Vec<T> {
+        let sorted = match order {
+            RayOrder::AsGiven => return rays.iter().map(f).collect(),
+            RayOrder::HitPoint => self.hit_point_order(rays),
+            RayOrder::Origin => self.origin_order(rays),
+        };
+        let mut out = vec![T::default(); rays.len()];
+        for i in sorted {
+            out[i as usize] = f(&rays[i as usize]);
         }
+        out
     }
 
     /// The indices of `rays` sorted by the Z-curve key of their estimated hit

@@ -22,7 +22,7 @@ use crate::shade::{batch_seed, FirstHits, Rng, SeededRay, Tracer};
 /// One beam's share of a batch: `rays` rays of `beam`, chosen as `mode`
 /// says with `rng`, which then seeds their paths.
 #[derive(Clone, Debug)]
-pub struct BeamTask<'a> {
+pub(crate) struct BeamTask<'a> {
     /// The beam's section.
     pub section: &'a Section,
     /// The beam.
@@ -74,13 +74,53 @@ fn choose(mut task: BeamTask<'_>) -> Result<Chosen<'_>, SectionError> {
 /// as [`FirstHits::Measured`] finds them; paths as the tracer's options
 /// order them): each task's records, or why its beam could not be sampled.
 /// Samples only unreadable scene-file blocks could have traced are left out.
-pub fn trace_tasks(
+pub(crate) fn trace_tasks(
     tracer: &Tracer,
     rules: FileRules,
     tasks: Vec<BeamTask<'_>>,
 ) -> Vec<Result<Vec<RayRecord>, SectionError>> {
+    // A beam's rays run between one pair of cells; whether that is coherent
+    // enough for packets to pay, the times tell.
+    trace_chosen(
+        tracer,
+        rules,
+        tasks.into_iter().map(choose).collect(),
+        FirstHits::Measured,
+    )
+}
+
+/// Traces `samples` of one beam of `section` under `rules`, their paths
+/// seeded from `rng`, first hits found as `first` says: the records, the
+/// same whatever `first` is.
+pub(crate) fn trace_beam_samples(
+    tracer: &Tracer,
+    section: &Section,
+    rules: FileRules,
+    samples: &[BeamSample],
+    first: FirstHits,
+    rng: &mut Rng,
+) -> Vec<RayRecord> {
+    let chosen = Chosen {
+        section,
+        starts: Vec::with_capacity(samples.len()),
+        samples: samples.to_vec(),
+        seed: batch_seed(rng),
+    };
+    trace_chosen(tracer, rules, vec![Ok(chosen)], first)
+        .pop()
+        .and_then(Result::ok)
+        .unwrap_or_default()
+}
+
+/// Traces chosen rays as one batch: sample `i` of a task draws its
+/// estimates from streams `i * samples ..` of the task's seed.
+fn trace_chosen(
+    tracer: &Tracer,
+    rules: FileRules,
+    mut chosen: Vec<Result<Chosen<'_>, SectionError>>,
+    first: FirstHits,
+) -> Vec<Result<Vec<RayRecord>, SectionError>> {
     let n = u64::from(tracer.options.samples.max(1));
-    let mut chosen: Vec<Result<Chosen, SectionError>> = tasks.into_iter().map(choose).collect();
     let mut rays: Vec<SeededRay> = Vec::new();
     for c in chosen.iter_mut().flatten() {
         for (i, s) in c.samples.iter().enumerate() {
@@ -94,11 +134,7 @@ pub fn trace_tasks(
             });
         }
     }
-    // A beam's rays run between one pair of cells; whether that is coherent
-    // enough for packets to pay, the times tell.
-    let mut traced = tracer
-        .trace_seeded(&rays, rules.vdistance, FirstHits::Measured)
-        .into_iter();
+    let mut traced = tracer.trace_seeded(&rays, rules.vdistance, first).into_iter();
     chosen
         .into_iter()
         .map(|c| {
@@ -116,7 +152,7 @@ pub fn trace_tasks(
 /// Rays traced as one task: beams asked for many rays are cut into pieces
 /// of this size, so that every core stays busy when a few beams get most of
 /// the rays (a display's requests go where its pixels need them).
-pub const TASK_RAYS: u32 = 256;
+pub(crate) const TASK_RAYS: u32 = 256;
 
 /// Traces a batch of (beam, rays) with all cores of the current rayon pool,
 /// choosing each beam's rays as `mode` says, one random sequence per piece
@@ -159,25 +195,25 @@ pub fn trace_batch(
         .par_chunks(group)
         .enumerate()
         .flat_map_iter(|(g, chunk)| {
-            let tasks: Vec<BeamTask> = chunk
+            // A beam its section lacks gets no task (and no rays).
+            let (at, tasks): (Vec<usize>, Vec<BeamTask>) = chunk
                 .iter()
                 .enumerate()
-                .filter_map(|(j, &(_, key, n))| {
-                    Some(BeamTask {
+                .filter_map(|(j, &(i, key, n))| {
+                    let task = BeamTask {
                         section: sections.get(key.section as usize)?,
                         beam: key.beam,
                         rays: n as usize,
                         mode: mode(key),
                         rng: Rng::new(seed, (g * group + j) as u64),
-                    })
+                    };
+                    Some((i, task))
                 })
-                .collect();
+                .unzip();
             let records = trace_tasks(tracer, rules, tasks);
-            chunk
-                .iter()
-                .filter(|&&(_, key, _)| (key.section as usize) < sections.len())
+            at.into_iter()
                 .zip(records)
-                .map(|(&(i, _, _), r)| (i, r.unwrap_or_default()))
+                .map(|(i, r)| (i, r.unwrap_or_default()))
                 .collect::<Vec<_>>()
         })
         .collect();

@@ -8,7 +8,8 @@
 mod batch;
 mod proximity;
 
-pub use batch::{trace_batch, trace_tasks, BeamTask, TASK_RAYS};
+pub use batch::trace_batch;
+pub(crate) use batch::{trace_tasks, BeamTask};
 pub use proximity::{proximity_rays, ProximityStats};
 
 use glam::{DVec3, Vec3};
@@ -131,10 +132,10 @@ fn encode(section: &Section, s: &BeamSample, start: f64, sample: &Sample) -> Ray
 }
 
 /// Traces beam samples into records, finding their first hits as `first`
-/// says (in core; out of core every ray walks alone), with the random
-/// numbers of [`trace_sample_under`] on each sample in turn: the records do
-/// not depend on `first`. Samples only unreadable scene-file blocks could
-/// have traced are left out.
+/// says (in core; out of core every ray walks alone), each sample's paths
+/// drawing from its own streams of one seed taken from `rng`: the records
+/// do not depend on `first`. Samples only unreadable scene-file blocks
+/// could have traced are left out.
 pub fn trace_samples(
     tracer: &Tracer,
     section: &Section,
@@ -143,14 +144,7 @@ pub fn trace_samples(
     first: FirstHits,
     rng: &mut Rng,
 ) -> Vec<RayRecord> {
-    let traced: Vec<(f64, Vec3, Vec3)> = samples.iter().map(|s| traced_ray(section, rules, s)).collect();
-    let rays: Vec<(Vec3, Vec3)> = traced.iter().map(|&(_, o, d)| (o, d)).collect();
-    tracer
-        .trace_rays(&rays, rules.vdistance, first, rng)
-        .into_iter()
-        .zip(samples.iter().zip(&traced))
-        .filter_map(|(sample, (s, &(start, _, _)))| Some(encode(section, s, start, &sample?)))
-        .collect()
+    batch::trace_beam_samples(tracer, section, rules, samples, first, rng)
 }
 
 #[cfg(test)]

@@ -228,9 +228,10 @@ impl Tracer {
             .materials
             .iter()
             .any(|m| matches!(m, Material::Glass { thin: true, .. }));
-        let in_core_bytes = match &bvh {
-            Some(b) => b.stats().bytes,
-            None => tree.stats().bytes,
+        let in_core_bytes = match (&bvh, &ooc) {
+            (_, Some(_)) => 0,
+            (Some(b), None) => b.stats().bytes,
+            (None, None) => tree.stats().bytes,
         } + scene.positions.len() * std::mem::size_of::<Vec3>()
             + scene.triangles.len() * std::mem::size_of::<crate::scene::Triangle>();
         Tracer {
@@ -426,7 +427,7 @@ impl Tracer {
             // The first segment sorted too: a batch of many beams' rays is
             // coherent within each beam only.
             let starts: Vec<Ray> = walk.iter().map(|w| w.1).collect();
-            let hits = self.in_order(&starts, order, |r| self.nearest(r, 0.0, &mut fetch));
+            let hits = self.tree.in_order(&starts, order, |r| self.nearest(r, 0.0, &mut fetch));
             let mut paths = Vec::with_capacity(walk.len() * n);
             let mut rngs = Vec::with_capacity(paths.capacity());
             let mut firsts = Vec::with_capacity(paths.capacity());

@@ -135,11 +135,6 @@ impl Tracer {
         }
     }
 
-    /// Whether [`Reorder::Auto`] sorts large batches now, by the times so far.
-    pub fn sorting_preferred(&self) -> bool {
-        self.path_order.preferred() == 0
-    }
-
     /// Whether the scene is in core and what rays walk through there (the
     /// structure and the mesh) is larger than the last-level cache: where
     /// [`Reorder::Auto`] sorts large batches, and callers gather them.
@@ -183,6 +178,7 @@ impl Tracer {
                 .flat_map(|(_, d)| d.shadows.iter().flatten().map(|s| s.0))
                 .collect();
             let mut seen = self
+                .tree
                 .in_order(&shadows, shadow_order, |r| self.visibility(*r, &mut fetch))
                 .into_iter();
             for (i, d) in &waiting {
@@ -193,28 +189,9 @@ impl Tracer {
             }
             live = next;
             let rays: Vec<Ray> = live.iter().map(|&i| paths[i as usize].ray).collect();
-            hits = self.in_order(&rays, order, |r| self.nearest(r, 0.0, &mut fetch));
+            hits = self.tree.in_order(&rays, order, |r| self.nearest(r, 0.0, &mut fetch));
         }
         paths.iter().map(Path::result).collect()
-    }
-
-    /// `f` of every ray, called in `order`, returned in the rays' order.
-    pub(super) fn in_order<T: Default + Clone>(
-        &self,
-        rays: &[Ray],
-        order: RayOrder,
-        mut f: impl FnMut(&Ray) -> T,
-    ) -> Vec<T> {
-        let sorted = match order {
-            RayOrder::AsGiven => return rays.iter().map(f).collect(),
-            RayOrder::HitPoint => self.tree.hit_point_order(rays),
-            RayOrder::Origin => self.tree.origin_order(rays),
-        };
-        let mut out = vec![T::default(); rays.len()];
-        for i in sorted {
-            out[i as usize] = f(&rays[i as usize]);
-        }
-        out
     }
 }
 

@@ -154,13 +154,8 @@ impl AccuracyBench {
                     self.reference_spp,
                     path.display()
                 );
-                let o = RenderOptions {
-                    width: self.width,
-                    height: self.height,
-                    spp: self.reference_spp,
-                    seed: 0x005e_ed0f_7e57,
-                };
-                let p = render(tracer, view, &o, &|_, _| {})?;
+                let size = (self.width, self.height);
+                let p = crate::truth::reference(tracer, view, size, self.reference_spp, 0x005e_ed0f_7e57)?;
                 write_hdr(&p, &path).with_context(|| format!("writing {}", path.display()))?;
                 p
             }
@@ -392,7 +387,7 @@ impl AccuracyBench {
                 };
                 secs += start.elapsed().as_secs_f64();
                 sum = Some(acc);
-                d_err = truth.error(&mean)?.all;
+                d_err = truth.rmse(&mean)?;
                 if d_err <= self.target {
                     break;
                 }
@@ -408,7 +403,7 @@ impl AccuracyBench {
                 let start = Instant::now();
                 let p = walker.driver.render();
                 h_secs += start.elapsed().as_secs_f64();
-                h_err = truth.error(&p)?.all;
+                h_err = truth.rmse(&p)?;
                 if h_err <= self.target || step == max_steps {
                     if self.keep && rows {
                         write_hdr(&p, &self.dir.join(format!("walk-{:02}-holodeck.hdr", i + 1)))?;
@@ -607,10 +602,10 @@ pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
     for r in 0..ctx.repeats {
         let seed = 1 + r as u64;
         let (p, secs, _) = bench.direct(&tracer, &bench.view, 250_000, seed)?;
-        direct.push(truth.error(&p)?.all);
+        direct.push(truth.rmse(&p)?);
         d_secs.push(secs);
         let (p, secs) = bench.holodeck(&tracer, &bench.view, 250_000, seed)?;
-        holodeck.push(truth.error(&p)?.all);
+        holodeck.push(truth.rmse(&p)?);
         h_secs.push(secs);
     }
     Ok(vec![

@@ -112,10 +112,6 @@ pub fn run(a: &Args) -> Result<ExitCode> {
             }
         }
     }
-    if !a.files.keep {
-        // Only what the benches made: the folder may hold references kept on purpose.
-        let _ = std::fs::remove_file(ctx.dir.join("all-storage.hdk"));
-    }
     print!("{}", table(&figures));
     if !failed.is_empty() {
         println!("\nFailed: {}.", failed.join(", "));

@@ -18,6 +18,7 @@ use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
 
+use super::row;
 use crate::cmd::render::ROOM_VIEW;
 use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
@@ -180,10 +181,6 @@ fn gpu_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
         coherent / random,
     );
     Ok(())
-}
-
-fn row(what: &str, result: String, baseline: String, ratio: f64) {
-    println!("| {what} | {result} | {baseline} | {ratio:.2} |");
 }
 
 /// Runs the benchmark: `samples` driver samples at 1024 x 768, and a

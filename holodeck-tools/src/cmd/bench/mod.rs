@@ -102,7 +102,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
 
 /// Peak resident memory of this process, and the current, in bytes (Linux).
 pub(crate) fn rss() -> (u64, u64) {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    rss_of("self")
+}
+
+/// Peak and current resident memory of process `pid` (a number or
+/// `self`), in bytes, from /proc (Linux; 0 where it cannot be read).
+pub(crate) fn rss_of(pid: &str) -> (u64, u64) {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
     let field = |name: &str| {
         status
             .lines()
@@ -113,6 +119,12 @@ pub(crate) fn rss() -> (u64, u64) {
             * 1024
     };
     (field("VmHWM:"), field("VmRSS:"))
+}
+
+/// One row of a bench's table: what, the result, the baseline beside it
+/// and their ratio.
+pub(crate) fn row(what: &str, result: String, baseline: String, ratio: f64) {
+    println!("| {what} | {result} | {baseline} | {ratio:.2} |");
 }
 
 /// Starts this process's peak resident memory over from the current

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use holodeck_protocol::wire::client::{self, ClientStream};
 use holodeck_protocol::wire::{Control, Frame, FrameLink, Message, Role, SamplingMode};
-use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind};
+use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::schedule::BatchSchedule;
 use holodeck_server::settings::Settings;
@@ -24,6 +24,7 @@ use holodeck_server::{HoloFile, OpenOptions};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+use super::row;
 use crate::human::count;
 use holodeck_sampler::beam::trace_batch;
 
@@ -54,10 +55,6 @@ pub(super) fn me() -> Result<Command> {
     Ok(Command::new(
         std::env::current_exe().context("finding the holodeck executable")?,
     ))
-}
-
-fn row(what: &str, result: String, baseline: String, ratio: f64) {
-    println!("| {what} | {result} | {baseline} | {ratio:.2} |");
 }
 
 /// The tracer alone on `threads` threads: batch-schedule beams of the room,
@@ -142,12 +139,7 @@ impl Peer {
 
 /// A test file: one room-sized section with `rays` random records.
 fn recall_file(path: &Path, rays: u64) -> Result<Section> {
-    let section = Section::new(
-        [0.0; 3],
-        [[6.5, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 2.0]],
-        [13, 10, 4],
-        SectionKind::Interior,
-    )?;
+    let section = super::storage::reference_section()?;
     let _ = std::fs::remove_file(path);
     HoloFile::create(
         path,
@@ -210,20 +202,6 @@ pub(super) fn quit(addr: &str, mut child: Child) -> Result<()> {
     client::send_control(addr, "bench", Control::Quit)?;
     child.wait()?;
     Ok(())
-}
-
-/// Resident and peak memory of a process, from /proc (KiB).
-fn memory(pid: u32) -> (u64, u64) {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
-    let field = |name: &str| {
-        status
-            .lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_whitespace().nth(1))
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(0)
-    };
-    (field("VmRSS:"), field("VmHWM:"))
 }
 
 /// Runs the benchmark.
@@ -297,7 +275,7 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
     let (server, addr) = serve(&path, &["--cache", "64M"])?;
     let pid = server.id();
     std::thread::sleep(Duration::from_millis(300));
-    let (rss0, _) = memory(pid);
+    let (_, rss0) = super::rss_of(&pid.to_string());
     let stop = Arc::new(AtomicBool::new(false));
     let traced = Arc::new(AtomicU64::new(0));
     let mut handles = Vec::new();
@@ -343,7 +321,7 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
     }
     let start = Instant::now();
     std::thread::sleep(Duration::from_secs_f64(seconds));
-    let (_, peak) = memory(pid);
+    let (peak, _) = super::rss_of(&pid.to_string());
     let secs = start.elapsed().as_secs_f64();
     let rays = traced.load(Ordering::Relaxed);
     stop.store(true, Ordering::Relaxed);
@@ -379,8 +357,8 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
     );
     row(
         "server peak memory during that run",
-        format!("{:.1} MiB", peak as f64 / 1024.0),
-        format!("after start {:.1} MiB; CACHE 64 MiB", rss0 as f64 / 1024.0),
+        format!("{:.1} MiB", peak as f64 / (1 << 20) as f64),
+        format!("after start {:.1} MiB; CACHE 64 MiB", rss0 as f64 / (1 << 20) as f64),
         peak as f64 / rss0.max(1) as f64,
     );
     if !keep {

@@ -20,8 +20,10 @@ use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
 use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
 
+use super::report::median;
 use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::human::{bytes, count};
+use holodeck_display::compare::relative_rmse;
 
 /// Arguments of `holodeck bench scene-file`.
 #[derive(clap::Args)]
@@ -98,22 +100,6 @@ fn trace_ooc(file: &OocScene, rays: &[Ray], want: &[Option<f32>]) -> (f64, usize
 
 /// Warm passes per budget, each beside an in-core pass.
 const REPEATS: usize = 5;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn relative_rmse(a: &Picture, reference: &Picture) -> f64 {
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    for (x, y) in a.pixels.iter().zip(&reference.pixels) {
-        for c in 0..3 {
-            num += f64::from(x[c] - y[c]).powi(2);
-            den += f64::from(y[c]).powi(2);
-        }
-    }
-    (num / den.max(1e-30)).sqrt()
-}
 
 /// Runs the benchmark on a landscape of `triangles` triangles, files in
 /// `dir`; writes charts of the results into `charts` if given.
@@ -223,7 +209,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
                 warm.push(w);
                 ratio.push(w / b);
             }
-            let (base, warm, ratio) = (median(base), median(warm), median(ratio));
+            let (base, warm, ratio) = (median(&base), median(&warm), median(&ratio));
             let st = file.cache().stats();
             println!(
                 "| {label}, {} | {:.2} M/s | {:.0}% ({}; {} resident) | {:.2} M/s | {:.2} M/s | {:.2} | {} |",
@@ -252,7 +238,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         assembled_rows.push(format!(
             "| {label}, {} | {:.2} | {wrong} |",
             count(rays.len() as u64),
-            median(ratio)
+            median(&ratio)
         ));
         budget_series.push(Series {
             name: format!("{label}, warm"),
@@ -326,7 +312,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     let (mut time_curve, mut error_curve, mut voxel_curve) = (Vec::new(), Vec::new(), Vec::new());
     for poe in [0.5, 1.0, 2.0, 4.0, 8.0] {
         let (p, t, _) = frame(poe)?;
-        let (error, voxels) = (relative_rmse(&p, &exact), voxel_hits(poe));
+        let (error, voxels) = (relative_rmse(&p, &exact)?, voxel_hits(poe));
         println!(
             "| {poe} | {t:.3} s | {:.2} | {error:.4} | {:.1}% |",
             t / exact_time,

@@ -37,7 +37,7 @@ pub struct Args {
 
 /// Runs `holodeck bench share`.
 pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
-    run(&a.files.dir, usize::from(a.samplers))?;
+    run(&a.files.dir, usize::from(a.samplers), a.files.keep)?;
     Ok(std::process::ExitCode::SUCCESS)
 }
 
@@ -148,7 +148,7 @@ impl Drop for Reap {
 
 /// One run: server, samplers, the greedy display (unless `!with_greedy`)
 /// alone for [`ALONE`], then the modest one until its request is met.
-fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize) -> Result<Outcome> {
+fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize, keep: bool) -> Result<Outcome> {
     let file = dir.join(format!("share-{share}.hdk"));
     let _ = std::fs::remove_file(&file);
     let o = me()?
@@ -237,8 +237,10 @@ fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize) -> Resu
     quit(&addr, server.take()?)?;
     let _ = sampler.take()?.wait();
     let _ = reader.join();
-    let _ = std::fs::remove_file(&file);
-    let _ = std::fs::remove_file(dir.join(format!("share-{share}.hdk.token")));
+    if !keep {
+        let _ = std::fs::remove_file(&file);
+        let _ = std::fs::remove_file(dir.join(format!("share-{share}.hdk.token")));
+    }
     Ok(Outcome {
         met_after,
         modest: modest_rays,
@@ -247,7 +249,7 @@ fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize) -> Resu
 }
 
 /// Runs the benchmark with `samplers` tracing threads.
-pub fn run(dir: &Path, samplers: usize) -> Result<()> {
+pub fn run(dir: &Path, samplers: usize, keep: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     let sections = crate::cmd::render::load("builtin:room", None)?.sections;
     let (greedy, modest) = requests(&sections)?;
@@ -272,7 +274,7 @@ pub fn run(dir: &Path, samplers: usize) -> Result<()> {
         ("fair", true, "fair share"),
     ] {
         eprintln!("{what}...");
-        let o = run_once(dir, share, with_greedy, samplers)?;
+        let o = run_once(dir, share, with_greedy, samplers, keep)?;
         let all = (o.modest + o.greedy).max(1) as f64;
         let met = match o.met_after {
             Some(t) => format!("{:.2} s", t.as_secs_f64()),

@@ -19,6 +19,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
+use super::row;
 use super::rss;
 use crate::human::{bytes, count, count_in};
 
@@ -67,14 +68,20 @@ pub struct ChildArgs {
     rays: u64,
 }
 
-/// The section of Radiance's reference fill: grid 13 x 10 x 4 gives 154,728 beams.
-fn reference_settings(cache: u64) -> Result<Settings> {
-    let room = Section::new(
+/// The section of Radiance's reference fill: a 6.5 x 5 x 2 m room, grid
+/// 13 x 10 x 4, 154,728 beams.
+pub(crate) fn reference_section() -> Result<Section> {
+    Ok(Section::new(
         [0.0; 3],
         [[6.5, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 2.0]],
         [13, 10, 4],
         SectionKind::Interior,
-    )?;
+    )?)
+}
+
+/// Settings of the reference fill's file, with a beam cache of `cache` bytes.
+fn reference_settings(cache: u64) -> Result<Settings> {
+    let room = reference_section()?;
     Ok(Settings {
         sections: vec![room],
         cache_bytes: cache,
@@ -299,10 +306,6 @@ impl RequestLists<'_> {
         }
         Ok(())
     }
-}
-
-fn row(what: &str, result: String, baseline: String, ratio: f64) {
-    println!("| {what} | {result} | {baseline} | {ratio:.2} |");
 }
 
 /// The child that streams one file's beams: prints its starting and peak
@@ -554,9 +557,9 @@ pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
     let lists: Vec<&[BeamKey]> = in_order.chunks(10_000).collect();
     let (mut append, mut recalled, mut raw, mut opt, mut raw_secs, mut per_ray) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for r in 0..ctx.repeats {
+    let mut measure = |r: u64| -> Result<()> {
         let _ = std::fs::remove_file(&path);
-        let (secs, _) = fill(&path, &settings, rays, 100 + r as u64)?;
+        let (secs, _) = fill(&path, &settings, rays, 100 + r)?;
         append.push(rays as f64 / secs / 1e6);
         let (rs, rb) = raw_read(&path, false)?;
         raw.push(rb as f64 / 10.0 / rs / 1e6);
@@ -571,8 +574,12 @@ pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
                 .summary()
                 .bytes_per_ray(),
         );
-    }
+        Ok(())
+    };
+    let measured = (0..ctx.repeats as u64).try_for_each(&mut measure);
+    // Made here, removed here, whether or not it went well.
     let _ = std::fs::remove_file(&path);
+    measured?;
     let radiance = vec![10.40; per_ray.len()];
     Ok(vec![
         Figure::new("storage", "append 1M rays, packets of 1-21", "Mrays/s", true, append)
