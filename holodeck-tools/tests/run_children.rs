@@ -58,20 +58,15 @@ fn killing_run_stops_its_server_and_samplers_and_the_file_is_flushed() {
     let file = dir.path().join("room.hdk");
     let mut run = start_run(&file);
     let group = run.id();
+    // A child just forked has no command line until it execs: wait for the
+    // three to show theirs.
+    let count = |c: &[(u32, String)], what: &str| c.iter().filter(|(_, l)| l.contains(what)).count();
     let children = wait_for("the server and two samplers", DEADLINE, || {
         let c: Vec<_> = group_members(group).into_iter().filter(|(p, _)| *p != group).collect();
-        (c.len() == 3).then_some(c)
+        (c.len() == 3 && count(&c, " serve ") + count(&c, " sample ") == 3).then_some(c)
     });
-    assert_eq!(
-        children.iter().filter(|(_, c)| c.contains(" serve ")).count(),
-        1,
-        "{children:?}"
-    );
-    assert_eq!(
-        children.iter().filter(|(_, c)| c.contains(" sample ")).count(),
-        2,
-        "{children:?}"
-    );
+    assert_eq!(count(&children, " serve "), 1, "{children:?}");
+    assert_eq!(count(&children, " sample "), 2, "{children:?}");
     // Let rays reach the file, as the server's periodic flush says.
     let mut from = 0;
     run.wait_line("a flush that made rays durable", &mut from, |l| {
