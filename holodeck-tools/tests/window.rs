@@ -131,9 +131,14 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
         error < 0.02,
         "the window differs from the headless picture: relative RMSE {error}"
     );
-    // And it is a picture, not a blank window.
+    // And it is a picture, not a blank window. How much of it the file's
+    // 60K rays light depends on where the motion ended (42-95% of the pixels
+    // for 1 to 136 steps), so the bound only tells a picture from a blank.
     let lit = shown.pixels.iter().filter(|p| p.max_element() > 0.05).count();
-    assert!(lit > shown.pixels.len() / 2, "only {lit} pixels lit");
+    assert!(
+        lit > shown.pixels.len() / 5,
+        "only {lit} pixels lit after {steps} steps"
+    );
 
     // A ctrl+shift drag marks a focus rectangle; the `f` key frames it: the
     // rectangle's center becomes the view's center, and the field narrows.
