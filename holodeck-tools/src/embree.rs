@@ -67,6 +67,12 @@ struct RayHit1 {
     inst_id: [c_uint; 1],
 }
 
+/// The lane mask `rtcIntersect8` takes: -1 for lanes to trace, 0 for the
+/// rest, 32-byte aligned as Embree loads it (an array of `int` alone is
+/// 4-byte aligned and faults where it happens to straddle).
+#[repr(C, align(32))]
+struct Valid8([c_int; 8]);
+
 /// `struct RTCRayHit8`: structure of arrays, 32-byte aligned.
 #[repr(C, align(32))]
 #[derive(Clone, Copy, Default)]
@@ -246,9 +252,9 @@ impl Embree {
     /// The nearest hits of up to eight rays traced as one packet.
     pub fn intersect8(&self, rays: &[Ray]) -> [Option<(f32, u32)>; 8] {
         let mut rh = RayHit8::default();
-        let mut valid = [0 as c_int; 8];
+        let mut valid = Valid8([0; 8]);
         for (k, r) in rays.iter().take(8).enumerate() {
-            valid[k] = -1;
+            valid.0[k] = -1;
             [rh.org_x[k], rh.org_y[k], rh.org_z[k]] = r.origin.to_array();
             [rh.dir_x[k], rh.dir_y[k], rh.dir_z[k]] = r.dir.to_array();
             rh.tfar[k] = r.t_max;
@@ -258,10 +264,10 @@ impl Embree {
         rh.inst_id = [RTC_INVALID_GEOMETRY_ID; 8];
         let mut context = IntersectContext::new(true);
         // SAFETY: a committed scene, an initialized context, eight lanes with
-        // the unused ones masked off.
-        unsafe { rtcIntersect8(valid.as_ptr(), self.scene, &mut context, &mut rh) };
+        // the unused ones masked off, mask and rays 32-byte aligned.
+        unsafe { rtcIntersect8(valid.0.as_ptr(), self.scene, &mut context, &mut rh) };
         std::array::from_fn(|k| {
-            (valid[k] != 0 && rh.geom_id[k] != RTC_INVALID_GEOMETRY_ID).then_some((rh.tfar[k], rh.prim_id[k]))
+            (valid.0[k] != 0 && rh.geom_id[k] != RTC_INVALID_GEOMETRY_ID).then_some((rh.tfar[k], rh.prim_id[k]))
         })
     }
 }
