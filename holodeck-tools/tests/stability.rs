@@ -633,16 +633,17 @@ fn rays_in(file: &std::path::Path) -> u64 {
 }
 
 /// A sampler killed with SIGKILL in the middle of its packets: the server
-/// drops it once it has returned nothing for the stall timeout, hands its
-/// beams to another sampler, and the fill goes on; the file checks clean
-/// and holds at least the rays stored before the kill. What is lost is
-/// the dead sampler's unreturned packets and the stall timeout's time.
+/// drops it when its connection closes (or, were the connection left
+/// half-open, once it has returned nothing for the stall timeout), hands
+/// its beams to another sampler, and the fill goes on; the file checks
+/// clean and holds at least the rays stored before the kill. What is lost
+/// is the dead sampler's unreturned packets.
 #[test]
-fn a_sampler_killed_mid_packet_costs_its_packets_and_a_timeout() {
+fn a_sampler_killed_mid_packet_costs_its_unreturned_packets() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
     fill_room(&file, "1K");
-    let (mut server, addr) = serve(&file, &["--stall-timeout", "2s", "--report", "1s"]);
+    let (mut server, addr) = serve(&file, &["--stall-timeout", "10s", "--report", "1s"]);
     let mut first = sampler(&addr);
     // Working: the server reports rays stored beyond the first thousand.
     let mut at = 0;

@@ -210,11 +210,14 @@ impl Proc {
         self.status
     }
 
-    /// Waits for the child to exit on its own, failing after [`DEADLINE`].
+    /// Waits for the child to exit on its own, failing after [`DEADLINE`],
+    /// and then briefly for the readers to take in the last of its output
+    /// (the reap can come before they have read what it wrote last).
     pub fn wait(&mut self) -> ExitStatus {
         let start = Instant::now();
         loop {
             if let Some(status) = self.try_wait() {
+                self.drain(Duration::from_secs(10));
                 return status;
             }
             if start.elapsed() >= DEADLINE {
@@ -236,14 +239,17 @@ impl Proc {
         self.wait()
     }
 
-    /// Waits for the child to exit and for its output to end; returns both.
-    pub fn finish(mut self) -> Output {
-        let status = self.wait();
+    /// Waits up to `limit` for both of the child's output streams to end
+    /// (a process it started outside its group may hold them open); true
+    /// if they did.
+    fn drain(&self, limit: Duration) -> bool {
         let mut state = self.output.lock();
         let start = Instant::now();
         while state.open > 0 {
-            let left = DEADLINE.saturating_sub(start.elapsed());
-            assert!(!left.is_zero(), "the output of {} never ended", self.name);
+            let left = limit.saturating_sub(start.elapsed());
+            if left.is_zero() {
+                return false;
+            }
             state = self
                 .output
                 .changed
@@ -251,6 +257,14 @@ impl Proc {
                 .unwrap_or_else(|p| p.into_inner())
                 .0;
         }
+        true
+    }
+
+    /// Waits for the child to exit and for its output to end; returns both.
+    pub fn finish(mut self) -> Output {
+        let status = self.wait();
+        assert!(self.drain(DEADLINE), "the output of {} never ended", self.name);
+        let state = self.output.lock();
         let join = |source: Source| -> Vec<u8> {
             state
                 .lines

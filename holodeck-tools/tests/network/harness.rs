@@ -29,6 +29,12 @@ const SERVER_LOG: &str = "info,holodeck_server=debug";
 /// A sampler worker (one thread, two bounces) that gives up as soon as the
 /// server is gone.
 pub fn sampler(addr: &str, token: &str, scene: &[&str]) -> Proc {
+    sampler_retrying(addr, token, scene, "0s")
+}
+
+/// [`sampler`] that reconnects for `retry_for` after the server lets it go
+/// (where a loaded machine could make a short stall timeout drop it).
+pub fn sampler_retrying(addr: &str, token: &str, scene: &[&str], retry_for: &str) -> Proc {
     Proc::start(bin().arg("sample").args(scene).args([
         "--connect",
         addr,
@@ -39,7 +45,7 @@ pub fn sampler(addr: &str, token: &str, scene: &[&str]) -> Proc {
         "--bounces",
         "2",
         "--retry-for",
-        "0s",
+        retry_for,
     ]))
 }
 

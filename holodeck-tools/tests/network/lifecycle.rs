@@ -282,13 +282,13 @@ fn serve_reports_progress_and_stops_when_its_time_is_up() {
     let f = file.to_str().unwrap();
     let beams = beams_of(&file);
     let token = "t";
-    let (mut server, addr) = start_server_with(f, "127.0.0.1:0", token, &["--time", "3s", "--report", "0.5s"]);
+    let (mut server, addr) = start_server_with(f, "127.0.0.1:0", token, &["--time", "6s", "--report", "0.5s"]);
     let worker = sampler(&addr, token, &["builtin:room"]);
     assert!(server.wait().success(), "{}", server.text());
     let out = server.text();
     assert!(out.contains("TIME is up"), "TIME stopped the server:\n{out}");
     let progress: Vec<&str> = out.lines().filter(|l| l.starts_with("progress:")).collect();
-    assert!(progress.len() >= 2, "a report every 0.5 s of 3 s:\n{out}");
+    assert!(progress.len() >= 2, "a report every 0.5 s of 6 s:\n{out}");
     let parsed: Vec<(u64, u64, u64)> = progress
         .iter()
         .map(|l| parse_report(l).unwrap_or_else(|| panic!("malformed report {l:?}")))
