@@ -223,6 +223,8 @@ impl Demo {
         let mut filled = 0u64;
         let mut convergence: Vec<Vec<Point>> = vec![Vec::new(); DRIVERS.len()];
         let mut failures: Vec<Option<String>> = vec![None; DRIVERS.len()];
+        // The last stage's pictures of the first view are also the walk's first frames.
+        let mut first_frames: Vec<Option<Drawn>> = (0..DRIVERS.len()).map(|_| None).collect();
         for (k, &stage) in stages.iter().enumerate() {
             o.rays = Some(stage.saturating_sub(filled).max(1));
             o.seed = self.seed + k as u64;
@@ -235,11 +237,14 @@ impl Demo {
                     continue;
                 }
                 match self.draw(&mut file, &views[0], driver, &truths[0]) {
-                    Ok(drawn) => convergence[d].push((
-                        filled as f64,
-                        fill_secs + drawn.recall_secs + drawn.draw_secs,
-                        drawn.error.all,
-                    )),
+                    Ok(drawn) => {
+                        convergence[d].push((
+                            filled as f64,
+                            fill_secs + drawn.recall_secs + drawn.draw_secs,
+                            drawn.error.all,
+                        ));
+                        first_frames[d] = (k + 1 == stages.len()).then_some(drawn);
+                    }
                     Err(e) => failures[d] = Some(format!("{e:#}")),
                 }
             }
@@ -273,7 +278,11 @@ impl Demo {
                     row.push(None);
                     continue;
                 }
-                match self.draw(&mut file, view, driver, truth) {
+                let drawn = match first_frames[d].take().filter(|_| i == 0) {
+                    Some(x) => Ok(x),
+                    None => self.draw(&mut file, view, driver, truth),
+                };
+                match drawn {
                     Ok(x) => {
                         save(&x.picture, tones[i], &name(i, driver))?;
                         let t = &mut totals[d];
