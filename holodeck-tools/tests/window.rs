@@ -142,8 +142,9 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
         "the window differs from the headless picture: relative RMSE {error}"
     );
     // And it is a picture, not a blank window. How much of it the file's
-    // 60K rays light depends on where the motion ended (42-95% of the pixels
-    // for 1 to 136 steps), so the bound only tells a picture from a blank.
+    // 60K rays light depends on where the motion ended (from 42% to 96% of
+    // the pixels in runs of 1 to 136 steps), so the bound only tells a
+    // picture from a blank.
     let lit = shown.pixels.iter().filter(|p| p.max_element() > 0.05).count();
     assert!(
         lit > shown.pixels.len() / 5,
