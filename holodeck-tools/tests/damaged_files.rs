@@ -9,22 +9,13 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use common::process::{run, Proc};
-use common::{holodeck, text};
+use common::text;
 use holodeck_server::testing::metadata_map;
 
 /// A small filled holodeck of the built-in room.
 fn filled(dir: &Path) -> std::path::PathBuf {
     let file = dir.join("room.hdk");
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "3K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    common::fill_room(&file, "3K", "0");
     file
 }
 

@@ -29,15 +29,7 @@ fn ok(args: &[&str]) -> String {
 
 /// Adds `rays` primary rays of the built-in room to `file`.
 fn fill_room(file: &std::path::Path, rays: &str) {
-    ok(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        rays,
-        "--bounces",
-        "0",
-    ]);
+    common::fill_room(file, rays, "0");
 }
 
 /// Draws the room's view from `file` at 48 x 36 into `out`; what `pict` printed.

@@ -40,16 +40,7 @@ fn moved(line: &str) -> Option<(u32, Option<DVec3>)> {
 /// The built-in room filled with `rays` rays of one bounce.
 fn room(dir: &std::path::Path, rays: &str) -> std::path::PathBuf {
     let file = dir.join("room.hdk");
-    let o = common::holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        rays,
-        "--bounces",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", common::text(&o));
+    common::fill_room(&file, rays, "1");
     file
 }
 
@@ -95,7 +86,6 @@ fn left_drag_walks_toward_the_point_under_the_cursor_and_the_window_shows_the_he
     // motion did is read back from the window, whatever the number of steps).
     screen.tool("xdotool", &["mousemove", "--window", &id, "160", "120"]);
     screen.tool("xdotool", &["mousedown", "1"]);
-    std::thread::sleep(std::time::Duration::from_millis(200));
     common::process::wait_for("a step of the motion", common::process::DEADLINE, || {
         window.say("where");
         let now = window.wait_line("the view while moving", &mut at, view_of);

@@ -278,7 +278,7 @@ impl Demo {
                     row.push(None);
                     continue;
                 }
-                let drawn = match first_frames[d].take().filter(|_| i == 0) {
+                let drawn = match first_frames[d].take() {
                     Some(x) => Ok(x),
                     None => self.draw(&mut file, view, driver, truth),
                 };

@@ -13,6 +13,23 @@ pub fn holodeck(args: &[&str]) -> Output {
     process::run(Command::new(env!("CARGO_BIN_EXE_holodeck")).args(args))
 }
 
+/// Adds `rays` rays of the built-in room with up to `bounces` bounces to
+/// `file` (`holodeck fill`), failing the test with its output if it fails.
+#[allow(dead_code)]
+pub fn fill_room(file: &std::path::Path, rays: &str, bounces: &str) {
+    let args = [
+        "fill",
+        "builtin:room",
+        &file.to_string_lossy(),
+        "--rays",
+        rays,
+        "--bounces",
+        bounces,
+    ];
+    let o = holodeck(&args);
+    assert!(o.status.success(), "{args:?}: {}", text(&o));
+}
+
 /// Standard output and standard error together, as text.
 #[allow(dead_code)]
 pub fn text(o: &Output) -> String {

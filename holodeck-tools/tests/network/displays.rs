@@ -130,16 +130,7 @@ fn display_requests_are_traced_near_the_eye_and_streamed_over_a_unix_socket() {
 fn a_display_only_server_replays_the_file_to_a_headless_view() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "500K",
-        "--bounces",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    crate::common::fill_room(&file, "500K", "1");
     // What the server will send, read from the file before it is served.
     let probe: Vec<BeamKey> = (4242..4342).map(|b| BeamKey::new(0, b)).collect();
     let k = *probe

@@ -52,16 +52,7 @@ pub fn sampler_retrying(addr: &str, token: &str, scene: &[&str], retry_for: &str
 /// A holodeck file of the built-in room that records its scene.
 pub fn small_room(dir: &Path) -> PathBuf {
     let file = dir.join("room.hdk");
-    let o = crate::common::holodeck(&[
-        "fill",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--rays",
-        "1K",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", crate::common::text(&o));
+    crate::common::fill_room(&file, "1K", "0");
     file
 }
 

@@ -89,10 +89,12 @@ pub(crate) fn trace_tasks(
     )
 }
 
-/// Traces `samples` of one beam of `section` under `rules`, their paths
-/// seeded from `rng`, first hits found as `first` says: the records, the
-/// same whatever `first` is.
-pub(crate) fn trace_beam_samples(
+/// Traces beam samples into records, finding their first hits as `first`
+/// says (in core; out of core every ray walks alone), each sample's paths
+/// drawing from its own streams of one seed taken from `rng`: the records
+/// do not depend on `first`. Samples only unreadable scene-file blocks
+/// could have traced are left out.
+pub fn trace_samples(
     tracer: &Tracer,
     section: &Section,
     rules: FileRules,

@@ -8,7 +8,7 @@
 mod batch;
 mod proximity;
 
-pub use batch::trace_batch;
+pub use batch::{trace_batch, trace_samples};
 pub(crate) use batch::{trace_tasks, BeamTask};
 pub use proximity::{proximity_rays, ProximityStats};
 
@@ -16,7 +16,7 @@ use glam::{DVec3, Vec3};
 use holodeck_protocol::{BeamIndex, BeamRay, DepthCode, RayRecord, Rgbe, Section, SectionError, SectionKind};
 
 use crate::ooc::Fetch;
-use crate::shade::{FirstHits, Rng, Sample, Tracer};
+use crate::shade::{Rng, Sample, Tracer};
 
 /// One ray of a beam to trace: its sub-cell bytes and its world geometry.
 #[derive(Clone, Copy, Debug)]
@@ -131,25 +131,10 @@ fn encode(section: &Section, s: &BeamSample, start: f64, sample: &Sample) -> Ray
     RayRecord::new(s.entry, s.exit, Rgbe::from_rgb(sample.radiance.to_array()), depth)
 }
 
-/// Traces beam samples into records, finding their first hits as `first`
-/// says (in core; out of core every ray walks alone), each sample's paths
-/// drawing from its own streams of one seed taken from `rng`: the records
-/// do not depend on `first`. Samples only unreadable scene-file blocks
-/// could have traced are left out.
-pub fn trace_samples(
-    tracer: &Tracer,
-    section: &Section,
-    rules: FileRules,
-    samples: &[BeamSample],
-    first: FirstHits,
-    rng: &mut Rng,
-) -> Vec<RayRecord> {
-    batch::trace_beam_samples(tracer, section, rules, samples, first, rng)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::shade::FirstHits;
 
     #[test]
     fn uniform_rays_belong_to_their_beam() {
