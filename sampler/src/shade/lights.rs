@@ -1,8 +1,6 @@
 //! Area lights: every triangle whose material emits, chosen for light sampling
 //! in proportion to its power (area times emitted luminance).
 
-use std::collections::HashMap;
-
 use glam::Vec3;
 
 use super::sampling::{luminance, uniform_triangle};
@@ -29,8 +27,11 @@ pub struct Lights {
     /// Their vertices and emitted radiance.
     shapes: Vec<([Vec3; 3], Vec3)>,
     cdf: Vec<f32>,
-    /// Selection probability divided by area, by triangle id.
-    pdf_area: HashMap<u32, f32>,
+    /// Selection probability divided by area, in the order of `tris`.
+    pdf: Vec<f32>,
+    /// The same by triangle id, sorted by id: a lookup per light hit that a
+    /// binary search answers faster than hashing the id.
+    pdf_by_tri: Vec<(u32, f32)>,
 }
 
 impl Lights {
@@ -62,14 +63,16 @@ impl Lights {
         let total: f64 = weights.iter().map(|w| f64::from(*w)).sum();
         let mut acc = 0.0f64;
         let mut cdf = Vec::with_capacity(weights.len());
-        let mut pdf_area = HashMap::with_capacity(weights.len());
+        let mut pdf = Vec::with_capacity(weights.len());
         for (k, w) in weights.iter().enumerate() {
             acc += f64::from(*w);
             cdf.push((acc / total) as f32);
             let [a, b, c] = shapes[k].0;
             let area = 0.5 * (b - a).cross(c - a).length();
-            pdf_area.insert(tris[k], (f64::from(*w) / total) as f32 / area);
+            pdf.push((f64::from(*w) / total) as f32 / area);
         }
+        let mut pdf_by_tri: Vec<(u32, f32)> = tris.iter().copied().zip(pdf.iter().copied()).collect();
+        pdf_by_tri.sort_unstable_by_key(|&(id, _)| id);
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
@@ -77,7 +80,8 @@ impl Lights {
             tris,
             shapes,
             cdf,
-            pdf_area,
+            pdf,
+            pdf_by_tri,
         }
     }
 
@@ -92,7 +96,9 @@ impl Lights {
 
     /// Pdf per unit area of sampling a point on triangle `tri` (0 if it does not emit).
     pub fn pdf_area(&self, tri: u32) -> f32 {
-        self.pdf_area.get(&tri).copied().unwrap_or(0.0)
+        self.pdf_by_tri
+            .binary_search_by_key(&tri, |&(id, _)| id)
+            .map_or(0.0, |i| self.pdf_by_tri[i].1)
     }
 
     /// Samples a point on a light.
@@ -109,7 +115,57 @@ impl Lights {
             point,
             normal,
             radiance,
-            pdf_area: self.pdf_area(self.tris[k]),
+            pdf_area: self.pdf[k],
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Emitters given out of id order: each one's pdf per unit area times
+    /// its area is its share of the power, the shares sum to one, the pdf a
+    /// sample carries is its triangle's, and a triangle that does not emit
+    /// has none.
+    #[test]
+    fn pdfs_by_id_match_the_samples() {
+        let tri = |x: f32, size: f32| {
+            [
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x + size, 0.0, 0.0),
+                Vec3::new(x, size, 0.0),
+            ]
+        };
+        let emitters = [
+            (40u32, tri(0.0, 1.0), Vec3::splat(1.0)),
+            (7, tri(5.0, 2.0), Vec3::splat(1.0)),
+            (19, tri(9.0, 1.0), Vec3::splat(4.0)),
+        ];
+        let lights = Lights::from_emitters(emitters.into_iter());
+        assert_eq!(lights.len(), 3);
+        // Powers: area 0.5 x 1, 2 x 1, 0.5 x 4 (luminance of grey is itself).
+        let want = [0.5 / 4.5, 2.0 / 4.5, 2.0 / 4.5];
+        let mut total = 0.0;
+        for ((id, [a, b, c], _), want) in emitters.iter().zip(want) {
+            let area = 0.5 * (*b - *a).cross(*c - *a).length();
+            let share = lights.pdf_area(*id) * area;
+            assert!((share - want).abs() < 1e-6, "{id}: {share} against {want}");
+            total += share;
+        }
+        assert!((total - 1.0).abs() < 1e-6);
+        assert_eq!(lights.pdf_area(8), 0.0);
+        assert_eq!(lights.pdf_area(u32::MAX), 0.0);
+        for k in 0..64 {
+            let s = lights.sample((k as f32 + 0.5) / 64.0, (0.3, 0.4)).unwrap();
+            let id = if s.point.x < 4.0 {
+                40
+            } else if s.point.x < 8.0 {
+                7
+            } else {
+                19
+            };
+            assert_eq!(s.pdf_area, lights.pdf_area(id), "sample {k} at {:?}", s.point);
+        }
     }
 }
