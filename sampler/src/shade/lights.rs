@@ -22,16 +22,14 @@ pub struct LightSample {
 /// The emissive triangles and their selection distribution.
 #[derive(Clone, Debug, Default)]
 pub struct Lights {
-    /// Triangle ids.
+    /// Triangle ids, ascending: a light hit finds its pdf by binary search,
+    /// faster than hashing the id.
     tris: Vec<u32>,
     /// Their vertices and emitted radiance.
     shapes: Vec<([Vec3; 3], Vec3)>,
     cdf: Vec<f32>,
     /// Selection probability divided by area, in the order of `tris`.
     pdf: Vec<f32>,
-    /// The same by triangle id, sorted by id: a lookup per light hit that a
-    /// binary search answers faster than hashing the id.
-    pdf_by_tri: Vec<(u32, f32)>,
 }
 
 impl Lights {
@@ -45,9 +43,8 @@ impl Lights {
 
     /// Lights from emissive triangles given as (id, vertices, emitted radiance).
     pub fn from_emitters(emitters: impl Iterator<Item = (u32, [Vec3; 3], Vec3)>) -> Lights {
-        let mut tris = Vec::new();
-        let mut shapes = Vec::new();
-        let mut weights = Vec::new();
+        // (id, vertices and radiance, power, area)
+        let mut lights = Vec::new();
         for (id, [a, b, c], le) in emitters {
             if le.max_element() <= 0.0 {
                 continue;
@@ -55,33 +52,27 @@ impl Lights {
             let area = 0.5 * (b - a).cross(c - a).length();
             let w = area * luminance(le).max(1e-6);
             if w.is_finite() && w > 0.0 {
-                tris.push(id);
-                shapes.push(([a, b, c], le));
-                weights.push(w);
+                lights.push((id, ([a, b, c], le), w, area));
             }
         }
-        let total: f64 = weights.iter().map(|w| f64::from(*w)).sum();
+        lights.sort_by_key(|l| l.0);
+        let total: f64 = lights.iter().map(|l| f64::from(l.2)).sum();
         let mut acc = 0.0f64;
-        let mut cdf = Vec::with_capacity(weights.len());
-        let mut pdf = Vec::with_capacity(weights.len());
-        for (k, w) in weights.iter().enumerate() {
-            acc += f64::from(*w);
+        let mut cdf = Vec::with_capacity(lights.len());
+        let mut pdf = Vec::with_capacity(lights.len());
+        for &(_, _, w, area) in &lights {
+            acc += f64::from(w);
             cdf.push((acc / total) as f32);
-            let [a, b, c] = shapes[k].0;
-            let area = 0.5 * (b - a).cross(c - a).length();
-            pdf.push((f64::from(*w) / total) as f32 / area);
+            pdf.push((f64::from(w) / total) as f32 / area);
         }
-        let mut pdf_by_tri: Vec<(u32, f32)> = tris.iter().copied().zip(pdf.iter().copied()).collect();
-        pdf_by_tri.sort_unstable_by_key(|&(id, _)| id);
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
         Lights {
-            tris,
-            shapes,
+            tris: lights.iter().map(|l| l.0).collect(),
+            shapes: lights.iter().map(|l| l.1).collect(),
             cdf,
             pdf,
-            pdf_by_tri,
         }
     }
 
@@ -96,9 +87,7 @@ impl Lights {
 
     /// Pdf per unit area of sampling a point on triangle `tri` (0 if it does not emit).
     pub fn pdf_area(&self, tri: u32) -> f32 {
-        self.pdf_by_tri
-            .binary_search_by_key(&tri, |&(id, _)| id)
-            .map_or(0.0, |i| self.pdf_by_tri[i].1)
+        self.tris.binary_search(&tri).map_or(0.0, |k| self.pdf[k])
     }
 
     /// Samples a point on a light.
