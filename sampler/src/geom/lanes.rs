@@ -5,7 +5,7 @@
 //! functions built for AVX and chosen at run time. Both kinds do the same
 //! IEEE operations, so a kernel gives the same bits in either.
 
-use wide::{f32x8, CmpEq, CmpGt, CmpLe, CmpLt};
+use wide::{f32x4, f32x8, CmpEq, CmpGt, CmpLe, CmpLt};
 
 /// Lanes per value.
 pub const WIDTH: usize = 8;
@@ -20,6 +20,8 @@ pub trait Lanes: Copy {
     fn new(a: [f32; WIDTH]) -> Self;
     /// The lanes stored in `a`.
     fn load(a: &f32x8) -> Self;
+    /// Lanes 0..4 from `lo` and 4..8 from `hi`.
+    fn load_halves(lo: &f32x4, hi: &f32x4) -> Self;
     /// Lane `i` from `f(i)`, built in registers: scalars stored one by one
     /// and then loaded as a vector would stall the load.
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
@@ -69,6 +71,11 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn load(a: &f32x8) -> Self {
         *a
+    }
+    #[inline(always)]
+    fn load_halves(lo: &f32x4, hi: &f32x4) -> Self {
+        let (l, h) = (lo.to_array(), hi.to_array());
+        f32x8::new([l[0], l[1], l[2], l[3], h[0], h[1], h[2], h[3]])
     }
     #[inline(always)]
     fn from_fn(f: impl FnMut(usize) -> f32) -> Self {
@@ -145,7 +152,7 @@ impl Lanes for f32x8 {
 pub(crate) mod avx {
     use std::arch::x86_64::*;
 
-    use wide::f32x8;
+    use wide::{f32x4, f32x8};
 
     use super::{Lanes, WIDTH};
 
@@ -177,6 +184,16 @@ pub(crate) mod avx {
         fn load(a: &f32x8) -> Self {
             // `f32x8` is eight floats aligned to 32 bytes.
             Avx(unsafe { _mm256_load_ps(a as *const f32x8 as *const f32) })
+        }
+        #[inline(always)]
+        fn load_halves(lo: &f32x4, hi: &f32x4) -> Self {
+            // `f32x4` is four floats aligned to 16 bytes.
+            Avx(unsafe {
+                _mm256_set_m128(
+                    _mm_load_ps(hi as *const f32x4 as *const f32),
+                    _mm_load_ps(lo as *const f32x4 as *const f32),
+                )
+            })
         }
         #[inline(always)]
         fn from_fn(mut f: impl FnMut(usize) -> f32) -> Self {

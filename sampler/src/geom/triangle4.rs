@@ -9,6 +9,7 @@
 use glam::Vec3;
 use wide::{f32x4, CmpEq, CmpGt, CmpLe, CmpLt};
 
+use super::lanes::Lanes;
 use super::triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
 
 /// Four triangles in structure-of-arrays form: `p[3 * v + c]` holds
@@ -102,8 +103,8 @@ impl Ray4 {
         &self,
         tri: &Tri4,
         lanes: u32,
-        mut limit: f32,
-        mut hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
+        limit: f32,
+        hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
     ) -> bool {
         let [kx, ky, kz] = self.k;
         let [ox, oy, oz] = self.o;
@@ -130,17 +131,60 @@ impl Ray4 {
         let rejected = ((negative & positive) | det.cmp_eq(zero)).move_mask() as u32;
         let pass = (ts.cmp_gt(zero) & ts.cmp_le(bound)).move_mask() as u32 & !rejected & lanes;
         let edge = edge.move_mask() as u32 & lanes;
-        let mut todo = edge | pass;
+        let todo = edge | pass;
         if todo == 0 {
             return true;
         }
-        let (ts, det, v, w) = (t_scaled.to_array(), det.to_array(), v.to_array(), w.to_array());
+        let lanes = Settle {
+            todo,
+            edge,
+            ts: t_scaled.to_array(),
+            det: det.to_array(),
+            v: v.to_array(),
+            w: w.to_array(),
+        };
+        lanes.settle(|lane| tri.get(lane), || self.scalar(), limit, hit)
+    }
+}
+
+/// The lanes a block test passed or found on an edge, with what settling
+/// them needs: each lane's scaled distance, determinant and barycentric
+/// numerators.
+struct Settle<const N: usize> {
+    todo: u32,
+    edge: u32,
+    ts: [f32; N],
+    det: [f32; N],
+    v: [f32; N],
+    w: [f32; N],
+}
+
+impl<const N: usize> Settle<N> {
+    /// Settles the lanes in lane order as the scalar test would, edge lanes
+    /// by the scalar test itself (`tri(lane)` gives their vertices), and
+    /// hands the hits to `hit` as [`Ray4::intersect`] describes.
+    #[inline(always)]
+    fn settle(
+        self,
+        tri: impl Fn(usize) -> [Vec3; 3],
+        scalar: impl Fn() -> RayPrep,
+        mut limit: f32,
+        mut hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
+    ) -> bool {
+        let Settle {
+            mut todo,
+            edge,
+            ts,
+            det,
+            v,
+            w,
+        } = self;
         while todo != 0 {
             let lane = todo.trailing_zeros() as usize;
             todo &= todo - 1;
             let found = if edge & (1 << lane) != 0 {
-                let [a, b, c] = tri.get(lane);
-                intersect_triangle(&self.scalar(), a, b, c, limit)
+                let [a, b, c] = tri(lane);
+                intersect_triangle(&scalar(), a, b, c, limit)
             } else {
                 // Passed against the limit the block started with; check the
                 // limit that earlier lanes may have lowered, as the scalar test would.
@@ -162,6 +206,84 @@ impl Ray4 {
             }
         }
         true
+    }
+}
+
+/// A ray prepared for [`RayWide::intersect`]: [`Ray4`]'s constants in eight
+/// lanes of either kind, for two blocks tested at once (a leaf of up to
+/// eight triangles costs one test where the CPU has AVX).
+#[derive(Clone, Copy)]
+pub struct RayWide<L> {
+    k: [usize; 3],
+    o: [L; 3],
+    s: [L; 3],
+    ray: (Vec3, Vec3),
+}
+
+impl<L: Lanes> RayWide<L> {
+    /// The eight-lane form of `ray`.
+    #[inline(always)]
+    pub fn new(ray: &Ray4) -> RayWide<L> {
+        let lane = |x: &f32x4| L::splat(x.as_array_ref()[0]);
+        RayWide {
+            k: ray.k,
+            o: ray.o.each_ref().map(lane),
+            s: ray.s.each_ref().map(lane),
+            ray: ray.ray,
+        }
+    }
+
+    /// Tests the lanes set in `lanes` of blocks `a` (lanes 0..4) and `b`
+    /// (lanes 4..8) in lane order, exactly as [`Ray4::intersect`] on `a` and
+    /// then on `b` would.
+    #[inline(always)]
+    pub fn intersect(
+        &self,
+        a: &Tri4,
+        b: &Tri4,
+        lanes: u32,
+        limit: f32,
+        hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
+    ) -> bool {
+        let [kx, ky, kz] = self.k;
+        let [ox, oy, oz] = self.o;
+        let [sx, sy, sz] = self.s;
+        let p = |i: usize| L::load_halves(&a.p[i], &b.p[i]);
+        let (az, bz, cz) = (p(kz).sub(oz), p(3 + kz).sub(oz), p(6 + kz).sub(oz));
+        let ax = p(kx).sub(ox).sub(sx.mul(az));
+        let ay = p(ky).sub(oy).sub(sy.mul(az));
+        let bx = p(3 + kx).sub(ox).sub(sx.mul(bz));
+        let by = p(3 + ky).sub(oy).sub(sy.mul(bz));
+        let cx = p(6 + kx).sub(ox).sub(sx.mul(cz));
+        let cy = p(6 + ky).sub(oy).sub(sy.mul(cz));
+        let u = cx.mul(by).sub(cy.mul(bx));
+        let v = ax.mul(cy).sub(ay.mul(cx));
+        let w = bx.mul(ay).sub(by.mul(ax));
+        let zero = L::splat(0.0);
+        let edge = u.eq(zero) | v.eq(zero) | w.eq(zero);
+        let negative = u.lt(zero) | v.lt(zero) | w.lt(zero);
+        let positive = u.gt(zero) | v.gt(zero) | w.gt(zero);
+        let det = u.add(v).add(w);
+        let t_scaled = u.mul(sz.mul(az)).add(v.mul(sz.mul(bz))).add(w.mul(sz.mul(cz)));
+        let sign = det.sign();
+        let (ts, bound) = (t_scaled.xor(sign), L::splat(limit).mul(det).xor(sign));
+        let rejected = (negative & positive) | det.eq(zero);
+        let pass = ts.gt(zero) & ts.le(bound) & !rejected & lanes;
+        let edge = edge & lanes;
+        let todo = edge | pass;
+        if todo == 0 {
+            return true;
+        }
+        let lanes = Settle {
+            todo,
+            edge,
+            ts: t_scaled.to_array(),
+            det: det.to_array(),
+            v: v.to_array(),
+            w: w.to_array(),
+        };
+        let tri = |lane: usize| if lane < 4 { a.get(lane) } else { b.get(lane - 4) };
+        lanes.settle(tri, || RayPrep::new(self.ray.0, self.ray.1), limit, hit)
     }
 }
 
@@ -207,6 +329,60 @@ mod tests {
             }
             prop_assert_eq!(got, want);
         }
+    }
+
+    /// Tests `lanes` of two blocks with [`RayWide`] over lanes of kind `L`.
+    fn eight<L: Lanes>(ray: &Ray4, a: &Tri4, b: &Tri4, lanes: u32, limit: f32) -> Vec<(usize, f32)> {
+        let mut got = Vec::new();
+        RayWide::<L>::new(ray).intersect(a, b, lanes, limit, |lane, h| {
+            got.push((lane, h.t));
+            Some(h.t)
+        });
+        got
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(1000))]
+        /// Two blocks tested in eight lanes give what [`Ray4`] gives on the
+        /// first block and then the second, bit for bit, in portable lanes
+        /// and in AVX ones.
+        #[test]
+        fn eight_lanes_find_what_two_blocks_of_four_find(
+            tris in proptest::collection::vec((vec3(), vec3(), vec3()), 8),
+            origin in vec3(),
+            dir in vec3(),
+            lanes in 0u32..256,
+            limit in prop_oneof![Just(f32::INFINITY), 0.1f32..20.0],
+        ) {
+            prop_assume!(dir != Vec3::ZERO);
+            let a = Tri4::from_triangles(tris[..4].iter().map(|&(a, b, c)| [a, b, c]));
+            let b = Tri4::from_triangles(tris[4..].iter().map(|&(a, b, c)| [a, b, c]));
+            let ray = Ray4::new(origin, dir);
+            let mut want = Vec::new();
+            let mut l = limit;
+            ray.intersect(&a, lanes & 0xF, l, |lane, h| {
+                want.push((lane, h.t));
+                l = h.t;
+                Some(h.t)
+            });
+            ray.intersect(&b, lanes >> 4, l, |lane, h| {
+                want.push((lane + 4, h.t));
+                Some(h.t)
+            });
+            prop_assert_eq!(&eight::<wide::f32x8>(&ray, &a, &b, lanes, limit), &want);
+            #[cfg(target_arch = "x86_64")]
+            if crate::geom::avx::available() {
+                // SAFETY: the CPU has AVX.
+                let got = unsafe { eight_avx(&ray, &a, &b, lanes, limit) };
+                prop_assert_eq!(&got, &want);
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn eight_avx(ray: &Ray4, a: &Tri4, b: &Tri4, lanes: u32, limit: f32) -> Vec<(usize, f32)> {
+        eight::<crate::geom::avx::Avx>(ray, a, b, lanes, limit)
     }
 
     #[test]

@@ -424,7 +424,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     }
     println!();
     println!(
-        "The wide BVH (8 children per node, leaves of up to 4 triangles) beside the kd-tree on the same rays, one core, best of three; single rays wide BVH / kd-tree, and the BVH's packets of 8 (Mrays/s):"
+        "The wide BVH (8 children per node, leaves of up to 8 triangles) beside the kd-tree on the same rays, one core, best of three; single rays wide BVH / kd-tree, and the BVH's packets of 8 (Mrays/s):"
     );
     println!();
     println!("| scene | build (2 cores, best of two) | bytes/tri | shape | primary, single | diffuse bounce, single | primary, packets of 8, wide BVH | diffuse bounce, packets of 8, wide BVH | rays with another nearest distance (kd-tree and packets against single BVH rays) |");

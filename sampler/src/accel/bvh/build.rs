@@ -1,6 +1,7 @@
 //! Building the wide BVH: binned SAH over triangle centroids splits a node's
 //! triangles in two, and the largest of its parts is split again until it has
-//! eight children; parts of up to four triangles become leaves. Subtrees are
+//! eight children; parts of up to eight triangles become leaves (one block of
+//! four, or two tested at once: see [`super::traverse`]). Subtrees are
 //! built in parallel, then laid out depth first, also in parallel.
 
 use std::mem::MaybeUninit;
@@ -8,13 +9,11 @@ use std::mem::MaybeUninit;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::node::{Child, Node, EMPTY, MAX_BLOCKS, WIDTH};
+use super::node::{Child, Node, EMPTY, LEAF_MAX, MAX_BLOCKS, WIDTH};
 use super::WideBvh;
 use crate::geom::{Aabb, Tri4};
 use crate::scene::Scene;
 
-/// Most triangles in a leaf: one block.
-const LEAF_MAX: usize = 4;
 /// SAH bins per axis.
 const BINS: usize = 32;
 /// SAH bins per axis for parts of at least [`WIDE_FROM`] triangles: the
@@ -65,7 +64,7 @@ impl Sub {
         match self {
             Sub::Leaf { count, .. } => Size {
                 nodes: 0,
-                blocks: usize::from(*count > 0),
+                blocks: count.div_ceil(4),
             },
             Sub::Inner { size, .. } => *size,
         }
@@ -340,15 +339,17 @@ impl Layout<'_> {
             }
             Sub::Leaf { start, count } => {
                 let prims = &self.prims[*start..start + count];
-                let mut ids = [0u32; 4];
-                for (lane, prim) in prims.iter().enumerate() {
-                    ids[lane] = prim.id;
+                assert!(at.blocks.len() == count.div_ceil(4) && at.ids.len() == at.blocks.len() && at.nodes.is_empty());
+                for ((chunk, block), slot) in prims.chunks(4).zip(at.blocks.iter_mut()).zip(at.ids.iter_mut()) {
+                    let mut ids = [0u32; 4];
+                    for (lane, prim) in chunk.iter().enumerate() {
+                        ids[lane] = prim.id;
+                    }
+                    block.write(Tri4::from_triangles(
+                        chunk.iter().map(|p| self.scene.vertices(p.id as usize)),
+                    ));
+                    slot.write(ids);
                 }
-                assert!(at.blocks.len() == 1 && at.ids.len() == 1 && at.nodes.is_empty());
-                at.blocks[0].write(Tri4::from_triangles(
-                    prims.iter().map(|p| self.scene.vertices(p.id as usize)),
-                ));
-                at.ids[0].write(ids);
                 Child::leaf(at.block_at, *count)
             }
             Sub::Inner { children, size } => {
@@ -473,9 +474,9 @@ mod tests {
                 Child::Empty => {}
                 Child::Leaf { block, count } => {
                     for lane in 0..count {
-                        let id = bvh.ids[block][lane] as usize;
+                        let id = bvh.id(block, lane) as usize;
                         seen[id] += 1;
-                        assert_eq!(bvh.blocks[block].get(lane), scene.vertices(id));
+                        assert_eq!(bvh.blocks[block + lane / 4].get(lane % 4), scene.vertices(id));
                         for p in scene.vertices(id) {
                             assert!(
                                 p.cmpge(within.lo).all() && p.cmple(within.hi).all(),

@@ -1,9 +1,10 @@
 //! An 8-wide bounding volume hierarchy for in-core ray casting: each node
 //! holds the boxes of up to eight children in SIMD lanes, so one ray tests all
 //! eight with a handful of vector operations (256-bit ones where the CPU has
-//! AVX2, chosen at run time), and each leaf is one block of up to four
-//! triangles tested at once by the watertight test of
-//! [`Ray4`](crate::geom::Ray4). Built with binned SAH over triangle
+//! AVX2, chosen at run time), and each leaf is one or two blocks of up to
+//! four triangles, tested at once by the watertight test of
+//! [`Ray4`](crate::geom::Ray4) (both blocks in one 256-bit test where the
+//! CPU has AVX: [`RayWide`](crate::geom::RayWide)). Built with binned SAH over triangle
 //! centroids, in parallel.
 //!
 //! Why a second structure beside the kd-tree: a kd-tree step decides one
@@ -46,7 +47,7 @@ pub struct WideBvh {
 pub struct BvhStats {
     /// Inner nodes.
     pub nodes: usize,
-    /// Leaves (blocks of up to four triangles).
+    /// Leaves (one or two blocks of up to four triangles).
     pub leaves: usize,
     /// Deepest leaf, in nodes from the root.
     pub depth: usize,
@@ -78,6 +79,12 @@ fn reach(closest: f32) -> f32 {
 }
 
 impl WideBvh {
+    /// The triangle index of lane `lane` (0..8) of the leaf starting at block `block`.
+    #[inline]
+    fn id(&self, block: usize, lane: usize) -> u32 {
+        self.ids[block + lane / 4][lane % 4]
+    }
+
     /// The scene bounds.
     pub fn bounds(&self) -> Aabb {
         self.bounds
@@ -87,7 +94,6 @@ impl WideBvh {
     pub fn stats(&self) -> BvhStats {
         let mut s = BvhStats {
             nodes: self.nodes.len(),
-            leaves: self.blocks.len(),
             bytes: self.nodes.len() * std::mem::size_of::<Node>()
                 + self.blocks.len() * (std::mem::size_of::<Tri4>() + 16),
             ..BvhStats::default()
@@ -99,6 +105,7 @@ impl WideBvh {
                 node::Child::Empty => {}
                 node::Child::Leaf { count, .. } => {
                     tris += count;
+                    s.leaves += 1;
                     s.depth = s.depth.max(d);
                 }
                 node::Child::Inner(i) => {

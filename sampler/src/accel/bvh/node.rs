@@ -1,7 +1,8 @@
 //! The wide node: eight children's boxes in structure-of-arrays form, and a
 //! 32-bit reference per child. A reference is an inner node's index, or a
-//! leaf (the top bit set, then the block index and the triangle count less
-//! one in the low two bits), or [`EMPTY`].
+//! leaf (the top bit set, then the first block's index and the triangle
+//! count less one in the low three bits: a leaf of more than four triangles
+//! fills a second block), or [`EMPTY`].
 
 use wide::f32x8;
 
@@ -15,7 +16,9 @@ pub(crate) const WIDTH: usize = 8;
 pub(crate) const EMPTY: u32 = u32::MAX;
 const LEAF: u32 = 1 << 31;
 /// Blocks a leaf reference can name (the last code would be [`EMPTY`]).
-pub(crate) const MAX_BLOCKS: usize = (1 << 29) - 1;
+pub(crate) const MAX_BLOCKS: usize = (1 << 28) - 1;
+/// Most triangles in a leaf: two blocks.
+pub(crate) const LEAF_MAX: usize = 8;
 
 /// A child reference, decoded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -26,10 +29,10 @@ pub(crate) enum Child {
 }
 
 impl Child {
-    /// The reference of a leaf of `count` (1..=4) triangles in block `block`.
+    /// The reference of a leaf of `count` (1..=8) triangles from block `block` on.
     pub(crate) fn leaf(block: usize, count: usize) -> u32 {
-        debug_assert!(block < MAX_BLOCKS && (1..=4).contains(&count));
-        LEAF | ((block as u32) << 2) | (count as u32 - 1)
+        debug_assert!(block < MAX_BLOCKS && (1..=LEAF_MAX).contains(&count));
+        LEAF | ((block as u32) << 3) | (count as u32 - 1)
     }
 
     /// What a reference names.
@@ -39,8 +42,8 @@ impl Child {
             Child::Empty
         } else if r & LEAF != 0 {
             Child::Leaf {
-                block: ((r & !LEAF) >> 2) as usize,
-                count: (r & 3) as usize + 1,
+                block: ((r & !LEAF) >> 3) as usize,
+                count: (r & 7) as usize + 1,
             }
         } else {
             Child::Inner(r as usize)
@@ -91,7 +94,7 @@ mod tests {
 
     #[test]
     fn references_round_trip() {
-        for (block, count) in [(0, 1), (7, 4), (MAX_BLOCKS - 1, 4)] {
+        for (block, count) in [(0, 1), (7, 4), (9, 8), (MAX_BLOCKS - 1, 8)] {
             assert_eq!(Child::decode(Child::leaf(block, count)), Child::Leaf { block, count });
         }
         assert_eq!(Child::decode(0), Child::Inner(0));

@@ -103,24 +103,29 @@ impl WideBvh {
         }
         let widest = |closest: &[f32; PACKET]| closest.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
         self.walk(&Frustum::<L>::new(p), widest(&closest), |block, count| {
-            let (tris, ids) = (&self.blocks[block], &self.ids[block]);
             let mut found = false;
             // `count` is a run of low bits (`popcnt` is not among the AVX
             // walk's instructions).
-            for (lane, &tri) in ids.iter().enumerate().take((count + 1).trailing_zeros() as usize) {
+            for lane in 0..(count + 1).trailing_zeros() as usize {
+                let tri = self.id(block, lane);
                 let mut limits = L::new(closest).mul(L::splat(ROBUST)).to_array();
-                shared.intersect(tris.get(lane), mask, &mut limits, |i, h| {
-                    if better(h.t, tri, closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
-                        closest[i] = h.t;
-                        found = true;
-                        out[i] = Some(Hit {
-                            t: h.t,
-                            tri,
-                            u: h.u,
-                            v: h.v,
-                        });
-                    }
-                });
+                shared.intersect(
+                    self.blocks[block + lane / 4].get(lane % 4),
+                    mask,
+                    &mut limits,
+                    |i, h| {
+                        if better(h.t, tri, closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
+                            closest[i] = h.t;
+                            found = true;
+                            out[i] = Some(Hit {
+                                t: h.t,
+                                tri,
+                                u: h.u,
+                                v: h.v,
+                            });
+                        }
+                    },
+                );
             }
             Ok(found.then(|| widest(&closest)))
         });

@@ -1,5 +1,6 @@
 //! Walking the wide BVH nearest child first: one ray against a node's eight
-//! boxes at once (see [`super::slab`]).
+//! boxes at once (see [`super::slab`]), and against a leaf's one or two
+//! blocks of triangles at once.
 
 use std::mem::MaybeUninit;
 
@@ -11,7 +12,7 @@ use super::{better, reach, WideBvh};
 use crate::accel::Hit;
 #[cfg(target_arch = "x86_64")]
 use crate::geom::avx;
-use crate::geom::{Lanes, Ray, Ray4};
+use crate::geom::{Lanes, Ray, Ray4, RayWide, TriangleHit};
 
 /// Entries of the walk's stack. A level pushes at most `WIDTH - 1`, and the
 /// build bounds the depth (32 levels of SAH, then halving: at most 64).
@@ -128,15 +129,36 @@ impl WideBvh {
         self.intersect_with(&SlabRay::<avx::Avx>::new(ray), ray)
     }
 
+    /// Tests the triangles of the leaf from `block` in `lanes` (one block
+    /// for lanes 0..4, two for more) against `prep` or its eight-lane form
+    /// `wide`, as [`Ray4::intersect`] does.
+    #[inline(always)]
+    fn leaf_test<L: Lanes>(
+        &self,
+        prep: &Ray4,
+        wide: &RayWide<L>,
+        block: usize,
+        lanes: u32,
+        limit: f32,
+        hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
+    ) -> bool {
+        if lanes < 16 {
+            prep.intersect(&self.blocks[block], lanes, limit, hit)
+        } else {
+            wide.intersect(&self.blocks[block], &self.blocks[block + 1], lanes, limit, hit)
+        }
+    }
+
     #[inline(always)]
     fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
         let prep = Ray4::new(ray.origin, ray.dir);
+        let wide = RayWide::<L>::new(&prep);
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
         self.walk(boxes, ray.t_max, |block, lanes| {
             let mut found = None;
-            prep.intersect(&self.blocks[block], lanes, reach(closest), |lane, h| {
-                let tri = self.ids[block][lane];
+            self.leaf_test(&prep, &wide, block, lanes, reach(closest), |lane, h| {
+                let tri = self.id(block, lane);
                 if better(h.t, tri, closest, best.map_or(u32::MAX, |b| b.tri)) {
                     closest = h.t;
                     found = Some(h.t);
@@ -176,10 +198,11 @@ impl WideBvh {
     #[inline(always)]
     fn occluded_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
         let prep = Ray4::new(ray.origin, ray.dir);
+        let wide = RayWide::<L>::new(&prep);
         let mut hit = false;
         self.walk(boxes, ray.t_max, |block, lanes| {
-            let go = prep.intersect(&self.blocks[block], lanes, ray.t_max, |lane, h| {
-                if h.t < ray.t_max && blocks(self.ids[block][lane]) {
+            let go = self.leaf_test(&prep, &wide, block, lanes, ray.t_max, |lane, h| {
+                if h.t < ray.t_max && blocks(self.id(block, lane)) {
                     hit = true;
                     return None;
                 }
@@ -226,11 +249,9 @@ mod tests {
     fn check(scene: &Scene, bvh: &WideBvh, ray: &Ray, what: &str) -> bool {
         let (a, b) = (bvh.intersect(ray), nearest_of_all(scene, ray));
         assert_eq!(a, b, "{what} {ray:?}");
-        assert_eq!(
-            a,
-            bvh.intersect_with(&SlabRay::<f32x8>::new(ray), ray),
-            "{what}: portable box test"
-        );
+        for (kind, h) in every_box_test(bvh, ray) {
+            assert_eq!(a, h, "{what}: {kind} box test");
+        }
         let beyond = Ray {
             t_max: b.map_or(1e30, |h| h.t * 1.001),
             ..*ray
@@ -248,6 +269,17 @@ mod tests {
             );
         }
         b.is_some()
+    }
+
+    /// The nearest hit by each box test this CPU can run: portable, AVX.
+    fn every_box_test(bvh: &WideBvh, ray: &Ray) -> Vec<(&'static str, Option<Hit>)> {
+        let mut all = vec![("portable", bvh.intersect_with(&SlabRay::<f32x8>::new(ray), ray))];
+        #[cfg(target_arch = "x86_64")]
+        if avx::available() {
+            // SAFETY: the CPU has AVX.
+            all.push(("AVX", unsafe { bvh.intersect_avx(ray) }));
+        }
+        all
     }
 
     fn close(a: f32, b: f32) -> bool {
