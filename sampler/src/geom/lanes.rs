@@ -51,6 +51,17 @@ pub trait Lanes: Copy {
     fn sign_bits(self) -> u32;
     /// Lane-wise bitwise exclusive or.
     fn xor(self, o: Self) -> Self;
+    /// Lane-wise bitwise or.
+    fn or(self, o: Self) -> Self;
+    /// Lane-wise bitwise and.
+    fn and(self, o: Self) -> Self;
+    /// All bits set in lanes where `self == o`, none elsewhere: masks
+    /// combined lane-wise and read with one [`Lanes::sign_bits`].
+    fn eq_mask(self, o: Self) -> Self;
+    /// All bits set in lanes where `self > o`.
+    fn gt_mask(self, o: Self) -> Self;
+    /// All bits set in lanes where `self <= o`.
+    fn le_mask(self, o: Self) -> Self;
     /// The lanes as an array.
     fn to_array(self) -> [f32; WIDTH];
     /// The smallest lane (lanes must not be NaN).
@@ -132,6 +143,26 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn xor(self, o: Self) -> Self {
         self ^ o
+    }
+    #[inline(always)]
+    fn or(self, o: Self) -> Self {
+        self | o
+    }
+    #[inline(always)]
+    fn and(self, o: Self) -> Self {
+        self & o
+    }
+    #[inline(always)]
+    fn eq_mask(self, o: Self) -> Self {
+        self.cmp_eq(o)
+    }
+    #[inline(always)]
+    fn gt_mask(self, o: Self) -> Self {
+        self.cmp_gt(o)
+    }
+    #[inline(always)]
+    fn le_mask(self, o: Self) -> Self {
+        self.cmp_le(o)
     }
     #[inline(always)]
     fn to_array(self) -> [f32; WIDTH] {
@@ -252,6 +283,26 @@ pub(crate) mod avx {
         #[inline(always)]
         fn xor(self, o: Self) -> Self {
             Avx(unsafe { _mm256_xor_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn or(self, o: Self) -> Self {
+            Avx(unsafe { _mm256_or_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn and(self, o: Self) -> Self {
+            Avx(unsafe { _mm256_and_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn eq_mask(self, o: Self) -> Self {
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn gt_mask(self, o: Self) -> Self {
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn le_mask(self, o: Self) -> Self {
+            Avx(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0) })
         }
         #[inline(always)]
         fn to_array(self) -> [f32; WIDTH] {

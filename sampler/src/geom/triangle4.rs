@@ -7,7 +7,7 @@
 //! them in double precision.
 
 use glam::Vec3;
-use wide::{f32x4, CmpEq, CmpGt, CmpLe, CmpLt};
+use wide::{f32x4, CmpEq, CmpGt, CmpLe};
 
 use super::lanes::Lanes;
 use super::triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
@@ -121,14 +121,16 @@ impl Ray4 {
         let w = bx * ay - by * ax;
         let zero = f32x4::ZERO;
         let edge = u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero);
-        let negative = u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero);
-        let positive = u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero);
         let det = u + v + w;
         let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
         // `x * det.signum()` is `x` with det's sign bit folded in, exactly.
         let sign = det & f32x4::splat(-0.0);
         let (ts, bound) = (t_scaled ^ sign, (f32x4::splat(limit) * det) ^ sign);
-        let rejected = ((negative & positive) | det.cmp_eq(zero)).move_mask() as u32;
+        // Lanes off an edge have u, v and w non-zero: the scalar test rejects
+        // them where their signs differ (and then det, a sum of non-zero
+        // numbers of one sign, is not zero either). A NaN fails the distance
+        // test whatever its sign.
+        let rejected = ((u ^ v) | (u ^ w)).move_mask() as u32;
         let pass = (ts.cmp_gt(zero) & ts.cmp_le(bound)).move_mask() as u32 & !rejected & lanes;
         let edge = edge.move_mask() as u32 & lanes;
         let todo = edge | pass;
@@ -260,16 +262,17 @@ impl<L: Lanes> RayWide<L> {
         let v = ax.mul(cy).sub(ay.mul(cx));
         let w = bx.mul(ay).sub(by.mul(ax));
         let zero = L::splat(0.0);
-        let edge = u.eq(zero) | v.eq(zero) | w.eq(zero);
-        let negative = u.lt(zero) | v.lt(zero) | w.lt(zero);
-        let positive = u.gt(zero) | v.gt(zero) | w.gt(zero);
+        let edge = u.eq_mask(zero).or(v.eq_mask(zero)).or(w.eq_mask(zero)).sign_bits() & lanes;
         let det = u.add(v).add(w);
         let t_scaled = u.mul(sz.mul(az)).add(v.mul(sz.mul(bz))).add(w.mul(sz.mul(cz)));
         let sign = det.sign();
         let (ts, bound) = (t_scaled.xor(sign), L::splat(limit).mul(det).xor(sign));
-        let rejected = (negative & positive) | det.eq(zero);
-        let pass = ts.gt(zero) & ts.le(bound) & !rejected & lanes;
-        let edge = edge & lanes;
+        // Lanes off an edge have u, v and w non-zero: the scalar test rejects
+        // them where their signs differ (and then det, a sum of non-zero
+        // numbers of one sign, is not zero either). A NaN fails the distance
+        // test whatever its sign.
+        let rejected = u.xor(v).or(u.xor(w)).sign_bits();
+        let pass = ts.gt_mask(zero).and(ts.le_mask(bound)).sign_bits() & !rejected & lanes;
         let todo = edge | pass;
         if todo == 0 {
             return true;

@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::node::{Child, Node, EMPTY, LEAF_MAX, MAX_BLOCKS, WIDTH};
-use super::WideBvh;
+use super::{Block, WideBvh};
 use crate::geom::{Aabb, Tri4};
 use crate::scene::Scene;
 
@@ -320,8 +320,7 @@ struct Layout<'a> {
 struct Place<'s> {
     nodes: &'s mut [MaybeUninit<Node>],
     node_at: usize,
-    blocks: &'s mut [MaybeUninit<Tri4>],
-    ids: &'s mut [MaybeUninit<[u32; 4]>],
+    blocks: &'s mut [MaybeUninit<Block>],
     block_at: usize,
 }
 
@@ -339,22 +338,22 @@ impl Layout<'_> {
             }
             Sub::Leaf { start, count } => {
                 let prims = &self.prims[*start..start + count];
-                assert!(at.blocks.len() == count.div_ceil(4) && at.ids.len() == at.blocks.len() && at.nodes.is_empty());
-                for ((chunk, block), slot) in prims.chunks(4).zip(at.blocks.iter_mut()).zip(at.ids.iter_mut()) {
+                assert!(at.blocks.len() == count.div_ceil(4) && at.nodes.is_empty());
+                for (chunk, block) in prims.chunks(4).zip(at.blocks.iter_mut()) {
                     let mut ids = [0u32; 4];
                     for (lane, prim) in chunk.iter().enumerate() {
                         ids[lane] = prim.id;
                     }
-                    block.write(Tri4::from_triangles(
-                        chunk.iter().map(|p| self.scene.vertices(p.id as usize)),
-                    ));
-                    slot.write(ids);
+                    block.write(Block {
+                        tris: Tri4::from_triangles(chunk.iter().map(|p| self.scene.vertices(p.id as usize))),
+                        ids,
+                    });
                 }
                 Child::leaf(at.block_at, *count)
             }
             Sub::Inner { children, size } => {
                 let (this, mut nodes) = at.nodes.split_at_mut(1);
-                let (mut blocks, mut ids) = (at.blocks, at.ids);
+                let mut blocks = at.blocks;
                 let (mut node_at, mut block_at) = (at.node_at + 1, at.block_at);
                 let mut places = Vec::with_capacity(children.len());
                 for (_, c) in children {
@@ -363,20 +362,17 @@ impl Layout<'_> {
                     nodes = rest;
                     let (b, rest) = std::mem::take(&mut blocks).split_at_mut(s.blocks);
                     blocks = rest;
-                    let (i, rest) = std::mem::take(&mut ids).split_at_mut(s.blocks);
-                    ids = rest;
                     places.push(Place {
                         nodes: n,
                         node_at,
                         blocks: b,
-                        ids: i,
                         block_at,
                     });
                     node_at += s.nodes;
                     block_at += s.blocks;
                 }
                 // The children's runs took up the whole of this subtree's.
-                assert!(nodes.is_empty() && blocks.is_empty() && ids.is_empty());
+                assert!(nodes.is_empty() && blocks.is_empty());
                 let refs: Vec<(Aabb, u32)> = if size.blocks >= PARALLEL / 4 {
                     places
                         .into_par_iter()
@@ -416,8 +412,7 @@ impl WideBvh {
         // Written in place, in parallel: filling the arrays first would be
         // a serial pass over hundreds of MiB.
         let mut nodes: Vec<Node> = Vec::with_capacity(size.nodes);
-        let mut blocks: Vec<Tri4> = Vec::with_capacity(size.blocks);
-        let mut ids: Vec<[u32; 4]> = Vec::with_capacity(size.blocks);
+        let mut blocks: Vec<Block> = Vec::with_capacity(size.blocks);
         let layout = Layout { scene, prims: &prims };
         let root = layout.place(
             &sub,
@@ -425,7 +420,6 @@ impl WideBvh {
                 nodes: &mut nodes.spare_capacity_mut()[..size.nodes],
                 node_at: 0,
                 blocks: &mut blocks.spare_capacity_mut()[..size.blocks],
-                ids: &mut ids.spare_capacity_mut()[..size.blocks],
                 block_at: 0,
             },
         );
@@ -436,13 +430,11 @@ impl WideBvh {
         unsafe {
             nodes.set_len(size.nodes);
             blocks.set_len(size.blocks);
-            ids.set_len(size.blocks);
         }
         drop(sub);
         Some(WideBvh {
             nodes,
             blocks,
-            ids,
             root,
             bounds,
         })
@@ -476,7 +468,7 @@ mod tests {
                     for lane in 0..count {
                         let id = bvh.id(block, lane) as usize;
                         seen[id] += 1;
-                        assert_eq!(bvh.blocks[block + lane / 4].get(lane % 4), scene.vertices(id));
+                        assert_eq!(bvh.blocks[block + lane / 4].tris.get(lane % 4), scene.vertices(id));
                         for p in scene.vertices(id) {
                             assert!(
                                 p.cmpge(within.lo).all() && p.cmple(within.hi).all(),

@@ -110,7 +110,7 @@ impl WideBvh {
                 let tri = self.id(block, lane);
                 let mut limits = L::new(closest).mul(L::splat(ROBUST)).to_array();
                 shared.intersect(
-                    self.blocks[block + lane / 4].get(lane % 4),
+                    self.blocks[block + lane / 4].tris.get(lane % 4),
                     mask,
                     &mut limits,
                     |i, h| {

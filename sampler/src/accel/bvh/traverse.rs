@@ -129,35 +129,30 @@ impl WideBvh {
         self.intersect_with(&SlabRay::<avx::Avx>::new(ray), ray)
     }
 
-    /// Tests the triangles of the leaf from `block` in `lanes` (one block
-    /// for lanes 0..4, two for more) against `prep` or its eight-lane form
-    /// `wide`, as [`Ray4::intersect`] does.
+    /// Tests the triangles of the leaf from `block` in `lanes` against
+    /// `wide`, as [`Ray4::intersect`] on its blocks in turn would: a leaf of
+    /// one block gives the same block for both halves, its upper lanes off.
     #[inline(always)]
     fn leaf_test<L: Lanes>(
         &self,
-        prep: &Ray4,
         wide: &RayWide<L>,
         block: usize,
         lanes: u32,
         limit: f32,
         hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
     ) -> bool {
-        if lanes < 16 {
-            prep.intersect(&self.blocks[block], lanes, limit, hit)
-        } else {
-            wide.intersect(&self.blocks[block], &self.blocks[block + 1], lanes, limit, hit)
-        }
+        let second = if lanes < 16 { block } else { block + 1 };
+        wide.intersect(&self.blocks[block].tris, &self.blocks[second].tris, lanes, limit, hit)
     }
 
     #[inline(always)]
     fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
-        let prep = Ray4::new(ray.origin, ray.dir);
-        let wide = RayWide::<L>::new(&prep);
+        let wide = RayWide::<L>::new(&Ray4::new(ray.origin, ray.dir));
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
         self.walk(boxes, ray.t_max, |block, lanes| {
             let mut found = None;
-            self.leaf_test(&prep, &wide, block, lanes, reach(closest), |lane, h| {
+            self.leaf_test(&wide, block, lanes, reach(closest), |lane, h| {
                 let tri = self.id(block, lane);
                 if better(h.t, tri, closest, best.map_or(u32::MAX, |b| b.tri)) {
                     closest = h.t;
@@ -197,11 +192,10 @@ impl WideBvh {
 
     #[inline(always)]
     fn occluded_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
-        let prep = Ray4::new(ray.origin, ray.dir);
-        let wide = RayWide::<L>::new(&prep);
+        let wide = RayWide::<L>::new(&Ray4::new(ray.origin, ray.dir));
         let mut hit = false;
         self.walk(boxes, ray.t_max, |block, lanes| {
-            let go = self.leaf_test(&prep, &wide, block, lanes, ray.t_max, |lane, h| {
+            let go = self.leaf_test(&wide, block, lanes, ray.t_max, |lane, h| {
                 if h.t < ray.t_max && blocks(self.id(block, lane)) {
                     hit = true;
                     return None;
