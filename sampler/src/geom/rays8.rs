@@ -122,12 +122,14 @@ impl<L: Lanes> Rays8<L> {
         let v = ax.mul(cy).sub(ay.mul(cx));
         let w = bx.mul(ay).sub(by.mul(ax));
         let zero = L::splat(0.0);
-        let edge = u.eq(zero) | v.eq(zero) | w.eq(zero);
-        let negative = u.lt(zero) | v.lt(zero) | w.lt(zero);
-        let positive = u.gt(zero) | v.gt(zero) | w.gt(zero);
-        let edge = edge & lanes;
+        let edge = u.eq_mask(zero).or(v.eq_mask(zero)).or(w.eq_mask(zero)).sign_bits() & lanes;
+        // Lanes off an edge have u, v and w non-zero: the scalar test rejects
+        // them where their signs differ (and then det, a sum of non-zero
+        // numbers of one sign, is not zero either). A NaN fails the distance
+        // test whatever its sign.
+        let rejected = u.xor(v).or(u.xor(w)).sign_bits();
         // Most triangles of a leaf miss every ray on the edge functions' signs.
-        if (negative & positive) & lanes == lanes && edge == 0 {
+        if rejected & lanes == lanes && edge == 0 {
             return;
         }
         let det = u.add(v).add(w);
@@ -135,8 +137,7 @@ impl<L: Lanes> Rays8<L> {
         // `x * det.signum()` is `x` with det's sign bit folded in, exactly.
         let sign = det.sign();
         let (ts, bound) = (t_scaled.xor(sign), L::new(*limits).mul(det).xor(sign));
-        let rejected = (negative & positive) | det.eq(zero);
-        let pass = ts.gt(zero) & ts.le(bound) & !rejected & lanes;
+        let pass = ts.gt_mask(zero).and(ts.le_mask(bound)).sign_bits() & !rejected & lanes;
         let mut todo = edge | pass;
         if todo == 0 {
             return;
