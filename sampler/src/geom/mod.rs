@@ -11,7 +11,7 @@ mod triangle4;
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) use lanes::avx;
-pub use lanes::Lanes;
+pub use lanes::{LaneOps, Lanes};
 pub use offset::offset_origin;
 pub use rays8::Rays8;
 pub use triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};

@@ -7,9 +7,9 @@
 //! them in double precision.
 
 use glam::Vec3;
-use wide::{f32x4, CmpEq, CmpGt, CmpLe};
+use wide::f32x4;
 
-use super::lanes::Lanes;
+use super::lanes::{LaneOps, Lanes};
 use super::triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
 
 /// Four triangles in structure-of-arrays form: `p[3 * v + c]` holds
@@ -106,47 +106,64 @@ impl Ray4 {
         limit: f32,
         hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
     ) -> bool {
-        let [kx, ky, kz] = self.k;
-        let [ox, oy, oz] = self.o;
-        let [sx, sy, sz] = self.s;
-        let (az, bz, cz) = (tri.p[kz] - oz, tri.p[3 + kz] - oz, tri.p[6 + kz] - oz);
-        let ax = (tri.p[kx] - ox) - sx * az;
-        let ay = (tri.p[ky] - oy) - sy * az;
-        let bx = (tri.p[3 + kx] - ox) - sx * bz;
-        let by = (tri.p[3 + ky] - oy) - sy * bz;
-        let cx = (tri.p[6 + kx] - ox) - sx * cz;
-        let cy = (tri.p[6 + ky] - oy) - sy * cz;
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let zero = f32x4::ZERO;
-        let edge = u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero);
-        let det = u + v + w;
-        let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
-        // `x * det.signum()` is `x` with det's sign bit folded in, exactly.
-        let sign = det & f32x4::splat(-0.0);
-        let (ts, bound) = (t_scaled ^ sign, (f32x4::splat(limit) * det) ^ sign);
-        // Lanes off an edge have u, v and w non-zero: the scalar test rejects
-        // them where their signs differ (and then det, a sum of non-zero
-        // numbers of one sign, is not zero either). A NaN fails the distance
-        // test whatever its sign.
-        let rejected = ((u ^ v) | (u ^ w)).move_mask() as u32;
-        let pass = (ts.cmp_gt(zero) & ts.cmp_le(bound)).move_mask() as u32 & !rejected & lanes;
-        let edge = edge.move_mask() as u32 & lanes;
-        let todo = edge | pass;
-        if todo == 0 {
-            return true;
+        match lane_test(|i| tri.p[i], self.k, &self.o, &self.s, lanes, limit) {
+            None => true,
+            Some(todo) => todo.settle(|lane| tri.get(lane), || self.scalar(), limit, hit),
         }
-        let lanes = Settle {
-            todo,
-            edge,
-            ts: t_scaled.to_array(),
-            det: det.to_array(),
-            v: v.to_array(),
-            w: w.to_array(),
-        };
-        lanes.settle(|lane| tri.get(lane), || self.scalar(), limit, hit)
     }
+}
+
+/// The watertight test of one ray (permutation `k`, shear constants `o`
+/// and `s` in every lane) against the triangles whose coordinate `i`
+/// (`3 * vertex + axis`) is `p(i)`, one per lane, within `(0, limit]`: the
+/// lanes of `lanes` that pass or lie on an edge, or `None` where none does.
+/// Each lane does the scalar test's operations in its order, without fused
+/// multiply-adds.
+#[inline(always)]
+fn lane_test<V: LaneOps<N>, const N: usize>(
+    p: impl Fn(usize) -> V,
+    k: [usize; 3],
+    o: &[V; 3],
+    s: &[V; 3],
+    lanes: u32,
+    limit: f32,
+) -> Option<Settle<N>> {
+    let [kx, ky, kz] = k;
+    let [ox, oy, oz] = *o;
+    let [sx, sy, sz] = *s;
+    let (az, bz, cz) = (p(kz).sub(oz), p(3 + kz).sub(oz), p(6 + kz).sub(oz));
+    let ax = p(kx).sub(ox).sub(sx.mul(az));
+    let ay = p(ky).sub(oy).sub(sy.mul(az));
+    let bx = p(3 + kx).sub(ox).sub(sx.mul(bz));
+    let by = p(3 + ky).sub(oy).sub(sy.mul(bz));
+    let cx = p(6 + kx).sub(ox).sub(sx.mul(cz));
+    let cy = p(6 + ky).sub(oy).sub(sy.mul(cz));
+    let u = cx.mul(by).sub(cy.mul(bx));
+    let v = ax.mul(cy).sub(ay.mul(cx));
+    let w = bx.mul(ay).sub(by.mul(ax));
+    let zero = V::splat(0.0);
+    let edge = u.eq_mask(zero).or(v.eq_mask(zero)).or(w.eq_mask(zero));
+    let det = u.add(v).add(w);
+    let t_scaled = u.mul(sz.mul(az)).add(v.mul(sz.mul(bz))).add(w.mul(sz.mul(cz)));
+    // `x * det.signum()` is `x` with det's sign bit folded in, exactly.
+    let sign = det.sign();
+    let (ts, bound) = (t_scaled.xor(sign), V::splat(limit).mul(det).xor(sign));
+    // Lanes off an edge have u, v and w non-zero: the scalar test rejects
+    // them where their signs differ (and then det, a sum of non-zero
+    // numbers of one sign, is not zero either). A NaN fails the distance
+    // test whatever its sign.
+    let rejected = u.xor(v).or(u.xor(w)).sign_bits();
+    let pass = ts.gt_mask(zero).and(ts.le_mask(bound)).sign_bits() & !rejected & lanes;
+    let edge = edge.sign_bits() & lanes;
+    let todo = edge | pass;
+    (todo != 0).then(|| Settle {
+        todo,
+        edge,
+        ts: t_scaled.to_array(),
+        det: det.to_array(),
+        v: v.to_array(),
+        w: w.to_array(),
+    })
 }
 
 /// The lanes a block test passed or found on an edge, with what settling
@@ -247,46 +264,14 @@ impl<L: Lanes> RayWide<L> {
         limit: f32,
         hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
     ) -> bool {
-        let [kx, ky, kz] = self.k;
-        let [ox, oy, oz] = self.o;
-        let [sx, sy, sz] = self.s;
         let p = |i: usize| L::load_halves(&a.p[i], &b.p[i]);
-        let (az, bz, cz) = (p(kz).sub(oz), p(3 + kz).sub(oz), p(6 + kz).sub(oz));
-        let ax = p(kx).sub(ox).sub(sx.mul(az));
-        let ay = p(ky).sub(oy).sub(sy.mul(az));
-        let bx = p(3 + kx).sub(ox).sub(sx.mul(bz));
-        let by = p(3 + ky).sub(oy).sub(sy.mul(bz));
-        let cx = p(6 + kx).sub(ox).sub(sx.mul(cz));
-        let cy = p(6 + ky).sub(oy).sub(sy.mul(cz));
-        let u = cx.mul(by).sub(cy.mul(bx));
-        let v = ax.mul(cy).sub(ay.mul(cx));
-        let w = bx.mul(ay).sub(by.mul(ax));
-        let zero = L::splat(0.0);
-        let edge = u.eq_mask(zero).or(v.eq_mask(zero)).or(w.eq_mask(zero)).sign_bits() & lanes;
-        let det = u.add(v).add(w);
-        let t_scaled = u.mul(sz.mul(az)).add(v.mul(sz.mul(bz))).add(w.mul(sz.mul(cz)));
-        let sign = det.sign();
-        let (ts, bound) = (t_scaled.xor(sign), L::splat(limit).mul(det).xor(sign));
-        // Lanes off an edge have u, v and w non-zero: the scalar test rejects
-        // them where their signs differ (and then det, a sum of non-zero
-        // numbers of one sign, is not zero either). A NaN fails the distance
-        // test whatever its sign.
-        let rejected = u.xor(v).or(u.xor(w)).sign_bits();
-        let pass = ts.gt_mask(zero).and(ts.le_mask(bound)).sign_bits() & !rejected & lanes;
-        let todo = edge | pass;
-        if todo == 0 {
-            return true;
+        match lane_test(p, self.k, &self.o, &self.s, lanes, limit) {
+            None => true,
+            Some(todo) => {
+                let tri = |lane: usize| if lane < 4 { a.get(lane) } else { b.get(lane - 4) };
+                todo.settle(tri, || RayPrep::new(self.ray.0, self.ray.1), limit, hit)
+            }
         }
-        let lanes = Settle {
-            todo,
-            edge,
-            ts: t_scaled.to_array(),
-            det: det.to_array(),
-            v: v.to_array(),
-            w: w.to_array(),
-        };
-        let tri = |lane: usize| if lane < 4 { a.get(lane) } else { b.get(lane - 4) };
-        lanes.settle(tri, || RayPrep::new(self.ray.0, self.ray.1), limit, hit)
     }
 }
 
