@@ -1,7 +1,8 @@
 //! Building the wide BVH: binned SAH over triangle centroids splits a node's
 //! triangles in two, and the largest of its parts is split again until it has
 //! eight children; parts of up to eight triangles become leaves (one block of
-//! four, or two tested at once: see [`super::traverse`]). Subtrees are
+//! four, or two tested at once: see [`super::traverse`]), or a node of two
+//! leaves where SAH finds two clusters ([`small`]). Subtrees are
 //! built in parallel, then laid out depth first, also in parallel.
 
 use std::mem::MaybeUninit;
@@ -427,7 +428,8 @@ impl Layout<'_> {
     }
 }
 
-/// The most triangles a hierarchy can hold: every leaf block needs a reference.
+/// The most triangles a hierarchy can hold: a leaf's first block must fit
+/// in a reference, and there are never more blocks than triangles.
 pub const MAX_TRIANGLES: usize = MAX_BLOCKS;
 
 impl WideBvh {

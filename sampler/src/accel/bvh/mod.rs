@@ -1,11 +1,10 @@
 //! An 8-wide bounding volume hierarchy for in-core ray casting: each node
 //! holds the boxes of up to eight children in SIMD lanes, so one ray tests all
 //! eight with a handful of vector operations (256-bit ones where the CPU has
-//! AVX2, chosen at run time), and each leaf is one or two blocks of up to
-//! four triangles, tested at once by the watertight test of
-//! [`Ray4`](crate::geom::Ray4) (both blocks in one 256-bit test where the
-//! CPU has AVX: [`RayWide`](crate::geom::RayWide)). Built with binned SAH over triangle
-//! centroids, in parallel.
+//! AVX, chosen at run time), and each leaf is one or two blocks of up to
+//! four triangles, both tested at once in eight lanes by the watertight test
+//! of [`RayWide`](crate::geom::RayWide) (one AVX register where the CPU has
+//! it). Built with binned SAH over triangle centroids, in parallel.
 //!
 //! Why a second structure beside the kd-tree: a kd-tree step decides one
 //! split plane, one dependent load at a time, and a walk down a 10M-triangle
@@ -42,9 +41,11 @@ pub struct WideBvh {
 
 /// Four triangles of a leaf, and beside them their indices (read when a
 /// lane is hit: kept on the block's last cache line, an incoherent ray's hit
-/// costs no second miss).
+/// costs no second miss). Aligned to 32 bytes, so that the indices always
+/// share a cache line with the last triangle coordinates whatever the
+/// allocation's alignment (160 bytes either way).
 #[derive(Clone, Copy, Debug)]
-#[repr(C)]
+#[repr(C, align(32))]
 struct Block {
     tris: Tri4,
     ids: [u32; 4],
