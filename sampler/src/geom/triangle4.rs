@@ -56,6 +56,19 @@ impl Tri4 {
     }
 }
 
+/// The watertight test's per-ray constants, each in every lane (`splat`):
+/// the axis permutation, the origin permuted, and the shear.
+#[inline(always)]
+fn shear<V>(origin: Vec3, dir: Vec3, splat: impl Fn(f32) -> V) -> ([usize; 3], [V; 3], [V; 3]) {
+    let k = axis_permutation(dir);
+    let [kx, ky, kz] = k;
+    (
+        k,
+        [splat(origin[kx]), splat(origin[ky]), splat(origin[kz])],
+        [splat(dir[kx] / dir[kz]), splat(dir[ky] / dir[kz]), splat(1.0 / dir[kz])],
+    )
+}
+
 /// A ray prepared for [`Ray4::intersect`]: the shear of the watertight test
 /// with its constants in every lane, and the ray itself for lanes on an
 /// edge (rare, so the scalar test's constants are made only then).
@@ -71,20 +84,11 @@ impl Ray4 {
     /// Prepares a ray with origin `origin` and direction `dir` (non-zero).
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> Ray4 {
-        let k = axis_permutation(dir);
-        let [kx, ky, kz] = k;
+        let (k, o, s) = shear(origin, dir, f32x4::splat);
         Ray4 {
             k,
-            o: [
-                f32x4::splat(origin[kx]),
-                f32x4::splat(origin[ky]),
-                f32x4::splat(origin[kz]),
-            ],
-            s: [
-                f32x4::splat(dir[kx] / dir[kz]),
-                f32x4::splat(dir[ky] / dir[kz]),
-                f32x4::splat(1.0 / dir[kz]),
-            ],
+            o,
+            s,
             ray: (origin, dir),
         }
     }
@@ -240,15 +244,15 @@ pub struct RayWide<L> {
 }
 
 impl<L: Lanes> RayWide<L> {
-    /// The eight-lane form of `ray`.
+    /// Prepares a ray with origin `origin` and direction `dir` (non-zero).
     #[inline(always)]
-    pub fn new(ray: &Ray4) -> RayWide<L> {
-        let lane = |x: &f32x4| L::splat(x.as_array_ref()[0]);
+    pub fn new(origin: Vec3, dir: Vec3) -> RayWide<L> {
+        let (k, o, s) = shear(origin, dir, L::splat);
         RayWide {
-            k: ray.k,
-            o: ray.o.each_ref().map(lane),
-            s: ray.s.each_ref().map(lane),
-            ray: ray.ray,
+            k,
+            o,
+            s,
+            ray: (origin, dir),
         }
     }
 
@@ -326,7 +330,7 @@ mod tests {
         let mut got = Vec::new();
         // The limit never rises, as in the walks (a hit may lie an ulp past it).
         let mut cur = limit;
-        RayWide::<L>::new(ray).intersect(a, b, lanes, limit, |lane, h| {
+        RayWide::<L>::new(ray.ray.0, ray.ray.1).intersect(a, b, lanes, limit, |lane, h| {
             got.push((lane, h.t));
             cur = cur.min(h.t);
             Some(cur)

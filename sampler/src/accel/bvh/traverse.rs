@@ -12,7 +12,7 @@ use super::{better, reach, WideBvh};
 use crate::accel::Hit;
 #[cfg(target_arch = "x86_64")]
 use crate::geom::avx;
-use crate::geom::{Lanes, Ray, Ray4, RayWide, TriangleHit};
+use crate::geom::{Lanes, Ray, RayWide, TriangleHit};
 
 /// Entries of the walk's stack. A level pushes at most `WIDTH - 1`, and the
 /// build bounds the depth (32 levels of SAH, then halving: at most 64).
@@ -130,7 +130,7 @@ impl WideBvh {
     }
 
     /// Tests the triangles of the leaf from `block` in `lanes` against
-    /// `wide`, as [`Ray4::intersect`] on its blocks in turn would: a leaf of
+    /// `wide`, as [`Ray4::intersect`](crate::geom::Ray4::intersect) on its blocks in turn would: a leaf of
     /// one block gives the same block for both halves, its upper lanes off.
     #[inline(always)]
     fn leaf_test<L: Lanes>(
@@ -147,7 +147,7 @@ impl WideBvh {
 
     #[inline(always)]
     fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
-        let wide = RayWide::<L>::new(&Ray4::new(ray.origin, ray.dir));
+        let wide = RayWide::<L>::new(ray.origin, ray.dir);
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
         self.walk(boxes, ray.t_max, |block, lanes| {
@@ -192,7 +192,7 @@ impl WideBvh {
 
     #[inline(always)]
     fn occluded_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
-        let wide = RayWide::<L>::new(&Ray4::new(ray.origin, ray.dir));
+        let wide = RayWide::<L>::new(ray.origin, ray.dir);
         let mut hit = false;
         self.walk(boxes, ray.t_max, |block, lanes| {
             let go = self.leaf_test(&wide, block, lanes, ray.t_max, |lane, h| {
