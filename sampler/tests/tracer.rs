@@ -258,3 +258,52 @@ fn samples_per_ray_average_independent_estimates() {
     assert!((m1 - 2.5).abs() < 0.1 && (m16 - 2.5).abs() < 0.05, "{m1} {m16}");
     assert!(v1 / v16 > 8.0 && v1 / v16 < 32.0, "variance {v1} -> {v16}");
 }
+
+/// Rays traced together (first hits in one packet) give what tracing each
+/// in turn gives, bit for bit, drawing from one generator in the same
+/// order: nearly parallel rays as a pixel's samples are, rays every way,
+/// short batches, and a ray that cannot be traced among them.
+#[test]
+fn rays_traced_together_give_what_each_gives_in_turn() {
+    use holodeck_sampler::scene::gen::{generate, GenParams};
+    let room = generate("room", &GenParams::default()).unwrap();
+    for (samples, vdistance) in [(1, false), (2, true)] {
+        let tracer = Tracer::new(
+            room.clone(),
+            TraceOptions {
+                samples,
+                vdistance,
+                ..TraceOptions::default()
+            },
+        );
+        let mut pick = Rng::new(5, 6);
+        let mut lit = 0;
+        for batch in 0..120 {
+            let n = [8, 8, 3, 1, 19][batch % 5];
+            let eye = Vec3::new(1.0 + 4.0 * pick.f32(), 0.5 + 3.0 * pick.f32(), 0.3 + 1.8 * pick.f32());
+            let aim = Vec3::new(pick.f32() - 0.5, pick.f32() - 0.5, pick.f32() - 0.5);
+            let mut rays: Vec<(Vec3, Vec3)> = (0..n)
+                .map(|_| {
+                    let spread = if batch % 3 == 0 { 1.0 } else { 0.01 };
+                    let d = Vec3::new(pick.f32() - 0.5, pick.f32() - 0.5, pick.f32() - 0.5) * spread;
+                    (eye, aim + d)
+                })
+                .collect();
+            if batch % 10 == 7 {
+                rays[n / 2] = (eye, Vec3::ZERO);
+            }
+            let mut together = Vec::new();
+            let mut rng = Rng::new(9, batch as u64);
+            tracer.trace_together(&rays, &mut rng, |k, s| together.push((k, s)));
+            let mut rng = Rng::new(9, batch as u64);
+            let each: Vec<_> = rays
+                .iter()
+                .enumerate()
+                .map(|(k, &(o, d))| (k, tracer.trace(o, d, &mut rng)))
+                .collect();
+            assert_eq!(together, each, "batch {batch}");
+            lit += each.iter().filter(|(_, s)| s.radiance.max_element() > 0.0).count();
+        }
+        assert!(lit > 300, "{lit} lit");
+    }
+}

@@ -10,6 +10,7 @@ use glam::Vec3;
 use holodeck_protocol::{check_picture_size, View};
 use rayon::prelude::*;
 
+use crate::accel::PACKET;
 use crate::geom::Ray;
 use crate::shade::{Rng, Tracer};
 
@@ -63,21 +64,31 @@ pub fn render(
                 let pixel = (row * w + col) as u64;
                 let mut rng = Rng::new(o.seed, pixel);
                 let mut sum = Vec3::ZERO;
-                for s in 0..spp {
-                    let (jx, jy) = rng.f32x2();
-                    let (sx, sy) = if stratified {
-                        (
-                            ((s % strata) as f32 + jx) / strata as f32,
-                            ((s / strata) as f32 + jy) / strata as f32,
-                        )
-                    } else {
-                        (jx, jy)
-                    };
-                    let x = (col as f64 + f64::from(sx)) / w as f64;
-                    let y = 1.0 - (row as f64 + f64::from(sy)) / h as f64;
-                    if let Some((origin, dir)) = rays.ray(x, y) {
-                        sum += tracer.trace(origin.as_vec3(), dir.as_vec3(), &mut rng).radiance;
+                // A pixel's samples eight at a time: their positions, then
+                // their paths, all from the pixel's one random sequence.
+                let mut s = 0;
+                while s < spp {
+                    let mut batch = [(Vec3::ZERO, Vec3::ZERO); PACKET];
+                    let mut n = 0;
+                    for s in s..(s + PACKET as u32).min(spp) {
+                        let (jx, jy) = rng.f32x2();
+                        let (sx, sy) = if stratified {
+                            (
+                                ((s % strata) as f32 + jx) / strata as f32,
+                                ((s / strata) as f32 + jy) / strata as f32,
+                            )
+                        } else {
+                            (jx, jy)
+                        };
+                        let x = (col as f64 + f64::from(sx)) / w as f64;
+                        let y = 1.0 - (row as f64 + f64::from(sy)) / h as f64;
+                        if let Some((origin, dir)) = rays.ray(x, y) {
+                            batch[n] = (origin.as_vec3(), dir.as_vec3());
+                            n += 1;
+                        }
                     }
+                    tracer.trace_together(&batch[..n], &mut rng, |_, sample| sum += sample.radiance);
+                    s += PACKET as u32;
                 }
                 out.push(sum / spp as f32);
             }

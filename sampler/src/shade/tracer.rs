@@ -341,6 +341,45 @@ impl Tracer {
         self.trace_streams(origin, dir, vdistance, Streams::Shared(rng), fetch)
     }
 
+    /// [`Tracer::trace`] of each ray `(origin, direction)` of `rays` in
+    /// turn, handing `out` its index and sample: the estimates draw from
+    /// `rng` one after another, exactly as calling [`Tracer::trace`] on each
+    /// would. In core, the first hits of each [`PACKET`] consecutive rays
+    /// are found together, which pays where the rays run nearly one way, as
+    /// the samples of one pixel do.
+    pub fn trace_together(&self, rays: &[(Vec3, Vec3)], rng: &mut Rng, mut out: impl FnMut(usize, Sample)) {
+        let vdistance = self.options.vdistance;
+        let fetch = &mut Fetch::load();
+        for (c, chunk) in rays.chunks(PACKET).enumerate() {
+            let at = c * PACKET;
+            if self.ooc.is_some() || chunk.iter().any(|&(o, d)| !traceable(o, d)) {
+                for (k, &(origin, dir)) in chunk.iter().enumerate() {
+                    out(
+                        at + k,
+                        self.trace_streams(origin, dir, vdistance, Streams::Shared(rng), fetch),
+                    );
+                }
+                continue;
+            }
+            let mut packet = [Ray::new(Vec3::ZERO, Vec3::ONE); PACKET];
+            for (p, &(origin, dir)) in packet.iter_mut().zip(chunk) {
+                *p = Ray::new(origin, dir.normalize());
+            }
+            let packet = &packet[..chunk.len()];
+            let hits = match &self.bvh {
+                Some(bvh) => bvh.intersect_packet(packet),
+                None => self.tree.intersect_packet(packet),
+            };
+            for (k, (ray, hit)) in packet.iter().zip(hits).enumerate() {
+                let first = Some(hit.map(|h| self.surface(h)));
+                out(
+                    at + k,
+                    self.estimates(ray.origin, ray.dir, first, vdistance, Streams::Shared(rng), fetch),
+                );
+            }
+        }
+    }
+
     /// [`Tracer::trace_fetching`] with the estimates' random numbers drawn
     /// from `streams`.
     fn trace_streams(&self, origin: Vec3, dir: Vec3, vdistance: bool, streams: Streams, fetch: &mut Fetch) -> Sample {
