@@ -152,8 +152,7 @@ fn packets_best_of_three(packet: impl Fn(&[Ray]) -> [Option<Hit>; PACKET], rays:
 /// The kd-tree beside the wide BVH on the same rays: a table row of build
 /// times, sizes, single-ray rates (best of three each, alternated) and the
 /// BVH's packet rates, and how many rays found their nearest hit at another
-/// distance. The rates come back too: primary and bounce rays single, then
-/// in packets.
+/// distance.
 fn wide_row(
     label: &str,
     scene: &Scene,
@@ -162,7 +161,7 @@ fn wide_row(
     build: Builds,
     primary: &[Ray],
     bounce: &[Ray],
-) -> (String, [f64; 4]) {
+) -> String {
     let tris = scene.triangles.len().max(1) as f64;
     let mut cells = Vec::new();
     let mut differ = 0;
@@ -178,7 +177,7 @@ fn wide_row(
         rates[i + 2] = packets;
     }
     let st = bvh.stats();
-    let row = format!(
+    format!(
         "| {label} | {:.2} s / {:.2} s | {:.1} / {:.1} | {} nodes, {} leaves of {:.2} triangles, depth {} | {} | {} | {:.2} ({:.2}x single) | {:.2} ({:.2}x single) | {differ} of {} |",
         build.bvh,
         build.kd,
@@ -195,8 +194,7 @@ fn wide_row(
         rates[3] / 1e6,
         rates[3] / rates[1],
         2 * (primary.len() + bounce.len())
-    );
-    (row, rates)
+    )
 }
 
 /// Build seconds of the kd-tree, the wide BVH and Embree (infinite when
@@ -370,9 +368,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, &bounce);
         wrong += differing(&bounce_packet_hits, &bounce_hits);
         reordered.push(reordering_row(&case.label, &tree, &bounce, &bounce_hits));
-        #[cfg_attr(not(feature = "embree"), allow(unused_variables))]
-        let (wide_table_row, _) = wide_row(&case.label, scene, &bvh, &tree, build, &primary, &bounce);
-        wide.push(wide_table_row);
+        wide.push(wide_row(&case.label, scene, &bvh, &tree, build, &primary, &bounce));
         scattered.push(scattered_row(&case.label, scene, &tree, &bvh));
         let tris = scene.triangles.len().max(1) as f64;
         println!(
@@ -746,37 +742,46 @@ fn side_by_side(
     let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))?;
     // Each side best of three, the wide BVH's runs taking turns with
     // Embree's: a slow spell of a shared machine then falls on both.
-    let single = |rays: &[Ray]| {
-        let (mut ours, mut theirs, mut hits) = (0f64, 0f64, Vec::new());
+    let turns = |rays: &[Ray], ours: &dyn Fn(), theirs: &mut dyn FnMut()| {
+        let rate = |start: Instant| rays.len() as f64 / start.elapsed().as_secs_f64();
+        let (mut o, mut t) = (0f64, 0f64);
         for _ in 0..3 {
             let start = Instant::now();
-            for r in rays {
-                std::hint::black_box(bvh.intersect(r));
-            }
-            ours = ours.max(rays.len() as f64 / start.elapsed().as_secs_f64());
+            ours();
+            o = o.max(rate(start));
             let start = Instant::now();
-            hits = rays.iter().map(|r| e.intersect(r).map(|h| h.1)).collect();
-            theirs = theirs.max(rays.len() as f64 / start.elapsed().as_secs_f64());
+            theirs();
+            t = t.max(rate(start));
         }
-        (ours, theirs, hits)
+        (o, t)
+    };
+    let single = |rays: &[Ray]| {
+        let mut hits = Vec::new();
+        let ours = || {
+            rays.iter().for_each(|r| {
+                std::hint::black_box(bvh.intersect(r));
+            })
+        };
+        let (o, t) = turns(rays, &ours, &mut || {
+            hits = rays.iter().map(|r| e.intersect(r).map(|h| h.1)).collect();
+        });
+        (o, t, hits)
     };
     let packets = |rays: &[Ray]| {
-        let (mut ours, mut theirs, mut hits) = (0f64, 0f64, Vec::new());
-        for _ in 0..3 {
-            let start = Instant::now();
-            for chunk in rays.chunks(PACKET) {
-                std::hint::black_box(bvh.intersect_packet(chunk));
-            }
-            ours = ours.max(rays.len() as f64 / start.elapsed().as_secs_f64());
-            let start = Instant::now();
-            hits = Vec::with_capacity(rays.len());
+        let mut hits: Vec<Option<u32>> = Vec::new();
+        let ours = || {
+            rays.chunks(PACKET).for_each(|c| {
+                std::hint::black_box(bvh.intersect_packet(c));
+            })
+        };
+        let (o, t) = turns(rays, &ours, &mut || {
+            hits.clear();
             for chunk in rays.chunks(8) {
                 let found = e.intersect8(chunk);
                 hits.extend(found[..chunk.len()].iter().map(|h| h.map(|h| h.1)));
             }
-            theirs = theirs.max(rays.len() as f64 / start.elapsed().as_secs_f64());
-        }
-        (ours, theirs, hits)
+        });
+        (o, t, hits)
     };
     let (ops, ps, ph) = single(primary);
     let (opp, pp, pph) = packets(primary);
