@@ -6,6 +6,13 @@ use std::f64::consts::PI;
 use super::predicates::{in_circle, side};
 use super::{corner, index_of, tri_of, SphereMesh, NONE};
 
+/// An invariant of a [`SphereMesh`] that does not hold, as
+/// [`SphereMesh::validate`] finds it: the first violation, in words naming
+/// the triangles and vertices involved.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct MeshDefect(pub String);
+
 impl SphereMesh {
     /// Checks every invariant: neighbour links symmetric and on the same
     /// edge, every triangle counter-clockwise from outside, every edge
@@ -13,7 +20,12 @@ impl SphereMesh {
     /// triangles that it points into, the triangles covering the sphere once
     /// (their areas sum to 4π), `V - E + F == 2` and `F == 2V - 4`, and no
     /// refused flip. `Err` names the first violation.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MeshDefect> {
+        self.first_defect().map_err(MeshDefect)
+    }
+
+    /// [`SphereMesh::validate`]'s checks, in order, the first failing one in words.
+    fn first_defect(&self) -> Result<(), String> {
         let nv = self.dirs.len();
         let nt = self.tris.len();
         if self.vert_tri.len() != nv {

@@ -50,6 +50,7 @@ use std::fmt;
 use glam::DVec3;
 
 pub use bench::bench_insertions;
+pub use check::MeshDefect;
 
 use grid::Grid;
 use predicates::unit;

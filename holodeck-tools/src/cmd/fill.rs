@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = super::args::non_negative)]
     eye_radius: f64,
     /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
-    #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
+    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
     scene_memory: Option<u64>,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).

@@ -84,7 +84,7 @@ pub struct Args {
     #[arg(long, value_parser = crate::human::count_in(1, super::args::MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// For a .hds scene file: decompressed blocks each sampler keeps in memory (K, M, G; default: all).
-    #[arg(long, value_parser = super::scene_input::parse_scene_memory)]
+    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
     scene_memory: Option<u64>,
 }
 

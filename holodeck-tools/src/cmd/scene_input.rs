@@ -10,7 +10,6 @@ use holodeck_protocol::Section;
 use holodeck_sampler::ooc::{is_scene_file, OocScene};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
-use holodeck_server::settings::parse_size;
 
 /// Fetcher threads that load blocks of a scene file.
 pub const FETCHERS: usize = 2;
@@ -21,11 +20,6 @@ pub enum SceneInput {
     InCore(Box<Scene>),
     /// An open scene file.
     File(Arc<OocScene>),
-}
-
-/// Parses a `--scene-memory` value (K, M, G suffixes).
-pub fn parse_scene_memory(s: &str) -> Result<u64, String> {
-    parse_size(s).map_err(|e| e.to_string())
 }
 
 impl SceneInput {

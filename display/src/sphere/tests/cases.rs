@@ -306,7 +306,7 @@ fn validate_names_what_is_broken() {
         .unwrap();
     force_flip(&mut flipped, t, i);
     let err = flipped.validate().unwrap_err();
-    assert!(err.contains("not Delaunay"), "{err}");
+    assert!(err.0.contains("not Delaunay"), "{err}");
     assert!(global_delaunay(&flipped).is_err());
 
     let mut turned = mesh.clone();
@@ -321,10 +321,10 @@ fn validate_names_what_is_broken() {
         corner(3, 0)
     };
     let err = unlinked.validate().unwrap_err();
-    assert!(err.contains("link"), "{err}");
+    assert!(err.0.contains("link"), "{err}");
 
     let mut lost = mesh.clone();
     lost.vert_tri[40] = lost.tris.iter().position(|t| !t.v.contains(&40)).unwrap() as u32;
     let err = lost.validate().unwrap_err();
-    assert!(err.contains("vertex 40"), "{err}");
+    assert!(err.0.contains("vertex 40"), "{err}");
 }

@@ -99,7 +99,7 @@ fn separated(mesh: &SphereMesh) -> Result<(), String> {
 fn check_run(min_angle: f64, dirs: &[DVec3]) -> Result<SphereMesh, String> {
     let mut mesh = SphereMesh::new(min_angle);
     let tally = insert_all(&mut mesh, dirs)?;
-    mesh.validate()?;
+    mesh.validate().map_err(|e| e.to_string())?;
     let stats = mesh.stats();
     if tally.added + tally.duplicates != dirs.len()
         || mesh.real_count() != tally.added
