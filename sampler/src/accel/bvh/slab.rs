@@ -10,6 +10,12 @@ use crate::geom::{Lanes, Ray};
 /// scaled by it cover the rounding of the slab distances.
 pub(super) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
+/// `1 + 2 gamma(5)`: the far planes' reciprocals scaled by it, once per ray,
+/// cover the rounding of the far and near slab distances (three roundings
+/// each, the scaling's own two on top), so that the test needs no widening
+/// at every node.
+const FAR_WIDENING: f32 = 1.0 + 2.0 * (5.0 * f32::EPSILON * 0.5) / (1.0 - 5.0 * f32::EPSILON * 0.5);
+
 /// The reciprocal of a direction component, finite: a zero component gives
 /// the largest float of its sign, so that `0 * inv` is 0, never NaN, and a
 /// ray lying in a box's face counts as inside it.
@@ -33,10 +39,25 @@ pub(super) fn corners(inv: [f32; 3]) -> ([usize; 3], [usize; 3]) {
     ([k(0), k(1), k(2)], [kf(0), kf(1), kf(2)])
 }
 
-/// One ray's slab test of a node's eight boxes.
+/// The far planes' reciprocal of a direction component: `inv` widened by
+/// [`FAR_WIDENING`], kept finite (a zero component's reciprocal is already
+/// the largest float, and `0 * inv` must stay 0).
+#[inline]
+fn far_recip(inv: f32) -> f32 {
+    let wide = inv * FAR_WIDENING;
+    if wide.is_finite() {
+        wide
+    } else {
+        inv
+    }
+}
+
+/// One ray's slab test of a node's eight boxes: near planes' distances
+/// from the reciprocal direction, far planes' from the widened one.
 pub(super) struct SlabRay<L> {
     o: [L; 3],
     inv: [L; 3],
+    inv_far: [L; 3],
     near: [usize; 3],
     far: [usize; 3],
 }
@@ -49,6 +70,11 @@ impl<L: Lanes> SlabRay<L> {
         SlabRay {
             o: [L::splat(ray.origin.x), L::splat(ray.origin.y), L::splat(ray.origin.z)],
             inv: [L::splat(inv[0]), L::splat(inv[1]), L::splat(inv[2])],
+            inv_far: [
+                L::splat(far_recip(inv[0])),
+                L::splat(far_recip(inv[1])),
+                L::splat(far_recip(inv[2])),
+            ],
             near,
             far,
         }
@@ -67,14 +93,152 @@ pub(super) trait BoxTest {
 impl<L: Lanes> BoxTest for SlabRay<L> {
     #[inline(always)]
     fn test(&self, n: &Node, closest: f32) -> (u32, [f32; WIDTH]) {
-        let slab = |k: usize, c: usize| L::load(&n.b[k]).sub(self.o[c]).mul(self.inv[c]);
+        // The far side's widening is in its reciprocals, not a product at
+        // the end: one operation less on the path from loading a node to
+        // choosing the next.
+        let slab = |k: usize, c: usize, inv: &[L; 3]| L::load(&n.b[k]).sub(self.o[c]).mul(inv[c]);
         let (near, far) = (self.near, self.far);
-        let t_near = slab(near[0], 0)
-            .max(slab(near[1], 1))
-            .max(slab(near[2], 2).max(L::splat(0.0)));
-        let t_far = slab(far[0], 0)
-            .min(slab(far[1], 1))
-            .min(slab(far[2], 2).min(L::splat(closest)));
-        (t_near.le(t_far.mul(L::splat(ROBUST))), t_near.to_array())
+        let t_near = slab(near[0], 0, &self.inv)
+            .max(slab(near[1], 1, &self.inv))
+            .max(slab(near[2], 2, &self.inv).max(L::splat(0.0)));
+        let t_far = slab(far[0], 0, &self.inv_far)
+            .min(slab(far[1], 1, &self.inv_far))
+            .min(slab(far[2], 2, &self.inv_far).min(L::splat(closest * ROBUST)));
+        (t_near.le(t_far), t_near.to_array())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DVec3, Vec3};
+    use rand::{Rng, SeedableRng};
+    use wide::f32x8;
+
+    use super::*;
+    use crate::geom::Aabb;
+
+    /// The exact slab interval of `ray` through `b`, in double precision
+    /// on the single-precision inputs (relative error near 1e-16), or
+    /// `None` where it is too close to call.
+    fn exact(ray: &Ray, b: &Aabb, closest: f32) -> Option<bool> {
+        let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+        let (lo, hi) = (b.lo.as_dvec3(), b.hi.as_dvec3());
+        let (mut near, mut far) = (0f64, f64::from(closest));
+        for c in 0..3 {
+            let (t0, t1) = ((lo[c] - o[c]) / d[c], (hi[c] - o[c]) / d[c]);
+            near = near.max(t0.min(t1));
+            far = far.min(t0.max(t1));
+        }
+        ((far - near).abs() > 1e-13 * near.abs().max(far.abs())).then_some(near <= far)
+    }
+
+    /// A box whose entry and exit fall at one distance `t` along the ray:
+    /// it enters the slab of `enter` there and leaves the slab of `leave`
+    /// there, the third slab around it; each face through the point
+    /// `origin + t dir`, rounded to single precision, so that exact
+    /// arithmetic finds about half of them touched and half missed by a
+    /// hair.
+    fn grazed(ray: &Ray, t: f64, enter: usize, leave: usize, big: f32) -> Aabb {
+        let p = ray.origin.as_dvec3() + t * ray.dir.as_dvec3();
+        let p = Vec3::new(p.x as f32, p.y as f32, p.z as f32);
+        let (mut lo, mut hi) = (p - Vec3::splat(big), p + Vec3::splat(big));
+        let up = |c: usize| ray.dir[c] > 0.0;
+        if up(enter) {
+            lo[enter] = p[enter];
+        } else {
+            hi[enter] = p[enter];
+        }
+        if up(leave) {
+            hi[leave] = p[leave];
+        } else {
+            lo[leave] = p[leave];
+        }
+        Aabb { lo, hi }
+    }
+
+    fn passes(boxes: &impl BoxTest, b: Aabb, closest: f32) -> bool {
+        boxes.test(&Node::new(&[(b, 0)]), closest).0 & 1 != 0
+    }
+
+    /// Every box that exact arithmetic finds the ray touching, the slab
+    /// test passes (portable lanes and, where the CPU has it, AVX): rays
+    /// from near and far origins, boxes grazed at a corner edge, and boxes
+    /// entered exactly at the nearest distance found so far.
+    #[test]
+    fn boxes_touched_in_exact_arithmetic_always_pass() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(41);
+        let (mut touched, mut missed) = (0, 0);
+        for k in 0..60_000 {
+            let scale = [1.0f32, 100.0, 3000.0][k % 3];
+            let origin = Vec3::new(
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+            ) * scale;
+            let dir = DVec3::new(
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+            );
+            let dir = if k % 7 == 0 { dir * 1e-3 } else { dir };
+            if dir.min_element().abs() < 1e-6 || dir.x.abs().min(dir.y.abs()).min(dir.z.abs()) < 1e-4 {
+                continue;
+            }
+            let ray = Ray::new(origin, dir.as_vec3());
+            let t = rng.gen_range(0.01..50.0) * f64::from(scale) / dir.length();
+            let (enter, leave) = match k % 6 {
+                0 => (0, 1),
+                1 => (1, 0),
+                2 => (0, 2),
+                3 => (2, 0),
+                4 => (1, 2),
+                _ => (2, 1),
+            };
+            let b = grazed(&ray, t, enter, leave, scale);
+            // Either no limit, or the limit at the entry itself, rounded up.
+            let entry = {
+                let p = ray.origin.as_dvec3();
+                let d = ray.dir.as_dvec3();
+                (0..3)
+                    .map(|c| ((b.lo[c] as f64 - p[c]) / d[c]).min((b.hi[c] as f64 - p[c]) / d[c]))
+                    .fold(0f64, f64::max)
+            };
+            let closest = if k % 2 == 0 {
+                f32::INFINITY
+            } else {
+                (entry as f32).next_up()
+            };
+            let Some(touches) = exact(&ray, &b, closest) else {
+                continue;
+            };
+            if !touches {
+                missed += 1;
+                continue;
+            }
+            touched += 1;
+            assert!(
+                passes(&SlabRay::<f32x8>::new(&ray), b, closest),
+                "ray {k} {ray:?} box {b:?} limit {closest}"
+            );
+            #[cfg(target_arch = "x86_64")]
+            if crate::geom::avx::available() {
+                // SAFETY: the CPU has AVX.
+                assert!(
+                    unsafe { passes_avx(&ray, b, closest) },
+                    "AVX: ray {k} {ray:?} box {b:?}"
+                );
+            }
+        }
+        // Both sides of the hair are well represented.
+        assert!(
+            touched > 10_000 && missed > 10_000,
+            "{touched} touched, {missed} missed"
+        );
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn passes_avx(ray: &Ray, b: Aabb, closest: f32) -> bool {
+        passes(&SlabRay::<crate::geom::avx::Avx>::new(ray), b, closest)
     }
 }
