@@ -5,7 +5,7 @@ use glam::{Mat4, Vec3};
 use rand::{Rng, SeedableRng};
 
 use crate::accel::Hit;
-use crate::geom::{intersect_triangle, Ray, RayPrep};
+use crate::geom::{intersect_triangle, Aabb, Ray, RayPrep};
 use crate::scene::{Material, Scene, SceneBuilder};
 
 /// The nearest hit within `(0, ray.t_max]` with every triangle tested on its
@@ -41,6 +41,63 @@ pub fn point_off_surface(scene: &Scene, rng: &mut impl Rng) -> (Vec3, Vec3) {
     let n = (b - a).cross(c - a).normalize();
     let (u, v) = (rng.gen_range(0.05..0.45), rng.gen_range(0.05..0.45));
     (a + u * (b - a) + v * (c - a) + n * 1e-5, n)
+}
+
+/// A ray and a box whose entry and exit fall at one point of the ray, the
+/// hardest case for a conservative slab test: the ray enters the slab of
+/// one axis and leaves the slab of another at the same distance, the third
+/// slab wide around it, each face through that point rounded to single
+/// precision, so that exact arithmetic finds about half of such boxes
+/// touched and half missed by a hair. Origins at scale 1, 100 or 3,000
+/// (`k % 3`), some directions short; `None` for a direction with a
+/// component too small to aim with.
+pub fn grazed_box(rng: &mut impl Rng, k: usize) -> Option<(Ray, Aabb)> {
+    let scale = [1.0f32, 100.0, 3000.0][k % 3];
+    let origin = random_vec3(rng, 1.0) * scale;
+    let dir = random_vec3(rng, 1.0) * if k.is_multiple_of(7) { 1e-3 } else { 1.0 };
+    if dir.abs().min_element() < 1e-4 * dir.length() {
+        return None;
+    }
+    let ray = Ray::new(origin, dir);
+    let (enter, leave) = [(0, 1), (1, 0), (0, 2), (2, 0), (1, 2), (2, 1)][k % 6];
+    let t = rng.gen_range(0.01..50.0) * f64::from(scale) / f64::from(dir.length());
+    let p = ray.origin.as_dvec3() + t * ray.dir.as_dvec3();
+    let p = p.as_vec3();
+    let (mut lo, mut hi) = (p - Vec3::splat(scale), p + Vec3::splat(scale));
+    if ray.dir[enter] > 0.0 {
+        lo[enter] = p[enter];
+    } else {
+        hi[enter] = p[enter];
+    }
+    if ray.dir[leave] > 0.0 {
+        hi[leave] = p[leave];
+    } else {
+        lo[leave] = p[leave];
+    }
+    Some((ray, Aabb { lo, hi }))
+}
+
+/// Whether `ray` meets `b` within `[0, closest]`, worked out in double
+/// precision on the single-precision inputs (relative error near 1e-16),
+/// or `None` where that is too close to call.
+pub fn touches_exactly(ray: &Ray, b: &Aabb, closest: f32) -> Option<bool> {
+    let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+    let (lo, hi) = (b.lo.as_dvec3(), b.hi.as_dvec3());
+    let (mut near, mut far) = (0f64, f64::from(closest));
+    for c in 0..3 {
+        let (t0, t1) = ((lo[c] - o[c]) / d[c], (hi[c] - o[c]) / d[c]);
+        near = near.max(t0.min(t1));
+        far = far.min(t0.max(t1));
+    }
+    ((far - near).abs() > 1e-13 * near.abs().max(far.abs())).then_some(near <= far)
+}
+
+/// The distance at which `ray` enters `b` (at least 0), in double precision.
+pub fn entry_exactly(ray: &Ray, b: &Aabb) -> f64 {
+    let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+    (0..3)
+        .map(|c| ((f64::from(b.lo[c]) - o[c]) / d[c]).min((f64::from(b.hi[c]) - o[c]) / d[c]))
+        .fold(0f64, f64::max)
 }
 
 /// A random point (or direction) in the cube `[-r, r)^3`.

@@ -13,7 +13,7 @@
 
 use super::node::{Node, WIDTH};
 use super::packet_rays::PacketRays;
-use super::slab::{corners, BoxTest, ROBUST};
+use super::slab::{corners, far_recip, BoxTest, ROBUST};
 use crate::accel::packet::PACKET;
 use crate::geom::Lanes;
 
@@ -23,7 +23,8 @@ pub(super) struct Frustum<L> {
     o_near: [L; 3],
     /// Per axis, the origin bound that gives the largest exit distance.
     o_far: [L; 3],
-    /// Per axis, the smallest and largest reciprocal direction.
+    /// Per axis, the smallest and largest reciprocal direction, widened
+    /// for far planes as a ray's own test widens it.
     inv_lo: [L; 3],
     inv_hi: [L; 3],
     /// Per axis, the reciprocal direction nearest zero.
@@ -71,8 +72,16 @@ impl<L: Lanes> Frustum<L> {
                 L::splat(pick(1, false)),
                 L::splat(pick(2, false)),
             ],
-            inv_lo: [L::splat(inv_lo[0]), L::splat(inv_lo[1]), L::splat(inv_lo[2])],
-            inv_hi: [L::splat(inv_hi[0]), L::splat(inv_hi[1]), L::splat(inv_hi[2])],
+            inv_lo: [
+                L::splat(far_recip(inv_lo[0])),
+                L::splat(far_recip(inv_lo[1])),
+                L::splat(far_recip(inv_lo[2])),
+            ],
+            inv_hi: [
+                L::splat(far_recip(inv_hi[0])),
+                L::splat(far_recip(inv_hi[1])),
+                L::splat(far_recip(inv_hi[2])),
+            ],
             inv_small: [L::splat(small(0)), L::splat(small(1)), L::splat(small(2))],
             near,
             far,
@@ -103,8 +112,8 @@ impl<L: Lanes> BoxTest for Frustum<L> {
             .max(entry(near[2], 2).max(L::splat(0.0)));
         let t_far = exit(far[0], 0)
             .min(exit(far[1], 1))
-            .min(exit(far[2], 2).min(L::splat(closest)));
-        (t_near.le(t_far.mul(L::splat(ROBUST))), t_near.to_array())
+            .min(exit(far[2], 2).min(L::splat(closest * ROBUST)));
+        (t_near.le(t_far), t_near.to_array())
     }
 }
 
@@ -114,9 +123,12 @@ mod tests {
     use proptest::prelude::*;
     use wide::f32x8;
 
+    use rand::SeedableRng;
+
     use super::*;
     use crate::accel::bvh::node::EMPTY;
     use crate::accel::bvh::slab::SlabRay;
+    use crate::accel::testing::grazed_box;
     use crate::geom::{Aabb, Ray};
 
     /// Coordinates on a half grid (so that origins lie in box faces and
@@ -209,6 +221,31 @@ mod tests {
     #[target_feature(enable = "avx")]
     unsafe fn covers_avx(rays: &[Ray], n: &Node) -> Result<(), TestCaseError> {
         covers::<crate::geom::avx::Avx>(rays, n)
+    }
+
+    /// Packets of one ray repeated, against boxes that ray enters and
+    /// leaves at one point: the packet's bounds are then the ray itself,
+    /// and its test must pass every box the ray's own test passes, however
+    /// close the call (the two must widen their far planes alike).
+    #[test]
+    fn a_packet_of_one_ray_enters_every_grazed_box_the_ray_enters() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(43);
+        let mut entered = 0;
+        for k in 0..30_000 {
+            let Some((ray, b)) = grazed_box(&mut rng, k) else {
+                continue;
+            };
+            let rays = [ray; 8];
+            let n = Node::new(&[(b, 0)]);
+            entered += SlabRay::<f32x8>::new(&ray).test(&n, ray.t_max).0;
+            covers::<f32x8>(&rays, &n).unwrap();
+            #[cfg(target_arch = "x86_64")]
+            if crate::geom::avx::available() {
+                // SAFETY: the CPU has AVX.
+                unsafe { covers_avx(&rays, &n).unwrap() };
+            }
+        }
+        assert!(entered > 10_000, "{entered}");
     }
 
     #[test]

@@ -41,14 +41,16 @@ pub(super) fn corners(inv: [f32; 3]) -> ([usize; 3], [usize; 3]) {
 
 /// The far planes' reciprocal of a direction component: `inv` widened by
 /// [`FAR_WIDENING`], kept finite (a zero component's reciprocal is already
-/// the largest float, and `0 * inv` must stay 0).
+/// the largest float, and `0 * inv` must stay 0). Monotonic in `inv`, so
+/// that a packet's bounds on the reciprocals bound their widened values
+/// too.
 #[inline]
-fn far_recip(inv: f32) -> f32 {
+pub(super) fn far_recip(inv: f32) -> f32 {
     let wide = inv * FAR_WIDENING;
     if wide.is_finite() {
         wide
     } else {
-        inv
+        f32::MAX.copysign(inv)
     }
 }
 
@@ -110,112 +112,42 @@ impl<L: Lanes> BoxTest for SlabRay<L> {
 
 #[cfg(test)]
 mod tests {
-    use glam::{DVec3, Vec3};
-    use rand::{Rng, SeedableRng};
+    use rand::SeedableRng;
     use wide::f32x8;
 
     use super::*;
+    use crate::accel::testing::{entry_exactly, grazed_box, touches_exactly};
     use crate::geom::Aabb;
-
-    /// The exact slab interval of `ray` through `b`, in double precision
-    /// on the single-precision inputs (relative error near 1e-16), or
-    /// `None` where it is too close to call.
-    fn exact(ray: &Ray, b: &Aabb, closest: f32) -> Option<bool> {
-        let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
-        let (lo, hi) = (b.lo.as_dvec3(), b.hi.as_dvec3());
-        let (mut near, mut far) = (0f64, f64::from(closest));
-        for c in 0..3 {
-            let (t0, t1) = ((lo[c] - o[c]) / d[c], (hi[c] - o[c]) / d[c]);
-            near = near.max(t0.min(t1));
-            far = far.min(t0.max(t1));
-        }
-        ((far - near).abs() > 1e-13 * near.abs().max(far.abs())).then_some(near <= far)
-    }
-
-    /// A box whose entry and exit fall at one distance `t` along the ray:
-    /// it enters the slab of `enter` there and leaves the slab of `leave`
-    /// there, the third slab around it; each face through the point
-    /// `origin + t dir`, rounded to single precision, so that exact
-    /// arithmetic finds about half of them touched and half missed by a
-    /// hair.
-    fn grazed(ray: &Ray, t: f64, enter: usize, leave: usize, big: f32) -> Aabb {
-        let p = ray.origin.as_dvec3() + t * ray.dir.as_dvec3();
-        let p = Vec3::new(p.x as f32, p.y as f32, p.z as f32);
-        let (mut lo, mut hi) = (p - Vec3::splat(big), p + Vec3::splat(big));
-        let up = |c: usize| ray.dir[c] > 0.0;
-        if up(enter) {
-            lo[enter] = p[enter];
-        } else {
-            hi[enter] = p[enter];
-        }
-        if up(leave) {
-            hi[leave] = p[leave];
-        } else {
-            lo[leave] = p[leave];
-        }
-        Aabb { lo, hi }
-    }
 
     fn passes(boxes: &impl BoxTest, b: Aabb, closest: f32) -> bool {
         boxes.test(&Node::new(&[(b, 0)]), closest).0 & 1 != 0
     }
 
     /// Every box that exact arithmetic finds the ray touching, the slab
-    /// test passes (portable lanes and, where the CPU has it, AVX): rays
-    /// from near and far origins, boxes grazed at a corner edge, and boxes
-    /// entered exactly at the nearest distance found so far.
+    /// test passes (portable lanes and, where the CPU has it, AVX): boxes
+    /// entered and left at one point of the ray, from near and far origins,
+    /// with no limit or the limit at the entry itself.
     #[test]
     fn boxes_touched_in_exact_arithmetic_always_pass() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(41);
         let (mut touched, mut missed) = (0, 0);
         for k in 0..60_000 {
-            let scale = [1.0f32, 100.0, 3000.0][k % 3];
-            let origin = Vec3::new(
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-            ) * scale;
-            let dir = DVec3::new(
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-                rng.gen_range(-1.0..1.0),
-            );
-            let dir = if k % 7 == 0 { dir * 1e-3 } else { dir };
-            if dir.min_element().abs() < 1e-6 || dir.x.abs().min(dir.y.abs()).min(dir.z.abs()) < 1e-4 {
+            let Some((ray, b)) = grazed_box(&mut rng, k) else {
                 continue;
-            }
-            let ray = Ray::new(origin, dir.as_vec3());
-            let t = rng.gen_range(0.01..50.0) * f64::from(scale) / dir.length();
-            let (enter, leave) = match k % 6 {
-                0 => (0, 1),
-                1 => (1, 0),
-                2 => (0, 2),
-                3 => (2, 0),
-                4 => (1, 2),
-                _ => (2, 1),
-            };
-            let b = grazed(&ray, t, enter, leave, scale);
-            // Either no limit, or the limit at the entry itself, rounded up.
-            let entry = {
-                let p = ray.origin.as_dvec3();
-                let d = ray.dir.as_dvec3();
-                (0..3)
-                    .map(|c| ((b.lo[c] as f64 - p[c]) / d[c]).min((b.hi[c] as f64 - p[c]) / d[c]))
-                    .fold(0f64, f64::max)
             };
             let closest = if k % 2 == 0 {
                 f32::INFINITY
             } else {
-                (entry as f32).next_up()
+                (entry_exactly(&ray, &b) as f32).next_up()
             };
-            let Some(touches) = exact(&ray, &b, closest) else {
-                continue;
-            };
-            if !touches {
-                missed += 1;
-                continue;
+            match touches_exactly(&ray, &b, closest) {
+                Some(true) => touched += 1,
+                Some(false) => {
+                    missed += 1;
+                    continue;
+                }
+                None => continue,
             }
-            touched += 1;
             assert!(
                 passes(&SlabRay::<f32x8>::new(&ray), b, closest),
                 "ray {k} {ray:?} box {b:?} limit {closest}"
