@@ -102,22 +102,35 @@ impl<L: Lanes> Rays8<L> {
         tri: [Vec3; 3],
         lanes: u32,
         limits: &mut [f32; LANES],
+        hit: impl FnMut(usize, TriangleHit),
+    ) {
+        let p = [tri[0].to_array(), tri[1].to_array(), tri[2].to_array()];
+        self.intersect_at(|i| p[i / 3][i % 3], lanes, limits, hit);
+    }
+
+    /// [`Rays8::intersect`] on the triangle whose coordinate `c` of vertex
+    /// `v` is `p(3 * v + c)`: read where the triangle lies (a leaf block's
+    /// lane, say), each coordinate loaded straight into all lanes, rather
+    /// than copied out first and then picked by the ray's axis permutation.
+    #[inline(always)]
+    pub fn intersect_at(
+        &self,
+        p: impl Fn(usize) -> f32,
+        lanes: u32,
+        limits: &mut [f32; LANES],
         mut hit: impl FnMut(usize, TriangleHit),
     ) {
         let [kx, ky, kz] = self.k;
         let [ox, oy, oz] = self.o;
         let [sx, sy, sz] = self.s;
-        let [a, b, c] = tri;
-        // Indexing arrays, not `Vec3`, whose index is a branch per axis.
-        let (pa, pb, pc) = (a.to_array(), b.to_array(), c.to_array());
-        let at = |p: &[f32; 3], k: usize| L::splat(p[k]);
-        let (az, bz, cz) = (at(&pa, kz).sub(oz), at(&pb, kz).sub(oz), at(&pc, kz).sub(oz));
-        let ax = at(&pa, kx).sub(ox).sub(sx.mul(az));
-        let ay = at(&pa, ky).sub(oy).sub(sy.mul(az));
-        let bx = at(&pb, kx).sub(ox).sub(sx.mul(bz));
-        let by = at(&pb, ky).sub(oy).sub(sy.mul(bz));
-        let cx = at(&pc, kx).sub(ox).sub(sx.mul(cz));
-        let cy = at(&pc, ky).sub(oy).sub(sy.mul(cz));
+        let at = |v: usize, k: usize| L::splat(p(3 * v + k));
+        let (az, bz, cz) = (at(0, kz).sub(oz), at(1, kz).sub(oz), at(2, kz).sub(oz));
+        let ax = at(0, kx).sub(ox).sub(sx.mul(az));
+        let ay = at(0, ky).sub(oy).sub(sy.mul(az));
+        let bx = at(1, kx).sub(ox).sub(sx.mul(bz));
+        let by = at(1, ky).sub(oy).sub(sy.mul(bz));
+        let cx = at(2, kx).sub(ox).sub(sx.mul(cz));
+        let cy = at(2, ky).sub(oy).sub(sy.mul(cz));
         let u = cx.mul(by).sub(cy.mul(bx));
         let v = ax.mul(cy).sub(ay.mul(cx));
         let w = bx.mul(ay).sub(by.mul(ax));
@@ -154,7 +167,14 @@ impl<L: Lanes> Rays8<L> {
             todo &= todo - 1;
             let found = if edge & (1 << lane) != 0 {
                 let at = |v: &[[f32; LANES]; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
-                intersect_triangle(&RayPrep::new(at(&self.origin), at(&self.dir)), a, b, c, limits[lane])
+                let vertex = |v: usize| Vec3::new(p(3 * v), p(3 * v + 1), p(3 * v + 2));
+                intersect_triangle(
+                    &RayPrep::new(at(&self.origin), at(&self.dir)),
+                    vertex(0),
+                    vertex(1),
+                    vertex(2),
+                    limits[lane],
+                )
             } else {
                 Some(TriangleHit {
                     t: ts[lane],
