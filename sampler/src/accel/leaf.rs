@@ -34,10 +34,11 @@ impl LeafTris {
         self.blocks.len() * std::mem::size_of::<Tri4>()
     }
 
-    /// The vertices of leaf-list entry `i`.
+    /// Coordinate `i` (`3 * vertex + axis`) of leaf-list entry `entry`, read
+    /// in place.
     #[inline]
-    pub(crate) fn vertices(&self, i: usize) -> [glam::Vec3; 3] {
-        self.blocks[i / LANES].get(i % LANES)
+    pub(crate) fn coordinate(&self, entry: usize, i: usize) -> f32 {
+        self.blocks[entry / LANES].p[i].as_array_ref()[entry % LANES]
     }
 
     /// Tests the entries `first..first + count` in order, as the scalar test
@@ -82,19 +83,31 @@ mod tests {
     use super::*;
     use crate::accel::testing::soup;
 
+    /// The vertices of entry `i`, read coordinate by coordinate.
+    fn vertices(leaves: &LeafTris, i: usize) -> [glam::Vec3; 3] {
+        let v = |k: usize| {
+            glam::Vec3::new(
+                leaves.coordinate(i, 3 * k),
+                leaves.coordinate(i, 3 * k + 1),
+                leaves.coordinate(i, 3 * k + 2),
+            )
+        };
+        [v(0), v(1), v(2)]
+    }
+
     #[test]
     fn leaves_starting_and_ending_inside_blocks_see_only_their_triangles() {
         let scene = soup(3, 40);
         let ids: Vec<u32> = (0..scene.triangles.len() as u32).rev().collect();
         let leaves = LeafTris::new(&scene, &ids);
         for (i, &t) in ids.iter().enumerate() {
-            assert_eq!(leaves.vertices(i), scene.vertices(t as usize));
+            assert_eq!(vertices(&leaves, i), scene.vertices(t as usize));
         }
         // A ray through every triangle's centroid, one at a time: only the
         // entries asked for may report hits.
         for (first, count) in [(0, 1), (1, 2), (3, 6), (5, 3), (4, 4), (7, 9), (2, 0)] {
             for i in first..first + count {
-                let [a, b, c] = leaves.vertices(i);
+                let [a, b, c] = vertices(&leaves, i);
                 let centre = (a + b + c) / 3.0;
                 let n = (b - a).cross(c - a).normalize();
                 let ray = Ray4::new(centre + n, -n);

@@ -185,14 +185,19 @@ impl KdTree {
                 }
             } else if let Some(shared) = shared.as_ref().filter(|_| active.count_ones() >= SHARED_LEAF) {
                 for entry in nd.first()..nd.first() + nd.count() {
-                    shared.intersect(self.leaves.vertices(entry), active, &mut closest, |i, h| {
-                        out[i] = Some(Hit {
-                            t: h.t,
-                            tri: self.leaf_tris[entry],
-                            u: h.u,
-                            v: h.v,
-                        });
-                    });
+                    shared.intersect_at(
+                        |i| self.leaves.coordinate(entry, i),
+                        active,
+                        &mut closest,
+                        |i, h| {
+                            out[i] = Some(Hit {
+                                t: h.t,
+                                tri: self.leaf_tris[entry],
+                                u: h.u,
+                                v: h.v,
+                            });
+                        },
+                    );
                 }
             } else {
                 let mut todo = active;
