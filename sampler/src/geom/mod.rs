@@ -15,7 +15,7 @@ pub use lanes::{LaneOps, Lanes};
 pub use offset::offset_origin;
 pub use rays8::Rays8;
 pub use triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
-pub use triangle4::{Ray4, RayWide, Tri4};
+pub use triangle4::{Ray4, RayWide, Tri4, Tri8};
 
 use glam::Vec3;
 

@@ -7,7 +7,7 @@
 //! them in double precision.
 
 use glam::Vec3;
-use wide::f32x4;
+use wide::{f32x4, f32x8};
 
 use super::lanes::{LaneOps, Lanes};
 use super::triangle::{axis_permutation, intersect_triangle, RayPrep, TriangleHit};
@@ -42,6 +42,43 @@ impl Tri4 {
             }
         }
         Tri4 { p: p.map(f32x4::new) }
+    }
+
+    /// The triangle in lane `lane`.
+    #[inline]
+    pub fn get(&self, lane: usize) -> [Vec3; 3] {
+        let c = |i: usize| self.p[i].as_array_ref()[lane];
+        [
+            Vec3::new(c(0), c(1), c(2)),
+            Vec3::new(c(3), c(4), c(5)),
+            Vec3::new(c(6), c(7), c(8)),
+        ]
+    }
+}
+
+/// Eight triangles in structure-of-arrays form: `p[3 * v + c]` holds
+/// coordinate `c` of vertex `v` of the eight triangles, one per lane, so
+/// that an eight-lane test loads each coordinate with one 256-bit load.
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+pub struct Tri8 {
+    /// Coordinates, lane-wise.
+    pub p: [f32x8; 9],
+}
+
+impl Tri8 {
+    /// Up to eight triangles, one per lane from lane 0 (the lanes left over
+    /// hold zeros).
+    pub fn from_triangles(tris: impl IntoIterator<Item = [Vec3; 3]>) -> Tri8 {
+        let mut p = [[0f32; 8]; 9];
+        for (lane, tri) in tris.into_iter().take(8).enumerate() {
+            for (v, point) in tri.iter().enumerate() {
+                for c in 0..3 {
+                    p[3 * v + c][lane] = point[c];
+                }
+            }
+        }
+        Tri8 { p: p.map(f32x8::new) }
     }
 
     /// The triangle in lane `lane`.
@@ -279,6 +316,22 @@ impl<L: Lanes> RayWide<L> {
             }
         }
     }
+
+    /// [`RayWide::intersect`] on eight triangles held side by side, each
+    /// coordinate of all eight loaded at once (no halves put together).
+    #[inline(always)]
+    pub fn intersect8(
+        &self,
+        t: &Tri8,
+        lanes: u32,
+        limit: f32,
+        hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
+    ) -> bool {
+        match lane_test(|i| L::load(&t.p[i]), self.k, &self.o, &self.s, lanes, limit) {
+            None => true,
+            Some(todo) => todo.settle(|lane| t.get(lane), || RayPrep::new(self.ray.0, self.ray.1), limit, hit),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -325,17 +378,33 @@ mod tests {
         }
     }
 
-    /// Tests `lanes` of two blocks with [`RayWide`] over lanes of kind `L`.
+    /// Tests `lanes` of two blocks with [`RayWide`] over lanes of kind `L`,
+    /// as two halves and as the same eight triangles side by side
+    /// ([`Tri8`]); the two must agree.
     fn eight<L: Lanes>(ray: &Ray4, a: &Tri4, b: &Tri4, lanes: u32, limit: f32) -> Vec<(usize, f32)> {
-        let mut got = Vec::new();
-        // The limit never rises, as in the walks (a hit may lie an ulp past it).
-        let mut cur = limit;
-        RayWide::<L>::new(ray.ray.0, ray.ray.1).intersect(a, b, lanes, limit, |lane, h| {
-            got.push((lane, h.t));
-            cur = cur.min(h.t);
-            Some(cur)
+        type OnHit<'a> = &'a mut dyn FnMut(usize, TriangleHit) -> Option<f32>;
+        let wide = RayWide::<L>::new(ray.ray.0, ray.ray.1);
+        let run = |test: &dyn Fn(OnHit)| {
+            let mut got = Vec::new();
+            // The limit never rises, as in the walks (a hit may lie an ulp past it).
+            let mut cur = limit;
+            test(&mut |lane, h| {
+                got.push((lane, h.t));
+                cur = cur.min(h.t);
+                Some(cur)
+            });
+            got
+        };
+        let halves = run(&|hit| {
+            wide.intersect(a, b, lanes, limit, hit);
         });
-        got
+        let side_by_side =
+            Tri8::from_triangles((0..8).map(|lane| if lane < 4 { a.get(lane) } else { b.get(lane - 4) }));
+        let whole = run(&|hit| {
+            wide.intersect8(&side_by_side, lanes, limit, hit);
+        });
+        assert_eq!(halves, whole, "eight triangles side by side");
+        halves
     }
 
     proptest! {

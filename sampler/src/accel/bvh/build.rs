@@ -11,8 +11,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::node::{Child, Node, EMPTY, LEAF_MAX, MAX_BLOCKS, WIDTH};
-use super::{Block, WideBvh};
-use crate::geom::{Aabb, Tri4};
+use super::{Block, Pair, WideBvh};
+use crate::geom::{Aabb, Tri4, Tri8};
 use crate::scene::Scene;
 
 /// SAH bins per axis.
@@ -380,15 +380,29 @@ impl Layout<'_> {
             Sub::Leaf { start, count } => {
                 let prims = &self.prims[*start..start + count];
                 assert!(at.blocks.len() == count.div_ceil(4) && at.nodes.is_empty());
-                for (chunk, block) in prims.chunks(4).zip(at.blocks.iter_mut()) {
+                let tris = prims.iter().map(|p| self.scene.vertices(p.id as usize));
+                if let [block] = at.blocks {
                     let mut ids = [0u32; 4];
-                    for (lane, prim) in chunk.iter().enumerate() {
+                    for (lane, prim) in prims.iter().enumerate() {
                         ids[lane] = prim.id;
                     }
                     block.write(Block {
-                        tris: Tri4::from_triangles(chunk.iter().map(|p| self.scene.vertices(p.id as usize))),
+                        tris: Tri4::from_triangles(tris),
                         ids,
                     });
+                } else {
+                    let mut ids = [0u32; 8];
+                    for (lane, prim) in prims.iter().enumerate() {
+                        ids[lane] = prim.id;
+                    }
+                    let pair = Pair {
+                        tris: Tri8::from_triangles(tris),
+                        ids,
+                    };
+                    // SAFETY: the slice is two blocks' slots, one after the
+                    // other, whose size and alignment a `Pair` has (checked
+                    // where it is defined); writing it fills both.
+                    unsafe { at.blocks.as_mut_ptr().cast::<Pair>().write(pair) };
                 }
                 Child::leaf(at.block_at, *count)
             }
@@ -543,10 +557,16 @@ mod tests {
             match Child::decode(r) {
                 Child::Empty => {}
                 Child::Leaf { block, count } => {
+                    let lanes = (1u32 << count) - 1;
                     for lane in 0..count {
-                        let id = bvh.id(block, lane) as usize;
+                        let id = bvh.id(block, lanes, lane) as usize;
                         seen[id] += 1;
-                        assert_eq!(bvh.blocks[block + lane / 4].tris.get(lane % 4), scene.vertices(id));
+                        let tri = if count > 4 {
+                            bvh.pair(block).tris.get(lane)
+                        } else {
+                            bvh.blocks[block].tris.get(lane)
+                        };
+                        assert_eq!(tri, scene.vertices(id));
                         for p in scene.vertices(id) {
                             assert!(
                                 p.cmpge(within.lo).all() && p.cmple(within.hi).all(),

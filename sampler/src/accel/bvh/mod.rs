@@ -24,7 +24,7 @@ mod traverse;
 
 pub use build::MAX_TRIANGLES;
 
-use crate::geom::{Aabb, Tri4};
+use crate::geom::{Aabb, Tri4, Tri8};
 
 use node::Node;
 
@@ -50,6 +50,22 @@ struct Block {
     tris: Tri4,
     ids: [u32; 4],
 }
+
+/// A leaf of five to eight triangles, held in the space of two blocks: the
+/// eight triangles side by side (each coordinate one 256-bit load, where
+/// two blocks would need their halves put together), then their indices.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct Pair {
+    tris: Tri8,
+    ids: [u32; 8],
+}
+
+// A pair is read in place of two consecutive blocks.
+const _: () = assert!(
+    std::mem::size_of::<Pair>() == 2 * std::mem::size_of::<Block>()
+        && std::mem::align_of::<Pair>() == std::mem::align_of::<Block>()
+);
 
 /// Sizes of a built hierarchy, for reports and benchmarks.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -88,10 +104,26 @@ fn reach(closest: f32) -> f32 {
 }
 
 impl WideBvh {
-    /// The triangle index of lane `lane` (0..8) of the leaf starting at block `block`.
+    /// The leaf of two blocks from block `block`, read as one [`Pair`].
     #[inline]
-    fn id(&self, block: usize, lane: usize) -> u32 {
-        self.blocks[block + lane / 4].ids[lane % 4]
+    fn pair(&self, block: usize) -> &Pair {
+        let two = &self.blocks[block..block + 2];
+        // SAFETY: `Pair` is `repr(C)` with the size and alignment of two
+        // blocks, which lie one after the other in the slice; its fields are
+        // floats and integers, valid for any bits. A leaf of more than four
+        // triangles was written there as a `Pair` (`build::Layout::place`).
+        unsafe { &*two.as_ptr().cast::<Pair>() }
+    }
+
+    /// The triangle index of lane `lane` of the leaf from block `block`,
+    /// whose lanes are the bits of `lanes` (more than four: a [`Pair`]).
+    #[inline]
+    fn id(&self, block: usize, lanes: u32, lane: usize) -> u32 {
+        if lanes < 16 {
+            self.blocks[block].ids[lane]
+        } else {
+            self.pair(block).ids[lane]
+        }
     }
 
     /// The scene bounds.

@@ -102,34 +102,25 @@ impl WideBvh {
             closest[i] = p.t_max[i];
         }
         let widest = |closest: &[f32; PACKET]| closest.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-        self.walk(&Frustum::<L>::new(p), widest(&closest), |block, count| {
+        self.walk(&Frustum::<L>::new(p), widest(&closest), |block, lanes| {
             let mut found = false;
-            // `count` is a run of low bits (`popcnt` is not among the AVX
+            // `lanes` is a run of low bits (`popcnt` is not among the AVX
             // walk's instructions).
-            for lane in 0..(count + 1).trailing_zeros() as usize {
-                let tri = self.id(block, lane);
-                let mut limits = L::new(closest).mul(L::splat(ROBUST)).to_array();
-                let tris = &self.blocks[block + lane / 4].tris;
-                // Coordinates read from the block as the test picks them:
-                // copying the triangle out first cost packets a tenth of
-                // their speed.
-                shared.intersect_at(
-                    |i| tris.p[i].as_array_ref()[lane % 4],
-                    mask,
-                    &mut limits,
-                    |i, h| {
-                        if better(h.t, tri, closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
-                            closest[i] = h.t;
-                            found = true;
-                            out[i] = Some(Hit {
-                                t: h.t,
-                                tri,
-                                u: h.u,
-                                v: h.v,
-                            });
-                        }
-                    },
-                );
+            let count = (lanes + 1).trailing_zeros() as usize;
+            // Coordinates read from the leaf as the test picks them: copying
+            // each triangle out first cost packets a tenth of their speed.
+            if lanes < 16 {
+                let b = &self.blocks[block];
+                for lane in 0..count {
+                    let coordinate = |i: usize| b.tris.p[i].as_array_ref()[lane];
+                    found |= packet_triangle(&shared, coordinate, b.ids[lane], mask, &mut closest, out);
+                }
+            } else {
+                let pair = self.pair(block);
+                for lane in 0..count {
+                    let coordinate = |i: usize| pair.tris.p[i].as_array_ref()[lane];
+                    found |= packet_triangle(&shared, coordinate, pair.ids[lane], mask, &mut closest, out);
+                }
             }
             Ok(found.then(|| widest(&closest)))
         });
@@ -141,6 +132,35 @@ impl WideBvh {
             out[i] = self.intersect(&rays[i]);
         }
     }
+}
+
+/// Tests the triangle `tri`, whose coordinate `i` (`3 * vertex + axis`) is
+/// `coordinate(i)`, against the packet's rays in `mask`, keeping each ray's
+/// nearest hit by the tie rule; true if one of them changed.
+#[inline(always)]
+fn packet_triangle<L: Lanes>(
+    shared: &Rays8<L>,
+    coordinate: impl Fn(usize) -> f32,
+    tri: u32,
+    mask: u32,
+    closest: &mut [f32; PACKET],
+    out: &mut [Option<Hit>; PACKET],
+) -> bool {
+    let mut found = false;
+    let mut limits = L::new(*closest).mul(L::splat(ROBUST)).to_array();
+    shared.intersect_at(coordinate, mask, &mut limits, |i, h| {
+        if better(h.t, tri, closest[i], out[i].map_or(u32::MAX, |o| o.tri)) {
+            closest[i] = h.t;
+            found = true;
+            out[i] = Some(Hit {
+                t: h.t,
+                tri,
+                u: h.u,
+                v: h.v,
+            });
+        }
+    });
+    found
 }
 
 /// The set bits of `mask`, lowest first.

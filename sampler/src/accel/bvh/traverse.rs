@@ -130,8 +130,10 @@ impl WideBvh {
     }
 
     /// Tests the triangles of the leaf from `block` in `lanes` against
-    /// `wide`, as [`Ray4::intersect`](crate::geom::Ray4::intersect) on its blocks in turn would: a leaf of
-    /// one block gives the same block for both halves, its upper lanes off.
+    /// `wide`, as [`Ray4::intersect`](crate::geom::Ray4::intersect) on them
+    /// in turn would: a leaf of one block gives that block for both halves,
+    /// its upper lanes off; a leaf of more is a [`super::Pair`], its eight
+    /// lanes side by side.
     #[inline(always)]
     fn leaf_test<L: Lanes>(
         &self,
@@ -141,8 +143,12 @@ impl WideBvh {
         limit: f32,
         hit: impl FnMut(usize, TriangleHit) -> Option<f32>,
     ) -> bool {
-        let second = if lanes < 16 { block } else { block + 1 };
-        wide.intersect(&self.blocks[block].tris, &self.blocks[second].tris, lanes, limit, hit)
+        if lanes < 16 {
+            let tris = &self.blocks[block].tris;
+            wide.intersect(tris, tris, lanes, limit, hit)
+        } else {
+            wide.intersect8(&self.pair(block).tris, lanes, limit, hit)
+        }
     }
 
     #[inline(always)]
@@ -153,7 +159,7 @@ impl WideBvh {
         self.walk(boxes, ray.t_max, |block, lanes| {
             let mut found = None;
             self.leaf_test(&wide, block, lanes, reach(closest), |lane, h| {
-                let tri = self.id(block, lane);
+                let tri = self.id(block, lanes, lane);
                 if better(h.t, tri, closest, best.map_or(u32::MAX, |b| b.tri)) {
                     closest = h.t;
                     found = Some(h.t);
@@ -196,7 +202,7 @@ impl WideBvh {
         let mut hit = false;
         self.walk(boxes, ray.t_max, |block, lanes| {
             let go = self.leaf_test(&wide, block, lanes, ray.t_max, |lane, h| {
-                if h.t < ray.t_max && blocks(self.id(block, lane)) {
+                if h.t < ray.t_max && blocks(self.id(block, lanes, lane)) {
                     hit = true;
                     return None;
                 }
