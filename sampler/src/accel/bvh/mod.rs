@@ -1,9 +1,10 @@
 //! An 8-wide bounding volume hierarchy for in-core ray casting: each node
 //! holds the boxes of up to eight children in SIMD lanes, so one ray tests all
 //! eight with a handful of vector operations (256-bit ones where the CPU has
-//! AVX, chosen at run time), and each leaf is one or two blocks of up to
-//! four triangles, both tested at once in eight lanes by the watertight test
-//! of [`RayWide`](crate::geom::RayWide) (one AVX register where the CPU has
+//! AVX, chosen at run time), and each leaf is a block of up to four
+//! triangles or, for five to eight, a [`Pair`] in two blocks' space, tested
+//! at once in eight lanes by the watertight test of
+//! [`RayWide`](crate::geom::RayWide) (one AVX register where the CPU has
 //! it). Built with binned SAH over triangle centroids, in parallel.
 //!
 //! Why a second structure beside the kd-tree: a kd-tree step decides one
