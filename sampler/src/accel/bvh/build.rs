@@ -1,7 +1,7 @@
 //! Building the wide BVH: binned SAH over triangle centroids splits a node's
-//! triangles in two, and the largest of its parts is split again until it has
-//! eight children; parts of up to eight triangles become leaves (one block of
-//! four, or two tested at once: see [`super::traverse`]), or a node of two
+//! triangles in two, and the part with the largest SAH cost is split again
+//! until it has eight children; parts of up to eight triangles become leaves
+//! (a block of four, or a [`Pair`] of eight side by side), or a node of two
 //! leaves where SAH finds two clusters ([`small`]). Subtrees are
 //! built in parallel, then laid out depth first, also in parallel.
 
@@ -391,6 +391,9 @@ impl Layout<'_> {
                         ids,
                     });
                 } else {
+                    // Leaves hold at most eight triangles: a pair fills
+                    // exactly the two slots, every byte of them.
+                    assert!(at.blocks.len() == 2);
                     let mut ids = [0u32; 8];
                     for (lane, prim) in prims.iter().enumerate() {
                         ids[lane] = prim.id;

@@ -30,8 +30,8 @@ use crate::geom::{Aabb, Tri4, Tri8};
 use node::Node;
 
 /// An 8-wide BVH over a scene's triangles: nodes in depth-first order (the
-/// root first), and the leaves' triangles in blocks of four with their
-/// triangle indices.
+/// root first), and the leaves' triangles with their triangle indices, a
+/// block of up to four or a [`Pair`] of five to eight in two blocks' space.
 pub struct WideBvh {
     nodes: Vec<Node>,
     blocks: Vec<Block>,
@@ -73,7 +73,7 @@ const _: () = assert!(
 pub struct BvhStats {
     /// Inner nodes.
     pub nodes: usize,
-    /// Leaves (one or two blocks of up to four triangles).
+    /// Leaves (a block of up to four triangles, or a pair of up to eight).
     pub leaves: usize,
     /// Deepest leaf, in nodes from the root.
     pub depth: usize,

@@ -2,7 +2,7 @@
 //! 32-bit reference per child. A reference is an inner node's index, or a
 //! leaf (the top bit set, then the first block's index and the triangle
 //! count less one in the low three bits: a leaf of more than four triangles
-//! fills a second block), or [`EMPTY`].
+//! takes two blocks' space, as a [`super::Pair`]), or [`EMPTY`].
 
 use wide::f32x8;
 

@@ -1,6 +1,6 @@
 //! Walking the wide BVH nearest child first: one ray against a node's eight
-//! boxes at once (see [`super::slab`]), and against a leaf's one or two
-//! blocks of triangles at once.
+//! boxes at once (see [`super::slab`]), and against a leaf's triangles at
+//! once (a block of four, or a pair of eight side by side).
 
 use std::mem::MaybeUninit;
 
