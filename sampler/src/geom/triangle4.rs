@@ -33,27 +33,41 @@ impl Tri4 {
     /// loaded as one vector: blocks are built by the million, and rewriting
     /// a vector per lane cost twice as much.
     pub fn from_triangles(tris: impl IntoIterator<Item = [Vec3; 3]>) -> Tri4 {
-        let mut p = [[0f32; 4]; 9];
-        for (lane, tri) in tris.into_iter().take(4).enumerate() {
-            for (v, point) in tri.iter().enumerate() {
-                for c in 0..3 {
-                    p[3 * v + c][lane] = point[c];
-                }
-            }
+        Tri4 {
+            p: lanewise::<4>(tris).map(f32x4::new),
         }
-        Tri4 { p: p.map(f32x4::new) }
     }
 
     /// The triangle in lane `lane`.
     #[inline]
     pub fn get(&self, lane: usize) -> [Vec3; 3] {
-        let c = |i: usize| self.p[i].as_array_ref()[lane];
-        [
-            Vec3::new(c(0), c(1), c(2)),
-            Vec3::new(c(3), c(4), c(5)),
-            Vec3::new(c(6), c(7), c(8)),
-        ]
+        triangle_of(|i| self.p[i].as_array_ref()[lane])
     }
+}
+
+/// Up to `N` triangles' coordinates lane by lane: `[3 * v + c][lane]` is
+/// coordinate `c` of vertex `v` of the triangle in `lane` (zeros past the
+/// last triangle).
+fn lanewise<const N: usize>(tris: impl IntoIterator<Item = [Vec3; 3]>) -> [[f32; N]; 9] {
+    let mut p = [[0f32; N]; 9];
+    for (lane, tri) in tris.into_iter().take(N).enumerate() {
+        for (v, point) in tri.iter().enumerate() {
+            for c in 0..3 {
+                p[3 * v + c][lane] = point[c];
+            }
+        }
+    }
+    p
+}
+
+/// The triangle whose coordinate `i` (`3 * vertex + axis`) is `c(i)`.
+#[inline]
+fn triangle_of(c: impl Fn(usize) -> f32) -> [Vec3; 3] {
+    [
+        Vec3::new(c(0), c(1), c(2)),
+        Vec3::new(c(3), c(4), c(5)),
+        Vec3::new(c(6), c(7), c(8)),
+    ]
 }
 
 /// Eight triangles in structure-of-arrays form: `p[3 * v + c]` holds
@@ -70,26 +84,15 @@ impl Tri8 {
     /// Up to eight triangles, one per lane from lane 0 (the lanes left over
     /// hold zeros).
     pub fn from_triangles(tris: impl IntoIterator<Item = [Vec3; 3]>) -> Tri8 {
-        let mut p = [[0f32; 8]; 9];
-        for (lane, tri) in tris.into_iter().take(8).enumerate() {
-            for (v, point) in tri.iter().enumerate() {
-                for c in 0..3 {
-                    p[3 * v + c][lane] = point[c];
-                }
-            }
+        Tri8 {
+            p: lanewise::<8>(tris).map(f32x8::new),
         }
-        Tri8 { p: p.map(f32x8::new) }
     }
 
     /// The triangle in lane `lane`.
     #[inline]
     pub fn get(&self, lane: usize) -> [Vec3; 3] {
-        let c = |i: usize| self.p[i].as_array_ref()[lane];
-        [
-            Vec3::new(c(0), c(1), c(2)),
-            Vec3::new(c(3), c(4), c(5)),
-            Vec3::new(c(6), c(7), c(8)),
-        ]
+        triangle_of(|i| self.p[i].as_array_ref()[lane])
     }
 }
 

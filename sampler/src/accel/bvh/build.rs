@@ -380,25 +380,17 @@ impl Layout<'_> {
                 assert!(at.blocks.len() == count.div_ceil(4) && at.nodes.is_empty());
                 let tris = prims.iter().map(|p| self.scene.vertices(p.id as usize));
                 if let [block] = at.blocks {
-                    let mut ids = [0u32; 4];
-                    for (lane, prim) in prims.iter().enumerate() {
-                        ids[lane] = prim.id;
-                    }
                     block.write(Block {
                         tris: Tri4::from_triangles(tris),
-                        ids,
+                        ids: ids_of(prims),
                     });
                 } else {
                     // Leaves hold at most eight triangles: a pair fills
                     // exactly the two slots, every byte of them.
                     assert!(at.blocks.len() == 2);
-                    let mut ids = [0u32; 8];
-                    for (lane, prim) in prims.iter().enumerate() {
-                        ids[lane] = prim.id;
-                    }
                     let pair = Pair {
                         tris: Tri8::from_triangles(tris),
-                        ids,
+                        ids: ids_of(prims),
                     };
                     // SAFETY: the slice is two blocks' slots, one after the
                     // other, whose size and alignment a `Pair` has (checked
@@ -447,6 +439,15 @@ impl Layout<'_> {
             }
         }
     }
+}
+
+/// The triangle indices of up to `N` primitives, one per lane (zeros after).
+fn ids_of<const N: usize>(prims: &[Prim]) -> [u32; N] {
+    let mut ids = [0u32; N];
+    for (id, prim) in ids.iter_mut().zip(prims) {
+        *id = prim.id;
+    }
+    ids
 }
 
 /// The most triangles a hierarchy can hold: a leaf's first block must fit
