@@ -16,6 +16,7 @@
 
 mod build;
 mod frustum;
+mod fused;
 mod node;
 mod packet;
 mod packet_rays;

@@ -15,7 +15,7 @@ pub(super) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3
 /// cover the rounding of the far and near slab distances (three roundings
 /// each, the scaling's own two on top), so that the test needs no widening
 /// at every node.
-const FAR_WIDENING: f32 = 1.0 + 2.0 * (5.0 * f32::EPSILON * 0.5) / (1.0 - 5.0 * f32::EPSILON * 0.5);
+pub(super) const FAR_WIDENING: f32 = 1.0 + 2.0 * (5.0 * f32::EPSILON * 0.5) / (1.0 - 5.0 * f32::EPSILON * 0.5);
 
 /// The reciprocal of a direction component, finite: a zero component gives
 /// the largest float of its sign, so that `0 * inv` is 0, never NaN, and a

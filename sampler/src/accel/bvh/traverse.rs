@@ -6,6 +6,8 @@ use std::mem::MaybeUninit;
 
 use wide::f32x8;
 
+#[cfg(target_arch = "x86_64")]
+use super::fused::{self, SlabFused};
 use super::node::{Child, EMPTY, WIDTH};
 use super::slab::{BoxTest, SlabRay, ROBUST};
 use super::{better, reach, WideBvh};
@@ -115,18 +117,34 @@ impl WideBvh {
     /// The nearest hit within `(0, ray.t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
+        if fused::available() {
+            // SAFETY: the CPU has AVX2 and FMA.
+            return unsafe { self.intersect_fused(ray) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if avx::available() {
             // SAFETY: the CPU has AVX.
             return unsafe { self.intersect_avx(ray) };
         }
-        self.intersect_with(&SlabRay::<f32x8>::new(ray), ray)
+        self.intersect_with::<f32x8>(&SlabRay::<f32x8>::new(ray), ray)
     }
 
     /// [`WideBvh::intersect`] compiled for AVX, boxes tested 256 bits at once.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn intersect_avx(&self, ray: &Ray) -> Option<Hit> {
-        self.intersect_with(&SlabRay::<avx::Avx>::new(ray), ray)
+        self.intersect_with::<avx::Avx>(&SlabRay::<avx::Avx>::new(ray), ray)
+    }
+
+    /// [`WideBvh::intersect`] compiled for AVX2 and FMA, with the fused box test
+    /// (rays it does not take go to the AVX one).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,fma")]
+    unsafe fn intersect_fused(&self, ray: &Ray) -> Option<Hit> {
+        match SlabFused::new(ray) {
+            Some(boxes) => self.intersect_with::<avx::Avx>(&boxes, ray),
+            None => self.intersect_avx(ray),
+        }
     }
 
     /// Tests the triangles of the leaf from `block` in `lanes` against
@@ -152,28 +170,40 @@ impl WideBvh {
     }
 
     #[inline(always)]
-    fn intersect_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray) -> Option<Hit> {
+    fn intersect_with<L: Lanes>(&self, boxes: &impl BoxTest, ray: &Ray) -> Option<Hit> {
         let wide = RayWide::<L>::new(ray.origin, ray.dir);
         let mut best: Option<Hit> = None;
         let mut closest = ray.t_max;
-        self.walk(boxes, ray.t_max, |block, lanes| {
-            let mut found = None;
-            self.leaf_test(&wide, block, lanes, reach(closest), |lane, h| {
-                let tri = self.id(block, lanes, lane);
-                if better(h.t, tri, closest, best.map_or(u32::MAX, |b| b.tri)) {
-                    closest = h.t;
-                    found = Some(h.t);
-                    best = Some(Hit {
-                        t: h.t,
-                        tri,
-                        u: h.u,
-                        v: h.v,
-                    });
-                }
-                Some(reach(closest))
-            });
-            Ok(found)
-        });
+        self.walk(
+            boxes,
+            ray.t_max,
+            #[inline(always)]
+            |block, lanes| {
+                let mut found = None;
+                self.leaf_test(
+                    &wide,
+                    block,
+                    lanes,
+                    reach(closest),
+                    #[inline(always)]
+                    |lane, h| {
+                        let tri = self.id(block, lanes, lane);
+                        if better(h.t, tri, closest, best.map_or(u32::MAX, |b| b.tri)) {
+                            closest = h.t;
+                            found = Some(h.t);
+                            best = Some(Hit {
+                                t: h.t,
+                                tri,
+                                u: h.u,
+                                v: h.v,
+                            });
+                        }
+                        Some(reach(closest))
+                    },
+                );
+                Ok(found)
+            },
+        );
         best
     }
 
@@ -182,38 +212,59 @@ impl WideBvh {
     /// filter and skipped.
     pub fn occluded_by(&self, ray: &Ray, blocks: impl FnMut(u32) -> bool) -> bool {
         #[cfg(target_arch = "x86_64")]
+        if fused::available() {
+            // SAFETY: the CPU has AVX2 and FMA.
+            return unsafe { self.occluded_fused(ray, blocks) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if avx::available() {
             // SAFETY: the CPU has AVX.
             return unsafe { self.occluded_avx(ray, blocks) };
         }
-        self.occluded_with(&SlabRay::<f32x8>::new(ray), ray, blocks)
+        self.occluded_with::<f32x8>(&SlabRay::<f32x8>::new(ray), ray, blocks)
     }
 
     /// [`WideBvh::occluded_by`] compiled for AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn occluded_avx(&self, ray: &Ray, blocks: impl FnMut(u32) -> bool) -> bool {
-        self.occluded_with(&SlabRay::<avx::Avx>::new(ray), ray, blocks)
+        self.occluded_with::<avx::Avx>(&SlabRay::<avx::Avx>::new(ray), ray, blocks)
+    }
+
+    /// [`WideBvh::occluded_by`] compiled for AVX2 and FMA, with the fused box test
+    /// (rays it does not take go to the AVX one).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,fma")]
+    unsafe fn occluded_fused(&self, ray: &Ray, blocks: impl FnMut(u32) -> bool) -> bool {
+        match SlabFused::new(ray) {
+            Some(boxes) => self.occluded_with::<avx::Avx>(&boxes, ray, blocks),
+            None => self.occluded_avx(ray, blocks),
+        }
     }
 
     #[inline(always)]
-    fn occluded_with<L: Lanes>(&self, boxes: &SlabRay<L>, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
+    fn occluded_with<L: Lanes>(&self, boxes: &impl BoxTest, ray: &Ray, mut blocks: impl FnMut(u32) -> bool) -> bool {
         let wide = RayWide::<L>::new(ray.origin, ray.dir);
         let mut hit = false;
-        self.walk(boxes, ray.t_max, |block, lanes| {
-            let go = self.leaf_test(&wide, block, lanes, ray.t_max, |lane, h| {
-                if h.t < ray.t_max && blocks(self.id(block, lanes, lane)) {
-                    hit = true;
-                    return None;
+        self.walk(
+            boxes,
+            ray.t_max,
+            #[inline(always)]
+            |block, lanes| {
+                let go = self.leaf_test(&wide, block, lanes, ray.t_max, |lane, h| {
+                    if h.t < ray.t_max && blocks(self.id(block, lanes, lane)) {
+                        hit = true;
+                        return None;
+                    }
+                    Some(ray.t_max)
+                });
+                if go {
+                    Ok(None)
+                } else {
+                    Err(())
                 }
-                Some(ray.t_max)
-            });
-            if go {
-                Ok(None)
-            } else {
-                Err(())
-            }
-        });
+            },
+        );
         hit
     }
 
@@ -256,28 +307,57 @@ mod tests {
             t_max: b.map_or(1e30, |h| h.t * 1.001),
             ..*ray
         };
-        assert_eq!(bvh.occluded(&beyond), b.is_some(), "{what}: occluded");
+        for (kind, o) in every_occluded(bvh, &beyond) {
+            assert_eq!(o, b.is_some(), "{what}: occluded, {kind} box test");
+        }
         if let Some(h) = b {
             let short = Ray {
                 t_max: h.t * 0.999,
                 ..*ray
             };
-            assert_eq!(
-                bvh.occluded(&short),
-                nearest_of_all(scene, &short).is_some(),
-                "{what}: occluded short"
-            );
+            let expected = nearest_of_all(scene, &short).is_some();
+            for (kind, o) in every_occluded(bvh, &short) {
+                assert_eq!(o, expected, "{what}: occluded short, {kind} box test");
+            }
         }
         b.is_some()
     }
 
-    /// The nearest hit by each box test this CPU can run: portable, AVX.
+    /// The nearest hit by each box test this CPU can run: portable, AVX, fused.
     fn every_box_test(bvh: &WideBvh, ray: &Ray) -> Vec<(&'static str, Option<Hit>)> {
-        let mut all = vec![("portable", bvh.intersect_with(&SlabRay::<f32x8>::new(ray), ray))];
+        let mut all = vec![(
+            "portable",
+            bvh.intersect_with::<f32x8>(&SlabRay::<f32x8>::new(ray), ray),
+        )];
         #[cfg(target_arch = "x86_64")]
         if avx::available() {
             // SAFETY: the CPU has AVX.
             all.push(("AVX", unsafe { bvh.intersect_avx(ray) }));
+        }
+        #[cfg(target_arch = "x86_64")]
+        if fused::available() {
+            // SAFETY: the CPU has AVX2 and FMA.
+            all.push(("fused", unsafe { bvh.intersect_fused(ray) }));
+        }
+        all
+    }
+
+    /// Whether anything lies within `(0, ray.t_max)` by each box test this
+    /// CPU can run.
+    fn every_occluded(bvh: &WideBvh, ray: &Ray) -> Vec<(&'static str, bool)> {
+        let mut all = vec![(
+            "portable",
+            bvh.occluded_with::<f32x8>(&SlabRay::<f32x8>::new(ray), ray, |_| true),
+        )];
+        #[cfg(target_arch = "x86_64")]
+        if avx::available() {
+            // SAFETY: the CPU has AVX.
+            all.push(("AVX", unsafe { bvh.occluded_avx(ray, |_| true) }));
+        }
+        #[cfg(target_arch = "x86_64")]
+        if fused::available() {
+            // SAFETY: the CPU has AVX2 and FMA.
+            all.push(("fused", unsafe { bvh.occluded_fused(ray, |_| true) }));
         }
         all
     }
