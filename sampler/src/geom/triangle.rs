@@ -22,7 +22,9 @@ impl RayPrep {
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> RayPrep {
         let [kx, ky, kz] = axis_permutation(dir);
-        let (sx, sy, sz) = (dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]);
+        // Arrays, not `Vec3`'s indexing, which branches on the index.
+        let d = dir.to_array();
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
         let (mut row_x, mut row_y, mut row_z) = ([0f32; 3], [0f32; 3], [0f32; 3]);
         row_x[kx] = 1.0;
         row_x[kz] = -sx;
@@ -56,7 +58,8 @@ pub fn axis_permutation(dir: Vec3) -> [usize; 3] {
         2
     };
     let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
-    if dir[kz] < 0.0 {
+    // An array, not `Vec3`'s indexing, which branches on the index.
+    if dir.to_array()[kz] < 0.0 {
         std::mem::swap(&mut kx, &mut ky);
     }
     [kx, ky, kz]

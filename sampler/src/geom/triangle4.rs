@@ -102,10 +102,12 @@ impl Tri8 {
 fn shear<V>(origin: Vec3, dir: Vec3, splat: impl Fn(f32) -> V) -> ([usize; 3], [V; 3], [V; 3]) {
     let k = axis_permutation(dir);
     let [kx, ky, kz] = k;
+    // Arrays, not `Vec3`'s indexing, which branches on the index.
+    let (o, d) = (origin.to_array(), dir.to_array());
     (
         k,
-        [splat(origin[kx]), splat(origin[ky]), splat(origin[kz])],
-        [splat(dir[kx] / dir[kz]), splat(dir[ky] / dir[kz]), splat(1.0 / dir[kz])],
+        [splat(o[kx]), splat(o[ky]), splat(o[kz])],
+        [splat(d[kx] / d[kz]), splat(d[ky] / d[kz]), splat(1.0 / d[kz])],
     )
 }
 
