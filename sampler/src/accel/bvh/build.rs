@@ -10,7 +10,7 @@ use std::mem::MaybeUninit;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::node::{Child, Node, EMPTY, LEAF_MAX, MAX_BLOCKS, WIDTH};
+use super::node::{Child, Node, EMPTY, LEAF_MAX, MAX_BLOCKS, MAX_NODES, WIDTH};
 use super::{Block, Pair, WideBvh};
 use crate::geom::{Aabb, Tri4, Tri8};
 use crate::scene::Scene;
@@ -435,7 +435,7 @@ impl Layout<'_> {
                         .collect()
                 };
                 this[0].write(Node::new(&refs));
-                at.node_at as u32
+                Child::inner(at.node_at)
             }
         }
     }
@@ -456,8 +456,9 @@ pub const MAX_TRIANGLES: usize = MAX_BLOCKS;
 
 impl WideBvh {
     /// Builds the hierarchy of a scene's triangles on all cores, or `None`
-    /// for a scene of more than [`MAX_TRIANGLES`] triangles (the kd-tree
-    /// holds those).
+    /// for a scene of more than [`MAX_TRIANGLES`] triangles or whose
+    /// hierarchy would take more than 8,388,608 nodes (2 GiB; some 270
+    /// million triangles): the kd-tree holds those.
     pub fn build(scene: &Scene) -> Option<WideBvh> {
         let n = scene.triangles.len();
         if n > MAX_TRIANGLES {
@@ -467,6 +468,9 @@ impl WideBvh {
         let (bounds, _) = bounds_of(&prims);
         let sub = build(&mut prims, 0, bounds, 0);
         let size = sub.size();
+        if size.nodes > MAX_NODES {
+            return None;
+        }
         // Written in place, in parallel: filling the arrays first would be
         // a serial pass over hundreds of MiB.
         let mut nodes: Vec<Node> = Vec::with_capacity(size.nodes);
@@ -577,9 +581,9 @@ mod tests {
                         }
                     }
                 }
-                Child::Inner(i) => {
+                Child::Inner(offset) => {
                     nodes_seen += 1;
-                    let node = &bvh.nodes[i];
+                    let node = bvh.node(offset);
                     for lane in 0..WIDTH {
                         if node.child[lane] == EMPTY {
                             continue;

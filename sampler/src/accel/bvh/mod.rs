@@ -106,6 +106,22 @@ fn reach(closest: f32) -> f32 {
 }
 
 impl WideBvh {
+    /// The inner node at byte offset `offset` of the node array (what an
+    /// inner reference holds), read without a bounds check: the walks do
+    /// this at every node.
+    #[inline(always)]
+    fn node(&self, offset: usize) -> &Node {
+        debug_assert!(
+            offset.is_multiple_of(std::mem::size_of::<Node>())
+                && offset / std::mem::size_of::<Node>() < self.nodes.len()
+        );
+        // SAFETY: inner references are written by the build alone
+        // (`Child::inner`), each the offset of a node it wrote into the
+        // array, which is never changed after; the array's nodes are
+        // aligned, and so is every multiple of their size from its start.
+        unsafe { &*self.nodes.as_ptr().cast::<u8>().add(offset).cast::<Node>() }
+    }
+
     /// The leaf of two blocks from block `block`, read as one [`Pair`].
     #[inline]
     fn pair(&self, block: usize) -> &Pair {
@@ -150,10 +166,9 @@ impl WideBvh {
                     s.leaves += 1;
                     s.depth = s.depth.max(d);
                 }
-                node::Child::Inner(i) => {
-                    if let Some(n) = self.nodes.get(i) {
-                        stack.extend(n.child.iter().map(|&c| (c, d + 1)));
-                    }
+                node::Child::Inner(offset) => {
+                    let n = self.node(offset);
+                    stack.extend(n.child.iter().map(|&c| (c, d + 1)));
                 }
             }
         }

@@ -1,6 +1,8 @@
 //! The wide node: eight children's boxes in structure-of-arrays form, and a
-//! 32-bit reference per child. A reference is an inner node's index, or a
-//! leaf (the top bit set, then the first block's index and the triangle
+//! 32-bit reference per child. A reference is an inner node's byte offset in
+//! the node array (so that a walk adds it to the array's address as it is,
+//! one shift and one addition less between loading a reference and loading
+//! the node it names), or a leaf (the top bit set, then the first block's index and the triangle
 //! count less one in the low three bits: a leaf of more than four triangles
 //! takes two blocks' space, as a [`super::Pair`]), or [`EMPTY`].
 
@@ -17,6 +19,8 @@ pub(crate) const EMPTY: u32 = u32::MAX;
 const LEAF: u32 = 1 << 31;
 /// Blocks a leaf reference can name (the last code would be [`EMPTY`]).
 pub(crate) const MAX_BLOCKS: usize = (1 << 28) - 1;
+/// Nodes a hierarchy can hold: their byte offsets must stay below the leaf bit.
+pub(crate) const MAX_NODES: usize = (LEAF as usize) / std::mem::size_of::<Node>();
 /// Most triangles in a leaf: two blocks.
 pub(crate) const LEAF_MAX: usize = 8;
 
@@ -24,7 +28,11 @@ pub(crate) const LEAF_MAX: usize = 8;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Child {
     Empty,
-    Leaf { block: usize, count: usize },
+    Leaf {
+        block: usize,
+        count: usize,
+    },
+    /// An inner node, by its byte offset in the node array.
     Inner(usize),
 }
 
@@ -33,6 +41,12 @@ impl Child {
     pub(crate) fn leaf(block: usize, count: usize) -> u32 {
         debug_assert!(block < MAX_BLOCKS && (1..=LEAF_MAX).contains(&count));
         LEAF | ((block as u32) << 3) | (count as u32 - 1)
+    }
+
+    /// The reference of the inner node at index `index` of the node array.
+    pub(crate) fn inner(index: usize) -> u32 {
+        debug_assert!(index < MAX_NODES);
+        (index * std::mem::size_of::<Node>()) as u32
     }
 
     /// What a reference names.
@@ -97,8 +111,12 @@ mod tests {
         for (block, count) in [(0, 1), (7, 4), (9, 8), (MAX_BLOCKS - 1, 8)] {
             assert_eq!(Child::decode(Child::leaf(block, count)), Child::Leaf { block, count });
         }
-        assert_eq!(Child::decode(0), Child::Inner(0));
-        assert_eq!(Child::decode(LEAF - 1), Child::Inner(LEAF as usize - 1));
+        assert_eq!(Child::decode(Child::inner(0)), Child::Inner(0));
+        assert_eq!(Child::decode(Child::inner(3)), Child::Inner(3 * 256));
+        assert_eq!(
+            Child::decode(Child::inner(MAX_NODES - 1)),
+            Child::Inner(LEAF as usize - 256)
+        );
         assert_eq!(Child::decode(EMPTY), Child::Empty);
     }
 }

@@ -44,8 +44,8 @@ impl WideBvh {
         let mut cur = self.root;
         loop {
             match Child::decode(cur) {
-                Child::Inner(i) => {
-                    let n = &self.nodes[i];
+                Child::Inner(offset) => {
+                    let n = self.node(offset);
                     let (mut hit, t) = boxes.test(n, closest);
                     if hit != 0 {
                         if hit & (hit - 1) == 0 {
