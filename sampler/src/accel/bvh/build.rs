@@ -457,8 +457,9 @@ pub const MAX_TRIANGLES: usize = MAX_BLOCKS;
 impl WideBvh {
     /// Builds the hierarchy of a scene's triangles on all cores, or `None`
     /// for a scene of more than [`MAX_TRIANGLES`] triangles or whose
-    /// hierarchy would take more than 8,388,608 nodes (2 GiB; some 270
-    /// million triangles): the kd-tree holds those.
+    /// hierarchy would take more than 8,388,608 nodes (2 GiB; some 180
+    /// million triangles at a landscape's 21 triangles a node): the kd-tree
+    /// holds those.
     pub fn build(scene: &Scene) -> Option<WideBvh> {
         let n = scene.triangles.len();
         if n > MAX_TRIANGLES {

@@ -6,9 +6,11 @@
 //! (no box exact arithmetic finds the ray touching is dropped), with one
 //! operation less on the path from loading a node to choosing the next:
 //! rays that visit many nodes gain most (10% on a 10M-triangle landscape's
-//! primary rays). Rays whose products would overflow (a zero direction
-//! component with an origin off zero on its axis, a subnormal one) are
-//! left to the plain test.
+//! primary rays). Rays with a zero direction component and an origin off
+//! zero on its axis are left to the plain test (their products can
+//! overflow, and where they do not, the plain test's answer for a ray lying
+//! in a box's far face is kept, so that every box test gives the same hits);
+//! so are rays whose reciprocals or products are not finite.
 
 #![cfg(target_arch = "x86_64")]
 
@@ -58,21 +60,50 @@ unsafe fn product_outward(o: __m128, inv: __m128, up: bool) -> __m128 {
     }
 }
 
+// Helpers of `SlabFused::new`, functions rather than closures: a closure is
+// compiled on its own, without its caller's instructions, unless inlined,
+// and these are always inlined into callers compiled with AVX2.
+
+/// `|x|`, lane by lane.
+#[inline(always)]
+unsafe fn abs(x: __m128) -> __m128 {
+    _mm_andnot_ps(_mm_set1_ps(-0.0), x)
+}
+
+/// The largest finite float with `x`'s sign, lane by lane.
+#[inline(always)]
+unsafe fn largest_of_sign(x: __m128) -> __m128 {
+    _mm_or_ps(_mm_and_ps(x, _mm_set1_ps(-0.0)), _mm_set1_ps(f32::MAX))
+}
+
+/// Lanes 0, 1 and 2 of `v`, each in all eight lanes of its own register.
+#[inline(always)]
+unsafe fn lanes(v: __m128) -> [__m256; 3] {
+    [
+        _mm256_broadcastss_ps(v),
+        _mm256_broadcastss_ps(_mm_permute_ps::<0b01_01_01_01>(v)),
+        _mm256_broadcastss_ps(_mm_permute_ps::<0b10_10_10_10>(v)),
+    ]
+}
+
 impl SlabFused {
     /// The ray's constants, or `None` for a ray the fused test does not
     /// take. Worked out for the three axes in one register: a ray that
     /// visits few nodes pays this once per few nodes, and scalar code for
     /// it cost the furnished room's rays more than the fused test saved.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and FMA ([`available`]), and the caller must
+    /// be compiled with them, as must every caller of [`BoxTest::test`] on
+    /// the value made (it is inlined there). Holding a `SlabFused` is thus
+    /// proof that the CPU has them.
     #[inline(always)]
-    pub(super) fn new(ray: &Ray) -> Option<SlabFused> {
-        // SAFETY: only called in functions compiled with AVX2 and FMA.
+    pub(super) unsafe fn new(ray: &Ray) -> Option<SlabFused> {
+        // SAFETY: the caller guarantees AVX2 and FMA.
         unsafe {
             let d = _mm_setr_ps(ray.dir.x, ray.dir.y, ray.dir.z, 1.0);
             let o = _mm_setr_ps(ray.origin.x, ray.origin.y, ray.origin.z, 0.0);
-            let sign = _mm_set1_ps(-0.0);
             let max = _mm_set1_ps(f32::MAX);
-            let abs = |x: __m128| _mm_andnot_ps(sign, x);
-            let largest_of_sign = |x: __m128| _mm_or_ps(_mm_and_ps(x, sign), max);
             // As `safe_recip`: a zero component gives the largest float of its sign.
             let zero = _mm_cmpeq_ps(d, _mm_setzero_ps());
             let inv = _mm_blendv_ps(_mm_div_ps(_mm_set1_ps(1.0), d), largest_of_sign(d), zero);
@@ -85,25 +116,20 @@ impl SlabFused {
             let inv_far = _mm_blendv_ps(wide, largest_of_sign(inv), overflowed);
             let c = product_outward(o, inv, true);
             let c_far = product_outward(o, inv_far, false);
-            // Every product and reciprocal finite (a NaN fails too).
+            // Every product and reciprocal finite (a NaN fails too), and
+            // no zero direction component with an origin off zero.
             let finite = _mm_and_ps(
                 _mm_cmple_ps(abs(inv_far), max),
                 _mm_and_ps(_mm_cmple_ps(abs(c), max), _mm_cmple_ps(abs(c_far), max)),
             );
-            if _mm_movemask_ps(finite) != 0b1111 {
+            let lying_off_zero = _mm_and_ps(zero, _mm_cmpneq_ps(o, _mm_setzero_ps()));
+            if _mm_movemask_ps(_mm_andnot_ps(lying_off_zero, finite)) != 0b1111 {
                 return None;
             }
             // As `corners`: a negative reciprocal meets the high side first.
             let neg = _mm_movemask_ps(inv) as usize;
             let near = [(neg & 1) * 3, ((neg >> 1) & 1) * 3 + 1, ((neg >> 2) & 1) * 3 + 2];
             let far = [3 - near[0], 5 - near[1], 7 - near[2]];
-            let lanes = |v: __m128| {
-                [
-                    _mm256_broadcastss_ps(v),
-                    _mm256_broadcastss_ps(_mm_permute_ps::<0b01_01_01_01>(v)),
-                    _mm256_broadcastss_ps(_mm_permute_ps::<0b10_10_10_10>(v)),
-                ]
-            };
             Some(SlabFused {
                 inv: lanes(inv),
                 c: lanes(c),
@@ -119,11 +145,9 @@ impl SlabFused {
 impl BoxTest for SlabFused {
     #[inline(always)]
     fn test(&self, n: &Node, closest: f32) -> (u32, [f32; WIDTH]) {
-        // Written out rather than through closures: a closure is compiled
-        // on its own, without the caller's instruction set, unless inlined,
-        // and an intrinsic called from it then costs a call.
-        // SAFETY: inlined only into functions compiled with AVX2 and FMA;
-        // the corner arrays are 32-byte aligned (`f32x8`).
+        // SAFETY: a `SlabFused` exists only where the CPU has AVX2 and FMA
+        // (`new`), and this is inlined only into functions compiled with
+        // them; the corner arrays are 32-byte aligned (`f32x8`).
         unsafe {
             let b = &n.b;
             let (near, far) = (self.near, self.far);
@@ -192,7 +216,8 @@ mod tests {
     /// or `None` where it leaves the ray to the plain test.
     #[target_feature(enable = "avx,avx2,fma")]
     unsafe fn passes(ray: &Ray, b: Aabb, closest: f32) -> Option<bool> {
-        let boxes = SlabFused::new(ray)?;
+        // SAFETY: compiled with AVX2 and FMA, called where the CPU has them.
+        let boxes = unsafe { SlabFused::new(ray) }?;
         Some(boxes.test(&Node::new(&[(b, 0)]), closest).0 & 1 != 0)
     }
 
@@ -284,39 +309,55 @@ mod tests {
         assert!(hits > 10_000 && misses > 10_000, "{hits} hits, {misses} misses");
     }
 
-    /// A ray with a zero direction component whose origin is zero on that
-    /// axis: the fused test takes it and answers as the plain test does
-    /// (a box whose near face holds the ray passes, boxes beside it do
-    /// not; one whose far face holds it is passed by, as `TRACER.md`
-    /// says). With an origin off zero (the product would overflow) and
-    /// with a subnormal component, the ray is left to the plain test.
+    /// Rays with zero direction components whose origin is zero on those
+    /// axes: the fused test takes them and answers as the plain test does,
+    /// whichever zero the component is (a box whose near face holds the
+    /// ray passes, boxes beside it do not; one whose far face holds it is
+    /// passed by, as `TRACER.md` says; the zero's sign says which face is
+    /// near). With an origin off zero on such an
+    /// axis, small or large, and with a subnormal component, the ray is left
+    /// to the plain test.
     #[test]
     fn rays_parallel_to_an_axis() {
         if !available() {
             return;
         }
         let cube = |lo: Vec3| Aabb { lo, hi: lo + Vec3::ONE };
-        let ray = Ray::new(Vec3::new(0.0, -5.0, 0.5), Vec3::new(0.0, 1.0, 0.0));
-        let plain = super::super::slab::SlabRay::<wide::f32x8>::new(&ray);
-        // SAFETY (all calls): the CPU has AVX2 and FMA.
-        unsafe {
-            for (lo, expected) in [
-                (Vec3::new(0.0, 0.0, 0.0), Some(true)),
-                (Vec3::new(-1.0, 0.0, 0.0), None),
-                (Vec3::new(-0.5, 0.0, 0.0), Some(true)),
-                (Vec3::new(1e-30, 0.0, 0.0), Some(false)),
-                (Vec3::new(-1.0 - f32::EPSILON, 0.0, 0.0), Some(false)),
-                (Vec3::new(0.0, -7.0, 0.0), Some(false)),
-            ] {
+        // (box's low corner, whether it passes for a direction x component
+        // of +0, and of -0: the sign of a zero picks which face is near).
+        for (lo, plus, minus) in [
+            (Vec3::new(0.0, 0.0, 0.0), true, false),
+            (Vec3::new(-1.0, 0.0, 0.0), false, true),
+            (Vec3::new(-0.5, 0.0, -0.5), true, true),
+            (Vec3::new(0.0, 0.0, -1.0), false, false),
+            (Vec3::new(1e-30, 0.0, 0.0), false, false),
+            (Vec3::new(-1.0 - f32::EPSILON, 0.0, 0.0), false, false),
+            (Vec3::new(0.0, -7.0, 0.0), false, false),
+        ] {
+            for (x, expected) in [(0.0, plus), (-0.0, minus)] {
+                let ray = Ray::new(Vec3::new(0.0, -5.0, 0.0), Vec3::new(x, 1.0, 0.0));
+                let plain = super::super::slab::SlabRay::<wide::f32x8>::new(&ray);
                 let b = cube(lo);
                 let reference = plain.test(&Node::new(&[(b, 0)]), f32::INFINITY).0 & 1 != 0;
-                assert_eq!(passes(&ray, b, f32::INFINITY), Some(reference), "{lo}");
-                if let Some(e) = expected {
-                    assert_eq!(reference, e, "{lo}");
-                }
+                assert_eq!(reference, expected, "{lo}, direction {x}");
+                // SAFETY: the CPU has AVX2 and FMA.
+                assert_eq!(
+                    unsafe { passes(&ray, b, f32::INFINITY) },
+                    Some(expected),
+                    "{lo}, direction {x}"
+                );
             }
-            let off = Ray::new(Vec3::new(2.0, -5.0, 0.5), Vec3::new(0.0, 1.0, 0.0));
-            assert_eq!(passes(&off, cube(Vec3::new(2.0, 0.0, 0.0)), f32::INFINITY), None);
+        }
+        // SAFETY (all calls): the CPU has AVX2 and FMA.
+        unsafe {
+            for z in [0.5, 2.0, 1e-30] {
+                let off = Ray::new(Vec3::new(0.0, -5.0, z), Vec3::new(0.0, 1.0, 0.0));
+                assert_eq!(
+                    passes(&off, cube(Vec3::new(0.0, 0.0, z - 1.0)), f32::INFINITY),
+                    None,
+                    "{z}"
+                );
+            }
             let subnormal = Ray::new(Vec3::ZERO, Vec3::new(1e-40, 1.0, 0.0));
             assert_eq!(passes(&subnormal, cube(Vec3::ZERO), f32::INFINITY), None);
         }

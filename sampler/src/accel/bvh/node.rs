@@ -2,9 +2,10 @@
 //! 32-bit reference per child. A reference is an inner node's byte offset in
 //! the node array (so that a walk adds it to the array's address as it is,
 //! one shift and one addition less between loading a reference and loading
-//! the node it names), or a leaf (the top bit set, then the first block's index and the triangle
-//! count less one in the low three bits: a leaf of more than four triangles
-//! takes two blocks' space, as a [`super::Pair`]), or [`EMPTY`].
+//! the node it names), or a leaf (the top bit set, then the first block's
+//! index and the triangle count less one in the low three bits: a leaf of
+//! more than four triangles takes two blocks' space, as a
+//! [`super::Pair`]), or [`EMPTY`].
 
 use wide::f32x8;
 

@@ -141,7 +141,9 @@ impl WideBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx,avx2,fma")]
     unsafe fn intersect_fused(&self, ray: &Ray) -> Option<Hit> {
-        match SlabFused::new(ray) {
+        // SAFETY: this function is compiled with AVX2 and FMA, and called
+        // only where the CPU has them.
+        match unsafe { SlabFused::new(ray) } {
             Some(boxes) => self.intersect_with::<avx::Avx>(&boxes, ray),
             None => self.intersect_avx(ray),
         }
@@ -236,7 +238,8 @@ impl WideBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx,avx2,fma")]
     unsafe fn occluded_fused(&self, ray: &Ray, blocks: impl FnMut(u32) -> bool) -> bool {
-        match SlabFused::new(ray) {
+        // SAFETY: as in `intersect_fused`.
+        match unsafe { SlabFused::new(ray) } {
             Some(boxes) => self.occluded_with::<avx::Avx>(&boxes, ray, blocks),
             None => self.occluded_avx(ray, blocks),
         }
@@ -251,13 +254,20 @@ impl WideBvh {
             ray.t_max,
             #[inline(always)]
             |block, lanes| {
-                let go = self.leaf_test(&wide, block, lanes, ray.t_max, |lane, h| {
-                    if h.t < ray.t_max && blocks(self.id(block, lanes, lane)) {
-                        hit = true;
-                        return None;
-                    }
-                    Some(ray.t_max)
-                });
+                let go = self.leaf_test(
+                    &wide,
+                    block,
+                    lanes,
+                    ray.t_max,
+                    #[inline(always)]
+                    |lane, h| {
+                        if h.t < ray.t_max && blocks(self.id(block, lanes, lane)) {
+                            hit = true;
+                            return None;
+                        }
+                        Some(ray.t_max)
+                    },
+                );
                 if go {
                     Ok(None)
                 } else {
