@@ -11,6 +11,7 @@ use std::ffi::{c_char, c_int, c_uint, c_void};
 use std::ptr::{null, null_mut};
 
 use glam::Vec3;
+use holodeck_sampler::accel::{Hit, RayCaster};
 use holodeck_sampler::geom::Ray;
 
 const RTC_GEOMETRY_TYPE_TRIANGLE: c_int = 0;
@@ -122,6 +123,9 @@ extern "C" {
     fn rtcAttachGeometry(scene: *mut c_void, geometry: *mut c_void) -> c_uint;
     fn rtcReleaseGeometry(geometry: *mut c_void);
     fn rtcIntersect1(scene: *mut c_void, context: *mut IntersectContext, rayhit: *mut RayHit1);
+    // Takes an `RTCRay`, the first member of `RTCRayHit`: a `RayHit1`'s
+    // leading fields are laid out as one.
+    fn rtcOccluded1(scene: *mut c_void, context: *mut IntersectContext, ray: *mut RayHit1);
     fn rtcIntersect8(valid: *const c_int, scene: *mut c_void, context: *mut IntersectContext, rayhit: *mut RayHit8);
 }
 
@@ -233,20 +237,46 @@ impl Embree {
 
     /// The nearest hit in `(0, ray.t_max]`: parameter and triangle index.
     pub fn intersect(&self, ray: &Ray) -> Option<(f32, u32)> {
-        let mut rh = RayHit1 {
+        self.nearest_from(ray, 0.0).map(|h| (h.t, h.tri))
+    }
+
+    /// The ray as Embree takes it, from `t_near` on.
+    fn ray_hit(ray: &Ray, t_near: f32) -> RayHit1 {
+        RayHit1 {
             org: ray.origin.to_array(),
-            tnear: 0.0,
+            tnear: t_near,
             dir: ray.dir.to_array(),
             tfar: ray.t_max,
             mask: u32::MAX,
             geom_id: RTC_INVALID_GEOMETRY_ID,
             inst_id: [RTC_INVALID_GEOMETRY_ID],
             ..RayHit1::default()
-        };
+        }
+    }
+
+    /// Whether anything lies within `[0, ray.t_max]` (Embree's any-hit query).
+    fn anything(&self, ray: &Ray) -> bool {
+        let mut rh = Embree::ray_hit(ray, 0.0);
+        let mut context = IntersectContext::new(false);
+        // SAFETY: a committed scene, an initialized context and ray; Embree
+        // reads and writes only the ray's leading `RTCRay` fields.
+        unsafe { rtcOccluded1(self.scene, &mut context, &mut rh) };
+        // Embree marks an occluded ray with a far end of minus infinity.
+        rh.tfar == f32::NEG_INFINITY
+    }
+
+    /// The nearest hit in `[t_near, ray.t_max]`, with its barycentrics.
+    fn nearest_from(&self, ray: &Ray, t_near: f32) -> Option<Hit> {
+        let mut rh = Embree::ray_hit(ray, t_near);
         let mut context = IntersectContext::new(false);
         // SAFETY: a committed scene, an initialized context and ray.
         unsafe { rtcIntersect1(self.scene, &mut context, &mut rh) };
-        (rh.geom_id != RTC_INVALID_GEOMETRY_ID).then_some((rh.tfar, rh.prim_id))
+        (rh.geom_id != RTC_INVALID_GEOMETRY_ID).then_some(Hit {
+            t: rh.tfar,
+            tri: rh.prim_id,
+            u: rh.u,
+            v: rh.v,
+        })
     }
 
     /// The nearest hits of up to eight rays traced as one packet.
@@ -269,6 +299,38 @@ impl Embree {
         std::array::from_fn(|k| {
             (valid.0[k] != 0 && rh.geom_id[k] != RTC_INVALID_GEOMETRY_ID).then_some((rh.tfar[k], rh.prim_id[k]))
         })
+    }
+}
+
+/// Embree standing in for the path tracer's own hierarchy
+/// ([`Tracer::with_caster`](holodeck_sampler::Tracer::with_caster)): single
+/// rays only, as the tracer casts them.
+impl RayCaster for Embree {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.nearest_from(ray, 0.0)
+    }
+
+    /// Embree's any-hit query first (most shadow rays reach their light);
+    /// where something is in the way, nearest hit after nearest hit, each
+    /// search starting just past the last, until one blocks or none is left
+    /// before `ray.t_max`: Embree offers a filter for this only as a
+    /// callback, and shadow rays through the room's window panes meet one or
+    /// two hits that do not block.
+    fn occluded_by(&self, ray: &Ray, blocks: &mut dyn FnMut(u32) -> bool) -> bool {
+        if !self.anything(ray) {
+            return false;
+        }
+        let mut from = 0.0f32;
+        while let Some(h) = self.nearest_from(ray, from) {
+            if h.t >= ray.t_max {
+                return false;
+            }
+            if blocks(h.tri) {
+                return true;
+            }
+            from = h.t.next_up();
+        }
+        false
     }
 }
 
@@ -320,5 +382,60 @@ mod tests {
         // Ties on shared edges may pick either triangle; nothing more.
         assert!(hits > 1000, "{hits} hits");
         assert!(same * 1000 >= rays.len() * 998, "{same} of {} rays agree", rays.len());
+    }
+
+    /// As a ray caster for the path tracer: nearest hits with their
+    /// barycentrics, and shadow rays that look past triangles a filter lets
+    /// through (here every other triangle), agree with our wide BVH's but
+    /// for ties on shared edges.
+    #[test]
+    fn embree_casts_rays_as_the_tracer_needs() {
+        use holodeck_sampler::accel::WideBvh;
+        let scene = generate("room", &GenParams::default()).unwrap();
+        let bvh = WideBvh::build(&scene).unwrap();
+        let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v)).unwrap();
+        let mut rng = Rng::new(5, 0);
+        let (mut rays, mut same_hit, mut same_shadow, mut blocked, mut looked_past) = (0, 0, 0, 0, 0);
+        for _ in 0..4000 {
+            let (a, b) = rng.f32x2();
+            let (c, d) = rng.f32x2();
+            let o = Vec3::new(0.5 + 3.0 * a, 0.5 + 3.0 * b, 0.3 + 2.0 * c);
+            let to = Vec3::new(4.0 * d, 4.0 * a, 2.5 * b);
+            if (to - o).length() < 1e-3 {
+                continue;
+            }
+            let ray = Ray {
+                t_max: (to - o).length(),
+                ..Ray::new(o, (to - o).normalize())
+            };
+            rays += 1;
+            let (ours, theirs) = (bvh.intersect(&ray), RayCaster::intersect(&e, &ray));
+            if let (Some(x), Some(y)) = (ours, theirs) {
+                assert!((x.t - y.t).abs() <= 1e-4 * x.t, "{x:?} {y:?}");
+                if x.tri == y.tri {
+                    assert!((x.u - y.u).abs() < 1e-3 && (x.v - y.v).abs() < 1e-3, "{x:?} {y:?}");
+                }
+            }
+            same_hit += usize::from(ours.map(|h| h.tri) == theirs.map(|h| h.tri));
+            let mut passed = 0;
+            let mut every_other = |t: u32| {
+                passed += 1;
+                t.is_multiple_of(2)
+            };
+            let theirs = e.occluded_by(&ray, &mut every_other);
+            looked_past += usize::from(passed > 1 || (passed == 1 && !theirs));
+            let ours = bvh.occluded_by(&ray, |t| t.is_multiple_of(2));
+            blocked += usize::from(ours);
+            same_shadow += usize::from(ours == theirs);
+        }
+        assert!(
+            blocked > 200 && looked_past > 200,
+            "{blocked} blocked, {looked_past} looked past a triangle"
+        );
+        assert!(same_hit * 1000 >= rays * 998, "{same_hit} of {rays} nearest hits agree");
+        assert!(
+            same_shadow * 1000 >= rays * 998,
+            "{same_shadow} of {rays} shadow rays agree"
+        );
     }
 }

@@ -1,7 +1,12 @@
 //! The reference renderer on the built-in room: its error against a
 //! high-sample render falls as the sample count grows, at the Monte Carlo rate.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
 use holodeck_protocol::View;
+use holodeck_sampler::accel::{Hit, RayCaster, WideBvh};
+use holodeck_sampler::geom::Ray;
 use holodeck_sampler::render::{render, PictureSizeError, RenderError, RenderOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::{TraceOptions, Tracer};
@@ -90,4 +95,62 @@ fn impossible_sizes_and_zero_samples_are_refused_before_allocating() {
     assert_eq!(run(2, 2, 0).err(), Some(RenderError::NoSamples));
     let p = run(3, 2, 1).unwrap();
     assert_eq!((p.width, p.height, p.pixels.len()), (3, 2, 6));
+}
+
+/// A ray caster standing in for the tracer's own: the same wide BVH, built
+/// on its own, counting what it is asked.
+struct Counting {
+    bvh: WideBvh,
+    nearest: AtomicUsize,
+    occluded: AtomicUsize,
+}
+
+impl RayCaster for Counting {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.nearest.fetch_add(1, Ordering::Relaxed);
+        self.bvh.intersect(ray)
+    }
+
+    fn occluded_by(&self, ray: &Ray, blocks: &mut dyn FnMut(u32) -> bool) -> bool {
+        self.occluded.fetch_add(1, Ordering::Relaxed);
+        self.bvh.occluded_by(ray, blocks)
+    }
+}
+
+/// With a stand-in caster every ray the path tracer casts goes through it
+/// (first hits one at a time instead of in packets, shadow rays through the
+/// window's panes, bounces), and the picture is the very same, bit for bit.
+#[test]
+fn a_stand_in_caster_renders_the_same_picture() {
+    let scene = generate("room", &GenParams::default()).unwrap();
+    let options = TraceOptions {
+        max_bounces: 2,
+        ..TraceOptions::default()
+    };
+    let counting = Arc::new(Counting {
+        bvh: WideBvh::build(&scene).unwrap(),
+        nearest: AtomicUsize::new(0),
+        occluded: AtomicUsize::new(0),
+    });
+    let own = Tracer::new(scene.clone(), options);
+    let stand_in = Tracer::new(scene, options).with_caster(counting.clone());
+    let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
+    let opts = RenderOptions {
+        width: 32,
+        height: 24,
+        spp: 8,
+        seed: 3,
+    };
+    let none = |_: usize, _: usize| {};
+    let a = render(&own, &view, &opts, &none).unwrap();
+    assert_eq!(counting.nearest.load(Ordering::Relaxed), 0);
+    let b = render(&stand_in, &view, &opts, &none).unwrap();
+    assert!(a.mean_luminance() > 0.01, "the room is lit");
+    assert!(a.pixels == b.pixels, "the pictures differ");
+    let (nearest, occluded) = (
+        counting.nearest.load(Ordering::Relaxed),
+        counting.occluded.load(Ordering::Relaxed),
+    );
+    // Every sample's first hit, and more for the bounces; shadow rays.
+    assert!(nearest > 32 * 24 * 8 && occluded > 32 * 24 * 8, "{nearest} {occluded}");
 }

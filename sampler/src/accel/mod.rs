@@ -4,6 +4,7 @@
 
 mod build;
 mod bvh;
+mod caster;
 mod coarse_grid;
 mod leaf;
 mod node;
@@ -16,6 +17,7 @@ mod traverse;
 
 pub use build::BuildOptions;
 pub use bvh::{BvhStats, WideBvh, MAX_TRIANGLES};
+pub use caster::RayCaster;
 pub use node::Node;
 pub use packet::PACKET;
 pub use parts::PartsError;

@@ -17,7 +17,7 @@ use super::path::{Path, SurfaceHit};
 use super::rng::Rng;
 use super::sky::SkyModel;
 use super::wavefront::{Reorder, AUTO_MIN_PATHS};
-use crate::accel::{BuildOptions, Hit, KdTree, WideBvh, PACKET};
+use crate::accel::{BuildOptions, Hit, KdTree, RayCaster, WideBvh, PACKET};
 use crate::geom::Ray;
 use crate::ooc::{Fetch, InCoreReport, OocError, OocScene, OocSurface};
 use crate::scene::{Material, Scene};
@@ -82,6 +82,9 @@ pub struct Tracer {
     /// `None` for a scene file, and for scenes beyond the BVH's size (the
     /// kd-tree then traces single rays too).
     pub(super) bvh: Option<WideBvh>,
+    /// Casts the single rays in place of the tracer's own hierarchy, where
+    /// set ([`Tracer::with_caster`]).
+    caster: Option<Arc<dyn RayCaster>>,
     pub(super) ooc: Option<Arc<OocScene>>,
     pub(super) lights: Lights,
     pub(super) sky: SkyModel,
@@ -239,6 +242,7 @@ impl Tracer {
             scene,
             tree,
             bvh,
+            caster: None,
             ooc,
             lights,
             sky,
@@ -304,8 +308,22 @@ impl Tracer {
         self.bvh.as_ref()
     }
 
+    /// The same tracer with every ray cast by `caster` (first hits one ray
+    /// at a time, no packets), which must hold the scene's triangles with
+    /// their indices: for comparing whole path tracing over another
+    /// library's hierarchy. Ignored for a scene file.
+    pub fn with_caster(mut self, caster: Arc<dyn RayCaster>) -> Tracer {
+        if self.ooc.is_none() {
+            self.caster = Some(caster);
+        }
+        self
+    }
+
     /// The nearest in-core hit of a single ray.
     fn intersect_in_core(&self, ray: &Ray) -> Option<Hit> {
+        if let Some(c) = &self.caster {
+            return c.intersect(ray);
+        }
         match &self.bvh {
             Some(bvh) => bvh.intersect(ray),
             None => self.tree.intersect(ray),
@@ -352,7 +370,7 @@ impl Tracer {
         let fetch = &mut Fetch::load();
         for (c, chunk) in rays.chunks(PACKET).enumerate() {
             let at = c * PACKET;
-            if self.ooc.is_some() || chunk.iter().any(|&(o, d)| !traceable(o, d)) {
+            if self.ooc.is_some() || self.caster.is_some() || chunk.iter().any(|&(o, d)| !traceable(o, d)) {
                 for (k, &(origin, dir)) in chunk.iter().enumerate() {
                     out(
                         at + k,
@@ -506,7 +524,7 @@ impl Tracer {
             FirstHits::Measured => (way_of(self.first_hits.choose()), Some(Instant::now())),
             way => (way, None),
         };
-        if way == FirstHits::Packets {
+        if way == FirstHits::Packets && self.caster.is_none() {
             let mut packet = [Ray::new(Vec3::ZERO, Vec3::ONE); PACKET];
             for chunk in walk.chunks(PACKET) {
                 for (p, c) in packet.iter_mut().zip(chunk) {
@@ -639,9 +657,10 @@ impl Tracer {
                         self.scene.vertices(t as usize),
                     )
                 };
-                match &self.bvh {
-                    Some(bvh) => bvh.occluded_by(ray, blocks),
-                    None => self.tree.occluded_by(ray, blocks),
+                match (&self.caster, &self.bvh) {
+                    (Some(c), _) => c.occluded_by(ray, &mut { blocks }),
+                    (None, Some(bvh)) => bvh.occluded_by(ray, blocks),
+                    (None, None) => self.tree.occluded_by(ray, blocks),
                 }
             }
             Some(ooc) => ooc.occluded_by(ray, self.options.lod_secondary, fetch, blocks),
@@ -668,9 +687,10 @@ impl Tracer {
     pub(super) fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
         if !self.has_panes {
             let blocked = match &self.ooc {
-                None => match &self.bvh {
-                    Some(bvh) => bvh.occluded(&ray),
-                    None => self.tree.occluded(&ray),
+                None => match (&self.caster, &self.bvh) {
+                    (Some(c), _) => c.occluded_by(&ray, &mut |_| true),
+                    (None, Some(bvh)) => bvh.occluded(&ray),
+                    (None, None) => self.tree.occluded(&ray),
                 },
                 Some(_) => self.blocked(&ray, fetch, |_, _, _| true),
             };

@@ -1,0 +1,29 @@
+//! Another ray caster standing in for the tracer's own: a benchmark traces
+//! the same paths through an outside library's hierarchy (Embree, in
+//! `holodeck bench tracer --embree`) to compare whole path tracing, not
+//! just ray casts.
+
+use super::{Hit, WideBvh};
+use crate::geom::Ray;
+
+/// Single-ray queries a tracer needs of its scene's triangles (indices as
+/// in the scene), from any thread.
+pub trait RayCaster: Send + Sync {
+    /// The nearest hit within `(0, ray.t_max]`.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// True if a triangle for which `blocks(triangle)` is true lies within
+    /// `(0, ray.t_max)`; triangles that do not block are passed to
+    /// `blocks` and looked past.
+    fn occluded_by(&self, ray: &Ray, blocks: &mut dyn FnMut(u32) -> bool) -> bool;
+}
+
+impl RayCaster for WideBvh {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        WideBvh::intersect(self, ray)
+    }
+
+    fn occluded_by(&self, ray: &Ray, blocks: &mut dyn FnMut(u32) -> bool) -> bool {
+        WideBvh::occluded_by(self, ray, blocks)
+    }
+}
