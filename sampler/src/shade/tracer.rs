@@ -320,14 +320,23 @@ impl Tracer {
     }
 
     /// The nearest in-core hit of a single ray.
+    #[inline]
     fn intersect_in_core(&self, ray: &Ray) -> Option<Hit> {
-        if let Some(c) = &self.caster {
-            return c.intersect(ray);
+        if self.caster.is_some() {
+            return self.intersect_cast(ray);
         }
         match &self.bvh {
             Some(bvh) => bvh.intersect(ray),
             None => self.tree.intersect(ray),
         }
+    }
+
+    /// [`Tracer::intersect_in_core`] by a stand-in caster: out of line and
+    /// cold, so that the tracer's own path stays as it was, inlined.
+    #[cold]
+    #[inline(never)]
+    fn intersect_cast(&self, ray: &Ray) -> Option<Hit> {
+        self.caster.as_ref().and_then(|c| c.intersect(ray))
     }
 
     /// How [`FirstHits::Measured`] finds first hits now, by the times so far.
@@ -366,11 +375,14 @@ impl Tracer {
     /// are found together, which pays where the rays run nearly one way, as
     /// the samples of one pixel do.
     pub fn trace_together(&self, rays: &[(Vec3, Vec3)], rng: &mut Rng, mut out: impl FnMut(usize, Sample)) {
+        if self.caster.is_some() {
+            return self.trace_cast(rays, rng, &mut out);
+        }
         let vdistance = self.options.vdistance;
         let fetch = &mut Fetch::load();
         for (c, chunk) in rays.chunks(PACKET).enumerate() {
             let at = c * PACKET;
-            if self.ooc.is_some() || self.caster.is_some() || chunk.iter().any(|&(o, d)| !traceable(o, d)) {
+            if self.ooc.is_some() || chunk.iter().any(|&(o, d)| !traceable(o, d)) {
                 for (k, &(origin, dir)) in chunk.iter().enumerate() {
                     out(
                         at + k,
@@ -395,6 +407,20 @@ impl Tracer {
                     self.estimates(ray.origin, ray.dir, first, vdistance, Streams::Shared(rng), fetch),
                 );
             }
+        }
+    }
+
+    /// [`Tracer::trace_together`] with a stand-in caster: one ray at a
+    /// time, out of line, so that the tracer's own path stays as it was.
+    #[cold]
+    #[inline(never)]
+    fn trace_cast(&self, rays: &[(Vec3, Vec3)], rng: &mut Rng, out: &mut dyn FnMut(usize, Sample)) {
+        let fetch = &mut Fetch::load();
+        for (k, &(origin, dir)) in rays.iter().enumerate() {
+            out(
+                k,
+                self.trace_streams(origin, dir, self.options.vdistance, Streams::Shared(rng), fetch),
+            );
         }
     }
 
@@ -657,10 +683,9 @@ impl Tracer {
                         self.scene.vertices(t as usize),
                     )
                 };
-                match (&self.caster, &self.bvh) {
-                    (Some(c), _) => c.occluded_by(ray, &mut { blocks }),
-                    (None, Some(bvh)) => bvh.occluded_by(ray, blocks),
-                    (None, None) => self.tree.occluded_by(ray, blocks),
+                match &self.bvh {
+                    Some(bvh) => bvh.occluded_by(ray, blocks),
+                    None => self.tree.occluded_by(ray, blocks),
                 }
             }
             Some(ooc) => ooc.occluded_by(ray, self.options.lod_secondary, fetch, blocks),
@@ -685,35 +710,78 @@ impl Tracer {
     /// way, the product of pane transmittances if only thin panes are, else 0.
     /// One traversal: panes are noted and skipped, the first opaque hit ends it.
     pub(super) fn visibility(&self, ray: Ray, fetch: &mut Fetch) -> Vec3 {
+        if self.caster.is_some() {
+            return self.visibility_cast(ray);
+        }
         if !self.has_panes {
             let blocked = match &self.ooc {
-                None => match (&self.caster, &self.bvh) {
-                    (Some(c), _) => c.occluded_by(&ray, &mut |_| true),
-                    (None, Some(bvh)) => bvh.occluded(&ray),
-                    (None, None) => self.tree.occluded(&ray),
+                None => match &self.bvh {
+                    Some(bvh) => bvh.occluded(&ray),
+                    None => self.tree.occluded(&ray),
                 },
                 Some(_) => self.blocked(&ray, fetch, |_, _, _| true),
             };
             return if blocked { Vec3::ZERO } else { Vec3::ONE };
         }
         let mut panes: Vec<(u32, u32, Vec3)> = Vec::new();
-        let blocked = self.blocked(&ray, fetch, |tri, material, [a, b, c]| {
-            let m = &self.scene.materials[material as usize];
-            if matches!(m, Material::Glass { thin: true, .. }) {
-                if !panes.iter().any(|p| p.0 == tri) {
-                    panes.push((tri, material, (b - a).cross(c - a).normalize()));
-                }
-                false
-            } else {
-                true
-            }
+        let blocked = self.blocked(&ray, fetch, |tri, material, vertices| {
+            self.opaque_or_pane(&mut panes, tri, material, vertices)
         });
         if blocked {
             return Vec3::ZERO;
         }
+        self.through_panes(&ray, &panes)
+    }
+
+    /// [`Tracer::visibility`] with the ray cast by a stand-in caster: a
+    /// function of its own, so that the tracer's own walk keeps its filter
+    /// inlined.
+    #[cold]
+    #[inline(never)]
+    fn visibility_cast(&self, ray: Ray) -> Vec3 {
+        let Some(caster) = &self.caster else {
+            return Vec3::ONE;
+        };
+        if !self.has_panes {
+            return if caster.occluded_by(&ray, &mut |_| true) {
+                Vec3::ZERO
+            } else {
+                Vec3::ONE
+            };
+        }
+        let mut panes: Vec<(u32, u32, Vec3)> = Vec::new();
+        let blocked = caster.occluded_by(&ray, &mut |tri| {
+            let material = self.scene.triangles[tri as usize].material;
+            self.opaque_or_pane(&mut panes, tri, material, self.scene.vertices(tri as usize))
+        });
+        if blocked {
+            return Vec3::ZERO;
+        }
+        self.through_panes(&ray, &panes)
+    }
+
+    /// Whether triangle `tri` (of `material`, with `vertices`) stops a
+    /// shadow ray: true unless it is a thin pane, which is noted in `panes`
+    /// (once) and looked past.
+    #[inline(always)]
+    fn opaque_or_pane(&self, panes: &mut Vec<(u32, u32, Vec3)>, tri: u32, material: u32, [a, b, c]: [Vec3; 3]) -> bool {
+        let m = &self.scene.materials[material as usize];
+        if matches!(m, Material::Glass { thin: true, .. }) {
+            if !panes.iter().any(|p| p.0 == tri) {
+                panes.push((tri, material, (b - a).cross(c - a).normalize()));
+            }
+            false
+        } else {
+            true
+        }
+    }
+
+    /// The light a shadow ray that nothing opaque stops carries through the
+    /// thin panes noted along it (triangle, material, normal).
+    fn through_panes(&self, ray: &Ray, panes: &[(u32, u32, Vec3)]) -> Vec3 {
         let dir = ray.dir.normalize();
         let mut through = Vec3::ONE;
-        for (_, material, ng) in panes {
+        for &(_, material, ng) in panes {
             let m = &self.scene.materials[material as usize];
             through *= pane_transmittance(m, dir.dot(ng).abs()).unwrap_or(Vec3::ZERO);
         }
