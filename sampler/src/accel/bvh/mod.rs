@@ -32,7 +32,7 @@ use node::Node;
 
 /// An 8-wide BVH over a scene's triangles: nodes in depth-first order (the
 /// root first), and the leaves' triangles with their triangle indices, a
-/// block of up to four or a [`Pair`] of five to eight in two blocks' space.
+/// block of up to four or a pair (`Pair`) of five to eight in two blocks' space.
 pub struct WideBvh {
     nodes: Vec<Node>,
     blocks: Vec<Block>,
