@@ -100,6 +100,37 @@ pub fn entry_exactly(ray: &Ray, b: &Aabb) -> f64 {
         .fold(0f64, f64::max)
 }
 
+/// Checks a slab test against exact arithmetic on 60,000 grazed boxes
+/// ([`grazed_box`], drawn from `seed`), with no limit or the limit at the
+/// entry itself: `passes(ray, box, limit)` must be true for every box exact
+/// arithmetic finds touched. Both sides of the hair must be well represented.
+pub fn every_touched_box_passes(seed: u64, mut passes: impl FnMut(&Ray, Aabb, f32) -> bool) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let (mut touched, mut missed) = (0, 0);
+    for k in 0..60_000 {
+        let Some((ray, b)) = grazed_box(&mut rng) else {
+            continue;
+        };
+        let closest = if rng.gen_bool(0.5) {
+            f32::INFINITY
+        } else {
+            (entry_exactly(&ray, &b) as f32).next_up()
+        };
+        match touches_exactly(&ray, &b, closest) {
+            Some(true) => {
+                touched += 1;
+                assert!(passes(&ray, b, closest), "ray {k} {ray:?} box {b:?} limit {closest}");
+            }
+            Some(false) => missed += 1,
+            None => {}
+        }
+    }
+    assert!(
+        touched > 10_000 && missed > 10_000,
+        "{touched} touched, {missed} missed"
+    );
+}
+
 /// A random point (or direction) in the cube `[-r, r)^3`.
 pub fn random_vec3(rng: &mut impl Rng, r: f32) -> Vec3 {
     Vec3::new(rng.gen_range(-r..r), rng.gen_range(-r..r), rng.gen_range(-r..r))

@@ -115,11 +115,10 @@ impl<L: Lanes> BoxTest for SlabRay<L> {
 
 #[cfg(test)]
 mod tests {
-    use rand::{Rng, SeedableRng};
     use wide::f32x8;
 
     use super::*;
-    use crate::accel::testing::{entry_exactly, grazed_box, touches_exactly};
+    use crate::accel::testing::every_touched_box_passes;
     use crate::geom::Aabb;
 
     fn passes(boxes: &impl BoxTest, b: Aabb, closest: f32) -> bool {
@@ -132,43 +131,15 @@ mod tests {
     /// with no limit or the limit at the entry itself.
     #[test]
     fn boxes_touched_in_exact_arithmetic_always_pass() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(41);
-        let (mut touched, mut missed) = (0, 0);
-        for k in 0..60_000 {
-            let Some((ray, b)) = grazed_box(&mut rng) else {
-                continue;
-            };
-            let closest = if rng.gen_bool(0.5) {
-                f32::INFINITY
-            } else {
-                (entry_exactly(&ray, &b) as f32).next_up()
-            };
-            match touches_exactly(&ray, &b, closest) {
-                Some(true) => touched += 1,
-                Some(false) => {
-                    missed += 1;
-                    continue;
-                }
-                None => continue,
-            }
-            assert!(
-                passes(&SlabRay::<f32x8>::new(&ray), b, closest),
-                "ray {k} {ray:?} box {b:?} limit {closest}"
-            );
+        every_touched_box_passes(41, |ray, b, closest| {
+            let portable = passes(&SlabRay::<f32x8>::new(ray), b, closest);
             #[cfg(target_arch = "x86_64")]
             if crate::geom::avx::available() {
                 // SAFETY: the CPU has AVX.
-                assert!(
-                    unsafe { passes_avx(&ray, b, closest) },
-                    "AVX: ray {k} {ray:?} box {b:?}"
-                );
+                assert!(unsafe { passes_avx(ray, b, closest) }, "AVX: ray {ray:?} box {b:?}");
             }
-        }
-        // Both sides of the hair are well represented.
-        assert!(
-            touched > 10_000 && missed > 10_000,
-            "{touched} touched, {missed} missed"
-        );
+            portable
+        });
     }
 
     #[cfg(target_arch = "x86_64")]
