@@ -119,6 +119,9 @@ pub trait Driver: Send {
     /// average, spent where they reduce the error most (row-major, top row
     /// first); see [`crate::store::Store::needs`].
     fn needs(&self, density: f32) -> Vec<f32>;
+    /// What the denoiser needs besides the frame: each pixel's depth,
+    /// normal and noise (see [`crate::denoise`]).
+    fn guide(&self) -> crate::denoise::Guide;
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 
 pub mod client;
 pub mod compare;
+pub mod denoise;
 pub mod driver;
 pub mod geometry;
 pub mod gpu;

@@ -165,6 +165,10 @@ impl Driver for SplatDriver {
         self.store.needs(density)
     }
 
+    fn guide(&self) -> crate::denoise::Guide {
+        self.store.guide()
+    }
+
     fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
         self.store.point_near(col, row, POINT_REACH)
     }

@@ -1,9 +1,10 @@
-//! A view's converged reference picture and the band around its
-//! silhouettes: what every holodeck picture and every direct render is
-//! measured against (relative RMSE over the frame and in the band).
+//! A view's converged reference picture, made of two independent halves
+//! that state its own noise, and the band around its silhouettes: what every
+//! holodeck picture and every direct render is measured against (see
+//! `holodeck_display::compare` for the measures).
 
 use anyhow::Result;
-use holodeck_display::compare::{relative_rmse, relative_rmse_masked, ssim};
+use holodeck_display::compare::{Metrics, Yardstick};
 use holodeck_display::tonemap::{ToneMap, ToneMode};
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, silhouettes, RenderOptions};
@@ -22,43 +23,85 @@ pub struct Error {
     pub ssim: f64,
 }
 
+/// Depth ratio (farthest to nearest first hit within a pixel) that makes a
+/// pixel a silhouette.
+pub const SILHOUETTE_RATIO: f32 = 1.1;
+
 /// A view's converged reference and its silhouette band.
 pub struct Truth {
-    /// The reference picture.
+    /// The reference picture: the mean of its two halves.
     pub picture: Picture,
-    /// Pixels within one pixel of a silhouette.
-    pub band: Vec<bool>,
     /// The reference's tone map (camera mode), for SSIM and for pictures.
     pub tone: ToneMap,
+    /// Every measure against the reference, its noise stated.
+    pub yardstick: Yardstick,
 }
 
 impl Truth {
-    /// The truth of `view` from its reference `picture`: the silhouettes
-    /// are found by tracing the scene.
-    pub fn new(tracer: &Tracer, view: &View, picture: Picture) -> Result<Truth> {
-        let (w, h) = (picture.width, picture.height);
-        let edges = silhouettes(tracer, view, w as u32, h as u32, 1.1)?;
+    /// The truth of `view` from two independent renders `halves` of it (see
+    /// [`reference_halves`]): the reference is their mean, they state its
+    /// noise, and the silhouettes are found by tracing the scene.
+    pub fn new(tracer: &Tracer, view: &View, halves: (Picture, Picture)) -> Result<Truth> {
+        let (a, b) = halves;
+        let (w, h) = (a.width, a.height);
+        let edges = silhouettes(tracer, view, w as u32, h as u32, SILHOUETTE_RATIO)?;
+        let band = dilate(&edges, w, h);
+        let mean = Picture {
+            width: w,
+            height: h,
+            pixels: a.pixels.iter().zip(&b.pixels).map(|(&x, &y)| 0.5 * (x + y)).collect(),
+        };
+        let tone = ToneMap::from_picture(&mean, ToneMode::Camera);
+        let yardstick = Yardstick::from_halves(&a, &b, tone.clone())?.with_band(band)?;
         Ok(Truth {
-            band: dilate(&edges, w, h),
-            tone: ToneMap::from_picture(&picture, ToneMode::Camera),
-            picture,
+            picture: mean,
+            tone,
+            yardstick,
         })
     }
 
     /// The relative RMSE of `p` over the frame: [`Truth::error`]'s `all`
     /// without the rest, for loops that need no more.
     pub fn rmse(&self, p: &Picture) -> Result<f64> {
-        Ok(relative_rmse(p, &self.picture)?)
+        Ok(holodeck_display::compare::relative_rmse(p, &self.picture)?)
+    }
+
+    /// Every measure of `p` against the reference.
+    pub fn measure(&self, p: &Picture) -> Result<Metrics> {
+        Ok(self.yardstick.measure(p)?)
     }
 
     /// The error of `p` against the reference.
     pub fn error(&self, p: &Picture) -> Result<Error> {
+        let m = self.measure(p)?;
         Ok(Error {
-            all: relative_rmse(p, &self.picture)?,
-            band: relative_rmse_masked(p, &self.picture, &self.band)?,
-            ssim: ssim(p, &self.picture, &self.tone),
+            all: m.relative_rmse,
+            band: m.band_relative_rmse.unwrap_or(f64::NAN),
+            ssim: m.ssim,
         })
     }
+}
+
+/// A converged reference of `view` in two independent halves: each of
+/// `spp / 2` samples per pixel (at least one) at `size`, with the random
+/// sequences `seed` and `seed + 1`. [`Truth::new`] makes them one.
+pub fn reference_halves(
+    tracer: &Tracer,
+    view: &View,
+    size: (u32, u32),
+    spp: u32,
+    seed: u64,
+) -> Result<(Picture, Picture)> {
+    let half = |seed| -> Result<Picture> {
+        let o = RenderOptions {
+            width: size.0,
+            height: size.1,
+            spp: (spp / 2).max(1),
+            seed,
+        };
+        Ok(render(tracer, view, &o, &|_, _| {})?)
+    };
+    Ok((half(seed)?, half(seed.wrapping_add(1))?))
 }
 
 /// A converged reference of `view`: `spp` samples per pixel at `size`,
@@ -92,7 +135,7 @@ pub fn direct_render(
 }
 
 /// Pixels within one pixel of a marked one.
-fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
+pub fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
     let mut out = vec![false; mask.len()];
     for row in 0..h {
         for col in 0..w {

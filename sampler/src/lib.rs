@@ -15,4 +15,4 @@ pub mod worker;
 pub use accel::KdTree;
 pub use error::SceneError;
 pub use scene::{Material, Scene, SceneBuilder, Sky, Triangle};
-pub use shade::{FirstHits, Reorder, Rng, Sample, TraceOptions, Tracer};
+pub use shade::{FirstHits, FirstSurface, Reorder, Rng, Sample, TraceOptions, Tracer};

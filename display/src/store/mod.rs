@@ -26,6 +26,7 @@
 pub mod estimate;
 pub mod index;
 mod radix;
+mod spread;
 #[cfg(test)]
 mod tests;
 
@@ -178,6 +179,16 @@ struct FrameScratch {
     /// Per pixel: luminance sum and weight, then their 3 x 3 box sums.
     sums: Vec<[f32; 2]>,
     across: Vec<[f32; 2]>,
+    /// The light cut off each estimate's brightest ray, by slot.
+    excess: Vec<[f32; 3]>,
+    /// Estimates per pixel, for sharing a pixel's excess among them.
+    per_pixel: Vec<u32>,
+    /// Per pixel: the excess of its estimates (their mean), how widely it
+    /// is spread, and the light it receives.
+    pixel_excess: Vec<[f32; 3]>,
+    pixel_wave: Vec<u8>,
+    received: Vec<[f32; 3]>,
+    spread: spread::Spread,
 }
 
 impl<I: PixelIndex + Sync> Store<I> {
@@ -297,6 +308,11 @@ impl<I: PixelIndex + Sync> Store<I> {
             + self.frame.colors.capacity() * std::mem::size_of::<Vec3>()
             + self.frame.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
             + (self.frame.sums.capacity() + self.frame.across.capacity()) * std::mem::size_of::<[f32; 2]>()
+            + self.frame.excess.capacity() * std::mem::size_of::<[f32; 3]>()
+            + self.frame.per_pixel.capacity() * std::mem::size_of::<u32>()
+            + (self.frame.pixel_excess.capacity() + self.frame.received.capacity()) * std::mem::size_of::<[f32; 3]>()
+            + self.frame.pixel_wave.capacity()
+            + self.frame.spread.heap_bytes()
             + (self.near.capacity() + self.moved_from.capacity()) * std::mem::size_of::<f32>()
     }
 
@@ -477,14 +493,14 @@ impl<I: PixelIndex + Sync> Store<I> {
         let old = std::mem::replace(&mut self.projector, Projector::new(&grid));
         // Visible estimates first, so the most recently seen are parked
         // first when the limit bites.
-        let (index, entries, ratio) = (&self.index, &self.entries, self.options.firefly_ratio);
+        let (index, entries) = (&self.index, &self.entries);
         let aggregate = |(slot, e): (usize, &Entry)| -> Option<Aggregate> {
             let (col, row) = index.pixel(e.key);
             let (origin, dir) = old.ray(col, row, e.estimate.centroid())?;
             let depth = e.estimate.depth();
             // What the old view's rays say becomes history for the new one.
             let mut estimate = e.estimate;
-            estimate.settle(ratio);
+            estimate.settle();
             Some(if depth.is_finite() {
                 Aggregate {
                     point: origin + dir * f64::from(depth),
@@ -674,6 +690,28 @@ impl<I: PixelIndex + Sync> Store<I> {
         });
     }
 
+    /// The denoiser's guide of the current frame: each pixel's nearest
+    /// estimate's depth, the normals they make, and the variance of each
+    /// pixel's mean from its rays.
+    pub fn guide(&self) -> crate::denoise::Guide {
+        let (w, h) = (self.viewport.width as usize, self.viewport.height as usize);
+        let sub = self.options.subpixels;
+        let mut depth = vec![f32::NAN; w * h];
+        let mut sums = vec![(0.0f32, 0.0f32, 0.0f32, 0u32); w * h];
+        for e in &self.entries {
+            let (col, row) = self.index.pixel(e.key);
+            let p = (row / sub) as usize * w + (col / sub) as usize;
+            let d = e.estimate.depth();
+            if depth[p].is_nan() || d < depth[p] {
+                depth[p] = d;
+            }
+            let (wt, l, lsq, n) = e.estimate.noise();
+            let s = &mut sums[p];
+            *s = (s.0 + wt, s.1 + l, s.2 + lsq, s.3 + n);
+        }
+        crate::denoise::Guide::new(&self.viewport, depth, &sums)
+    }
+
     /// How many more rays each pixel wants for `density` rays per pixel on
     /// average, spent where they reduce the error most, less the rays it
     /// holds. Most of a pixel's share is in proportion to how much its rays
@@ -718,38 +756,132 @@ impl<I: PixelIndex + Sync> Store<I> {
             .collect()
     }
 
-    /// Computes the value of every estimate (see [`Store::colors`]), with
-    /// fireflies cut; counts the estimates whose brightest ray was cut.
+    /// Computes the value of every estimate (see [`Store::colors`]): fireflies
+    /// cut, and what was cut spread over the estimates around them
+    /// ([`EstimatorOptions::firefly_spread`]); counts the estimates whose
+    /// brightest ray was cut.
     pub fn update_colors(&mut self) {
         let ratio = self.options.firefly_ratio;
         let mut colors = std::mem::take(&mut self.frame.colors);
+        let mut excess = std::mem::take(&mut self.frame.excess);
         colors.clear();
         colors.resize(self.entries.len(), Vec3::ZERO);
+        excess.clear();
+        excess.resize(self.entries.len(), [0.0; 3]);
         let reference: Option<f32> = ratio.is_finite().then(|| self.typical_luminance());
         if reference.is_some() {
             self.neighborhood_luminance();
         }
         let (near, bodies) = (&self.frame.sums, &self.frame.bodies);
         // The pixel of each estimate was found with its body.
-        let value = |((c, e), i): ((&mut Vec3, &Entry), usize)| -> u64 {
+        let value = |(((c, x), e), i): (((&mut Vec3, &mut [f32; 3]), &Entry), usize)| -> u64 {
             let (v, cut) = match reference {
                 Some(floor) => e.estimate.value(ratio, near[bodies[i].0 as usize][0].max(floor)),
                 None => e.estimate.value(f32::INFINITY, 0.0),
             };
             *c = Vec3::from_array(v);
-            u64::from(cut)
+            *x = cut;
+            u64::from(cut != [0.0; 3])
         };
         self.stats.fireflies = if self.entries.len() >= PARALLEL_MIN {
             colors
                 .par_iter_mut()
+                .zip(excess.par_iter_mut())
                 .zip(self.entries.par_iter())
                 .zip(0..self.entries.len())
                 .map(value)
                 .sum()
         } else {
-            colors.iter_mut().zip(self.entries.iter()).zip(0..).map(value).sum()
+            colors
+                .iter_mut()
+                .zip(excess.iter_mut())
+                .zip(self.entries.iter())
+                .zip(0..)
+                .map(value)
+                .sum()
         };
+        if let (Some(floor), true) = (reference, self.stats.fireflies > 0 && self.options.firefly_spread > 0.0) {
+            self.spread_excess(&mut colors, &excess, floor);
+        }
         self.frame.colors = colors;
+        self.frame.excess = excess;
+    }
+
+    /// Adds to `colors` the light cut off the estimates' brightest rays
+    /// (`excess`, by slot), spread over the pixels around each: every
+    /// estimate of a pixel gets what the pixel receives, so a pixel (the
+    /// mean of its estimates) keeps the light its neighborhood gave out.
+    ///
+    /// A pixel's excess goes over the square of radius
+    /// [`EstimatorOptions::firefly_spread`], or of twice, four, eight or
+    /// sixteen times that where it needs more room to stay under the
+    /// firefly limit ([`EstimatorOptions::firefly_ratio`] times the typical
+    /// luminance there, `floor` at least): a very bright firefly becomes a
+    /// wide faint glow rather than a bright blot.
+    fn spread_excess(&mut self, colors: &mut [Vec3], excess: &[[f32; 3]], floor: f32) {
+        const WIDER: usize = 5;
+        let (w, h) = (self.viewport.width as usize, self.viewport.height as usize);
+        let f = &mut self.frame;
+        f.per_pixel.clear();
+        f.per_pixel.resize(w * h, 0);
+        f.pixel_excess.clear();
+        f.pixel_excess.resize(w * h, [0.0; 3]);
+        for (x, b) in excess.iter().zip(&f.bodies) {
+            let p = b.0 as usize;
+            f.per_pixel[p] += 1;
+            for (e, v) in f.pixel_excess[p].iter_mut().zip(x) {
+                *e += v;
+            }
+        }
+        let base = self.options.firefly_spread.round().max(1.0) as usize;
+        let limit = self.options.firefly_ratio;
+        // Each pixel's share of the light and the widest of the radii it needs.
+        let mut wave = [false; WIDER];
+        f.pixel_wave.clear();
+        f.pixel_wave.resize(w * h, 0);
+        for p in 0..w * h {
+            let n = f.per_pixel[p];
+            if n == 0 {
+                continue;
+            }
+            let x = f.pixel_excess[p].map(|v| v / n as f32);
+            f.pixel_excess[p] = x;
+            let l = luminance(x);
+            if l <= 0.0 {
+                continue;
+            }
+            // Pixels the light must cover to stay under the limit.
+            let cover = l / (limit * f.sums[p][0].max(floor)).max(f32::MIN_POSITIVE);
+            let side = cover.sqrt();
+            let k = (0..WIDER)
+                .find(|&k| (2 * (base << k) + 1) as f32 >= side)
+                .unwrap_or(WIDER - 1);
+            f.pixel_wave[p] = k as u8;
+            wave[k] = true;
+        }
+        f.received.clear();
+        f.received.resize(w * h, [0.0; 3]);
+        for (k, _) in wave.iter().enumerate().filter(|(_, &any)| any) {
+            let (per_pixel, pixel_excess, pixel_wave) = (&f.per_pixel, &f.pixel_excess, &f.pixel_wave);
+            let items = (0..w * h).filter(|&p| per_pixel[p] > 0).map(|p| {
+                let x = if pixel_wave[p] as usize == k {
+                    pixel_excess[p]
+                } else {
+                    [0.0; 3]
+                };
+                (p, x)
+            });
+            let got = f.spread.run(w, h, base << k, items);
+            for (r, g) in f.received.iter_mut().zip(got) {
+                for c in 0..3 {
+                    r[c] += g[c];
+                }
+            }
+        }
+        for (c, b) in colors.iter_mut().zip(&f.bodies) {
+            let r = f.received[b.0 as usize];
+            *c += Vec3::from_array(r);
+        }
     }
 
     /// The values [`Store::update_colors`] computed last, by slot.

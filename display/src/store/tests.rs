@@ -62,12 +62,19 @@ fn error_halves_when_the_rays_quadruple() {
 }
 
 #[test]
-fn one_lucky_ray_does_not_paint_a_white_pixel() {
-    let vp = grid_viewport(4, 4);
-    let mut rays: Vec<Sample> = (0..100)
-        .map(|i| grid_sample(4, 4, 1.2 + 0.006 * f64::from(i), 2.5, 5.0, 0.0, [0.4, 0.5, 0.6]))
-        .collect();
-    rays.insert(37, grid_sample(4, 4, 1.5, 2.5, 5.0, 0.0, [1e5; 3]));
+fn one_lucky_ray_becomes_a_faint_glow_and_keeps_its_light() {
+    // 20 rays of 0.5 in every pixel of a 32 x 32 frame, and one lucky ray
+    // of 10,000 in pixel (12, 14).
+    let (w, h) = (32u32, 32u32);
+    let vp = grid_viewport(w, h);
+    let mut rays = Vec::new();
+    for i in 0..20 {
+        for p in 0..w * h {
+            let (px, py) = (f64::from(p % w) + 0.05 * f64::from(i) + 0.02, f64::from(p / w) + 0.5);
+            rays.push(grid_sample(w, h, px, py, 5.0, 0.0, [0.5; 3]));
+        }
+    }
+    rays.push(grid_sample(w, h, 12.5, 14.5, 5.0, 0.0, [1e4; 3]));
     let one = EstimatorOptions {
         subpixels: 1,
         ..EstimatorOptions::default()
@@ -75,21 +82,39 @@ fn one_lucky_ray_does_not_paint_a_white_pixel() {
     let mut d = SplatDriver::with_options(vp.clone(), one);
     d.add(&rays);
     let pic = d.render();
-    let v = pic.pixels[2 * 4 + 1];
-    // Counted as at most ten times the luminance of the others' mean.
-    assert!(v.max_element() < 0.7, "{v}");
-    assert!((v - Vec3::new(0.4, 0.5, 0.6)).abs().max_element() < 0.05, "{v}");
     assert_eq!(d.stats().fireflies, 1);
-    // Without the cut it would be a white pixel, a thousand times too bright.
+    // Its light is spread wide enough that no pixel passes the firefly
+    // limit (4 times the typical 0.5) ...
+    let brightest = pic.pixels.iter().map(|v| v.max_element()).fold(0.0, f32::max);
+    assert!(brightest < 2.0, "{brightest}");
+    // ... and none of it is lost: the frame holds what the plain means hold.
+    let total = |p: &Picture| p.pixels.iter().map(|v| f64::from(v.x)).sum::<f64>();
     let mut plain = SplatDriver::with_options(
-        vp,
+        vp.clone(),
         EstimatorOptions {
             firefly_ratio: f32::INFINITY,
             ..one
         },
     );
     plain.add(&rays);
-    assert!(plain.render().pixels[2 * 4 + 1].min_element() > 900.0);
+    let plain_pic = plain.render();
+    assert!((total(&pic) / total(&plain_pic) - 1.0).abs() < 1e-3);
+    // Without the cut it is a white pixel, hundreds of times too bright;
+    // with the cut dropped (no spread), its light is simply lost.
+    assert!(plain_pic.pixels[14 * 32 + 12].min_element() > 400.0);
+    let mut dropped = SplatDriver::with_options(
+        vp,
+        EstimatorOptions {
+            firefly_spread: 0.0,
+            ..one
+        },
+    );
+    dropped.add(&rays);
+    let lost = 1.0 - total(&dropped.render()) / total(&plain_pic);
+    // The lucky pixel's mean of (10,000 + 20 x 0.5) / 21 cut to the lucky
+    // ray counted as 4 x 0.5.
+    let want = ((1e4 + 10.0) / 21.0 - 12.0 / 21.0) / (1023.0 * 0.5 + (1e4 + 10.0) / 21.0);
+    assert!((lost - want).abs() < 1e-3, "{lost} against {want}");
 }
 
 /// The thin-wall scene: a wall at y = 3 (color 0.2) with a hole |x| < 0.323,
@@ -292,7 +317,12 @@ fn reprojection_keeps_the_estimates() {
     assert!(after >= before * 94 / 100, "{after} of {before} rays still counted");
     // The picture is as good as before: not one ray's worth of noise.
     let err_after = rel_err(&d.render(), &analytic(&moved), |_| true);
-    let mut one = QuadtreeDriver::new(moved.clone());
+    // One ray a pixel, each as it is (the firefly spread blurs them).
+    let plain = EstimatorOptions {
+        firefly_ratio: f32::INFINITY,
+        ..EstimatorOptions::default()
+    };
+    let mut one = QuadtreeDriver::with_options(moved.clone(), plain);
     one.add(&noisy_plane_rays(&moved.view, 40 * 30, 0.02, 8));
     let err_one = rel_err(&one.render(), &analytic(&moved), |_| true);
     assert!(

@@ -6,6 +6,7 @@ use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
+use holodeck_display::denoise::Denoiser;
 use holodeck_display::geometry::{Geometry, DEFAULT_BUDGET};
 use holodeck_display::{make_driver, Driver, DriverSetup, EstimatorOptions, Viewport};
 use holodeck_protocol::{check_picture_size, MAX_PICTURE_SIDE};
@@ -125,9 +126,17 @@ pub struct FrameArgs {
     /// Tone mapping for PNG: camera, human, exposure:X or exposure:auto.
     #[arg(long, default_value = "camera")]
     pub tone: String,
+    /// Denoiser run on every frame after reconstruction: atrous (edge-avoiding wavelets
+    /// steered by each pixel's noise, on the CPU), oidn (Intel Open Image Denoise; a build
+    /// with --features oidn) or off.
+    #[arg(long, default_value = DEFAULT_DENOISER)]
+    pub denoise: String,
     #[command(flatten)]
     pub estimator: EstimatorArgs,
 }
+
+/// The denoiser displays run unless told otherwise.
+pub const DEFAULT_DENOISER: &str = "off";
 
 impl FrameArgs {
     /// The driver these flags choose, with its geometry loaded.
@@ -140,6 +149,7 @@ impl FrameArgs {
             name: self.driver.clone(),
             options: self.estimator.options()?,
             geometry,
+            denoise: Denoiser::parse(&self.denoise).context("--denoise")?,
         })
     }
 }
@@ -167,6 +177,8 @@ pub struct DriverChoice {
     pub options: EstimatorOptions,
     /// Simplified scene geometry, for the Voronoi driver.
     pub geometry: Option<std::sync::Arc<Geometry>>,
+    /// What cleans its frames.
+    pub denoise: Denoiser,
 }
 
 impl DriverChoice {
@@ -176,6 +188,7 @@ impl DriverChoice {
             name: name.to_string(),
             options,
             geometry: None,
+            denoise: Denoiser::Off,
         }
     }
 
@@ -203,9 +216,14 @@ pub struct EstimatorArgs {
     #[arg(long, default_value_t = EstimatorOptions::default().angle_scale.to_degrees())]
     pub angle_scale: f32,
     /// A pixel's brightest ray counts at most this many times the mean of the others
-    /// (fireflies); 0 turns the cut off.
+    /// (fireflies), the rest of its light spread around it (--firefly-spread); 0 turns
+    /// the cut off.
     #[arg(long, default_value_t = EstimatorOptions::default().firefly_ratio)]
     pub firefly_ratio: f32,
+    /// Radius in pixels over which the light cut off fireflies is spread among the
+    /// estimates there; 0 drops it (a winsorized mean: loses light where it is scarce).
+    #[arg(long, default_value_t = EstimatorOptions::default().firefly_spread)]
+    pub firefly_spread: f32,
     /// Estimates per pixel along each axis (1, 2 or 4; 0: 4 up to 256 x 256 pixels, 2 up to
     /// 512 x 512, else 1): finer keeps silhouettes sharper.
     #[arg(long, default_value_t = EstimatorOptions::default().subpixels)]
@@ -225,6 +243,7 @@ impl EstimatorArgs {
         let tolerance = finite(self.depth_tolerance, "depth-tolerance")?;
         let angle = finite(self.angle_scale, "angle-scale")?;
         let ratio = finite(self.firefly_ratio, "firefly-ratio")?;
+        let spread = finite(self.firefly_spread, "firefly-spread")?;
         if ![0, 1, 2, 4].contains(&self.subpixels) {
             bail!(
                 "--subpixels must be 0 (by frame size), 1, 2 or 4, not {}",
@@ -239,6 +258,7 @@ impl EstimatorArgs {
                 angle.to_radians()
             },
             firefly_ratio: if ratio == 0.0 { f32::INFINITY } else { ratio },
+            firefly_spread: spread,
             subpixels: self.subpixels,
         })
     }

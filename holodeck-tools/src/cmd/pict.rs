@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use holodeck_display::denoise::Denoiser;
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
 use holodeck_display::{output, DriverStats, Sample, SampleDecoder, Viewport};
@@ -81,6 +82,8 @@ pub struct FrameStats {
     pub recall: Duration,
     /// Drawing the frame.
     pub render: Duration,
+    /// Denoising it.
+    pub denoise: Duration,
     /// The driver's counters.
     pub driver: DriverStats,
 }
@@ -141,6 +144,12 @@ pub fn draw(
     let start = Instant::now();
     let picture = d.render();
     let render = start.elapsed();
+    let start = Instant::now();
+    let picture = match driver.denoise {
+        Denoiser::Off => picture,
+        denoiser => denoiser.apply(&picture, &d.guide())?,
+    };
+    let denoise = start.elapsed();
     // Tone mapping follows what is on screen (as rhpict's does).
     let hist = Histogram::from_picture(&picture);
     Ok((
@@ -151,6 +160,7 @@ pub fn draw(
             samples,
             recall,
             render,
+            denoise,
             driver: d.stats(),
         },
     ))
@@ -244,8 +254,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, &hist, mode, &out)?;
         let secs = s.recall.as_secs_f64();
+        let denoised = match driver.denoise {
+            Denoiser::Off => String::new(),
+            d => format!(", denoised ({}) in {:.1} ms", d.name(), s.denoise.as_secs_f64() * 1e3),
+        };
         println!(
-            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms; {} pixel estimates, {} rays behind a nearer surface",
+            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms{denoised}; {} pixel estimates, {} rays behind a nearer surface",
             out.display(),
             count(s.samples),
             count(s.beams as u64),

@@ -31,7 +31,14 @@ Examples:
   holodeck render builtin:room --spp 256 -x 1024 -y 768 -o room.hdr
   holodeck render scene.toml --view '-vta -vp 3 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 180 -vv 180' -o fisheye.png
   holodeck render land.hds --scene-memory 2G --lod 1 --lod-secondary 1 -o land.png
-  holodeck render land.hds --out-of-core -o land.png      (prints what the view needed of the file)")]
+  holodeck render land.hds --out-of-core -o land.png      (prints what the view needed of the file)
+  holodeck render builtin:room --spp 4 --albedo a.hdr --normal n.hdr -o noisy.hdr
+  holodeck render builtin:room --spp 4 --denoise oidn -o clean.png   (a build with --features oidn)
+
+--albedo and --normal write the auxiliary pictures a denoiser takes (the first surface's albedo,
+and its world-space normal n as the colour (n + 1) / 2, through mirrors and glass to what they
+show).
+--denoise oidn cleans the picture with Intel Open Image Denoise, given both.")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
     scene: String,
@@ -77,9 +84,41 @@ pub struct Args {
     /// the ray's origin stands in for its subtree (0: exact triangles).
     #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative, value_name = "MRAD")]
     lod_secondary: f64,
+    /// Write the first surfaces' albedo here (.hdr or .png), for denoisers.
+    #[arg(long)]
+    albedo: Option<PathBuf>,
+    /// Write the first surfaces' normals here (.hdr: x, y, z as RGB), for denoisers.
+    #[arg(long)]
+    normal: Option<PathBuf>,
+    /// Denoise the picture: `off`, or `oidn` (Intel Open Image Denoise with the albedo
+    /// and normals; needs a build with `--features oidn`).
+    #[arg(long, default_value = "off")]
+    denoise: String,
     /// Output picture: .png (tone-mapped) or .hdr (Radiance RGBE, linear).
     #[arg(short, long)]
     output: PathBuf,
+}
+
+/// The extension of a picture path, checked.
+fn picture_ext(path: &Path, what: &str) -> Result<String> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ext != "png" && ext != "hdr" {
+        bail!("{what} {} must end in .png or .hdr", path.display());
+    }
+    Ok(ext)
+}
+
+/// Writes `picture` as .hdr (linear) or .png (at `exposure`, automatic if none).
+fn write_picture(picture: &holodeck_protocol::Picture, path: &Path, exposure: Option<f32>) -> Result<()> {
+    match picture_ext(path, "output")?.as_str() {
+        "hdr" => holodeck_display::image_io::write_hdr(picture, path)?,
+        _ => holodeck_display::image_io::write_png(picture, path, exposure.unwrap_or_else(|| picture.auto_exposure()))?,
+    }
+    Ok(())
 }
 
 /// The LOD ratio C of Áfra 2012, eq. (3), for `pixels` pixels of error: a
@@ -108,19 +147,46 @@ pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene> {
     load_scene(Path::new(spec)).with_context(|| format!("loading scene {spec}"))
 }
 
+/// `picture` cleaned by Open Image Denoise with its albedo and normals.
+#[cfg(feature = "oidn")]
+pub fn denoise_oidn(
+    picture: &holodeck_protocol::Picture,
+    albedo: &holodeck_protocol::Picture,
+    normal: &holodeck_protocol::Picture,
+) -> Result<holodeck_protocol::Picture> {
+    Ok(holodeck_display::denoise::oidn::denoise(
+        picture,
+        Some(albedo),
+        Some(normal),
+    )?)
+}
+
+/// Without the `oidn` feature there is nothing to clean with.
+#[cfg(not(feature = "oidn"))]
+pub fn denoise_oidn(
+    _: &holodeck_protocol::Picture,
+    _: &holodeck_protocol::Picture,
+    _: &holodeck_protocol::Picture,
+) -> Result<holodeck_protocol::Picture> {
+    Err(holodeck_display::denoise::DenoiseError::NoOidn.into())
+}
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     frame_size(a.width, a.height)?;
     let view = View::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
-    let ext = a
-        .output
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    if ext != "png" && ext != "hdr" {
-        bail!("output {} must end in .png or .hdr", a.output.display());
+    picture_ext(&a.output, "output")?;
+    for (p, what) in [(&a.albedo, "--albedo"), (&a.normal, "--normal")] {
+        if let Some(p) = p {
+            picture_ext(p, what)?;
+        }
     }
+    let oidn = match a.denoise.as_str() {
+        "off" => false,
+        "oidn" if cfg!(feature = "oidn") => true,
+        "oidn" => bail!("--denoise oidn: {}", holodeck_display::denoise::DenoiseError::NoOidn),
+        other => bail!("--denoise {other:?}: known are off and oidn"),
+    };
     let scene = SceneInput::open(&a.scene, a.triangles, a.scene_memory)?;
     let triangles = scene.triangles();
     let start = Instant::now();
@@ -160,14 +226,33 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("{}: {e}", a.scene);
     }
     let secs = start.elapsed().as_secs_f64();
-    match ext.as_str() {
-        "hdr" => holodeck_display::image_io::write_hdr(&picture, &a.output)?,
-        _ => holodeck_display::image_io::write_png(
-            &picture,
-            &a.output,
-            a.exposure.unwrap_or_else(|| picture.auto_exposure()),
-        )?,
+    let aovs = if a.albedo.is_some() || a.normal.is_some() || oidn {
+        let start = Instant::now();
+        let aovs = render::render_aovs(&tracer, &view, &options)?;
+        tracing::info!("albedo and normals in {:.2} s", start.elapsed().as_secs_f64());
+        Some(aovs)
+    } else {
+        None
+    };
+    if let Some((albedo, normal)) = &aovs {
+        if let Some(p) = &a.albedo {
+            write_picture(albedo, p, Some(1.0))?;
+        }
+        if let Some(p) = &a.normal {
+            // Unit vectors as colours: (n + 1) / 2, which RGBE and PNG can hold.
+            let shown = holodeck_protocol::Picture {
+                width: normal.width,
+                height: normal.height,
+                pixels: normal.pixels.iter().map(|n| (*n + glam::Vec3::ONE) * 0.5).collect(),
+            };
+            write_picture(&shown, p, Some(1.0))?;
+        }
     }
+    let picture = match (&aovs, oidn) {
+        (Some((albedo, normal)), true) => denoise_oidn(&picture, albedo, normal)?,
+        _ => picture,
+    };
+    write_picture(&picture, &a.output, a.exposure)?;
     let samples = u64::from(a.width) * u64::from(a.height) * u64::from(a.spp);
     println!(
         "{}: {} x {} at {} spp in {secs:.2} s ({:.2} M samples/s, {} threads); {} triangles, tree {build:.2} s",

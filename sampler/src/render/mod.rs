@@ -2,6 +2,9 @@
 //! with a deterministic sequence of samples per pixel. Its pictures are the
 //! ground truth every holodeck reconstruction is measured against.
 
+mod aov;
+
+pub use aov::{render_aovs, AOV_SAMPLES};
 pub use holodeck_protocol::{Picture, PictureSizeError};
 
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -13,5 +13,5 @@ pub mod tracer;
 pub mod wavefront;
 
 pub use rng::Rng;
-pub use tracer::{batch_seed, FirstHits, Sample, SeededRay, TraceOptions, Tracer};
+pub use tracer::{batch_seed, FirstHits, FirstSurface, Sample, SeededRay, TraceOptions, Tracer};
 pub use wavefront::Reorder;

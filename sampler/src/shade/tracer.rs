@@ -73,6 +73,17 @@ pub struct Sample {
     pub distance: f32,
 }
 
+/// What [`Tracer::first_surface`] finds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FirstSurface {
+    /// Distance to the first surface along the ray.
+    pub t: f32,
+    /// Its unit geometric normal, facing the ray.
+    pub normal: Vec3,
+    /// The colour it (and any mirror or glass in front of it) reflects, 0..=1.
+    pub albedo: Vec3,
+}
+
 /// A scene ready to trace: geometry (in memory with its wide BVH for single
 /// rays and its kd-tree for packets of coherent rays, or a scene file traced
 /// out of core), lights and sky.
@@ -274,6 +285,73 @@ impl Tracer {
     /// data is loaded as needed).
     pub fn first_hit(&self, ray: &Ray) -> Option<f32> {
         self.nearest(ray, 0.0, &mut Fetch::load()).map(|h| h.t)
+    }
+
+    /// The surface a ray sees first, as a denoiser's auxiliary buffers want
+    /// it: its unit normal facing the ray, and the colour it reflects
+    /// (its albedo). Through perfect mirrors and smooth glass it looks on,
+    /// up to four times, to the first surface that is not such (as Cycles
+    /// writes its denoising passes), the reflectance or tint multiplied in.
+    /// `None` where the ray escapes; an emitter's albedo is its colour.
+    pub fn first_surface(&self, ray: &Ray) -> Option<FirstSurface> {
+        const DELTA_STEPS: usize = 4;
+        let mut ray = *ray;
+        let mut tint = Vec3::ONE;
+        let mut fetch = Fetch::load();
+        let mut first_normal = None;
+        for _ in 0..=DELTA_STEPS {
+            let hit = self.nearest(&ray, 0.0, &mut fetch)?;
+            let facing = if hit.ng.dot(ray.dir) > 0.0 { -hit.ng } else { hit.ng };
+            let normal = *first_normal.get_or_insert(facing);
+            let m = hit.material.map(|i| &self.scene.materials[i as usize]);
+            let (albedo, next) = match m {
+                None => (hit.color, None),
+                Some(Material::Lambertian { albedo, .. }) | Some(Material::Plastic { albedo, .. }) => {
+                    (Vec3::from_array(*albedo), None)
+                }
+                Some(Material::Metal { color, roughness }) if *roughness >= 0.02 => (Vec3::from_array(*color), None),
+                Some(Material::Metal { color, .. }) | Some(Material::Mirror { color }) => {
+                    let d = ray.dir - 2.0 * ray.dir.dot(facing) * facing;
+                    (Vec3::from_array(*color), Some(d))
+                }
+                Some(Material::Glass { ior, color, thin }) => {
+                    let d = if *thin {
+                        Some(ray.dir)
+                    } else {
+                        let entering = hit.ng.dot(ray.dir) < 0.0;
+                        let eta = if entering { 1.0 / ior } else { *ior };
+                        let cos_i = -ray.dir.dot(facing);
+                        let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                        Some(if k < 0.0 {
+                            ray.dir + 2.0 * cos_i * facing
+                        } else {
+                            eta * ray.dir + (eta * cos_i - k.sqrt()) * facing
+                        })
+                    };
+                    (Vec3::from_array(*color), d)
+                }
+                Some(Material::Emitter { radiance }) => {
+                    let r = Vec3::from_array(*radiance);
+                    (r / r.max_element().max(f32::MIN_POSITIVE), None)
+                }
+            };
+            tint *= albedo.clamp(Vec3::ZERO, Vec3::ONE);
+            let Some(dir) = next else {
+                return Some(FirstSurface {
+                    t: hit.t,
+                    normal,
+                    albedo: tint,
+                });
+            };
+            let at = ray.at(hit.t);
+            ray = Ray::new(at + dir * (1e-4 * (1.0 + at.abs().max_element())), dir.normalize());
+        }
+        // Still in a hall of mirrors: what it looked through so far.
+        Some(FirstSurface {
+            t: ray.t_max,
+            normal: first_normal.unwrap_or(Vec3::ZERO),
+            albedo: tint,
+        })
     }
 
     /// Traces `n` items with `f` (given the item, the random numbers and a

@@ -145,22 +145,24 @@ impl AccuracyBench {
             .as_bytes(),
         )
         .to_hex();
-        let path = self.dir.join(format!("reference-{}.hdr", &key[..16]));
-        let picture = match read_picture(&path) {
-            Ok(p) => p,
-            Err(_) => {
+        let paths = ["a", "b"].map(|h| self.dir.join(format!("reference-{}-{h}.hdr", &key[..16])));
+        let halves = match (read_picture(&paths[0]), read_picture(&paths[1])) {
+            (Ok(a), Ok(b)) => (a, b),
+            _ => {
                 eprintln!(
-                    "rendering the reference of {name} ({} spp, kept as {})...",
+                    "rendering the reference of {name} ({} spp in two halves, kept as {} and -b)...",
                     self.reference_spp,
-                    path.display()
+                    paths[0].display()
                 );
                 let size = (self.width, self.height);
-                let p = crate::truth::reference(tracer, view, size, self.reference_spp, 0x005e_ed0f_7e57)?;
-                write_hdr(&p, &path).with_context(|| format!("writing {}", path.display()))?;
-                p
+                let halves = crate::truth::reference_halves(tracer, view, size, self.reference_spp, 0x005e_ed0f_7e57)?;
+                for (p, path) in [&halves.0, &halves.1].into_iter().zip(&paths) {
+                    write_hdr(p, path).with_context(|| format!("writing {}", path.display()))?;
+                }
+                halves
             }
         };
-        Truth::new(tracer, view, picture)
+        Truth::new(tracer, view, halves)
     }
 
     fn viewport(&self, view: &View) -> Result<Viewport> {

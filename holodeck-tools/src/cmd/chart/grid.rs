@@ -82,8 +82,8 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
     let hash = holodeck_sampler::scene::hash::content_hash(&scene);
     let view = View::parse(&a.view).context("--view")?;
     let tracer = Tracer::new(scene, TraceOptions::default());
-    let reference = crate::truth::reference(&tracer, &view, (a.width, a.height), a.reference_spp, 0x5eed)?;
-    let truth = Truth::new(&tracer, &view, reference)?;
+    let halves = crate::truth::reference_halves(&tracer, &view, (a.width, a.height), a.reference_spp, 0x5eed)?;
+    let truth = Truth::new(&tracer, &view, halves)?;
     let axes = first.axes().map(|v| v.to_array());
     let eye_radius = holodeck_display::request::RequestOptions::default().eye_radius;
     let mut out = Vec::new();

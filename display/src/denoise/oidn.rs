@@ -1,0 +1,104 @@
+//! Intel Open Image Denoise (OIDN), the denoiser Blender Cycles, Arnold and
+//! most studios clean path-traced frames with: its `RT` filter in HDR mode,
+//! with albedo and normal buffers where a renderer has them, as it is used
+//! in practice. Behind the `oidn` cargo feature: it needs Intel's library
+//! (see the README for where to get it).
+
+use glam::Vec3;
+use holodeck_protocol::Picture;
+
+use super::{DenoiseError, Guide};
+
+fn flat(p: &Picture) -> Vec<f32> {
+    p.pixels
+        .iter()
+        .flat_map(|c| {
+            if c.is_finite() {
+                c.max(Vec3::ZERO).to_array()
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect()
+}
+
+fn oidn_error(e: oidn::Error) -> DenoiseError {
+    DenoiseError::Oidn(e.to_string())
+}
+
+/// `color` (linear HDR radiance) denoised by OIDN's `RT` filter, with the
+/// auxiliary `albedo` (0..=1) and `normal` pictures of the same view where
+/// given (OIDN takes a normal only beside an albedo).
+pub fn denoise(color: &Picture, albedo: Option<&Picture>, normal: Option<&Picture>) -> Result<Picture, DenoiseError> {
+    let (w, h) = (color.width, color.height);
+    for aux in [albedo, normal].into_iter().flatten() {
+        if (aux.width, aux.height) != (w, h) || aux.pixels.len() != w * h {
+            return Err(DenoiseError::Oidn(format!(
+                "an auxiliary picture is {}x{}, the colour {w}x{h}",
+                aux.width, aux.height
+            )));
+        }
+    }
+    if w == 0 || h == 0 {
+        return Ok(color.clone());
+    }
+    let device = oidn::Device::new().map_err(oidn_error)?;
+    let mut filter = oidn::RayTracing::try_new(&device).map_err(oidn_error)?;
+    filter.hdr(true).srgb(false).image_dimensions(w, h);
+    match (albedo, normal) {
+        (Some(a), Some(n)) => {
+            let a = device.create_buffer(&flat(a)).map_err(oidn_error)?;
+            let n = device.create_buffer(&flat_normal(n)).map_err(oidn_error)?;
+            filter.albedo_normal_buffer(a, n).map_err(oidn_error)?;
+        }
+        (Some(a), None) => {
+            let a = device.create_buffer(&flat(a)).map_err(oidn_error)?;
+            filter.albedo_buffer(a).map_err(oidn_error)?;
+        }
+        (None, _) => {}
+    }
+    let input = flat(color);
+    let mut output = vec![0.0f32; input.len()];
+    filter.filter(&input, &mut output).map_err(oidn_error)?;
+    device.get_error().map_err(oidn_error)?;
+    Ok(Picture {
+        width: w,
+        height: h,
+        pixels: output.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect(),
+    })
+}
+
+/// Normals as OIDN takes them: any length, values in -1..=1; non-finite
+/// ones as zero.
+fn flat_normal(p: &Picture) -> Vec<f32> {
+    p.pixels
+        .iter()
+        .flat_map(|c| {
+            if c.is_finite() {
+                c.clamp(Vec3::splat(-1.0), Vec3::ONE).to_array()
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect()
+}
+
+/// A display frame denoised by OIDN with the guide's normals (the store
+/// knows no albedo: a constant one, which OIDN needs beside a normal).
+pub fn denoise_guided(color: &Picture, guide: &Guide) -> Result<Picture, DenoiseError> {
+    let (w, h) = (color.width, color.height);
+    if guide.width != w || guide.height != h {
+        return Ok(color.clone());
+    }
+    let albedo = Picture {
+        width: w,
+        height: h,
+        pixels: vec![Vec3::splat(0.5); w * h],
+    };
+    let normal = Picture {
+        width: w,
+        height: h,
+        pixels: guide.normal.iter().map(|&n| Vec3::from_array(n)).collect(),
+    };
+    denoise(color, Some(&albedo), Some(&normal))
+}

@@ -1,0 +1,198 @@
+//! Spreading the light cut off fireflies over their neighborhood, so that
+//! the picture keeps it: an estimate's excess (what its brightest ray had
+//! beyond the firefly limit) is shared out over the pixels within a square
+//! of a given radius that hold estimates, each an equal share, and added to
+//! their values.
+//!
+//! Light is conserved exactly at pixel level: a pixel's excess is divided by
+//! the number of filled pixels its square reaches before the squares are
+//! summed, so empty pixels take nothing and every share lands somewhere.
+//! Box sums by running totals cost the same whatever the radius.
+
+use rayon::prelude::*;
+
+/// Rows at least this many are summed on every core.
+const PARALLEL_ROWS: usize = 64;
+
+/// Per-pixel scratch: excess (RGB) and filled (1 or 0), and their sums.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Spread {
+    grid: Vec<[f32; 4]>,
+    across: Vec<[f32; 4]>,
+}
+
+impl Spread {
+    /// Heap bytes held.
+    pub fn heap_bytes(&self) -> usize {
+        (self.grid.capacity() + self.across.capacity()) * std::mem::size_of::<[f32; 4]>()
+    }
+
+    /// Shares out the excess of pixels over the filled pixels within
+    /// `radius` of each, on a `w` x `h` frame: `excess` yields (pixel, the
+    /// pixel's excess, RGB) for every filled pixel (zero excess too: it is
+    /// what marks it filled). Returns, per pixel, the light it receives,
+    /// valid for filled pixels (row-major).
+    pub fn run(
+        &mut self,
+        w: usize,
+        h: usize,
+        radius: usize,
+        excess: impl Iterator<Item = (usize, [f32; 3])>,
+    ) -> &[[f32; 4]] {
+        self.grid.clear();
+        self.grid.resize(w * h, [0.0; 4]);
+        for (p, e) in excess {
+            let g = &mut self.grid[p];
+            g[0] += e[0];
+            g[1] += e[1];
+            g[2] += e[2];
+            g[3] = 1.0;
+        }
+        // How many filled pixels each pixel's square reaches.
+        box_sum(&mut self.grid, &mut self.across, w, h, radius, 3..4);
+        // Divided among them: the light each filled pixel gives out per receiver.
+        // (The counts ride in channel 3; the excess in 0..3 was not summed.)
+        self.grid.par_iter_mut().for_each(|g| {
+            if g[3] > 0.0 {
+                let n = g[3];
+                g[0] /= n;
+                g[1] /= n;
+                g[2] /= n;
+            }
+        });
+        box_sum(&mut self.grid, &mut self.across, w, h, radius, 0..3);
+        &self.grid
+    }
+}
+
+/// Replaces the channels `ch` of `grid` (`w` x `h`) by their sums over the
+/// square of `radius` around each pixel, clipped to the frame.
+fn box_sum(
+    grid: &mut [[f32; 4]],
+    across: &mut Vec<[f32; 4]>,
+    w: usize,
+    h: usize,
+    radius: usize,
+    ch: std::ops::Range<usize>,
+) {
+    across.clear();
+    across.resize(w * h, [0.0; 4]);
+    // Along rows.
+    let rows = |(src, dst): (&[[f32; 4]], &mut [[f32; 4]])| row_sums(src, dst, radius, &ch);
+    if h >= PARALLEL_ROWS {
+        grid.par_chunks(w).zip(across.par_chunks_mut(w)).for_each(rows);
+    } else {
+        grid.chunks(w).zip(across.chunks_mut(w)).for_each(rows);
+    }
+    // Along columns: one running row of sums, moved down a row at a time.
+    let mut acc = vec![[0.0f64; 4]; w];
+    let add = |acc: &mut [[f64; 4]], row: &[[f32; 4]], sign: f64| {
+        for (a, v) in acc.iter_mut().zip(row) {
+            for k in ch.clone() {
+                a[k] += sign * f64::from(v[k]);
+            }
+        }
+    };
+    for r in 0..(radius + 1).min(h) {
+        add(&mut acc, &across[r * w..(r + 1) * w], 1.0);
+    }
+    for r in 0..h {
+        for (g, a) in grid[r * w..(r + 1) * w].iter_mut().zip(&acc) {
+            for k in ch.clone() {
+                g[k] = a[k] as f32;
+            }
+        }
+        if r + radius + 1 < h {
+            add(&mut acc, &across[(r + radius + 1) * w..(r + radius + 2) * w], 1.0);
+        }
+        if r >= radius {
+            add(&mut acc, &across[(r - radius) * w..(r - radius + 1) * w], -1.0);
+        }
+    }
+}
+
+/// Running sums over `radius` on each side along one row.
+fn row_sums(src: &[[f32; 4]], dst: &mut [[f32; 4]], radius: usize, ch: &std::ops::Range<usize>) {
+    let n = src.len();
+    let mut acc = [0.0f64; 4];
+    for v in &src[..(radius + 1).min(n)] {
+        for k in ch.clone() {
+            acc[k] += f64::from(v[k]);
+        }
+    }
+    for i in 0..n {
+        for k in ch.clone() {
+            dst[i][k] = acc[k] as f32;
+        }
+        if i + radius + 1 < n {
+            for k in ch.clone() {
+                acc[k] += f64::from(src[i + radius + 1][k]);
+            }
+        }
+        if i >= radius {
+            for k in ch.clone() {
+                acc[k] -= f64::from(src[i - radius][k]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_sums_match_brute_force_at_borders_too() {
+        let (w, h) = (7, 5);
+        let src: Vec<[f32; 4]> = (0..w * h).map(|i| [i as f32, 1.0, (i % 3) as f32, 0.5]).collect();
+        for radius in [0, 1, 2, 6, 20] {
+            let mut grid = src.clone();
+            box_sum(&mut grid, &mut Vec::new(), w, h, radius, 0..4);
+            for r in 0..h {
+                for c in 0..w {
+                    let mut want = [0.0f32; 4];
+                    for rr in r.saturating_sub(radius)..=(r + radius).min(h - 1) {
+                        for cc in c.saturating_sub(radius)..=(c + radius).min(w - 1) {
+                            for k in 0..4 {
+                                want[k] += src[rr * w + cc][k];
+                            }
+                        }
+                    }
+                    for k in 0..4 {
+                        assert!((grid[r * w + c][k] - want[k]).abs() < 1e-3, "r{radius} ({c},{r})[{k}]");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn spreading_conserves_light_and_reaches_only_filled_pixels() {
+        let (w, h) = (30, 20);
+        // Filled: every pixel but a band; excess on a few, near a border too.
+        let filled = |p: usize| !(10..13).contains(&(p % w));
+        let excess = |p: usize| match p {
+            45 => [3.0, 1.0, 0.0],
+            301 => [0.0, 0.0, 7.0],
+            599 => [1.0, 1.0, 1.0],
+            _ => [0.0; 3],
+        };
+        let mut s = Spread::default();
+        let out = s
+            .run(w, h, 3, (0..w * h).filter(|&p| filled(p)).map(|p| (p, excess(p))))
+            .to_vec();
+        let mut total = [0.0f64; 3];
+        for (p, g) in out.iter().enumerate() {
+            if filled(p) {
+                for k in 0..3 {
+                    total[k] += f64::from(g[k]);
+                }
+            }
+        }
+        for (k, want) in [4.0, 2.0, 8.0].into_iter().enumerate() {
+            assert!((total[k] - want).abs() < 1e-4, "channel {k}: {total:?}");
+        }
+        // Pixel 45 (col 15, row 1) reaches no farther than 3 pixels.
+        assert!(out[45][0] > 0.0 && out[45 + 3][0] > 0.0 && out[45 + 4][0] == 0.0);
+    }
+}
