@@ -53,10 +53,20 @@ pub fn read_picture(path: &Path) -> Result<Picture, ImageError> {
 /// Writes a Radiance RGBE picture.
 pub fn write_hdr(p: &Picture, path: &Path) -> Result<(), ImageError> {
     let file = std::fs::File::create(path).map_err(|e| err(path, e))?;
+    // The encoder's exponent goes wrong for values below the shared exponent's
+    // range (a subnormal comes out near 1e38): like Radiance, a pixel whose
+    // largest channel is below 1e-32 is written as black.
     let pixels: Vec<Rgb<f32>> = p
         .pixels
         .iter()
-        .map(|c| Rgb(c.max(glam::Vec3::ZERO).to_array()))
+        .map(|c| {
+            let c = c.max(glam::Vec3::ZERO);
+            Rgb(if c.max_element() < 1e-32 {
+                [0.0; 3]
+            } else {
+                c.to_array()
+            })
+        })
         .collect();
     HdrEncoder::new(std::io::BufWriter::new(file))
         .encode(&pixels, p.width, p.height)
@@ -97,4 +107,44 @@ pub fn write_rgb8(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Resul
     }
     image::save_buffer_with_format(path, rgb, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
         .map_err(|e| err(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn hdr_round_trips_and_values_below_its_range_come_back_black() {
+        let dir = tempfile_dir();
+        let path = dir.join("tiny.hdr");
+        let p = Picture {
+            width: 4,
+            height: 1,
+            pixels: vec![
+                Vec3::new(1e-39, 9e-40, 7e-40),
+                Vec3::splat(1e-35),
+                Vec3::new(0.25, 3.0, 1500.0),
+                Vec3::new(-1.0, 0.5, 0.0),
+            ],
+        };
+        write_hdr(&p, &path).unwrap();
+        let q = read_picture(&path).unwrap();
+        assert_eq!((q.width, q.height), (4, 1));
+        assert_eq!(q.pixels[0], Vec3::ZERO);
+        assert_eq!(q.pixels[1], Vec3::ZERO);
+        for (a, b) in q.pixels[2].to_array().into_iter().zip(p.pixels[2].to_array()) {
+            assert!((a - b).abs() <= 0.01 * 1500.0, "{a} {b}");
+        }
+        assert!((q.pixels[2].z / 1500.0 - 1.0).abs() < 0.01);
+        assert_eq!(q.pixels[3].x, 0.0);
+        assert!((q.pixels[3].y - 0.5).abs() < 0.005);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    fn tempfile_dir() -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("holodeck-image-io-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
 }

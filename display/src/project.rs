@@ -85,6 +85,12 @@ impl Projector {
         }
     }
 
+    /// True for a parallel view (no eye point: every ray looks the same way).
+    #[inline]
+    pub fn is_parallel(&self) -> bool {
+        self.parallel
+    }
+
     /// The angle a pixel spans seen from a point at `depth`: what a ray must
     /// pass the eye within for its hit point to be trusted to the pixel
     /// (a hidden point shows at most that far from the edge hiding it).

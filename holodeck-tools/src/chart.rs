@@ -35,13 +35,17 @@ pub struct Panel {
 }
 
 /// Series colors: dark enough to read on white, far apart in hue.
-const COLORS: [(u8, u8, u8); 6] = [
+const COLORS: [(u8, u8, u8); 10] = [
     (31, 119, 180),
     (214, 39, 40),
     (44, 160, 44),
     (148, 103, 189),
     (255, 127, 14),
     (23, 130, 140),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (188, 189, 34),
 ];
 
 /// Pixels per panel.

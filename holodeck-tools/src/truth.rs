@@ -10,19 +10,6 @@ use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, silhouettes, RenderOptions};
 use holodeck_sampler::Tracer;
 
-/// Error of a picture over the frame and in the silhouette band.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Error {
-    /// Relative RMSE over the frame.
-    pub all: f64,
-    /// Relative RMSE in the band around silhouettes.
-    pub band: f64,
-    /// Structural similarity of the luminance, both pictures tone mapped
-    /// by the reference's histogram (1: the same): unlike RMSE, not ruled
-    /// by a few very bright pixels.
-    pub ssim: f64,
-}
-
 /// Depth ratio (farthest to nearest first hit within a pixel) that makes a
 /// pixel a silhouette.
 pub const SILHOUETTE_RATIO: f32 = 1.1;
@@ -60,8 +47,7 @@ impl Truth {
         })
     }
 
-    /// The relative RMSE of `p` over the frame: [`Truth::error`]'s `all`
-    /// without the rest, for loops that need no more.
+    /// The relative RMSE of `p` over the frame, for loops that need no more.
     pub fn rmse(&self, p: &Picture) -> Result<f64> {
         Ok(holodeck_display::compare::relative_rmse(p, &self.picture)?)
     }
@@ -69,16 +55,6 @@ impl Truth {
     /// Every measure of `p` against the reference.
     pub fn measure(&self, p: &Picture) -> Result<Metrics> {
         Ok(self.yardstick.measure(p)?)
-    }
-
-    /// The error of `p` against the reference.
-    pub fn error(&self, p: &Picture) -> Result<Error> {
-        let m = self.measure(p)?;
-        Ok(Error {
-            all: m.relative_rmse,
-            band: m.band_relative_rmse.unwrap_or(f64::NAN),
-            ssim: m.ssim,
-        })
     }
 }
 

@@ -31,34 +31,61 @@ fn the_demo_writes_frames_sheets_charts_and_a_summary() {
     assert!(o.status.success(), "{t}");
     let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(t.contains(&summary), "the summary is printed: {t}");
-    // One row per driver with its error, and the direct render's row; the
-    // GPU drivers run on Mesa's software Vulkan where there is no GPU.
-    for driver in ["quadtree", "voronoi", "mesh"] {
-        let row = summary
+    // One row per method with its measures; the GPU drivers run on Mesa's
+    // software Vulkan where there is no GPU.
+    let row = |name: &str| -> Vec<String> {
+        let line = summary
             .lines()
-            .find(|l| l.starts_with(&format!("| {driver} |")))
-            .unwrap_or_else(|| panic!("no row for {driver}: {summary}"));
-        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-        let rmse: f64 = cells[6].parse().unwrap_or_else(|_| panic!("{row}"));
-        let ssim: f64 = cells[8].parse().unwrap_or_else(|_| panic!("{row}"));
-        assert!(rmse > 0.0 && rmse.is_finite(), "{row}");
-        assert!(ssim > 0.0 && ssim <= 1.0, "{row}");
-        assert_eq!(cells[2], "60,000", "{row}");
+            .find(|l| l.starts_with(&format!("| {name} |")))
+            .unwrap_or_else(|| panic!("no row for {name}: {summary}"));
+        line.split('|').map(|c| c.trim().to_string()).collect()
+    };
+    for driver in ["quadtree", "voronoi", "mesh"] {
+        for name in [driver.to_string(), format!("{driver} + atrous")] {
+            let cells = row(&name);
+            assert_eq!(cells[2], "60,000", "{cells:?}");
+            let flip: f64 = cells[4].parse().unwrap_or_else(|_| panic!("{cells:?}"));
+            let ssim: f64 = cells[6].parse().unwrap_or_else(|_| panic!("{cells:?}"));
+            let clamped: f64 = cells[7].parse().unwrap_or_else(|_| panic!("{cells:?}"));
+            let dark: f64 = cells[11].parse().unwrap_or_else(|_| panic!("{cells:?}"));
+            assert!(flip > 0.0 && flip < 1.0, "{cells:?}");
+            assert!(ssim > 0.0 && ssim <= 1.0, "{cells:?}");
+            assert!(clamped > 0.0 && clamped.is_finite(), "{cells:?}");
+            assert!(dark > 0.2 && dark < 5.0, "{cells:?}");
+        }
     }
-    assert!(
-        summary.contains("| direct render of each view, same time |"),
-        "{summary}"
-    );
+    let direct = row("direct, same time");
+    assert!(direct[4].parse::<f64>().is_ok(), "{direct:?}");
+    // Without Open Image Denoise in this build, its row says so; with it, it has numbers.
+    let oidn = row("direct + oidn, same time");
+    if cfg!(feature = "oidn") {
+        assert!(oidn[4].parse::<f64>().is_ok(), "{oidn:?}");
+    } else {
+        assert!(oidn[2].starts_with("not drawn here"), "{oidn:?}");
+        assert!(summary.contains("--features oidn"), "{summary}");
+    }
+    assert!(summary.contains("The references' own noise"), "{summary}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["rays"], 60_000);
+    assert!(json["methods"].as_array().unwrap().len() >= 8);
     for v in ["view01", "view02"] {
-        for what in ["reference", "quadtree", "voronoi", "mesh", "direct"] {
+        for what in [
+            "reference",
+            "quadtree",
+            "quadtree-atrous",
+            "voronoi",
+            "mesh-atrous",
+            "direct",
+        ] {
             for ext in ["png", "hdr"] {
                 let f = out.join("frames").join(format!("{v}-{what}.{ext}"));
                 assert!(f.exists(), "{} missing", f.display());
             }
         }
         let sheet = image::open(out.join(format!("compare-{v}.png"))).unwrap();
-        // Five panels of 48 x 36 with gaps, captions under them.
-        assert_eq!((sheet.width(), sheet.height()), (5 * 48 + 6 * 6, 36 + 30 + 12));
+        // Seven panels of 48 x 36 with gaps, captions under them.
+        assert_eq!((sheet.width(), sheet.height()), (7 * 48 + 8 * 6, 36 + 30 + 12));
     }
     for chart in ["chart-error-vs-paths-and-time", "chart-walkthrough"] {
         for ext in ["png", "svg"] {

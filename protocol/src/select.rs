@@ -1,18 +1,25 @@
 //! Beam selection (paper, 2.4.2): which beams a view sees, and how many
 //! samples each should get so that the view refines uniformly.
 //!
-//! Jittered view rays at low density are intersected with every section; the
-//! beam each ray's line falls in gets a count. A line is counted whether the
-//! section lies in front of the eye, behind it, or around it: samples are
-//! traced along the view direction, so a beam behind the eye still carries
-//! what the eye sees (as long as nothing stands between), and with the eye
-//! inside an interior section most of the line is behind it.
+//! Jittered view rays at low density are intersected with every section the
+//! eye may use; the beam each ray's line falls in gets a count. A line is
+//! counted whether the section lies in front of the eye, behind it, or
+//! around it: samples are traced along the view direction, so a beam behind
+//! the eye still carries what the eye sees (as long as nothing stands
+//! between), and with the eye inside an interior section most of the line is
+//! behind it.
+//!
+//! An eye inside an interior section uses only the interior sections around
+//! it: another section's rays start at that section's walls, and between
+//! them and the eye may stand anything (the wall of the room the eye is in,
+//! seen from a section outdoors), which its rays never met. An eye inside no
+//! interior section looks into every section.
 //!
 //! Pure arithmetic, shared by displays (to request beams) and the server (to
 //! limit a batch fill to what given views see).
 
 use crate::beam::BeamKey;
-use crate::section::Section;
+use crate::section::{Section, SectionKind};
 use crate::view::View;
 
 /// Beams seen by a view, with the number of view rays that fell in each.
@@ -27,6 +34,19 @@ pub struct ViewBeams {
     /// For each beam of `counts`, the summed weight of its view rays when
     /// selected with [`ViewBeams::select_weighted`] (empty otherwise).
     pub weights: Vec<f64>,
+}
+
+/// The indices of the sections an eye at `eye` may use: the interior
+/// sections around it, or every section when it is in none.
+pub fn usable_sections(sections: &[Section], eye: glam::DVec3) -> Vec<usize> {
+    let inside: Vec<usize> = (0..sections.len())
+        .filter(|&i| sections[i].kind() == SectionKind::Interior && sections[i].contains(eye))
+        .collect();
+    if inside.is_empty() {
+        (0..sections.len()).collect()
+    } else {
+        inside
+    }
 }
 
 /// A small deterministic generator (SplitMix64): jitter must repeat for a
@@ -66,6 +86,7 @@ impl ViewBeams {
     ) -> ViewBeams {
         let mut jitter = Jitter(seed ^ 0x5eed_f00d);
         let rays_of = view.rays();
+        let around: Vec<usize> = usable_sections(sections, view.position);
         let mut hits: Vec<(BeamKey, f64)> = Vec::new();
         let (mut rays, mut missed) = (0u32, 0u32);
         for row in 0..rows {
@@ -79,8 +100,8 @@ impl ViewBeams {
                 let before = hits.len();
                 let w = weight(x, y);
                 let w = if w.is_finite() && w > 0.0 { w } else { 0.0 };
-                for (si, s) in sections.iter().enumerate() {
-                    if let Some(at) = s.locate(origin, dir) {
+                for &si in &around {
+                    if let Some(at) = sections[si].locate(origin, dir) {
                         hits.push((BeamKey::new(si as u32, at.beam), w));
                     }
                 }
@@ -185,6 +206,37 @@ mod tests {
     }
 
     #[test]
+    fn an_eye_in_an_interior_section_uses_only_the_sections_around_it() {
+        // The room, and a second interior section outdoors beyond its east wall.
+        let outdoors = Section::new(
+            [6.0, 0.0, 0.0],
+            [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 2.0]],
+            [8, 6, 4],
+            SectionKind::Interior,
+        )
+        .unwrap();
+        let both = [room(), outdoors];
+        let east = "-vd 1 0 0 -vu 0 0 1 -vh 40 -vv 30";
+        let inside = ViewBeams::select(&both, &view(&format!("-vtv -vp 2 1.5 1 {east}")), 8, 6, 3);
+        assert!(inside.counts.iter().all(|(k, _)| k.section == 0), "{:?}", inside.counts);
+        let out = ViewBeams::select(&both, &view(&format!("-vtv -vp 8 1.5 1 {east}")), 8, 6, 3);
+        assert!(out.counts.iter().all(|(k, _)| k.section == 1));
+        // Between the two: in neither, so both are looked into.
+        let between = ViewBeams::select(
+            &both,
+            &view("-vtv -vp 5 -3 1 -vd 0 1 0 -vu 0 0 1 -vh 170 -vv 60"),
+            32,
+            6,
+            3,
+        );
+        assert!(
+            between.counts.iter().any(|(k, _)| k.section == 0) && between.counts.iter().any(|(k, _)| k.section == 1)
+        );
+        assert_eq!(usable_sections(&both, glam::DVec3::new(2.0, 1.5, 1.0)), vec![0]);
+        assert_eq!(usable_sections(&both, glam::DVec3::new(5.0, 9.0, 1.0)), vec![0, 1]);
+    }
+
+    #[test]
     fn sections_behind_the_eye_count_and_views_that_miss_count_as_missed() {
         let s = room();
         // Outside the room looking away from it: the lines still cross it behind the eye.
@@ -213,12 +265,20 @@ mod tests {
         let v = view("-vtv -vp 4 0 1 -vd 0 1 0 -vu 0 0 1 -vh 1 -vv 1");
         let got = ViewBeams::select(&[a.clone(), b.clone()], &v, 8, 8, 3);
         assert_eq!(got.rays, 64);
-        // Looking along x through both sections: every ray crosses both.
+        // On the shared wall the eye is in both, and looks into both.
+        assert!(got.counts.iter().any(|c| c.0.section == 0) && got.counts.iter().any(|c| c.0.section == 1));
+        // Looking along x from inside one: only its own section counts,
+        // though every line crosses both.
         let v = view("-vtv -vp 1 1.5 1 -vd 1 0 0 -vu 0 0 1 -vh 10 -vv 10");
+        let got = ViewBeams::select(&[a.clone(), b.clone()], &v, 8, 8, 3);
+        let total: u32 = got.counts.iter().map(|c| c.1).sum();
+        assert_eq!(total, 64);
+        assert!(got.counts.iter().all(|c| c.0.section == 0));
+        // From outside both, every line crosses both.
+        let v = view("-vtv -vp -1 1.5 1 -vd 1 0 0 -vu 0 0 1 -vh 10 -vv 10");
         let got = ViewBeams::select(&[a, b], &v, 8, 8, 3);
         let total: u32 = got.counts.iter().map(|c| c.1).sum();
         assert_eq!(total, 128);
-        assert!(got.counts.iter().any(|c| c.0.section == 0) && got.counts.iter().any(|c| c.0.section == 1));
     }
 
     #[test]

@@ -165,3 +165,29 @@ pub(super) fn light_kept(
         band: band.map(|_| kept(s[3][0], s[3][1])),
     }
 }
+
+/// The brightest luminance of `a` within two pixels of `b`'s brightest
+/// pixel, over that pixel's luminance (1 when `b` is black and so is `a`
+/// there; NaN when only `b` is). Sizes must have been checked.
+pub(super) fn peak_kept(a: &Picture, b: &Picture) -> f64 {
+    const REACH: usize = 2;
+    let lum = |v| luminance3(channels(v));
+    let Some((at, top)) = b
+        .pixels
+        .iter()
+        .map(|&v| lum(v))
+        .enumerate()
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+    else {
+        return f64::NAN;
+    };
+    let (w, h) = (b.width, b.height);
+    let (c, r) = (at % w, at / w);
+    let mut best = 0.0f64;
+    for rr in r.saturating_sub(REACH)..=(r + REACH).min(h - 1) {
+        for cc in c.saturating_sub(REACH)..=(c + REACH).min(w - 1) {
+            best = best.max(lum(a.pixels[rr * w + cc]));
+        }
+    }
+    kept(best, top)
+}

@@ -36,8 +36,8 @@ use serde::Serialize;
 
 pub use light::{LightKept, Region, Regions};
 pub use radiance::{
-    clamped_relative_rmse, psnr, psnr_masked, relative_mse, relative_rmse, relative_rmse_masked, rmse, rmse_masked,
-    DEFAULT_CLAMP, RELATIVE_MSE_EPSILON,
+    clamped_relative_mse, clamped_relative_rmse, psnr, psnr_masked, relative_mse, relative_rmse, relative_rmse_masked,
+    rmse, rmse_masked, DEFAULT_CLAMP, RELATIVE_MSE_EPSILON,
 };
 pub use ssim::{ssim, ssim_masked};
 
@@ -94,6 +94,8 @@ pub struct Metrics {
     pub relative_mse: f64,
     /// See [`clamped_relative_rmse`], at [`Metrics::clamp`].
     pub clamped_relative_rmse: f64,
+    /// See [`clamped_relative_mse`], at [`Metrics::clamp`].
+    pub clamped_relative_mse: f64,
     /// The level values were clamped at for `clamped_relative_rmse`.
     pub clamp: f64,
     /// See [`psnr`], with the reference's peak.
@@ -109,6 +111,11 @@ pub struct Metrics {
     pub band_relative_rmse: Option<f64>,
     /// Light kept per region.
     pub light: LightKept,
+    /// The brightest spot kept: the picture's brightest luminance within
+    /// two pixels of the reference's brightest pixel (a glint, the sun),
+    /// over that pixel's luminance. A denoiser that smears highlights shows
+    /// here first.
+    pub peak: f64,
 }
 
 /// A reference picture ready to measure others against: its tone map, the
@@ -147,6 +154,8 @@ pub struct ReferenceNoise {
     pub clamped_relative_rmse: f64,
     /// [`relative_mse`]: a quarter of one half's against the other.
     pub relative_mse: f64,
+    /// The same for [`clamped_relative_mse`].
+    pub clamped_relative_mse: f64,
     /// Mean LDR-FLIP of one half against the other (an upper bound: FLIP
     /// does not scale with the noise).
     pub flip_between_halves: f64,
@@ -170,6 +179,9 @@ impl ReferenceNoise {
         // Squared measures: a quarter in RMSE terms is a sixteenth here.
         if self.relative_mse > Self::NOISE_SHARE * Self::NOISE_SHARE * m.relative_mse {
             out.push("relative_mse");
+        }
+        if self.clamped_relative_mse > Self::NOISE_SHARE * Self::NOISE_SHARE * m.clamped_relative_mse {
+            out.push("clamped_relative_mse");
         }
         out
     }
@@ -236,6 +248,7 @@ impl Yardstick {
             relative_rmse: 0.5 * s.relative_rmse(),
             clamped_relative_rmse: 0.5 * s.clamped_relative_rmse(),
             relative_mse: 0.25 * s.relative_mse(),
+            clamped_relative_mse: 0.25 * s.clamped_relative_mse(),
             flip_between_halves,
         });
         Ok(())
@@ -336,6 +349,7 @@ impl Yardstick {
             relative_rmse: s.relative_rmse(),
             relative_mse: s.relative_mse(),
             clamped_relative_rmse: s.clamped_relative_rmse(),
+            clamped_relative_mse: s.clamped_relative_mse(),
             clamp: self.clamp,
             psnr_db: s.psnr(None),
             ssim: ssim::ssim_impl(p, b, &self.tone, mask)?,
@@ -349,6 +363,7 @@ impl Yardstick {
                 self.band.as_deref(),
                 mask,
             ),
+            peak: light::peak_kept(p, b),
         })
     }
 }

@@ -33,6 +33,7 @@ pub(super) struct Sums {
     relative_squared: f64,
     clamped_error: f64,
     clamped_reference: f64,
+    clamped_relative: f64,
 }
 
 /// The sums of `a` against `b` over the pixels whose `mask` entry is true,
@@ -47,6 +48,7 @@ pub(super) fn sums(a: &Picture, b: &Picture, mask: Option<&[bool]>, clamp: f64) 
         relative_squared: 0.0,
         clamped_error: 0.0,
         clamped_reference: 0.0,
+        clamped_relative: 0.0,
     };
     for (i, (&pa, &pb)) in a.pixels.iter().zip(&b.pixels).enumerate() {
         if mask.is_some_and(|m| !m[i]) {
@@ -62,6 +64,7 @@ pub(super) fn sums(a: &Picture, b: &Picture, mask: Option<&[bool]>, clamp: f64) 
             let (x, y) = (ca[k].clamp(0.0, clamp), cb[k].clamp(0.0, clamp));
             s.clamped_error += (x - y) * (x - y);
             s.clamped_reference += y * y;
+            s.clamped_relative += (x - y) * (x - y) / (y * y + RELATIVE_MSE_EPSILON);
         }
     }
     Ok(s)
@@ -94,6 +97,10 @@ impl Sums {
 
     pub fn clamped_relative_rmse(&self) -> f64 {
         ratio(self.clamped_error, self.clamped_reference)
+    }
+
+    pub fn clamped_relative_mse(&self) -> f64 {
+        self.clamped_relative / (3 * self.pixels) as f64
     }
 
     pub fn psnr(&self, peak: Option<f64>) -> f64 {
@@ -150,6 +157,12 @@ pub fn relative_mse(a: &Picture, b: &Picture) -> Result<f64, CompareError> {
 /// above white cannot rule.
 pub fn clamped_relative_rmse(a: &Picture, b: &Picture, clamp: f64) -> Result<f64, CompareError> {
     Ok(sums(a, b, None, clamp)?.clamped_relative_rmse())
+}
+
+/// [`relative_mse`] of both pictures with every channel clamped to
+/// `0..=clamp` first: the relative error of what a display shows.
+pub fn clamped_relative_mse(a: &Picture, b: &Picture, clamp: f64) -> Result<f64, CompareError> {
+    Ok(sums(a, b, None, clamp)?.clamped_relative_mse())
 }
 
 /// Peak signal-to-noise ratio in dB, 20 log10(peak / [`rmse`]), on linear

@@ -419,3 +419,19 @@ fn hdr_exposures_span_the_brightest_to_the_median() {
     assert_eq!(e.stops.len(), 10, "{e:?}");
     assert_eq!(flip::Exposures::of(&flat(2, 2, Vec3::ZERO)).stops, vec![0.0]);
 }
+
+#[test]
+fn the_peak_is_the_brightest_spot_kept_near_the_references() {
+    let mut b = flat(9, 9, Vec3::splat(0.5));
+    b.pixels[4 * 9 + 4] = Vec3::splat(100.0);
+    let y = Yardstick::new(b.clone(), ToneMap::from_picture(&b, ToneMode::Camera)).unwrap();
+    assert_eq!(y.measure(&b).unwrap().peak, 1.0);
+    // Smeared: a fifth of it, two pixels off, still counts as a fifth.
+    let mut a = flat(9, 9, Vec3::splat(0.5));
+    a.pixels[6 * 9 + 4] = Vec3::splat(20.0);
+    assert!((y.measure(&a).unwrap().peak - 0.2).abs() < 1e-6);
+    // Three pixels off is another spot: only the background is near.
+    let mut a = flat(9, 9, Vec3::splat(0.5));
+    a.pixels[7 * 9 + 4] = Vec3::splat(100.0);
+    assert!((y.measure(&a).unwrap().peak - 0.005).abs() < 1e-6);
+}

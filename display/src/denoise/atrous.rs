@@ -7,10 +7,17 @@
 //! deviations, so noise is smoothed and edges are kept. The variance is
 //! filtered along, so each pass knows how noisy its input still is.
 //!
-//! Weights never depend on a pixel's own noisy value alone: the luminance
-//! compared is that of the previous pass (for the first, a 3 x 3 mean), so
-//! that bright noise is not weighed down more than dark noise and the
-//! filter keeps the light of dark regions.
+//! Two choices keep the light of every region (measured against converged
+//! references on scenes lit mostly indirectly, docs/DISPLAY.md):
+//! * the luminance compared is each pixel's own (the previous pass's), not
+//!   a mean over its neighbours, which would carry a sunlit stripe's light
+//!   into the shade beside it;
+//! * the luminance difference is measured in the standard deviations of the
+//!   quieter pixel of the two (its own, not smoothed over its neighbours,
+//!   for the same reason), the same both ways: with the centre's own, a
+//!   noisy bright pixel takes in its dark neighbours while a quiet dark one
+//!   refuses the bright, and the bright regions lose light; with the noisier
+//!   one's, light runs from sunlit stripes into the shade beside them.
 
 use glam::Vec3;
 use holodeck_protocol::Picture;
@@ -23,7 +30,8 @@ use super::guide::Guide;
 pub struct AtrousOptions {
     /// Passes (each doubles the reach): 5 reaches 31 pixels each way.
     pub passes: u32,
-    /// Luminance differences of this many standard deviations weigh 1/e.
+    /// Luminance differences of this many standard deviations (of the
+    /// quieter of the two pixels) weigh 1/e.
     pub sigma_luminance: f32,
     /// The exponent of the normals' cosine.
     pub sigma_normal: i32,
@@ -36,7 +44,7 @@ impl Default for AtrousOptions {
     fn default() -> Self {
         AtrousOptions {
             passes: 5,
-            sigma_luminance: 4.0,
+            sigma_luminance: 3.0,
             sigma_normal: 128,
             sigma_depth: 1.0,
         }
@@ -75,52 +83,58 @@ pub fn atrous(picture: &Picture, guide: &Guide, o: &AtrousOptions) -> Picture {
         .collect();
     let mut variance = fill_variance(guide, &color);
     // The luminance the first pass compares: a 3 x 3 mean.
-    let mut guide_l: Vec<f32> = box3(&color.iter().map(|&c| luminance(c)).collect::<Vec<_>>(), w, h);
+    let mut guide_l: Vec<f32> = color.iter().map(|&c| luminance(c)).collect();
     let mut next_color = vec![Vec3::ZERO; n];
     let mut next_var = vec![0.0f32; n];
     for pass in 0..o.passes {
         let step = 1usize << pass;
-        let sd: Vec<f32> = box3(&variance, w, h).into_iter().map(|v| v.max(0.0).sqrt()).collect();
-        let (color_in, var_in, gl, taps) = (&color, &variance, &guide_l, &taps);
-        next_color
-            .par_chunks_mut(w)
-            .zip(next_var.par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(r, (out_c, out_v))| {
-                for c in 0..w {
-                    let p = r * w + c;
-                    let tp = taps[p];
-                    let scale_l = o.sigma_luminance * sd[p] + 1e-6 + 1e-3 * gl[p];
-                    let (mut sum_c, mut sum_v, mut sum_w) = (Vec3::ZERO, 0.0f32, 0.0f32);
-                    for (j, kj) in KERNEL.iter().enumerate() {
-                        let rr = r as isize + (j as isize - 2) * step as isize;
-                        if rr < 0 || rr >= h as isize {
-                            continue;
-                        }
-                        for (i, ki) in KERNEL.iter().enumerate() {
-                            let cc = c as isize + (i as isize - 2) * step as isize;
-                            if cc < 0 || cc >= w as isize {
-                                continue;
-                            }
-                            let q = rr as usize * w + cc as usize;
-                            let k = ki * kj;
-                            let wt = if q == p {
-                                k
-                            } else {
-                                let tq = taps[q];
-                                let dist = ((i as f32 - 2.0).abs() + (j as f32 - 2.0).abs()) * step as f32;
-                                let e = depth_term(tp, tq, dist, o.sigma_depth) + (gl[p] - gl[q]).abs() / scale_l;
-                                let nw = normal_weight(tp.normal, tq.normal, o.sigma_normal);
-                                k * nw * (-e).exp()
-                            };
-                            sum_c += color_in[q] * wt;
-                            sum_v += var_in[q] * wt * wt;
-                            sum_w += wt;
-                        }
-                    }
-                    out_c[c] = sum_c / sum_w;
-                    out_v[c] = sum_v / (sum_w * sum_w);
+        let sd: Vec<f32> = variance.iter().map(|v| v.max(0.0).sqrt()).collect();
+        let (gl, taps, sd) = (&guide_l, &taps, &sd);
+        // The weight between pixels p and q, the same both ways.
+        let weight = |p: usize, q: usize, i: usize, j: usize| -> f32 {
+            let k = KERNEL[i] * KERNEL[j];
+            if q == p {
+                return k;
+            }
+            let (tp, tq) = (taps[p], taps[q]);
+            let dist = ((i as f32 - 2.0).abs() + (j as f32 - 2.0).abs()) * step as f32;
+            let scale_l = o.sigma_luminance * sd[p].min(sd[q]) + 1e-6 + 1e-3 * gl[p].min(gl[q]);
+            let e = depth_term(tp, tq, dist, o.sigma_depth) + (gl[p] - gl[q]).abs() / scale_l;
+            k * normal_weight(tp.normal, tq.normal, o.sigma_normal) * (-e).exp()
+        };
+        // Calls `f(q, weight)` for every tap q of pixel p.
+        let taps_of = |p: usize, f: &mut dyn FnMut(usize, f32)| {
+            let (r, c) = (p / w, p % w);
+            for j in 0..5 {
+                let rr = r as isize + (j as isize - 2) * step as isize;
+                if rr < 0 || rr >= h as isize {
+                    continue;
                 }
+                for i in 0..5 {
+                    let cc = c as isize + (i as isize - 2) * step as isize;
+                    if cc < 0 || cc >= w as isize {
+                        continue;
+                    }
+                    let q = rr as usize * w + cc as usize;
+                    f(q, weight(p, q, i, j));
+                }
+            }
+        };
+        let color_in = &color;
+        let var_in = &variance;
+        next_color
+            .par_iter_mut()
+            .zip(next_var.par_iter_mut())
+            .enumerate()
+            .for_each(|(p, (out_c, out_v))| {
+                let (mut sum_c, mut sum_v, mut sum_w) = (Vec3::ZERO, 0.0f32, 0.0f32);
+                taps_of(p, &mut |q, wt| {
+                    sum_c += color_in[q] * wt;
+                    sum_v += var_in[q] * wt * wt;
+                    sum_w += wt;
+                });
+                *out_c = sum_c / sum_w;
+                *out_v = sum_v / (sum_w * sum_w);
             });
         std::mem::swap(&mut color, &mut next_color);
         std::mem::swap(&mut variance, &mut next_var);
@@ -142,7 +156,9 @@ fn depth_term(p: Tap, q: Tap, dist: f32, sigma: f32) -> f32 {
         return 0.0;
     }
     match (p.depth.is_finite(), q.depth.is_finite()) {
-        (true, true) => (p.depth - q.depth).abs() / (sigma * (p.slope * dist + 2e-3 * p.depth) + 1e-6),
+        (true, true) => {
+            (p.depth - q.depth).abs() / (sigma * (p.slope.max(q.slope) * dist + 2e-3 * p.depth.max(q.depth)) + 1e-6)
+        }
         (false, false) => 0.0,
         _ => f32::INFINITY,
     }
@@ -221,4 +237,140 @@ fn box3(v: &[f32], w: usize, h: usize) -> Vec<f32> {
         }
     });
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Uniform noise in -1..1 from a fixed sequence.
+    fn noise(i: usize, seed: u64) -> f32 {
+        let mut z = (i as u64 ^ seed.wrapping_mul(0x9E37_79B9_7F4A_7C15)).wrapping_add(0x632B_E59B_D9B4_E019);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f32 / (1u64 << 52) as f32 - 1.0
+    }
+
+    /// A `w` x `h` guide of one plane facing the eye at depth 2, every pixel's
+    /// variance `var`.
+    fn flat_guide(w: usize, h: usize, var: f32) -> Guide {
+        Guide {
+            width: w,
+            height: h,
+            depth: vec![2.0; w * h],
+            normal: vec![[0.0, 0.0, 1.0]; w * h],
+            variance: vec![var; w * h],
+        }
+    }
+
+    /// `truth` plus uniform noise of amplitude `a` times the value (the
+    /// variance of the value is a² v² / 3).
+    fn noisy(truth: &[f32], w: usize, h: usize, a: f32, seed: u64) -> Picture {
+        Picture {
+            width: w,
+            height: h,
+            pixels: truth
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| Vec3::splat(v * (1.0 + a * noise(i, seed))))
+                .collect(),
+        }
+    }
+
+    fn rmse(p: &Picture, truth: &[f32], pick: impl Fn(usize) -> bool) -> f32 {
+        let (mut s, mut n) = (0.0f32, 0.0f32);
+        for (i, (c, &t)) in p.pixels.iter().zip(truth).enumerate() {
+            if pick(i) {
+                s += (c.x - t) * (c.x - t);
+                n += 1.0;
+            }
+        }
+        (s / n).sqrt()
+    }
+
+    fn sum(p: &Picture, pick: impl Fn(usize) -> bool) -> f32 {
+        p.pixels
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| pick(*i))
+            .map(|(_, c)| c.x)
+            .sum()
+    }
+
+    #[test]
+    fn noise_on_a_plane_falls_and_its_light_stays() {
+        let (w, h) = (64, 48);
+        let truth = vec![0.5f32; w * h];
+        let p = noisy(&truth, w, h, 0.8, 1);
+        let var = (0.8f32 * 0.5).powi(2) / 3.0;
+        let out = atrous(&p, &flat_guide(w, h, var), &AtrousOptions::default());
+        let (before, after) = (rmse(&p, &truth, |_| true), rmse(&out, &truth, |_| true));
+        assert!(after < before / 4.0, "{before} -> {after}");
+        let kept = sum(&out, |_| true) / sum(&p, |_| true);
+        assert!((kept - 1.0).abs() < 0.005, "{kept}");
+    }
+
+    #[test]
+    fn a_shadow_edge_keeps_its_light_on_both_sides() {
+        // Sunlit (4.0) on the left third, shade (0.2) beside it: one
+        // surface, so only the luminance can tell them apart.
+        let (w, h) = (60, 40);
+        let truth: Vec<f32> = (0..w * h).map(|i| if i % w < 20 { 4.0 } else { 0.2 }).collect();
+        let p = noisy(&truth, w, h, 0.6, 7);
+        let mut g = flat_guide(w, h, 0.0);
+        g.variance = truth.iter().map(|v| (0.6 * v).powi(2) / 3.0).collect();
+        let out = atrous(&p, &g, &AtrousOptions::default());
+        let (lit, shade) = (|i: usize| i % w < 20, |i: usize| i % w >= 20);
+        for (name, side) in [("lit", &lit as &dyn Fn(usize) -> bool), ("shade", &shade)] {
+            let kept = sum(&out, side) / sum(&p, side);
+            assert!((kept - 1.0).abs() < 0.02, "{name}: {kept}");
+            assert!(rmse(&out, &truth, side) < rmse(&p, &truth, side) / 2.0, "{name}");
+        }
+    }
+
+    #[test]
+    fn a_silhouette_is_not_blurred_across() {
+        // A near wall (depth 1, value 1) on the left, a far one (depth 5,
+        // value 0.1) on the right, both noisy; the pixels beside the edge
+        // keep their own side's value.
+        let (w, h) = (40, 30);
+        let truth: Vec<f32> = (0..w * h).map(|i| if i % w < 20 { 1.0 } else { 0.1 }).collect();
+        let p = noisy(&truth, w, h, 0.9, 3);
+        let mut g = flat_guide(w, h, 0.0);
+        g.depth = (0..w * h).map(|i| if i % w < 20 { 1.0 } else { 5.0 }).collect();
+        g.variance = truth.iter().map(|v| (0.9 * v).powi(2) / 3.0).collect();
+        let out = atrous(&p, &g, &AtrousOptions::default());
+        let edge = |i: usize| i % w == 19 || i % w == 20;
+        assert!(rmse(&out, &truth, edge) < 0.5 * rmse(&p, &truth, edge));
+        for r in 0..h {
+            assert!(
+                (out.pixels[r * w + 20].x - 0.1).abs() < 0.05,
+                "row {r}: {}",
+                out.pixels[r * w + 20]
+            );
+        }
+    }
+
+    #[test]
+    fn bad_input_comes_out_finite_and_a_wrong_guide_changes_nothing() {
+        let (w, h) = (8, 6);
+        let mut p = noisy(&vec![1.0; w * h], w, h, 0.5, 2);
+        p.pixels[10] = Vec3::NAN;
+        p.pixels[11] = Vec3::splat(f32::INFINITY);
+        p.pixels[12] = Vec3::splat(-3.0);
+        let mut g = flat_guide(w, h, f32::NAN);
+        g.depth[5] = f32::INFINITY;
+        g.depth[6] = f32::NAN;
+        let out = atrous(&p, &g, &AtrousOptions::default());
+        assert!(out.pixels.iter().all(|c| c.is_finite() && c.min_element() >= 0.0));
+        let wrong = flat_guide(w + 1, h, 0.1);
+        let same = atrous(&p, &wrong, &AtrousOptions::default());
+        let bits = |q: &Picture| {
+            q.pixels
+                .iter()
+                .map(|c| c.to_array().map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&same), bits(&p));
+    }
 }

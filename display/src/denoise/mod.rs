@@ -10,6 +10,7 @@
 //! middle and bright parts of the reference as much as by its error.
 
 pub mod atrous;
+pub mod driver;
 pub mod guide;
 #[cfg(feature = "oidn")]
 pub mod oidn;
@@ -17,6 +18,7 @@ pub mod oidn;
 use holodeck_protocol::Picture;
 
 pub use atrous::{atrous, AtrousOptions};
+pub use driver::Denoised;
 pub use guide::Guide;
 
 /// Which denoiser a display runs after reconstruction.

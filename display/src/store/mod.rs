@@ -106,6 +106,8 @@ struct Pending {
     color: [f32; 3],
     /// The ray's weight; negative when it passed too far from the eye for
     /// its hit point to be trusted to its sub-pixel (see [`Store::add`]).
+    /// A ray that escaped weighs 1 and keeps here, negated, how far it
+    /// passed from the eye (0: it passed through it, trusted).
     weight: f32,
     depth: f32,
     /// Where in the pixel, in 65536ths.
@@ -116,6 +118,32 @@ impl Pending {
     #[inline]
     fn trusted(&self) -> bool {
         self.weight > 0.0
+    }
+
+    /// The weight the ray joins its estimate with.
+    #[inline]
+    fn ray_weight(&self) -> f32 {
+        if self.depth == f32::INFINITY {
+            1.0
+        } else {
+            self.weight.abs()
+        }
+    }
+
+    /// True when a surface of depth `near` in its pixel may hide it from
+    /// the eye: an untrusted ray behind that surface, or an escaped ray
+    /// that passed the eye farther than `footprint` (the width of a pixel
+    /// at depth 1) times `near`, so that the surface may stand between the
+    /// eye and the sky it saw.
+    #[inline]
+    fn hidden_by(&self, near: f32, tolerance: f32, footprint: f32) -> bool {
+        if self.trusted() {
+            false
+        } else if self.depth == f32::INFINITY {
+            near.is_finite() && -self.weight > near * footprint
+        } else {
+            self.depth > near * tolerance
+        }
     }
 
     #[inline]
@@ -345,8 +373,14 @@ impl<I: PixelIndex + Sync> Store<I> {
                     let trusted = 2.0 * (1.0 - cos.clamp(-1.0, 1.0)) <= angle * angle;
                     (if trusted { w } else { -w }, depth as f32)
                 }
-                // Parallel rays see the same point of the sky from anywhere.
-                None => (1.0, f32::INFINITY),
+                // Parallel rays see the same point of the sky from anywhere
+                // nothing stands between: from the eye, if it passed through
+                // the eye; otherwise unless a surface of its pixel may hide it
+                // (checked on insertion, against the pixel's nearest depth).
+                None => {
+                    let miss = s.miss_distance(eye) as f32;
+                    (if miss > 0.0 { -miss } else { 1.0 }, f32::INFINITY)
+                }
             };
             Projected::On(Pending {
                 key: index.key(col, row),
@@ -390,11 +424,18 @@ impl<I: PixelIndex + Sync> Store<I> {
             }
         }
         let tolerance = 1.0 + self.options.depth_tolerance;
+        // A pixel's width at depth 1 (a parallel view has no eye point for
+        // a ray to pass: its sky is trusted as before).
+        let footprint = if self.projector.is_parallel() {
+            f32::INFINITY
+        } else {
+            (self.projector.pixel_angle(1.0) * f64::from(sub)) as f32
+        };
         // Rays of one pixel are adjacent after the sort: after the first, the
         // rest go straight to its slot instead of down the index again.
         let mut last: Option<(u64, u32)> = None;
         for p in &pending {
-            if sub > 1 && !p.trusted() && p.depth > self.near[self.index.block(p.key, shift)] * tolerance {
+            if sub > 1 && p.hidden_by(self.near[self.index.block(p.key, shift)], tolerance, footprint) {
                 self.stats.discarded += 1;
                 continue;
             }
@@ -408,7 +449,7 @@ impl<I: PixelIndex + Sync> Store<I> {
                         let slot = self.entries.len() as u32;
                         self.entries.push(Entry {
                             key: p.key,
-                            estimate: Estimate::of_ray(p.color, p.weight.abs(), p.depth, p.at()),
+                            estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
                         });
                         self.index.fill(at, slot);
                         slot
@@ -430,11 +471,11 @@ impl<I: PixelIndex + Sync> Store<I> {
         let e = &mut self.entries[slot as usize].estimate;
         match e.fit(p.depth, p.depth, self.options.depth_tolerance) {
             Fit::Joins => {
-                e.add_ray(p.color, p.weight.abs(), p.depth, p.at());
+                e.add_ray(p.color, p.ray_weight(), p.depth, p.at());
                 self.stats.merged += 1;
             }
             Fit::Nearer => {
-                *e = Estimate::of_ray(p.color, p.weight.abs(), p.depth, p.at());
+                *e = Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at());
                 self.stats.replaced += 1;
             }
             Fit::Behind => self.stats.discarded += 1,

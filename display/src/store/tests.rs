@@ -354,3 +354,47 @@ fn sub_pixels_follow_the_frame_size_unless_asked() {
     assert_eq!(d.store().subpixels(), 1);
     assert_eq!(d.stats().kept, d.store().entries().len() as u64);
 }
+
+#[test]
+fn sky_seen_from_elsewhere_stays_out_of_pixels_with_a_surface() {
+    // The test plane fills the frame; rays that escaped along the same
+    // directions, but from origins 3 m beside the eye (from beyond a wall,
+    // as a section outdoors sends them), must not show the sky on it; the
+    // same sky rays passing through the eye are what the eye sees there.
+    let vp = viewport(EYE_VIEW, 16, 12);
+    let mut plane: Vec<Sample> = Vec::new();
+    let mut sky_far: Vec<Sample> = Vec::new();
+    let mut sky_near: Vec<Sample> = Vec::new();
+    let mut rng = Rng(9);
+    for i in 0..16 * 12 * 4 {
+        // Four plane rays in every pixel, so every pixel knows its surface.
+        let (col, row) = ((i / 4) % 16, (i / 4) / 16);
+        let (x, y) = ((col as f64 + rng.next()) / 16.0, (row as f64 + rng.next()) / 12.0);
+        if let Some(s) = plane_sample(&vp.view, x, y, DVec3::ZERO) {
+            plane.push(s);
+        }
+        let (eye, dir) = vp.view.ray(rng.next(), rng.next()).unwrap();
+        let sky = |origin: DVec3| Sample {
+            origin,
+            direction: dir,
+            hit: None,
+            color: [0.2, 0.4, 9.0],
+        };
+        sky_far.push(sky(eye + DVec3::new(3.0, 0.0, 0.0) + dir));
+        sky_near.push(sky(eye + dir));
+    }
+    let truth = analytic(&vp);
+    let blue = |p: &Picture| p.pixels.iter().filter(|c| c.z > 2.0).count();
+    for (name, sky, sky_shows) in [("far", &sky_far, false), ("near", &sky_near, true)] {
+        let mut d = QuadtreeDriver::new(vp.clone());
+        d.add(&plane);
+        d.add(sky);
+        let pic = d.render();
+        if sky_shows {
+            assert!(blue(&pic) > 0, "{name}: the eye's own sky rays show");
+        } else {
+            assert_eq!(blue(&pic), 0, "{name}");
+            assert!(rel_err(&pic, &truth, |_| true) < 0.15, "{name}");
+        }
+    }
+}

@@ -6,7 +6,7 @@ use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use holodeck_display::denoise::Denoiser;
+use holodeck_display::denoise::{Denoised, Denoiser};
 use holodeck_display::geometry::{Geometry, DEFAULT_BUDGET};
 use holodeck_display::{make_driver, Driver, DriverSetup, EstimatorOptions, Viewport};
 use holodeck_protocol::{check_picture_size, MAX_PICTURE_SIDE};
@@ -136,7 +136,7 @@ pub struct FrameArgs {
 }
 
 /// The denoiser displays run unless told otherwise.
-pub const DEFAULT_DENOISER: &str = "off";
+pub const DEFAULT_DENOISER: &str = "atrous";
 
 impl FrameArgs {
     /// The driver these flags choose, with its geometry loaded.
@@ -192,16 +192,20 @@ impl DriverChoice {
         }
     }
 
-    /// Makes a fresh driver for `viewport`.
+    /// Makes a fresh driver for `viewport`, its frames denoised as chosen.
     pub fn make(&self, viewport: Viewport) -> Result<Box<dyn Driver>> {
-        Ok(make_driver(
+        let driver = make_driver(
             &self.name,
             viewport,
             DriverSetup {
                 options: self.options,
                 geometry: self.geometry.as_deref(),
             },
-        )?)
+        )?;
+        Ok(match self.denoise {
+            Denoiser::Off => driver,
+            d => Box::new(Denoised::new(driver, d)),
+        })
     }
 }
 

@@ -118,12 +118,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
 /// The text report of one comparison.
 pub fn report(m: &Metrics, noise: Option<&ReferenceNoise>, too_noisy: &[&str]) -> String {
     let mut s = format!(
-        "relative RMSE {:.4}, clamped at {}: {:.4}, relative MSE {:.5}, RMSE {:.6}, PSNR {:.2} dB\n\
+        "relative RMSE {:.4}, relative MSE {:.5}; clamped at {}: {:.4} and {:.5}; RMSE {:.6}, PSNR {:.2} dB\n\
          SSIM {:.4}, FLIP {:.4} (LDR), {:.4} (HDR); {} pixels\n",
         m.relative_rmse,
+        m.relative_mse,
         m.clamp,
         m.clamped_relative_rmse,
-        m.relative_mse,
+        m.clamped_relative_mse,
         m.rmse,
         m.psnr_db,
         m.ssim,
@@ -139,15 +140,15 @@ pub fn report(m: &Metrics, noise: Option<&ReferenceNoise>, too_noisy: &[&str]) -
     if let Some(b) = l.band {
         s += &format!(", silhouette band {b:.3}");
     }
-    s += "\n";
+    s += &format!("; brightest spot {:.3}\n", m.peak);
     if let Some(b) = m.band_relative_rmse {
         s += &format!("relative RMSE in the silhouette band {b:.4}\n");
     }
     match noise {
         Some(n) => {
             s += &format!(
-                "reference noise: relative RMSE {:.4}, clamped {:.4}, relative MSE {:.5}; FLIP between its halves {:.4}\n",
-                n.relative_rmse, n.clamped_relative_rmse, n.relative_mse, n.flip_between_halves
+                "reference noise: relative RMSE {:.4}, relative MSE {:.5}; clamped {:.4} and {:.5}; FLIP between its halves {:.4}\n",
+                n.relative_rmse, n.relative_mse, n.clamped_relative_rmse, n.clamped_relative_mse, n.flip_between_halves
             );
             if too_noisy.is_empty() {
                 s += "the reference's noise is under a quarter of every error above\n";

@@ -12,19 +12,24 @@ use crate::human::count_in;
 #[derive(clap::Args)]
 #[command(after_help = "\
 Builds the furnished room with terrain and a forest outside its window, renders the views of a
-scripted walk directly as references, fills a holodeck for the walk (all cores, with a
-progress bar), draws every view with every display driver (quadtree on the CPU; Voronoi cones
-and the spherical Delaunay mesh on the GPU, or on Mesa's software Vulkan where there is none),
-and writes into OUT:
-  frames/viewNN-DRIVER.png    every frame, and each view's reference and direct render
-                              (and .hdr beside each, linear, for `holodeck compare`)
-  compare-viewNN.png          reference | quadtree | voronoi | mesh | direct render in the
-                              same time, each with its relative RMSE
-  chart-error-vs-paths-and-time.{png,svg}   the first view's error as the holodeck fills,
-                              per driver, against a direct render with the same paths
-  chart-walkthrough.{png,svg} each view's error against time along the walk, the holodeck
-                              reusing its rays against tracing every view from scratch
-  summary.md                  rays, rays/s, recall rate and error per driver (also printed)
+walk through the room and out across the terrain directly as references (two independent
+halves each, which state the reference's own noise), fills a holodeck for the walk (all cores,
+with a progress bar), draws every view with every display driver (quadtree on the CPU; Voronoi
+cones and the spherical Delaunay mesh on the GPU, or on Mesa's software Vulkan where there is
+none), each on its own and through the display's denoiser, renders each view directly in its
+share of the holodeck's time, on its own and cleaned by Intel Open Image Denoise with albedo and
+normals (a build with --features oidn; without it that row says so), and writes into OUT:
+  frames/viewNN-METHOD.png    every frame, and each view's reference (and .hdr beside each,
+                              linear, for `holodeck compare`)
+  compare-viewNN.png          reference | quadtree | quadtree + atrous | voronoi + atrous |
+                              mesh + atrous | direct | direct + oidn, each with its FLIP
+  chart-error-vs-paths-and-time.{png,svg}   the first view's FLIP as the holodeck fills,
+                              per driver, against direct renders with the same paths
+  chart-walkthrough.{png,svg} each view's FLIP and clamped error against each method's time
+                              so far along the walk
+  summary.md, summary.json    every measure per method (FLIP, HDR-FLIP, SSIM, relative errors
+                              raw and clamped, light kept per region), the references' noise,
+                              and where the holodeck beats a denoised direct render (printed)
   demo.hdk, walk.vf           the holodeck file and the walk (see `holodeck pict`, `holodeck view`)
 A driver that cannot run here (no Vulkan at all) is reported and left out.
 With --window it then opens the walkthrough window on the holodeck (`holodeck run`), which
@@ -32,7 +37,7 @@ goes on filling while you walk.
 
 Examples:
   holodeck demo
-  holodeck demo -o /tmp/demo --rays 8M --views 8
+  holodeck demo -o /tmp/demo --rays 8M --views 40 --reference-spp 1024
   holodeck demo --window")]
 pub struct Args {
     /// Where to write.
@@ -42,18 +47,18 @@ pub struct Args {
     #[arg(long, default_value = "4M", value_parser = count_in(1000, 1_000_000_000))]
     rays: u64,
     /// Views of the walk.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=1000))]
     views: u32,
     /// Triangles of the scenery outside the window (K, M suffixes).
     #[arg(long, default_value = "200K", value_parser = count_in(1000, super::args::MAX_TRIANGLES))]
     triangles: u64,
     /// Frame width.
-    #[arg(short = 'x', long, default_value_t = 192, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(16..=4096))]
     width: u32,
     /// Frame height.
-    #[arg(short = 'y', long, default_value_t = 144, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    #[arg(short = 'y', long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(16..=4096))]
     height: u32,
-    /// Samples per pixel of the reference renders.
+    /// Samples per pixel of the reference renders (two independent halves of half each).
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
     reference_spp: u32,
     /// Seed of the fill.

@@ -80,10 +80,8 @@ pub struct FrameStats {
     pub samples: u64,
     /// Reading, decoding and inserting.
     pub recall: Duration,
-    /// Drawing the frame.
+    /// Drawing the frame (and denoising it).
     pub render: Duration,
-    /// Denoising it.
-    pub denoise: Duration,
     /// The driver's counters.
     pub driver: DriverStats,
 }
@@ -97,6 +95,44 @@ pub fn draw(
     stride: u32,
     seed: u64,
 ) -> Result<(holodeck_protocol::Picture, Histogram, FrameStats)> {
+    let (mut d, recalled) = recall(file, viewport, driver, stride, seed)?;
+    let start = Instant::now();
+    let picture = d.render();
+    let render = start.elapsed();
+    // Tone mapping follows what is on screen (as rhpict's does).
+    let hist = Histogram::from_picture(&picture);
+    Ok((
+        picture,
+        hist,
+        FrameStats {
+            beams: recalled.beams,
+            samples: recalled.samples,
+            recall: recalled.secs,
+            render,
+            driver: d.stats(),
+        },
+    ))
+}
+
+/// What [`recall`] read.
+pub struct Recalled {
+    /// Beams the view selected.
+    pub beams: usize,
+    /// Samples read and handed to the driver.
+    pub samples: u64,
+    /// Reading, decoding and inserting.
+    pub secs: Duration,
+}
+
+/// A fresh driver for `viewport` holding every stored ray of the beams the
+/// view sees, ready to draw.
+pub fn recall(
+    file: &mut HoloFile,
+    viewport: Viewport,
+    driver: &DriverChoice,
+    stride: u32,
+    seed: u64,
+) -> Result<(Box<dyn holodeck_display::Driver>, Recalled)> {
     let sections = file.sections().to_vec();
     let options = RequestOptions {
         stride,
@@ -140,28 +176,12 @@ pub fn draw(
     flush(&mut records, &mut beams);
     // The last chunk decoded is still waiting.
     flush(&mut records, &mut beams);
-    let recall = start.elapsed();
-    let start = Instant::now();
-    let picture = d.render();
-    let render = start.elapsed();
-    let start = Instant::now();
-    let picture = match driver.denoise {
-        Denoiser::Off => picture,
-        denoiser => denoiser.apply(&picture, &d.guide())?,
-    };
-    let denoise = start.elapsed();
-    // Tone mapping follows what is on screen (as rhpict's does).
-    let hist = Histogram::from_picture(&picture);
     Ok((
-        picture,
-        hist,
-        FrameStats {
+        d,
+        Recalled {
             beams: keys.len(),
             samples,
-            recall,
-            render,
-            denoise,
-            driver: d.stats(),
+            secs: start.elapsed(),
         },
     ))
 }
@@ -256,7 +276,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let secs = s.recall.as_secs_f64();
         let denoised = match driver.denoise {
             Denoiser::Off => String::new(),
-            d => format!(", denoised ({}) in {:.1} ms", d.name(), s.denoise.as_secs_f64() * 1e3),
+            d => format!(" (denoised: {})", d.name()),
         };
         println!(
             "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms{denoised}; {} pixel estimates, {} rays behind a nearer surface",

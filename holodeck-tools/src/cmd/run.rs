@@ -68,6 +68,9 @@ pub struct Args {
     /// Frame height.
     #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
+    /// The display's denoiser: atrous, oidn (a build with --features oidn) or off.
+    #[arg(long, default_value = super::args::DEFAULT_DENOISER)]
+    denoise: String,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
     bounces: u32,
@@ -194,6 +197,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ),
     };
     let time = parse_duration(&a.time, 1.0).context("--time")?;
+    holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
     let (before, default_view) = {
         let (_, file) = super::fill::prepare(&a.scene, &a.file, a.triangles, a.scene_memory, a.accept_loss)?;
         let view = if a.scene == "builtin:room" {
@@ -301,6 +305,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 &token_file,
                 "--driver",
                 driver,
+                "--denoise",
+                &a.denoise,
             ])
             .arg("--views")
             .arg(views)

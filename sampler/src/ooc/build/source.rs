@@ -246,7 +246,8 @@ impl LandscapeSource {
         let err = |e: crate::SceneError| OocError::Build(format!("builtin:landscape: {e}"));
         let mut b = SceneBuilder::new();
         let ids = landscape::add_materials(&mut b).map_err(err)?;
-        let setting = crate::scene::gen::room::add_room(&mut b, &GenParams::default()).map_err(err)?;
+        let room = crate::scene::gen::room::add_room(&mut b, &GenParams::default()).map_err(err)?;
+        let setting = landscape::with_outdoors(room).map_err(err)?;
         b.sky(setting.sky).map_err(err)?;
         for s in setting.sections {
             b.section(s);

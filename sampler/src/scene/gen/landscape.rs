@@ -151,8 +151,8 @@ fn write_tree(seed: u64, k: usize, l: &Layout, first: u32, pos: &mut [Vec3], tri
     );
 }
 
-/// Adds the room, the terrain and the forest; returns the room's daylight sky
-/// and section.
+/// Adds the room, the terrain and the forest; returns the room's daylight sky,
+/// its section and one outdoors ([`with_outdoors`]).
 pub fn add_landscape(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting, SceneError> {
     if params.resolution.is_some() {
         tracing::warn!("landscape: --resolution does not apply; ignored");
@@ -218,7 +218,21 @@ pub fn add_landscape(b: &mut SceneBuilder, params: &GenParams) -> Result<Setting
             write_tree(seed, k, &l, first, pos, tris, ids);
         });
     b.add_world_mesh("landscape terrain and trees", positions, triangles)?;
-    add_room(b, &GenParams::default())
+    with_outdoors(add_room(b, &GenParams::default())?)
+}
+
+/// The room's setting with a second section outdoors, over the clearing east
+/// of its window (x 7 to 15 m, y 0.5 to 3.5 m, eye heights 1.2 to 2.2 m):
+/// a walk can leave the room and go on across the terrain.
+pub fn with_outdoors(mut room: Setting) -> Result<Setting, SceneError> {
+    let outdoors = crate::scene::section::box_section(
+        holodeck_protocol::SectionKind::Interior,
+        [7.0, 0.5, 1.2],
+        [8.0, 3.0, 1.0],
+    )
+    .map_err(|e| super::section_error("landscape outdoor", e))?;
+    room.sections.push(outdoors);
+    Ok(room)
 }
 
 /// Streams the terrain and the forest of the landscape (not the room),
