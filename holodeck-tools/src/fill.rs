@@ -8,7 +8,7 @@ use std::collections::HashMap;
 
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
-use holodeck_sampler::beam::trace_batch;
+use holodeck_sampler::beam::{trace_batch, FileRules};
 use holodeck_sampler::shade::wavefront::AUTO_MIN_PATHS;
 use holodeck_sampler::{Reorder, Tracer};
 use holodeck_server::schedule::BatchSchedule;
@@ -122,7 +122,11 @@ pub fn fill(
     progress: &dyn Fn(u64),
 ) -> anyhow::Result<FillReport> {
     let sections = file.sections().to_vec();
-    let obstructions = file.settings().obstructions;
+    // The file's settings, not the tracer's options, decide how it is filled.
+    let rules = FileRules {
+        obstructions: file.settings().obstructions,
+        vdistance: file.settings().vdistance,
+    };
     let stored = |k| file.beam_len(k).unwrap_or(0);
     let mut schedule = match &o.views {
         Some(v) => BatchSchedule::for_views(&sections, &v.seen, stored),
@@ -177,14 +181,7 @@ pub fn fill(
             None => HashMap::new(),
         };
         let mode = |k: BeamKey| modes.get(&k).copied().unwrap_or(SamplingMode::Uniform);
-        let traced = trace_batch(
-            tracer,
-            &sections,
-            obstructions,
-            &batch,
-            &mode,
-            o.seed ^ round.rotate_left(32),
-        );
+        let traced = trace_batch(tracer, &sections, rules, &batch, &mode, o.seed ^ round.rotate_left(32));
         let store = Instant::now();
         for (key, records) in &traced {
             file.append(*key, records)?;

@@ -1,6 +1,12 @@
 //! Any driver with a denoiser after it: every frame it draws is cleaned
 //! before it is shown, so displays (pictures, the window, headless runs)
 //! take a denoised driver as they take any other.
+//!
+//! A frame drawn after the view moved and before any new sample arrived
+//! (motion: the estimates only reprojected, as the window draws while the
+//! user drags) is shown as drawn: the denoiser costs a frame's time many
+//! times over on a CPU, and a moving picture does not need it. The frame
+//! after the next samples is denoised again.
 
 use holodeck_protocol::Picture;
 
@@ -14,6 +20,8 @@ pub struct Denoised {
     /// The denoiser failed once (OIDN refusing a device, say): frames are
     /// shown as drawn from then on, and the failure was logged.
     failed: bool,
+    /// The view moved and no sample arrived since.
+    moving: bool,
 }
 
 impl Denoised {
@@ -23,6 +31,7 @@ impl Denoised {
             inner,
             denoiser,
             failed: false,
+            moving: false,
         }
     }
 }
@@ -33,10 +42,16 @@ impl Driver for Denoised {
     }
 
     fn add(&mut self, samples: &[Sample]) {
+        if !samples.is_empty() {
+            self.moving = false;
+        }
         self.inner.add(samples)
     }
 
     fn set_view(&mut self, viewport: Viewport) {
+        if viewport != *self.inner.viewport() {
+            self.moving = true;
+        }
         self.inner.set_view(viewport)
     }
 
@@ -46,7 +61,7 @@ impl Driver for Denoised {
 
     fn render(&mut self) -> Picture {
         let picture = self.inner.render();
-        if self.failed {
+        if self.failed || self.moving {
             return picture;
         }
         match self.denoiser.apply(&picture, &self.inner.guide()) {
@@ -81,5 +96,35 @@ impl Driver for Denoised {
 
     fn guide(&self) -> Guide {
         self.inner.guide()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::denoise::AtrousOptions;
+    use crate::testkit::{random_plane_samples, viewport, EYE_VIEW};
+
+    #[test]
+    fn frames_are_denoised_but_while_the_view_moves_without_new_samples() {
+        let vp = viewport(EYE_VIEW, 32, 24);
+        let raw = || crate::new_driver("splat", vp.clone()).unwrap();
+        let mut samples = random_plane_samples(&vp.view, 32 * 24 * 8, 3);
+        for (i, s) in samples.iter_mut().enumerate() {
+            s.color = s.color.map(|c| c * (0.5 + (i % 7) as f32 / 6.0));
+        }
+        let mut plain = raw();
+        let mut d = Denoised::new(raw(), Denoiser::Atrous(AtrousOptions::default()));
+        plain.add(&samples);
+        d.add(&samples);
+        assert_ne!(d.render(), plain.render(), "a still view's frame is denoised");
+        let moved = viewport(&format!("{EYE_VIEW} -vp 0.01 0 0"), 32, 24);
+        plain.set_view(moved.clone());
+        d.set_view(moved);
+        assert_eq!(d.render(), plain.render(), "a moving view's frame is shown as drawn");
+        plain.add(&samples[..100]);
+        d.add(&samples[..100]);
+        assert_ne!(d.render(), plain.render(), "new samples: denoised again");
+        assert_eq!((d.name(), d.stats()), (plain.name(), plain.stats()));
     }
 }

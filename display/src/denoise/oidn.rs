@@ -102,3 +102,86 @@ pub fn denoise_guided(color: &Picture, guide: &Guide) -> Result<Picture, Denoise
     };
     denoise(color, Some(&albedo), Some(&normal))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A picture of two flat halves (a lit wall and a shaded one) with
+    /// uniform noise of half the value, deterministic.
+    fn noisy_halves(w: usize, h: usize) -> (Picture, Picture) {
+        let truth = |i: usize| if i % w < w / 2 { 2.0f32 } else { 0.2 };
+        let mut z = 0x1234_5678u64;
+        let mut noise = || {
+            z ^= z << 13;
+            z ^= z >> 7;
+            z ^= z << 17;
+            (z >> 11) as f32 / (1u64 << 53) as f32 - 0.5
+        };
+        let clean = Picture {
+            width: w,
+            height: h,
+            pixels: (0..w * h).map(|i| Vec3::splat(truth(i))).collect(),
+        };
+        let noisy = Picture {
+            width: w,
+            height: h,
+            pixels: (0..w * h).map(|i| Vec3::splat(truth(i) * (1.0 + noise()))).collect(),
+        };
+        (clean, noisy)
+    }
+
+    fn rmse(a: &Picture, b: &Picture) -> f32 {
+        let s: f32 = a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(x, y)| (*x - *y).length_squared())
+            .sum();
+        (s / (3 * a.pixels.len()) as f32).sqrt()
+    }
+
+    #[test]
+    fn noise_falls_and_each_half_keeps_its_light() {
+        let (w, h) = (64, 48);
+        let (clean, noisy) = noisy_halves(w, h);
+        let albedo = Picture {
+            width: w,
+            height: h,
+            pixels: vec![Vec3::splat(0.7); w * h],
+        };
+        let normal = Picture {
+            width: w,
+            height: h,
+            pixels: vec![Vec3::Z; w * h],
+        };
+        let out = denoise(&noisy, Some(&albedo), Some(&normal)).unwrap();
+        assert!(
+            rmse(&out, &clean) < 0.5 * rmse(&noisy, &clean),
+            "{} {}",
+            rmse(&out, &clean),
+            rmse(&noisy, &clean)
+        );
+        for side in [0..w / 2, w / 2..w] {
+            let sum = |p: &Picture| -> f32 {
+                (0..w * h)
+                    .filter(|i| side.contains(&(i % w)))
+                    .map(|i| p.pixels[i].x)
+                    .sum()
+            };
+            let kept = sum(&out) / sum(&clean);
+            assert!((kept - 1.0).abs() < 0.05, "{side:?}: {kept}");
+        }
+        // Colour alone works too; a mismatched auxiliary picture is an error.
+        assert!(denoise(&noisy, None, None).is_ok());
+        let small = Picture {
+            width: 2,
+            height: 2,
+            pixels: vec![Vec3::ONE; 4],
+        };
+        assert!(matches!(
+            denoise(&noisy, Some(&small), None),
+            Err(DenoiseError::Oidn(_))
+        ));
+    }
+}

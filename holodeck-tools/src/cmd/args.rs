@@ -154,10 +154,23 @@ impl FrameArgs {
     }
 }
 
-/// Loads a scene's triangles for a display, simplified to `budget`.
+/// Loads a scene's triangles for a display, simplified to `budget`; thin
+/// glass and mirrors are left out (a display culls by what hides).
 pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
     let scene = super::render::load(spec, None)?;
-    let triangles: Vec<[glam::Vec3; 3]> = (0..scene.triangles.len()).map(|t| scene.vertices(t)).collect();
+    // Windows and mirrors hide nothing a holodeck shows through them: with
+    // virtual distances their samples lie beyond them, and culling by them
+    // would black out every window.
+    let see_through = |m: u32| {
+        matches!(
+            scene.materials[m as usize],
+            holodeck_sampler::Material::Glass { thin: true, .. } | holodeck_sampler::Material::Mirror { .. }
+        )
+    };
+    let triangles: Vec<[glam::Vec3; 3]> = (0..scene.triangles.len())
+        .filter(|&t| !see_through(scene.triangles[t].material))
+        .map(|t| scene.vertices(t))
+        .collect();
     let g = Geometry::new(&triangles, budget, None);
     tracing::info!(
         "display geometry: {} of {} triangles of {spec}",

@@ -88,7 +88,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let status = Command::new(std::env::current_exe().context("finding the holodeck executable")?)
             .args(["run", crate::demo::SCENE])
             .arg(&hdk)
-            .args(["--triangles", &a.triangles.to_string(), "-o", "quadtree", "--views"])
+            .args([
+                "--triangles",
+                &a.triangles.to_string(),
+                "-o",
+                "quadtree",
+                "--vdistance",
+                "--views",
+            ])
             .arg(a.output.join("walk.vf"))
             .status()
             .context("starting `holodeck run` for the window")?;

@@ -72,11 +72,18 @@ pub struct Args {
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
     accept_loss: bool,
+    /// For a new FILE: record virtual distances through windows and mirrors
+    /// (VDISTANCE), so that what a window shows reprojects as the view beyond
+    /// it does when the eye moves (as `holodeck demo` fills).
+    #[arg(long)]
+    vdistance: bool,
 }
 
 /// Loads a scene and opens its holodeck file for writing, creating the file
-/// from the scene's sections if it does not exist; refuses a file made for
-/// another scene, and one whose newest commit is damaged unless `accept_loss`.
+/// from the scene's sections if it does not exist (recording virtual
+/// distances through windows and mirrors if `vdistance`); refuses a file
+/// made for another scene, and one whose newest commit is damaged unless
+/// `accept_loss`.
 /// Of two processes creating the same file at once, one creates it and the
 /// other opens it (or is told it is in use).
 pub fn prepare(
@@ -85,6 +92,7 @@ pub fn prepare(
     triangles: Option<u64>,
     scene_memory: Option<u64>,
     accept_loss: bool,
+    vdistance: bool,
 ) -> Result<(SceneInput, HoloFile)> {
     let scene = SceneInput::open(scene_spec, triangles, scene_memory)?;
     let hash = scene.hash();
@@ -95,6 +103,7 @@ pub fn prepare(
         let settings = Settings {
             sections: scene.sections().to_vec(),
             scene: Some(hash.clone()),
+            vdistance,
             ..Settings::default()
         };
         match HoloFile::create(path, &settings) {
@@ -145,7 +154,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|t| parse_duration(t, 1.0))
         .transpose()
         .context("--time")?;
-    let (scene, mut file) = prepare(&a.scene, &a.file, a.triangles, a.scene_memory, a.accept_loss)?;
+    let (scene, mut file) = prepare(
+        &a.scene,
+        &a.file,
+        a.triangles,
+        a.scene_memory,
+        a.accept_loss,
+        a.vdistance,
+    )?;
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,

@@ -83,6 +83,10 @@ pub struct Args {
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
     accept_loss: bool,
+    /// For a new FILE: record virtual distances through windows and mirrors
+    /// (VDISTANCE; see `holodeck fill --help`).
+    #[arg(long)]
+    vdistance: bool,
     /// Triangles for builtin:landscape (K, M suffixes).
     #[arg(long, value_parser = crate::human::count_in(1, super::args::MAX_TRIANGLES))]
     triangles: Option<u64>,
@@ -199,7 +203,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let time = parse_duration(&a.time, 1.0).context("--time")?;
     holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
     let (before, default_view) = {
-        let (_, file) = super::fill::prepare(&a.scene, &a.file, a.triangles, a.scene_memory, a.accept_loss)?;
+        let (_, file) = super::fill::prepare(
+            &a.scene,
+            &a.file,
+            a.triangles,
+            a.scene_memory,
+            a.accept_loss,
+            a.vdistance,
+        )?;
         let view = if a.scene == "builtin:room" {
             super::render::ROOM_VIEW.to_string()
         } else {

@@ -39,12 +39,13 @@ fn at(t: f64) -> View {
         )
     } else {
         // Outdoors, from just past the window out over the clearing, then
-        // turning to look back at the house.
+        // turning to look back at the house; looking 8.5 degrees down, so
+        // the sun (25 degrees high) stays above the frame.
         let s = (t - INSIDE) / (1.0 - INSIDE);
         (
             DVec3::new(7.5 + 7.0 * s, 2.0 + 0.8 * (PI * s).sin(), 1.6),
             35.0 * (2.0 * PI * s).sin() + 160.0 * smooth(0.7, 1.0, s),
-            -0.05,
+            -0.15,
         )
     };
     let (sy, cy) = yaw_deg.to_radians().sin_cos();

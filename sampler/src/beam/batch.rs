@@ -167,15 +167,11 @@ pub(crate) const TASK_RAYS: u32 = 256;
 pub fn trace_batch(
     tracer: &Tracer,
     sections: &[Section],
-    obstructions: bool,
+    rules: FileRules,
     batch: &[(BeamKey, u32)],
     mode: &(dyn Fn(BeamKey) -> SamplingMode + Sync),
     seed: u64,
 ) -> Vec<(BeamKey, Vec<RayRecord>)> {
-    let rules = FileRules {
-        obstructions,
-        vdistance: tracer.options.vdistance,
-    };
     let mut pieces = Vec::with_capacity(batch.len());
     for (i, &(key, n)) in batch.iter().enumerate() {
         let mut left = n;
@@ -265,7 +261,7 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             for reorder in [Reorder::Off, Reorder::HitPoint, Reorder::Origin] {
                 tracer.options.reorder = reorder;
-                let got = pool.install(|| trace_batch(&tracer, &sections, false, &batch, &mode, 11));
+                let got = pool.install(|| trace_batch(&tracer, &sections, FileRules::default(), &batch, &mode, 11));
                 for ((k, records), &(key, n)) in got.iter().zip(&batch) {
                     assert_eq!((*k, records.len()), (key, n as usize));
                 }

@@ -77,6 +77,10 @@ pub(super) struct Path {
     depth: u32,
     /// Segments cast so far.
     pub(super) segment: u32,
+    /// Set where a thin pane reflected the path while its distance was still
+    /// measured: the ray straight on through the pane, whose first surface
+    /// gives the distance instead (see [`Tracer::look_straight_on`]).
+    straight: Option<Ray>,
 }
 
 /// Light one vertex sampled directly, waiting on its shadow rays: each ray
@@ -119,6 +123,7 @@ impl Path {
             travelled: 0.0,
             depth: 0,
             segment: 0,
+            straight: None,
         }
     }
 
@@ -170,6 +175,7 @@ impl Tracer {
                 break;
             }
             let step = self.shade(&mut p, hit, rng, &mut direct);
+            self.look_straight_on(&mut p, fetch);
             if step.direct {
                 p.add_direct(&direct, |ray| self.visibility(*ray, fetch));
                 if fetch.missed {
@@ -181,6 +187,31 @@ impl Tracer {
             }
         }
         p.result()
+    }
+
+    /// Where a pane reflected `p` while its distance was measured, finds
+    /// the distance straight on through the pane (and any panes behind it)
+    /// to the first other surface; infinite where the line escapes.
+    pub(super) fn look_straight_on(&self, p: &mut Path, fetch: &mut Fetch) {
+        const PANES: usize = 8;
+        let Some(mut ray) = p.straight.take() else { return };
+        let mut t = 0.0;
+        for _ in 0..PANES {
+            let Some(h) = self.nearest(&ray, 0.0, fetch) else {
+                p.distance = f32::INFINITY;
+                return;
+            };
+            t += h.t;
+            let pane = h
+                .material
+                .is_some_and(|m| matches!(self.scene.materials[m as usize], Material::Glass { thin: true, .. }));
+            if !pane {
+                break;
+            }
+            let side = if ray.dir.dot(h.ng) > 0.0 { h.ng } else { -h.ng };
+            ray = Ray::new(offset_origin(ray.at(h.t), side), ray.dir);
+        }
+        p.distance = p.path + t;
     }
 
     /// Shades the hit of `p`'s ray (`None`: it escaped): adds what it
@@ -253,6 +284,15 @@ impl Tracer {
         };
         p.beta *= s.weight;
         let passed_pane = pane && s.wi == -wo;
+        if pane && !passed_pane && p.measuring {
+            // What a window shows is what lies straight on through it: its
+            // reflection is reported at that distance too, so the few paths
+            // a pane reflects join the view through it instead of standing
+            // in front of it and hiding it from a display's depth test.
+            p.measuring = false;
+            let side = if p.ray.dir.dot(ng) > 0.0 { ng } else { -ng };
+            p.straight = Some(Ray::new(offset_origin(point, side), p.ray.dir));
+        }
         if !passed_pane && p.depth == o.max_bounces {
             // A pane's reflection at the last bounce would be one bounce too many.
             return Step::ends(sampled);

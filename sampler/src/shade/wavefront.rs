@@ -166,6 +166,7 @@ impl Tracer {
             let mut direct = Direct::default();
             for (&i, hit) in live.iter().zip(hits) {
                 let step = self.shade(&mut paths[i as usize], hit, &mut rngs[i as usize], &mut direct);
+                self.look_straight_on(&mut paths[i as usize], &mut fetch);
                 if step.direct {
                     waiting.push((i, direct));
                 }
@@ -257,6 +258,35 @@ mod tests {
             assert!(lit > 1500 && hit > 2500, "{lit} lit, {hit} hit");
             assert_eq!(want[17].unwrap().radiance, Vec3::ZERO);
             assert_eq!(want[400].unwrap().distance, f32::INFINITY);
+        }
+    }
+
+    /// Through the room's window pane (nothing outside it) every sample
+    /// reports the view straight on, the sky's infinite distance, also the
+    /// paths the pane reflected back into the room; without virtual
+    /// distances they report the pane. The reflected light still counts.
+    #[test]
+    fn a_window_reports_what_lies_straight_on_through_it() {
+        let room = generate("room", &GenParams::default()).unwrap();
+        let mut tracer = Tracer::new(room, TraceOptions::default());
+        let rays: Vec<(Vec3, Vec3)> = (0..2000)
+            .map(|i| {
+                let (y, z) = (1.2 + (i % 40) as f32 * 0.04, 1.0 + (i / 40) as f32 * 0.02);
+                (Vec3::new(4.5, y, z), Vec3::new(1.0, 0.05, -0.02).normalize())
+            })
+            .collect();
+        for reorder in [Reorder::Off, Reorder::HitPoint] {
+            tracer.options.reorder = reorder;
+            let through = tracer.trace_rays(&rays, true, FirstHits::Single, &mut Rng::new(4, 4));
+            assert!(
+                through.iter().flatten().all(|s| s.distance == f32::INFINITY),
+                "{reorder:?}"
+            );
+            let at_pane = tracer.trace_rays(&rays, false, FirstHits::Single, &mut Rng::new(4, 4));
+            assert!(at_pane.iter().flatten().all(|s| (s.distance - 1.5).abs() < 0.01));
+            // The same paths either way: the light is the same.
+            let light = |v: &[Option<crate::Sample>]| v.iter().flatten().map(|s| s.radiance.x).sum::<f32>();
+            assert!((light(&through) - light(&at_pane)).abs() <= 1e-3 * light(&at_pane));
         }
     }
 

@@ -217,7 +217,7 @@ impl AccuracyBench {
     fn holodeck(&self, scene: &str, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<Filled> {
         let path = self.dir.join(format!("accuracy-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, mut file) = crate::cmd::fill::prepare(scene, &path, None, None, false)?;
+        let (_, mut file) = crate::cmd::fill::prepare(scene, &path, None, None, false, true)?;
         let start = Instant::now();
         let o = FillOptions {
             rays: Some(paths),
@@ -258,7 +258,7 @@ impl AccuracyBench {
     fn session(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
         let path = self.dir.join(format!("accuracy-session-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false)?;
+        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false, true)?;
         let start = Instant::now();
         let mut walker = Walker::new(file, self.viewport(view)?, self.estimator)?;
         let (mut rays, mut density, mut step) = (0u64, 0.0f32, 0u64);
@@ -441,7 +441,7 @@ impl AccuracyBench {
         let max_steps = 64u32;
         let path = self.dir.join("accuracy-walk.hdk");
         let _ = std::fs::remove_file(&path);
-        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false)?;
+        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false, true)?;
         let mut walker = Walker::new(file, self.viewport(&views[0])?, self.estimator)?;
         let (mut direct_total, mut holo_total) = (0.0, 0.0);
         let (mut direct_paths, mut holo_rays) = (0u64, 0u64);
@@ -733,8 +733,11 @@ impl Walker {
             },
             None => SamplingMode::Uniform,
         };
-        let obstructions = self.file.settings().obstructions;
-        let traced = trace_batch(tracer, &sections, obstructions, &batch, &|_| mode, seed);
+        let rules = holodeck_sampler::beam::FileRules {
+            obstructions: self.file.settings().obstructions,
+            vdistance: self.file.settings().vdistance,
+        };
+        let traced = trace_batch(tracer, &sections, rules, &batch, &|_| mode, seed);
         let mut rays = 0u64;
         let mut samples = Vec::new();
         for (k, records) in &traced {

@@ -131,6 +131,45 @@ fn frame_and_turn(name: &str, viewport: &Viewport, samples: &[Sample]) -> Result
     Ok((d, best, turn))
 }
 
+/// The display's denoisers on a 1024 x 768 quadtree frame of `samples`:
+/// the best of three times against the frame's own drawing time.
+fn denoise_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
+    use holodeck_display::denoise::{AtrousOptions, Denoiser};
+    let mut d = new_driver("quadtree", viewport.clone())?;
+    d.add(samples);
+    let mut frame = f64::INFINITY;
+    let mut picture = d.render();
+    for _ in 0..3 {
+        let start = Instant::now();
+        picture = d.render();
+        frame = frame.min(start.elapsed().as_secs_f64() * 1e3);
+    }
+    let guide = d.guide();
+    let mut denoisers = vec![Denoiser::Atrous(AtrousOptions::default())];
+    if cfg!(feature = "oidn") {
+        denoisers.push(Denoiser::Oidn);
+    }
+    for dn in denoisers {
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let start = Instant::now();
+            std::hint::black_box(dn.apply(&picture, &guide)?);
+            best = best.min(start.elapsed().as_secs_f64() * 1e3);
+        }
+        row(
+            &format!(
+                "denoiser {}: a 1024x768 frame on the CPU ({} threads)",
+                dn.name(),
+                rayon::current_num_threads()
+            ),
+            format!("{best:.1} ms"),
+            format!("the quadtree frame {frame:.1} ms"),
+            best / frame,
+        );
+    }
+    Ok(())
+}
+
 /// The GPU drivers against the quadtree on the same samples: frame time,
 /// cones per second, mesh insertions, and a view change to a full frame.
 fn gpu_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
@@ -226,13 +265,14 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
         );
     }
 
+    denoise_rows(&viewport, &s)?;
     gpu_rows(&viewport, &s)?;
 
     // pict: a holodeck filled only for this view, so that the view's beams hold many rays.
     std::fs::create_dir_all(dir)?;
     let path = dir.join("pict-bench.hdk");
     let _ = std::fs::remove_file(&path);
-    let (_, mut file) = crate::cmd::fill::prepare("builtin:room", &path, None, None, false)?;
+    let (_, mut file) = crate::cmd::fill::prepare("builtin:room", &path, None, None, false, false)?;
     let seen = ViewFill::new(file.sections(), std::slice::from_ref(&view), 0.0);
     eprintln!("filling {} rays for one view...", count(rays));
     let o = FillOptions {

@@ -69,7 +69,19 @@ fn tracer_rate(threads: usize, seconds: f64) -> Result<f64> {
     let (mut rays, mut round) = (0u64, 0u64);
     while start.elapsed().as_secs_f64() < seconds {
         let batch = schedule.next(1024, 4);
-        let traced = pool.install(|| trace_batch(&tracer, &sections, true, &batch, &|_| SamplingMode::Uniform, round));
+        let traced = pool.install(|| {
+            trace_batch(
+                &tracer,
+                &sections,
+                holodeck_sampler::beam::FileRules {
+                    obstructions: true,
+                    vdistance: false,
+                },
+                &batch,
+                &|_| SamplingMode::Uniform,
+                round,
+            )
+        });
         rays += traced.iter().map(|t| t.1.len() as u64).sum::<u64>();
         round += 1;
     }
