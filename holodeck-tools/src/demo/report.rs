@@ -13,35 +13,36 @@ use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::human::count;
 use crate::truth::Truth;
 
-/// The methods a sheet shows, by name, after the reference.
-const SHEET: [&str; 6] = [
-    "quadtree",
-    "quadtree + atrous",
-    "voronoi + atrous",
-    "mesh + atrous",
-    "direct, same time",
-    "direct + oidn, same time",
+/// The methods a sheet shows after the reference: by name, and the label
+/// under each.
+const SHEET: [(&str, &str); 6] = [
+    ("quadtree", "quadtree"),
+    ("quadtree + atrous", "quadtree + atrous"),
+    ("voronoi + atrous", "voronoi + atrous"),
+    ("mesh + atrous", "mesh + atrous"),
+    ("direct, same time", "direct, same time"),
+    ("direct + oidn, same time", "direct + oidn"),
 ];
 
 /// Writes the comparison sheet of view `i`: the reference and the methods
-/// of [`SHEET`], each with its FLIP and clamped relative RMSE.
+/// of [`SHEET`], each with its FLIP (the reference with its own noise).
 pub fn sheet(out: &Path, i: usize, truth: &Truth, columns: &[Column], reference_spp: u32) -> Result<()> {
     let noise = truth
         .yardstick
         .noise()
-        .map_or(String::new(), |n| format!(", noise {:.3}", n.relative_rmse));
+        .map_or(String::new(), |n| format!("noise {:.3}", n.clamped_relative_rmse));
     let mut panels = vec![sheet::Panel {
         picture: Some(&truth.picture),
-        caption: format!("reference ({reference_spp} spp{noise})"),
+        caption: format!("reference {reference_spp} spp\n{noise}"),
     }];
-    for name in SHEET {
+    for (name, label) in SHEET {
         let column = columns.iter().find(|c| c.kind.name() == name);
         let shot = column.and_then(|c| c.shots[i].as_ref());
         panels.push(sheet::Panel {
             picture: shot.map(|s| &s.picture),
-            caption: match (shot, column.and_then(|c| c.failed.as_ref())) {
-                (Some(s), _) => format!("{name}: FLIP {:.3}", s.metrics.flip),
-                (None, Some(_)) | (None, None) => format!("{name}: not drawn here"),
+            caption: match shot {
+                Some(s) => format!("{label}\nFLIP {:.3}", s.metrics.flip),
+                None => format!("{label}\nnot drawn here"),
             },
         });
     }

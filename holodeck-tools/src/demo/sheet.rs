@@ -14,7 +14,7 @@ use plotters::prelude::*;
 pub struct Panel<'a> {
     /// The picture.
     pub picture: Option<&'a Picture>,
-    /// Its caption.
+    /// Its caption (at most two lines).
     pub caption: String,
 }
 
@@ -58,12 +58,14 @@ pub fn write(path: &Path, panels: &[Panel<'_>], tone: &ToneMap) -> Result<()> {
     crate::chart::register_font();
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (sheet_w as u32, sheet_h as u32)).into_drawing_area();
-        let style = ("sans-serif", 15).into_font().color(&BLACK);
+        let style = ("sans-serif", 12).into_font().color(&BLACK);
         for (i, panel) in panels.iter().enumerate() {
             let x = (GAP + i * (w + GAP)) as i32;
-            let y = (GAP + h + 7) as i32;
-            root.draw_text(&panel.caption, &style, (x, y))
-                .map_err(|e| anyhow!("{e}"))?;
+            // A caption may take two lines.
+            for (k, line) in panel.caption.lines().take(2).enumerate() {
+                let y = (GAP + h + 3 + 13 * k) as i32;
+                root.draw_text(line, &style, (x, y)).map_err(|e| anyhow!("{e}"))?;
+            }
         }
         root.present().map_err(|e| anyhow!("{e}"))?;
     }
@@ -100,7 +102,7 @@ mod tests {
             },
             Panel {
                 picture: Some(&b),
-                caption: "black 1.000".into(),
+                caption: "black\n1.000".into(),
             },
             Panel {
                 picture: None,
@@ -122,8 +124,17 @@ mod tests {
         );
         assert_eq!(at(2 * GAP + 40 + 20, mid), [0, 0, 0], "the black one is black");
         assert_eq!(at(3 * GAP + 80 + 20, mid), [200, 200, 200], "a missing one is grey");
-        let caption_ink = (0..40).any(|x| at(GAP + x, GAP + 30 + 14)[0] < 128);
-        assert!(caption_ink, "captions are drawn under the panels");
+        let ink = |rows: std::ops::Range<usize>| {
+            rows.flat_map(|y| (0..40).map(move |x| (x, y)))
+                .any(|(x, y)| at(GAP + x, y)[0] < 128)
+        };
+        assert!(ink(GAP + 30 + 3..GAP + 30 + 16), "captions are drawn under the panels");
+        // The second panel's caption has a second line, below the first.
+        let second = |rows: std::ops::Range<usize>| {
+            rows.flat_map(|y| (0..40).map(move |x| (x, y)))
+                .any(|(x, y)| at(2 * GAP + 40 + x, y)[0] < 128)
+        };
+        assert!(second(GAP + 30 + 16..GAP + 30 + 29), "a caption's second line");
         let tall = picture(40, 31, 1.0);
         let bad = [
             Panel {
