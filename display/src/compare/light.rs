@@ -83,9 +83,9 @@ pub struct LightKept {
 }
 
 impl LightKept {
-    /// The ratios, worst first: the one farthest from 1 (in the ratio's own
-    /// log scale, so that 0.5 and 2 are equally far), NaN ones left out.
-    pub fn worst(&self) -> f64 {
+    /// Every ratio there is: the frame, the three regions and the band
+    /// where one was given.
+    fn ratios(&self) -> impl Iterator<Item = f64> {
         [
             Some(self.frame),
             Some(self.dark),
@@ -95,23 +95,20 @@ impl LightKept {
         ]
         .into_iter()
         .flatten()
-        .filter(|r| !r.is_nan())
-        .max_by(|a, b| a.ln().abs().total_cmp(&b.ln().abs()))
-        .unwrap_or(f64::NAN)
+    }
+
+    /// The ratio farthest from 1 (in the ratio's own log scale, so that 0.5
+    /// and 2 are equally far), NaN ones left out; NaN if all are.
+    pub fn worst(&self) -> f64 {
+        self.ratios()
+            .filter(|r| !r.is_nan())
+            .max_by(|a, b| a.ln().abs().total_cmp(&b.ln().abs()))
+            .unwrap_or(f64::NAN)
     }
 
     /// True when every ratio (of those that exist) is within `1 ± slack`.
     pub fn within(&self, slack: f64) -> bool {
-        [
-            Some(self.frame),
-            Some(self.dark),
-            Some(self.middle),
-            Some(self.bright),
-            self.band,
-        ]
-        .into_iter()
-        .flatten()
-        .all(|r| r.is_nan() || (r - 1.0).abs() <= slack)
+        self.ratios().all(|r| r.is_nan() || (r - 1.0).abs() <= slack)
     }
 }
 
