@@ -11,7 +11,8 @@
 # With SERVER="--connect HOST:PORT --token-file F" the window is a live
 # display on that server (`holodeck view`) instead of a replay of FILE.
 # Needs Xvfb, xdotool (apt-get install xvfb xdotool) and a built holodeck
-# (HOLODECK=path, default target/release/holodeck).
+# (HOLODECK=path, default target/release/holodeck). EXTRA="--denoise off"
+# (say) adds flags to the window's command.
 set -euo pipefail
 file=${1:?usage: $0 FILE.hdk [WIDTH HEIGHT [DRIVERS...]]}
 width=${2:-640}
@@ -39,7 +40,8 @@ for driver in "${drivers[@]}"; do
     else
         set -- pict "$file" --window -i
     fi
-    "$holodeck" "$@" --driver "$driver" -x "$width" -y "$height" \
+    # shellcheck disable=SC2086
+    "$holodeck" "$@" --driver "$driver" -x "$width" -y "$height" ${EXTRA:-} \
         <"$work/$driver.in" >"$out" 2>"$work/$driver.err" &
     pid=$!
     exec 4>"$work/$driver.in"

@@ -6,7 +6,9 @@
 //! (motion: the estimates only reprojected, as the window draws while the
 //! user drags) is shown as drawn: the denoiser costs a frame's time many
 //! times over on a CPU, and a moving picture does not need it. The frame
-//! after the next samples is denoised again.
+//! after the next samples is denoised again. A frame asked for again with
+//! nothing changed (a still window redrawn) is the last one, not denoised
+//! again.
 
 use holodeck_protocol::Picture;
 
@@ -22,6 +24,8 @@ pub struct Denoised {
     failed: bool,
     /// The view moved and no sample arrived since.
     moving: bool,
+    /// The last denoised frame, while nothing changed since.
+    last: Option<Picture>,
 }
 
 impl Denoised {
@@ -32,6 +36,7 @@ impl Denoised {
             denoiser,
             failed: false,
             moving: false,
+            last: None,
         }
     }
 }
@@ -44,6 +49,7 @@ impl Driver for Denoised {
     fn add(&mut self, samples: &[Sample]) {
         if !samples.is_empty() {
             self.moving = false;
+            self.last = None;
         }
         self.inner.add(samples)
     }
@@ -51,6 +57,7 @@ impl Driver for Denoised {
     fn set_view(&mut self, viewport: Viewport) {
         if viewport != *self.inner.viewport() {
             self.moving = true;
+            self.last = None;
         }
         self.inner.set_view(viewport)
     }
@@ -60,12 +67,18 @@ impl Driver for Denoised {
     }
 
     fn render(&mut self) -> Picture {
+        if let Some(p) = &self.last {
+            return p.clone();
+        }
         let picture = self.inner.render();
         if self.failed || self.moving {
             return picture;
         }
         match self.denoiser.apply(&picture, &self.inner.guide()) {
-            Ok(p) => p,
+            Ok(p) => {
+                self.last = Some(p.clone());
+                p
+            }
             Err(e) => {
                 tracing::warn!("denoising failed, frames are shown as drawn: {e}");
                 self.failed = true;
@@ -79,6 +92,7 @@ impl Driver for Denoised {
     }
 
     fn clear(&mut self) {
+        self.last = None;
         self.inner.clear()
     }
 
@@ -117,7 +131,9 @@ mod tests {
         let mut d = Denoised::new(raw(), Denoiser::Atrous(AtrousOptions::default()));
         plain.add(&samples);
         d.add(&samples);
-        assert_ne!(d.render(), plain.render(), "a still view's frame is denoised");
+        let denoised = d.render();
+        assert_ne!(denoised, plain.render(), "a still view's frame is denoised");
+        assert_eq!(d.render(), denoised, "and drawn again unchanged");
         let moved = viewport(&format!("{EYE_VIEW} -vp 0.01 0 0"), 32, 24);
         plain.set_view(moved.clone());
         d.set_view(moved);
