@@ -65,8 +65,8 @@ pub struct Point {
     pub grid: [u16; 3],
     /// Samples read, decoded and inserted per second (best of three).
     pub recall: f64,
-    /// Relative RMSE of the picture against the reference.
-    pub error: f64,
+    /// Every measure of the picture against the reference.
+    pub error: holodeck_display::compare::Metrics,
     /// Beams the view's request named.
     pub requested: usize,
     /// Rays per second of the fill.
@@ -112,7 +112,7 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
         let choice = DriverChoice::plain("quadtree", EstimatorOptions::default());
         // The same picture each time; the recall rate is the best of three.
         let (picture, _, stats) = crate::cmd::pict::draw(&mut file, viewport.clone(), &choice, 2, 1)?;
-        let (error, requested) = (truth.rmse(&picture)?, stats.beams);
+        let (error, requested) = (truth.measure(&picture)?, stats.beams);
         let rate = |s: &crate::cmd::pict::FrameStats| s.samples as f64 / s.recall.as_secs_f64().max(1e-9);
         let mut recall = rate(&stats);
         for _ in 1..3 {
@@ -122,10 +122,11 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
         file.close()?;
         let _ = std::fs::remove_file(&path);
         eprintln!(
-            "grid {:?}: {} beams, recall {:.2} M samples/s, error {error:.4}",
+            "grid {:?}: {} beams, recall {:.2} M samples/s, FLIP {:.4}",
             grid,
             count(section.beam_count().into()),
-            recall / 1e6
+            recall / 1e6,
+            error.flip
         );
         out.push(Point {
             beams: section.beam_count().into(),
@@ -149,18 +150,21 @@ pub fn run(a: &Args) -> Result<()> {
         a.width,
         a.height
     );
-    println!("| beams | grid | beams the view asks for | recall (M samples/s) | relative RMSE | fill (rays/s) |");
-    println!("|---|---|---|---|---|---|");
+    println!("| beams | grid | beams the view asks for | recall (M samples/s) | FLIP | clamped rel. RMSE | relative RMSE | darkest quarter's light | fill (rays/s) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for p in &points {
         println!(
-            "| {} | {}x{}x{} | {} | {:.2} | {:.4} | {:.0} |",
+            "| {} | {}x{}x{} | {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.3} | {:.0} |",
             count(p.beams),
             p.grid[0],
             p.grid[1],
             p.grid[2],
             count(p.requested as u64),
             p.recall / 1e6,
-            p.error,
+            p.error.flip,
+            p.error.clamped_relative_rmse,
+            p.error.relative_rmse,
+            p.error.light.dark,
             p.fill_rate
         );
     }
@@ -181,10 +185,10 @@ pub fn run(a: &Args) -> Result<()> {
             Panel {
                 title: "Picture error by beam count".into(),
                 x_label: "log10 beams".into(),
-                y_label: "relative RMSE".into(),
+                y_label: "FLIP (mean)".into(),
                 series: vec![Series {
                     name: "against a direct reference".into(),
-                    points: points.iter().map(|p| (x(p), p.error)).collect(),
+                    points: points.iter().map(|p| (x(p), p.error.flip)).collect(),
                 }],
                 legend: SeriesLabelPosition::UpperRight,
             },
