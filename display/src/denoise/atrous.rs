@@ -67,20 +67,8 @@ struct Px {
     l: f32,
     /// The standard deviation of the pixel's value.
     sd: f32,
-    depth: f32,
-    slope: f32,
-    normal: Vec3,
-}
-
-impl Px {
-    #[inline]
-    fn tap(&self) -> Tap {
-        Tap {
-            depth: self.depth,
-            slope: self.slope,
-            normal: self.normal,
-        }
-    }
+    /// Its guide.
+    tap: Tap,
 }
 
 /// One pixel's guide as the passes read it.
@@ -119,9 +107,7 @@ pub fn atrous(picture: &Picture, guide: &Guide, o: &AtrousOptions) -> Picture {
             .map(|p| Px {
                 l: guide_l[p],
                 sd: variance[p].max(0.0).sqrt(),
-                depth: taps[p].depth,
-                slope: taps[p].slope,
-                normal: taps[p].normal,
+                tap: taps[p],
             })
             .collect();
         let (px, color_in, var_in) = (&px, &color, &variance);
@@ -157,11 +143,11 @@ pub fn atrous(picture: &Picture, guide: &Guide, o: &AtrousOptions) -> Picture {
                                     continue;
                                 }
                                 let dist = ((i as f32 - 2.0).abs() + (j as f32 - 2.0).abs()) * step as f32;
-                                e += depth_term(a.tap(), b.tap(), dist, o.sigma_depth);
+                                e += depth_term(a.tap, b.tap, dist, o.sigma_depth);
                                 if e > CUTOFF {
                                     continue;
                                 }
-                                k * normal_weight(a.normal, b.normal, o.sigma_normal) * (-e).exp()
+                                k * normal_weight(a.tap.normal, b.tap.normal, o.sigma_normal) * (-e).exp()
                             };
                             sum_c += color_in[q] * wt;
                             sum_v += var_in[q] * wt * wt;
