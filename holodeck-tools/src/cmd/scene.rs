@@ -402,6 +402,16 @@ fn describe(s: &Scene) -> String {
             st.empty_meshes
         ),
     );
+    if !s.textures.is_empty() {
+        line(
+            "textures",
+            format!(
+                "{} images, {} in memory with their mip levels",
+                s.textures.len(),
+                crate::human::bytes(s.textures.bytes() as u64)
+            ),
+        );
+    }
     line("sky", sky(&s.sky));
     for (k, sec) in s.sections.iter().enumerate() {
         let (o, ax, g) = (sec.origin(), sec.axes(), sec.grid());
@@ -427,6 +437,9 @@ fn describe(s: &Scene) -> String {
         line("sections", "none".to_string());
     }
     line("content hash", content_hash(s));
+    for note in &s.notes {
+        line("import note", note.to_string());
+    }
     out
 }
 

@@ -4,11 +4,13 @@
 
 use std::collections::HashMap;
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use holodeck_protocol::Section;
 
+use super::maps::MaterialMaps;
 use super::material::{Material, Sky};
-use super::{Scene, Triangle};
+use super::texture::TextureSet;
+use super::{ImportNote, Scene, Triangle};
 use crate::error::SceneError;
 
 /// Most triangles one in-core scene may hold: keeps kd-tree node and
@@ -46,18 +48,25 @@ impl SceneBuilder {
     /// Adds a named material (validated) and returns its index; a name added
     /// again returns the existing index if the parameters agree, else an error.
     pub fn material(&mut self, name: &str, m: Material) -> Result<u32, SceneError> {
+        self.material_with_maps(name, m, MaterialMaps::default())
+    }
+
+    /// [`SceneBuilder::material`] with textures; a name added again must
+    /// agree on them too.
+    pub fn material_with_maps(&mut self, name: &str, m: Material, maps: MaterialMaps) -> Result<u32, SceneError> {
         m.validate().map_err(|source| SceneError::BadMaterial {
             name: name.to_string(),
             source,
         })?;
         if let Some(&id) = self.by_name.get(name) {
-            if self.scene.materials[id as usize] != m {
+            if self.scene.materials[id as usize] != m || self.scene.maps[id as usize] != maps {
                 return Err(SceneError::MaterialRedefined(name.to_string()));
             }
             return Ok(id);
         }
         let id = self.scene.materials.len() as u32;
         self.scene.materials.push(m);
+        self.scene.maps.push(maps);
         self.scene.material_names.push(name.to_string());
         self.by_name.insert(name.to_string(), id);
         Ok(id)
@@ -66,6 +75,30 @@ impl SceneBuilder {
     /// The index of a material added earlier.
     pub fn material_id(&self, name: &str) -> Option<u32> {
         self.by_name.get(name).copied()
+    }
+
+    /// The textures of material `id` (default for one without).
+    pub fn material_maps(&self, id: u32) -> Option<&MaterialMaps> {
+        self.scene.maps.get(id as usize)
+    }
+
+    /// The scene's textures, to load into.
+    pub fn textures(&mut self) -> &mut TextureSet {
+        &mut self.scene.textures
+    }
+
+    /// Notes that `file` (and `material`, if given) had something dropped
+    /// or approximated, as `what` says.
+    pub fn note(&mut self, file: &str, material: Option<&str>, what: impl Into<String>) {
+        let note = ImportNote {
+            file: file.to_string(),
+            material: material.map(str::to_string),
+            what: what.into(),
+        };
+        if !self.scene.notes.contains(&note) {
+            tracing::debug!("{note}");
+            self.scene.notes.push(note);
+        }
     }
 
     /// Adds a mesh: `positions` transformed by `transform`, `triangles` indexing
@@ -79,6 +112,29 @@ impl SceneBuilder {
         materials: &[u32],
         transform: Mat4,
     ) -> Result<(), SceneError> {
+        self.add_mesh_uv(source, positions, None, triangles, materials, transform)
+    }
+
+    /// [`SceneBuilder::add_mesh`] with texture coordinates by vertex
+    /// (glTF's convention, v downward), as many as `positions`; non-finite
+    /// ones read as 0.
+    pub fn add_mesh_uv(
+        &mut self,
+        source: &str,
+        positions: &[Vec3],
+        uvs: Option<&[Vec2]>,
+        triangles: &[[u32; 3]],
+        materials: &[u32],
+        transform: Mat4,
+    ) -> Result<(), SceneError> {
+        if let Some(uvs) = uvs {
+            if uvs.len() != positions.len() {
+                return Err(SceneError::Invalid {
+                    what: source.to_string(),
+                    message: format!("{} texture coordinates for {} vertices", uvs.len(), positions.len()),
+                });
+            }
+        }
         if triangles.is_empty() {
             self.scene.stats.empty_meshes += 1;
             tracing::warn!("{source}: mesh has no triangles; skipped");
@@ -108,6 +164,16 @@ impl SceneBuilder {
             message: "more than 4 billion vertices".to_string(),
         })?;
         let _ = count;
+        if uvs.is_some() || !self.scene.uvs.is_empty() {
+            self.scene.uvs.resize(base, Vec2::ZERO);
+            match uvs {
+                Some(uvs) => self
+                    .scene
+                    .uvs
+                    .extend(uvs.iter().map(|uv| if uv.is_finite() { *uv } else { Vec2::ZERO })),
+                None => self.scene.uvs.resize(base + positions.len(), Vec2::ZERO),
+            }
+        }
         if transform == Mat4::IDENTITY {
             // Bit-exact: a written-out scene reads back with the same content hash.
             self.scene.positions.extend_from_slice(positions);
@@ -121,6 +187,7 @@ impl SceneBuilder {
         for (k, t) in triangles.iter().enumerate() {
             if let Some(&bad) = t.iter().find(|&&i| i as usize >= positions.len()) {
                 self.scene.positions.truncate(base);
+                self.scene.uvs.truncate(base.min(self.scene.uvs.len()));
                 return Err(SceneError::Invalid {
                     what: source.to_string(),
                     message: format!(
@@ -302,7 +369,11 @@ impl SceneBuilder {
     }
 
     /// The finished scene.
-    pub fn finish(self) -> Scene {
+    pub fn finish(mut self) -> Scene {
+        if !self.scene.uvs.is_empty() {
+            let n = self.scene.positions.len();
+            self.scene.uvs.resize(n, Vec2::ZERO);
+        }
         self.scene
     }
 }

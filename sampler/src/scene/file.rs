@@ -95,6 +95,11 @@ pub struct GeometryEntry {
     /// scale, rotate and translate apply. Default: y for glTF/GLB, z for the rest.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub up: Option<UpAxis>,
+    /// A 4×4 affine matrix, row-major (translation in the last column), as
+    /// converters write an object's placement: applied after the up axis,
+    /// before scale, rotate and translate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matrix: Option<[[f32; 4]; 4]>,
 }
 
 /// A uniform or per-axis scale.
@@ -119,6 +124,9 @@ pub enum TransformError {
     /// `translate` with a NaN or infinite offset.
     #[error("translate {0} must be finite")]
     Translate(Vec3),
+    /// A `matrix` that is not a finite, invertible affine transform.
+    #[error("matrix {0}")]
+    Matrix(&'static str),
 }
 
 impl GeometryEntry {
@@ -143,8 +151,35 @@ impl GeometryEntry {
         let r = rotate * (std::f32::consts::PI / 180.0);
         // Extrinsic x, then y, then z is the intrinsic z-y-x rotation.
         let q = Quat::from_euler(EulerRot::ZYX, r.z, r.y, r.x);
-        Ok(Mat4::from_scale_rotation_translation(scale, q, translate))
+        let placed = Mat4::from_scale_rotation_translation(scale, q, translate);
+        Ok(match &self.matrix {
+            Some(rows) => placed * matrix(rows)?,
+            None => placed,
+        })
     }
+}
+
+/// The transform a row-major 4×4 `matrix` gives, refused where it is not
+/// finite, not affine or not invertible.
+fn matrix(rows: &[[f32; 4]; 4]) -> Result<Mat4, TransformError> {
+    if rows.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(TransformError::Matrix("must hold finite numbers"));
+    }
+    if rows[3] != [0.0, 0.0, 0.0, 1.0] {
+        let column_major = rows[0][3] == 0.0 && rows[1][3] == 0.0 && rows[2][3] == 0.0 && rows[3][3] == 1.0;
+        return Err(TransformError::Matrix(if column_major {
+            "has its translation in the last row: it is written column-major; give it row-major (transposed)"
+        } else {
+            "must be affine: its last row must be [0, 0, 0, 1]"
+        }));
+    }
+    // glam's matrices are column-major: the rows given are its transpose's columns.
+    let m = Mat4::from_cols_array_2d(rows).transpose();
+    let det = m.determinant();
+    if !(det.is_finite() && det.abs() > 1e-12) {
+        return Err(TransformError::Matrix("is singular: it flattens the geometry"));
+    }
+    Ok(m)
 }
 
 /// A `[[builtin]]` table: a generated scene merged in.
@@ -281,7 +316,29 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
             b.section(s);
         }
     }
-    Ok(b.finish())
+    let scene = b.finish();
+    log_notes(path, &scene);
+    Ok(scene)
+}
+
+/// Says once what import dropped or approximated: a summary line at the
+/// default verbosity, each note with `-v`.
+fn log_notes(path: &Path, scene: &Scene) {
+    if scene.notes.is_empty() {
+        return;
+    }
+    let mut materials: Vec<&str> = scene.notes.iter().filter_map(|n| n.material.as_deref()).collect();
+    materials.sort_unstable();
+    materials.dedup();
+    tracing::warn!(
+        "{}: {} things dropped or approximated on import ({} materials); `holodeck scene info` or -v lists them",
+        path.display(),
+        scene.notes.len(),
+        materials.len()
+    );
+    for note in &scene.notes {
+        tracing::info!("{note}");
+    }
 }
 
 #[cfg(test)]

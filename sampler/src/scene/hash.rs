@@ -37,5 +37,19 @@ pub fn content_hash(scene: &Scene) -> String {
     // (shortest round-trip formatting), which is all the hash needs.
     h.update(format!("{:?}", scene.materials).as_bytes());
     h.update(format!("{:?}", scene.sky).as_bytes());
+    // Textured scenes add their coordinates, maps and images; an untextured
+    // scene hashes as it always has, so existing holodeck files still match.
+    if !scene.uvs.is_empty() || scene.maps.iter().any(|m| !m.is_empty()) {
+        h.update(b"textures v1");
+        h.update(&(scene.uvs.len() as u64).to_le_bytes());
+        for uv in &scene.uvs {
+            h.update(&uv.x.to_bits().to_le_bytes());
+            h.update(&uv.y.to_bits().to_le_bytes());
+        }
+        h.update(format!("{:?}", scene.maps).as_bytes());
+        for t in scene.textures.iter() {
+            h.update(&t.digest);
+        }
+    }
     format!("blake3:{}", h.finalize().to_hex())
 }

@@ -9,10 +9,12 @@ pub mod file;
 pub mod gen;
 pub mod hash;
 pub mod import;
+pub mod maps;
 pub mod material;
 pub mod section;
+pub mod texture;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use holodeck_protocol::Section;
 
 pub use builder::{ImportStats, SceneBuilder};
@@ -21,7 +23,9 @@ pub use file::load_scene;
 pub use gen::{generate, GenParams};
 pub use hash::content_hash;
 pub use import::{import_file, import_file_with, ImportOptions, UpAxis};
+pub use maps::MaterialMaps;
 pub use material::{Material, Sky};
+pub use texture::{Texture, TextureSet};
 
 /// One triangle: three indices into [`Scene::positions`] and a material index.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -49,6 +53,35 @@ pub struct Scene {
     pub sections: Vec<Section>,
     /// What import skipped, and why.
     pub stats: ImportStats,
+    /// Texture coordinates by vertex (parallel to [`Scene::positions`]), or
+    /// empty when no mesh has any. glTF's convention: v grows downward.
+    pub uvs: Vec<Vec2>,
+    /// The images materials use, each once.
+    pub textures: TextureSet,
+    /// Each material's textures, by material index (missing entries: none).
+    pub maps: Vec<MaterialMaps>,
+    /// What import dropped or approximated, per file and material.
+    pub notes: Vec<ImportNote>,
+}
+
+/// One thing an importer dropped or approximated.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ImportNote {
+    /// The file.
+    pub file: String,
+    /// The material concerned, if one.
+    pub material: Option<String>,
+    /// What was dropped or approximated, and what was used instead.
+    pub what: String,
+}
+
+impl std::fmt::Display for ImportNote {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.material {
+            Some(m) => write!(f, "{}: material {m:?}: {}", self.file, self.what),
+            None => write!(f, "{}: {}", self.file, self.what),
+        }
+    }
 }
 
 impl Scene {
@@ -61,6 +94,41 @@ impl Scene {
             self.positions[v[1] as usize],
             self.positions[v[2] as usize],
         ]
+    }
+
+    /// The textures of material `m` (`None` when it has none).
+    #[inline]
+    pub fn maps_of(&self, m: u32) -> Option<&MaterialMaps> {
+        self.maps.get(m as usize).filter(|maps| !maps.is_empty())
+    }
+
+    /// Texture coordinates of triangle `t`'s vertices (zero without UVs).
+    #[inline]
+    pub fn triangle_uvs(&self, t: usize) -> [Vec2; 3] {
+        let v = self.triangles[t].v;
+        if self.uvs.is_empty() {
+            return [Vec2::ZERO; 3];
+        }
+        v.map(|i| self.uvs.get(i as usize).copied().unwrap_or(Vec2::ZERO))
+    }
+
+    /// Replaces every textured material by its texture's mean (colour,
+    /// roughness) and drops texture coordinates, maps and images, for
+    /// stores that keep no textures; alpha-masked surfaces become solid.
+    /// Returns whether there was anything to drop.
+    pub fn bake_textures(&mut self) -> bool {
+        if self.maps.iter().all(|m| m.is_empty()) && self.uvs.is_empty() {
+            return false;
+        }
+        for (m, maps) in self.materials.iter_mut().zip(&self.maps) {
+            if !maps.is_empty() && maps.pbr.is_none() {
+                *m = maps.material_at(m, &self.textures, Vec2::splat(0.5), f32::MAX);
+            }
+        }
+        self.maps.clear();
+        self.uvs = Vec::new();
+        self.textures = TextureSet::new();
+        true
     }
 
     /// Axis-aligned bounds of all triangles (min, max); zero-size for an empty scene.

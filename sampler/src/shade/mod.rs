@@ -9,6 +9,7 @@ mod path;
 pub mod rng;
 pub mod sampling;
 pub mod sky;
+mod surface;
 pub mod tracer;
 pub mod wavefront;
 

@@ -15,7 +15,7 @@
 //! Never: cast a ray itself (other than through the depth-first driver), or
 //! read a random number anywhere but in [`Tracer::shade`].
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::bsdf::{self, is_delta, transmits};
 use super::rng::Rng;
@@ -37,6 +37,8 @@ pub(super) struct SurfaceHit {
     pub(super) ng: Vec3,
     /// Triangle id (for light pdfs); `u32::MAX` for a voxel.
     pub(super) tri: u32,
+    /// Barycentric weights of the triangle's vertices 1 and 2 (texture lookups).
+    pub(super) bary: Vec2,
     /// Material index, or `None` for a voxel (a diffuse proxy of `color`).
     pub(super) material: Option<u32>,
     pub(super) color: Vec3,
@@ -73,6 +75,8 @@ pub(super) struct Path {
     /// Distance from the last scattering vertex: panes crossed on the way
     /// do not scatter, so light-sampling pdfs are measured from that vertex.
     travelled: f32,
+    /// Length of the whole path so far (texture footprints).
+    length: f32,
     /// Scattering events so far (crossing a pane is not one).
     depth: u32,
     /// Segments cast so far.
@@ -121,6 +125,7 @@ impl Path {
             prev_delta: true,
             prev_pdf: 0.0,
             travelled: 0.0,
+            length: 0.0,
             depth: 0,
             segment: 0,
             straight: None,
@@ -238,14 +243,20 @@ impl Tracer {
             return Step::ends(false);
         };
         let proxy;
-        let m = match hit.material {
-            Some(i) => &self.scene.materials[i as usize],
-            None => {
+        let ng = hit.ng;
+        p.length += hit.t;
+        let (textured, relief) = match self.textured(&hit, ng, p.length) {
+            Some((m, relief)) => (Some(m), relief),
+            None => (None, None),
+        };
+        let m = match (&textured, hit.material) {
+            (Some(m), _) => m,
+            (None, Some(i)) => &self.scene.materials[i as usize],
+            (None, None) => {
                 proxy = Material::lambertian(hit.color.to_array());
                 &proxy
             }
         };
-        let ng = hit.ng;
         let point = p.ray.at(hit.t);
         if p.measuring {
             p.path += hit.t;
@@ -270,7 +281,20 @@ impl Tracer {
             return Step::ends(false);
         }
         let n = if transmits(m) || cos_o > 0.0 { ng } else { -ng };
-        let frame = Frame::new(n);
+        // A relief map's normal shades where the ray sees its side of it;
+        // where it would face away from the ray, the geometric normal does.
+        let shading = match relief {
+            Some(r) if !transmits(m) => {
+                let r = if n == ng { r } else { -r };
+                if r.dot(wo_world) > 0.0 {
+                    r
+                } else {
+                    n
+                }
+            }
+            _ => n,
+        };
+        let frame = Frame::new(shading);
         let wo = frame.to_local(wo_world);
         // Rays leaving a voxel start beyond it (Áfra 2012, 6.3).
         let skip = 2.0 * hit.radius;
@@ -310,6 +334,11 @@ impl Tracer {
         } else {
             frame.to_world(s.wi).normalize()
         };
+        if shading != n && wi.dot(n) <= 0.0 {
+            // A bent normal sent the ray into the surface: it ends there
+            // rather than leak light from behind.
+            return Step::ends(sampled);
+        }
         let side = if wi.dot(ng) > 0.0 { ng } else { -ng };
         p.ray = Ray::new(offset_origin(point, side) + wi * skip, wi);
         if !passed_pane && p.depth > o.roulette_after {

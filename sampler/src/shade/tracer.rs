@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::bsdf;
 use super::lights::Lights;
@@ -101,6 +101,8 @@ pub struct Tracer {
     pub(super) sky: SkyModel,
     /// Whether any material is a thin pane (shadow rays then look through panes).
     pub(super) has_panes: bool,
+    /// Whether any material has an alpha mask (rays then look through its holes).
+    pub(super) cutouts: bool,
     /// Estimator settings.
     pub options: TraceOptions,
     non_finite: AtomicU64,
@@ -242,6 +244,8 @@ impl Tracer {
             .materials
             .iter()
             .any(|m| matches!(m, Material::Glass { thin: true, .. }));
+        // Out of core, texture coordinates are not stored: no holes to cut.
+        let cutouts = ooc.is_none() && !scene.uvs.is_empty() && scene.maps.iter().any(|m| m.cuts());
         let in_core_bytes = match (&bvh, &ooc) {
             (_, Some(_)) => 0,
             (Some(b), None) => b.stats().bytes,
@@ -258,6 +262,7 @@ impl Tracer {
             lights,
             sky,
             has_panes,
+            cutouts,
             options,
             non_finite: AtomicU64::new(0),
             first_hits: TwoWays::new(4096, 1 << 20),
@@ -303,7 +308,10 @@ impl Tracer {
             let hit = self.nearest(&ray, 0.0, &mut fetch)?;
             let facing = if hit.ng.dot(ray.dir) > 0.0 { -hit.ng } else { hit.ng };
             let normal = *first_normal.get_or_insert(facing);
-            let m = hit.material.map(|i| &self.scene.materials[i as usize]);
+            let textured = self.textured(&hit, hit.ng, hit.t).map(|(m, _)| m);
+            let m = textured
+                .as_ref()
+                .or_else(|| hit.material.map(|i| &self.scene.materials[i as usize]));
             let (albedo, next) = match m {
                 None => (hit.color, None),
                 Some(Material::Lambertian { albedo, .. }) | Some(Material::Plastic { albedo, .. }) => {
@@ -399,7 +407,7 @@ impl Tracer {
 
     /// The nearest in-core hit of a single ray.
     #[inline]
-    fn intersect_in_core(&self, ray: &Ray) -> Option<Hit> {
+    pub(super) fn intersect_in_core(&self, ray: &Ray) -> Option<Hit> {
         if self.caster.is_some() {
             return self.intersect_cast(ray);
         }
@@ -479,7 +487,7 @@ impl Tracer {
                 None => self.tree.intersect_packet(packet),
             };
             for (k, (ray, hit)) in packet.iter().zip(hits).enumerate() {
-                let first = Some(hit.map(|h| self.surface(h)));
+                let first = Some(hit.and_then(|h| self.surface(ray, h)));
                 out(
                     at + k,
                     self.estimates(ray.origin, ray.dir, first, vdistance, Streams::Shared(rng), fetch),
@@ -606,7 +614,7 @@ impl Tracer {
         } else {
             let hits = self.first_hits_of(&walk, rays.len(), first);
             for &(k, ray) in &walk {
-                let first = Some(hits[k].map(|h| self.surface(h)));
+                let first = Some(hits[k].and_then(|h| self.surface(&ray, h)));
                 out[k] = Some(self.estimates(ray.origin, ray.dir, first, vdistance, streams(&rays[k]), &mut fetch));
             }
         }
@@ -708,7 +716,7 @@ impl Tracer {
     /// for missing data, which `fetch` notes).
     pub(super) fn nearest(&self, ray: &Ray, lod: f32, fetch: &mut Fetch) -> Option<SurfaceHit> {
         let Some(ooc) = &self.ooc else {
-            return self.intersect_in_core(ray).map(|h| self.surface(h));
+            return self.intersect_in_core(ray).and_then(|h| self.surface(ray, h));
         };
         let h = ooc.intersect(ray, lod, fetch)?;
         Some(match h.surface {
@@ -721,6 +729,7 @@ impl Tracer {
                 t: h.t,
                 ng: (b - a).cross(c - a).normalize(),
                 tri: id,
+                bary: Vec2::ZERO,
                 material: Some(material),
                 color: Vec3::ZERO,
                 radius: 0.0,
@@ -729,24 +738,12 @@ impl Tracer {
                 t: h.t,
                 ng: sample.normal,
                 tri: u32::MAX,
+                bary: Vec2::ZERO,
                 material: None,
                 color: sample.color,
                 radius,
             },
         })
-    }
-
-    /// An in-core triangle hit as shading needs it.
-    fn surface(&self, h: Hit) -> SurfaceHit {
-        let [a, b, c] = self.scene.vertices(h.tri as usize);
-        SurfaceHit {
-            t: h.t,
-            ng: (b - a).cross(c - a).normalize(),
-            tri: h.tri,
-            material: Some(self.scene.triangles[h.tri as usize].material),
-            color: Vec3::ZERO,
-            radius: 0.0,
-        }
     }
 
     /// True if a surface for which `blocks(id, material, vertices)` says so
@@ -791,7 +788,7 @@ impl Tracer {
         if self.caster.is_some() {
             return self.visibility_cast(ray);
         }
-        if !self.has_panes {
+        if !self.has_panes && !self.cutouts {
             let blocked = match &self.ooc {
                 None => match &self.bvh {
                     Some(bvh) => bvh.occluded(&ray),
@@ -803,7 +800,7 @@ impl Tracer {
         }
         let mut panes: Vec<(u32, u32, Vec3)> = Vec::new();
         let blocked = self.blocked(&ray, fetch, |tri, material, vertices| {
-            self.opaque_or_pane(&mut panes, tri, material, vertices)
+            self.opaque_or_pane(&mut panes, &ray, tri, material, vertices)
         });
         if blocked {
             return Vec3::ZERO;
@@ -820,7 +817,7 @@ impl Tracer {
         let Some(caster) = &self.caster else {
             return Vec3::ONE;
         };
-        if !self.has_panes {
+        if !self.has_panes && !self.cutouts {
             return if caster.occluded_by(&ray, &mut |_| true) {
                 Vec3::ZERO
             } else {
@@ -830,7 +827,7 @@ impl Tracer {
         let mut panes: Vec<(u32, u32, Vec3)> = Vec::new();
         let blocked = caster.occluded_by(&ray, &mut |tri| {
             let material = self.scene.triangles[tri as usize].material;
-            self.opaque_or_pane(&mut panes, tri, material, self.scene.vertices(tri as usize))
+            self.opaque_or_pane(&mut panes, &ray, tri, material, self.scene.vertices(tri as usize))
         });
         if blocked {
             return Vec3::ZERO;
@@ -838,11 +835,21 @@ impl Tracer {
         self.through_panes(&ray, &panes)
     }
 
-    /// Whether triangle `tri` (of `material`, with `vertices`) stops a
-    /// shadow ray: true unless it is a thin pane, which is noted in `panes`
-    /// (once) and looked past.
+    /// Whether triangle `tri` (of `material`, with `vertices`) stops the
+    /// shadow ray `ray`: true unless it is a thin pane, which is noted in
+    /// `panes` (once) and looked past, or a hole of an alpha mask there.
     #[inline(always)]
-    fn opaque_or_pane(&self, panes: &mut Vec<(u32, u32, Vec3)>, tri: u32, material: u32, [a, b, c]: [Vec3; 3]) -> bool {
+    fn opaque_or_pane(
+        &self,
+        panes: &mut Vec<(u32, u32, Vec3)>,
+        ray: &Ray,
+        tri: u32,
+        material: u32,
+        [a, b, c]: [Vec3; 3],
+    ) -> bool {
+        if self.cut_along(ray, tri, [a, b, c]) {
+            return false;
+        }
         let m = &self.scene.materials[material as usize];
         if matches!(m, Material::Glass { thin: true, .. }) {
             if !panes.iter().any(|p| p.0 == tri) {

@@ -158,8 +158,16 @@ pub struct SceneSource {
 }
 
 impl SceneSource {
-    /// Wraps a scene.
-    pub fn new(scene: Scene) -> SceneSource {
+    /// Wraps a scene. A scene file keeps no textures: a textured scene's
+    /// materials take their textures' means, and it hashes as that
+    /// untextured scene, so its holodecks are not mixed with the textured one's.
+    pub fn new(mut scene: Scene) -> SceneSource {
+        if scene.bake_textures() {
+            tracing::warn!(
+                "a built scene file keeps no textures: textured materials take their textures' mean colour, \
+                 alpha-masked surfaces are solid, and its content hash is that of the untextured scene"
+            );
+        }
         let meta = SceneMeta {
             materials: scene.materials.clone(),
             material_names: scene.material_names.clone(),

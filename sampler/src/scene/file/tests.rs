@@ -251,3 +251,35 @@ fn geometry_up_axes_default_by_format_and_can_be_overridden() {
     let err = load_scene(&path).unwrap_err().to_string();
     assert!(err.contains("up.toml") && err.contains("unknown variant `x`"), "{err}");
 }
+
+#[test]
+fn a_row_major_matrix_places_geometry_and_bad_matrices_say_why() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("t.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let scene = |matrix: &str| {
+        let text = format!(
+            "[materials.m]\ntype = \"lambertian\"\nalbedo = [0.5, 0.5, 0.5]\n\n[[geometry]]\nfile = \"t.obj\"\nmaterial = \"m\"\ntranslate = [0, 0, 10]\nmatrix = {matrix}\n"
+        );
+        let path = dir.path().join("s.toml");
+        std::fs::write(&path, text).unwrap();
+        load_scene(&path)
+    };
+    // Rotate 90 degrees about z, then move by (5, 6, 7), written row-major;
+    // `translate` applies after it.
+    let s = scene("[[0, -1, 0, 5], [1, 0, 0, 6], [0, 0, 1, 7], [0, 0, 0, 1]]").unwrap();
+    assert_eq!(
+        s.vertices(0),
+        [
+            Vec3::new(5.0, 6.0, 17.0),
+            Vec3::new(5.0, 7.0, 17.0),
+            Vec3::new(4.0, 6.0, 17.0)
+        ]
+    );
+    let err = scene("[[0, -1, 0, 0], [1, 0, 0, 0], [0, 0, 1, 0], [5, 6, 7, 1]]").unwrap_err();
+    assert!(err.to_string().contains("column-major"), "{err}");
+    let err = scene("[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1]]").unwrap_err();
+    assert!(err.to_string().contains("singular"), "{err}");
+    let err = scene("[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 2]]").unwrap_err();
+    assert!(err.to_string().contains("affine"), "{err}");
+    assert!(err.to_string().contains("[[geometry]] 1"), "the entry is named: {err}");
+}

@@ -1,21 +1,20 @@
 //! glTF 2.0 (`.gltf` with embedded or external buffers, and `.glb`) import
 //! through the `gltf` crate: every node of the default scene (else the first)
 //! with its world transform, primitives in triangle mode only (points, lines,
-//! strips and fans are skipped and counted). Materials come from the
-//! metallic-roughness factors: emissive > 0 gives an emitter, metallic >= 0.5
-//! metal, roughness < 0.9 plastic, else lambertian. Textures, vertex colors,
-//! normals and extensions are ignored; images are never loaded. Positions are
+//! strips and fans are skipped and counted), with TEXCOORD_0. Materials are
+//! converted as `gltf_material.rs` says. Vertex colours and normals are not
+//! read (shading uses the geometric normal, or a normal map's). Positions are
 //! read in glTF's +y-up frame; the transform the caller passes turns them
 //! +z up (see [`super::UpAxis`]).
 
 use std::path::Path;
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
-use super::{file_material, parse_error, unit_color, ImportOptions};
+use super::gltf_material::Source;
+use super::{parse_error, textured_material, ImportOptions};
 use crate::error::SceneError;
 use crate::scene::builder::SceneBuilder;
-use crate::scene::material::Material;
 
 /// Deepest node hierarchy followed (a guard against cyclic files).
 const MAX_DEPTH: usize = 256;
@@ -59,12 +58,28 @@ pub(super) fn import(
         tracing::warn!("{}: glTF has no scene; nothing imported", path.display());
         return Ok(());
     };
+    const READ: [&str; 4] = [
+        "KHR_texture_transform",
+        "KHR_materials_transmission",
+        "KHR_materials_ior",
+        "KHR_materials_emissive_strength",
+    ];
+    for ext in document.extensions_used() {
+        if !READ.contains(&ext) {
+            b.note(
+                &path.display().to_string(),
+                None,
+                format!("extension {ext} is not read"),
+            );
+        }
+    }
     let mut ctx = Context {
         b,
         path,
         options,
         buffers: &buffers,
         skipped: 0,
+        no_uvs: 0,
     };
     let mut stack: Vec<(gltf::Node, Mat4, usize)> = scene.nodes().map(|n| (n, transform, 0)).collect();
     // glTF requires a tree; a node reached twice (shared or cyclic) is refused
@@ -92,6 +107,13 @@ pub(super) fn import(
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
+    if ctx.no_uvs > 0 {
+        let what = format!(
+            "{} textured primitives have no TEXCOORD_0; their textures read one texel",
+            ctx.no_uvs
+        );
+        ctx.b.note(&path.display().to_string(), None, what);
+    }
     if ctx.skipped > 0 {
         tracing::warn!(
             "{}: skipped {} primitives that are not triangle lists",
@@ -109,6 +131,8 @@ struct Context<'a, 'b> {
     options: &'a ImportOptions<'b>,
     buffers: &'a [gltf::buffer::Data],
     skipped: u64,
+    /// Textured primitives without texture coordinates.
+    no_uvs: u64,
 }
 
 impl Context<'_, '_> {
@@ -149,47 +173,38 @@ impl Context<'_, '_> {
             }
             let triangles: Vec<[u32; 3]> = indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
             let material = self.material(&prim.material())?;
+            let uvs: Option<Vec<Vec2>> = reader
+                .read_tex_coords(0)
+                .map(|tc| tc.into_f32().map(Vec2::from).collect::<Vec<Vec2>>())
+                .filter(|uvs| uvs.len() == positions.len());
+            if uvs.is_none() && self.b.material_maps(material).is_some_and(|m| !m.is_empty()) {
+                self.no_uvs += 1;
+            }
             let source = format!("{}: {what}", self.path.display());
-            self.b.add_mesh(&source, &positions, &triangles, &[material], world)?;
+            self.b
+                .add_mesh_uv(&source, &positions, uvs.as_deref(), &triangles, &[material], world)?;
         }
         Ok(())
     }
 
     /// The scene material for a glTF material (the caller's default for none).
     fn material(&mut self, m: &gltf::Material) -> Result<u32, SceneError> {
+        let source = Source {
+            path: self.path,
+            buffers: self.buffers,
+        };
         let Some(index) = m.index() else {
             if let Some(id) = self.options.default_material {
                 return Ok(id);
             }
-            return file_material(self.b, self.options, "gltf:default", convert(m));
+            let (material, maps) = source.convert(self.b, m, "gltf:default");
+            return textured_material(self.b, self.options, "gltf:default", material, maps);
         };
         let name = m.name().map_or_else(|| format!("gltf:{index}"), str::to_string);
-        file_material(self.b, self.options, &name, convert(m))
-    }
-}
-
-/// Our material for a glTF metallic-roughness material.
-fn convert(m: &gltf::Material) -> Material {
-    let emissive = m
-        .emissive_factor()
-        .map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 });
-    if emissive.iter().any(|&v| v > 0.0) {
-        return Material::Emitter { radiance: emissive };
-    }
-    let pbr = m.pbr_metallic_roughness();
-    let [r, g, b, _] = pbr.base_color_factor();
-    let color = unit_color([r, g, b]);
-    let finite01 = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 1.0 };
-    let (metallic, roughness) = (finite01(pbr.metallic_factor()), finite01(pbr.roughness_factor()));
-    if metallic >= 0.5 {
-        Material::Metal { color, roughness }
-    } else if roughness < 0.9 {
-        Material::Plastic {
-            albedo: color,
-            roughness,
-            ior: 1.5,
+        if let Some(&id) = self.options.overrides.and_then(|o| o.get(&name)) {
+            return Ok(id);
         }
-    } else {
-        Material::lambertian(color)
+        let (material, maps) = source.convert(self.b, m, &name);
+        textured_material(self.b, self.options, &name, material, maps)
     }
 }

@@ -11,6 +11,8 @@
 //! [`UpAxis`] overrides either for files whose authors used the other.
 
 mod gltf;
+mod gltf_material;
+mod mtl;
 mod obj;
 mod ply;
 pub mod rad;
@@ -22,6 +24,7 @@ use glam::Mat4;
 use serde::{Deserialize, Serialize};
 
 use super::builder::SceneBuilder;
+use super::maps::MaterialMaps;
 use super::material::Material;
 use crate::error::SceneError;
 
@@ -199,18 +202,29 @@ pub(crate) fn check_regular_file(path: &Path) -> Result<(), SceneError> {
 /// there is one, else `m` added under `name` (or `name#2`, `name#3`, ... when
 /// another file already used the name for different parameters).
 fn file_material(b: &mut SceneBuilder, options: &ImportOptions, name: &str, m: Material) -> Result<u32, SceneError> {
+    textured_material(b, options, name, m, MaterialMaps::default())
+}
+
+/// [`file_material`] with textures.
+fn textured_material(
+    b: &mut SceneBuilder,
+    options: &ImportOptions,
+    name: &str,
+    m: Material,
+    maps: MaterialMaps,
+) -> Result<u32, SceneError> {
     if let Some(&id) = options.overrides.and_then(|o| o.get(name)) {
         return Ok(id);
     }
     let mut candidate = name.to_string();
     for k in 2u32.. {
         match b.material_id(&candidate) {
-            Some(id) if b.material_params(id) == Some(&m) => return Ok(id),
+            Some(id) if b.material_params(id) == Some(&m) && b.material_maps(id) == Some(&maps) => return Ok(id),
             Some(_) => candidate = format!("{name}#{k}"),
             None => break,
         }
     }
-    b.material(&candidate, m)
+    b.material_with_maps(&candidate, m, maps)
 }
 
 /// Clamps a color into [0, 1], mapping NaN to 0.

@@ -1,17 +1,15 @@
-//! Wavefront OBJ import through `tobj`, with MTL materials converted to ours:
-//! `Ke` > 0 gives an emitter; `d` < 1 or `illum` 4, 6, 7 glass (`Ni`, `Tf`);
-//! `illum` 3 with black `Kd` metal; `Ks` > 0 plastic with roughness
-//! sqrt(2 / (Ns + 2)); anything else lambertian with `Kd`. Textures are ignored.
+//! Wavefront OBJ import through `tobj`: positions, texture coordinates
+//! (`vt`, v flipped to grow downward as the scene's do) and MTL materials
+//! with their maps, converted as `mtl.rs` says.
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
-use super::{file_material, parse_error, unit_color, ImportOptions};
+use super::{parse_error, textured_material, ImportOptions};
 use crate::error::SceneError;
 use crate::scene::builder::SceneBuilder;
-use crate::scene::material::Material;
 
 /// Adds every object of the OBJ file at `path`.
 pub(super) fn import(
@@ -39,7 +37,7 @@ pub(super) fn import(
         }
         result
     };
-    import_reader(b, &mut BufReader::new(file), path, load_mtl, transform, options)
+    import_reader(b, &mut BufReader::new(file), path, &dir, load_mtl, transform, options)
 }
 
 /// Adds every object of OBJ text held in memory (a built-in model), named
@@ -53,15 +51,17 @@ pub(super) fn import_bytes(
     options: &ImportOptions,
 ) -> Result<(), SceneError> {
     let no_library = |_: &Path| Err(tobj::LoadError::OpenFileFailed);
-    import_reader(b, &mut &bytes[..], name, no_library, transform, options)
+    import_reader(b, &mut &bytes[..], name, Path::new(""), no_library, transform, options)
 }
 
 /// Adds every object of the OBJ text `reader` gives; `path` names it in
-/// messages and `load_mtl` finds its material libraries.
+/// messages, `load_mtl` finds its material libraries and textures are
+/// found relative to `dir`.
 fn import_reader(
     b: &mut SceneBuilder,
     reader: &mut impl BufRead,
     path: &Path,
+    dir: &Path,
     load_mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
     transform: Mat4,
     options: &ImportOptions,
@@ -84,7 +84,9 @@ fn import_reader(
                 Some(id) => id,
                 None => {
                     let m = &materials[k];
-                    let id = file_material(b, options, &m.name, convert(m))?;
+                    let file = path.display().to_string();
+                    let (material, maps) = super::mtl::convert(b, m, dir, &file);
+                    let id = textured_material(b, options, &m.name, material, maps)?;
                     ids[k] = Some(id);
                     id
                 }
@@ -106,64 +108,15 @@ fn import_reader(
             .map(|p| Vec3::new(p[0], p[1], p[2]))
             .collect();
         let triangles: Vec<[u32; 3]> = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        b.add_mesh(&what, &positions, &triangles, &[material], transform)?;
+        // OBJ's v grows upward; the scene's, like glTF's, downward.
+        let uvs: Option<Vec<Vec2>> =
+            (mesh.texcoords.len() == 2 * positions.len() && !positions.is_empty()).then(|| {
+                mesh.texcoords
+                    .chunks_exact(2)
+                    .map(|t| Vec2::new(t[0], 1.0 - t[1]))
+                    .collect()
+            });
+        b.add_mesh_uv(&what, &positions, uvs.as_deref(), &triangles, &[material], transform)?;
     }
     Ok(())
-}
-
-/// Our material for an MTL material.
-pub(super) fn convert(m: &tobj::Material) -> Material {
-    let kd = m.diffuse.map(unit_color);
-    let ks = m.specular.map(unit_color).unwrap_or([0.0; 3]);
-    let ke = m
-        .emissive
-        .unwrap_or([0.0; 3])
-        .map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 });
-    let illum = m.illumination_model.unwrap_or(2);
-    let roughness = match m.shininess {
-        Some(ns) if ns.is_finite() && ns >= 0.0 => (2.0 / (ns + 2.0)).sqrt().clamp(0.0, 1.0),
-        _ => 1.0,
-    };
-    let max = |c: [f32; 3]| c[0].max(c[1]).max(c[2]);
-    if max(ke) > 0.0 {
-        return Material::Emitter { radiance: ke };
-    }
-    let dissolve = m.dissolve.filter(|d| d.is_finite()).unwrap_or(1.0);
-    if dissolve < 1.0 || matches!(illum, 4 | 6 | 7) {
-        let ior = m.optical_density.filter(|n| n.is_finite() && *n >= 1.0).unwrap_or(1.5);
-        let color = m
-            .unknown_param
-            .get("Tf")
-            .and_then(|tf| parse_rgb(tf))
-            .map(unit_color)
-            .unwrap_or([1.0; 3]);
-        return Material::Glass {
-            ior,
-            color,
-            thin: false,
-        };
-    }
-    if illum == 3 && kd.is_none_or(|c| max(c) < 0.01) {
-        let color = if max(ks) > 0.0 { ks } else { [0.9; 3] };
-        return Material::Metal { color, roughness };
-    }
-    let albedo = kd.unwrap_or([0.8; 3]);
-    if max(ks) > 0.0 {
-        return Material::Plastic {
-            albedo,
-            roughness,
-            ior: 1.5,
-        };
-    }
-    Material::lambertian(albedo)
-}
-
-/// Three numbers, or one repeated (as MTL allows for `Tf`).
-fn parse_rgb(s: &str) -> Option<[f32; 3]> {
-    let v: Vec<f32> = s.split_whitespace().map(str::parse).collect::<Result<_, _>>().ok()?;
-    match v[..] {
-        [g] => Some([g; 3]),
-        [r, g, b] => Some([r, g, b]),
-        _ => None,
-    }
 }

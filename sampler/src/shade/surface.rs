@@ -1,0 +1,151 @@
+//! What a ray finds where it hits a textured surface: holes cut by alpha
+//! masks (which every ray, shadow rays included, passes through), the
+//! material at the hit's texture coordinates, and the shading normal a
+//! normal or height map gives.
+//!
+//! Texture footprints follow a ray cone (Akenine-Möller et al., "Texture
+//! Level of Detail Strategies for Real-Time Ray Tracing", 2019): a cone of
+//! [`CONE_SPREAD`] radians around every ray, as wide at the hit as the path
+//! is long times the spread, measured in texture coordinates through the
+//! triangle's ratio of texture area to world area.
+
+use glam::{Vec2, Vec3};
+
+use super::path::SurfaceHit;
+use super::tracer::Tracer;
+use crate::accel::Hit;
+use crate::geom::{intersect_triangle, offset_origin, Ray, RayPrep};
+use crate::scene::Material;
+
+/// Angle a ray's footprint widens by per unit of length: about a pixel of
+/// a 1000-pixel-wide view with a 60 degree field.
+pub const CONE_SPREAD: f32 = 1e-3;
+
+/// Most alpha-cut surfaces one ray passes before it counts as blocked (a
+/// forest seen edge-on).
+const MAX_CUTOUTS: usize = 64;
+
+/// A uniform number in [0, 1) from a hit and the ray's direction: which
+/// rays partial coverage lets through, the same for the same ray whichever
+/// way (packets, wavefront, one by one) it was traced.
+#[inline]
+fn coverage_number(tri: u32, bary: Vec2, dir: Vec3) -> f32 {
+    let mut h = u64::from(tri) ^ 0x9e37_79b9_7f4a_7c15;
+    for bits in [bary.x, bary.y, dir.x, dir.y, dir.z].map(f32::to_bits) {
+        h = (h ^ u64::from(bits)).wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h ^= h >> 33;
+    }
+    (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+impl Tracer {
+    /// The texture coordinates of triangle `tri` at barycentrics `bary`.
+    #[inline]
+    fn uv_at(&self, tri: u32, bary: Vec2) -> Vec2 {
+        let [a, b, c] = self.scene.triangle_uvs(tri as usize);
+        a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y
+    }
+
+    /// Whether a ray along `dir` passes through triangle `tri` at `bary`
+    /// (a hole of its material's alpha mask).
+    #[inline]
+    pub(super) fn cut_at(&self, tri: u32, bary: Vec2, dir: Vec3) -> bool {
+        let material = self.scene.triangles[tri as usize].material;
+        let Some(maps) = self.scene.maps_of(material) else {
+            return false;
+        };
+        maps.cuts()
+            && maps.passes(
+                &self.scene.textures,
+                self.uv_at(tri, bary),
+                coverage_number(tri, bary, dir),
+            )
+    }
+
+    /// Whether triangle `tri` with `vertices`, crossed by `ray`, is a hole
+    /// there (for shadow rays, which learn only which triangle they met).
+    pub(super) fn cut_along(&self, ray: &Ray, tri: u32, [a, b, c]: [Vec3; 3]) -> bool {
+        if !self.cutouts {
+            return false;
+        }
+        let prep = RayPrep::new(ray.origin, ray.dir);
+        match intersect_triangle(&prep, a, b, c, f32::INFINITY) {
+            Some(h) => self.cut_at(tri, Vec2::new(h.u, h.v), ray.dir),
+            None => false,
+        }
+    }
+
+    /// An in-core triangle hit of `ray` as shading needs it: where the hit
+    /// is a hole of an alpha mask, the first solid surface beyond it
+    /// (`None` where the ray escapes through the holes).
+    pub(super) fn surface(&self, ray: &Ray, mut h: Hit) -> Option<SurfaceHit> {
+        if self.cutouts {
+            let mut r = *ray;
+            let mut travelled = 0.0;
+            let mut passed = 0;
+            while self.cut_at(h.tri, Vec2::new(h.u, h.v), ray.dir) {
+                passed += 1;
+                if passed > MAX_CUTOUTS {
+                    break;
+                }
+                let [a, b, c] = self.scene.vertices(h.tri as usize);
+                let ng = (b - a).cross(c - a);
+                let side = if r.dir.dot(ng) > 0.0 { ng } else { -ng };
+                let origin = offset_origin(r.at(h.t), side.normalize());
+                let moved = (origin - ray.origin).dot(ray.dir) / ray.dir.length_squared();
+                r = Ray {
+                    origin,
+                    dir: ray.dir,
+                    t_max: ray.t_max - moved,
+                };
+                travelled = moved;
+                h = self.intersect_in_core(&r)?;
+            }
+            h.t += travelled;
+        }
+        let [a, b, c] = self.scene.vertices(h.tri as usize);
+        Some(SurfaceHit {
+            t: h.t,
+            ng: (b - a).cross(c - a).normalize(),
+            tri: h.tri,
+            bary: Vec2::new(h.u, h.v),
+            material: Some(self.scene.triangles[h.tri as usize].material),
+            color: Vec3::ZERO,
+            radius: 0.0,
+        })
+    }
+
+    /// The material at `hit` with its textures applied, and the shading
+    /// normal its relief map gives (on the side of `n`, the geometric
+    /// normal as shading faces it); `None` where the material has no
+    /// textures. `length` is how far the path has come, for the footprint.
+    pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<(Material, Option<Vec3>)> {
+        let material = hit.material?;
+        let maps = self.scene.maps_of(material)?;
+        if hit.tri == u32::MAX || self.scene.uvs.is_empty() {
+            return None;
+        }
+        let tri = hit.tri as usize;
+        let [pa, pb, pc] = self.scene.vertices(tri);
+        let [ta, tb, tc] = self.scene.triangle_uvs(tri);
+        let uv = ta * (1.0 - hit.bary.x - hit.bary.y) + tb * hit.bary.x + tc * hit.bary.y;
+        let (e1, e2) = (pb - pa, pc - pa);
+        let (d1, d2) = (tb - ta, tc - ta);
+        let world_area = e1.cross(e2).length();
+        let uv_area = (d1.x * d2.y - d1.y * d2.x).abs();
+        let width = CONE_SPREAD * length * (uv_area / world_area).sqrt();
+        let textures = &self.scene.textures;
+        let m = maps.material_at(&self.scene.materials[material as usize], textures, uv, width);
+        let normal = maps.relief.and_then(|_| {
+            // The directions in which u and v grow, from the triangle's edges.
+            let det = d1.x * d2.y - d1.y * d2.x;
+            if det == 0.0 || !det.is_finite() {
+                return None;
+            }
+            let t = (e1 * d2.y - e2 * d1.y) / det;
+            let b = (e2 * d1.x - e1 * d2.x) / det;
+            maps.normal_at(textures, uv, n, t, b)
+        });
+        Some((m, normal))
+    }
+}
