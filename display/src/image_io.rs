@@ -52,7 +52,14 @@ pub fn read_picture(path: &Path) -> Result<Picture, ImageError> {
 
 /// Writes a Radiance RGBE picture.
 pub fn write_hdr(p: &Picture, path: &Path) -> Result<(), ImageError> {
-    let file = std::fs::File::create(path).map_err(|e| err(path, e))?;
+    write_hdr_view(p, path, None)
+}
+
+/// Writes a Radiance RGBE picture with its view in a `VIEW=` header line,
+/// as Radiance's renderers do (rpict, rhpict and rvu read it back). The
+/// picture is encoded in memory and written whole, so a full disk is an
+/// error rather than a truncated file.
+pub fn write_hdr_view(p: &Picture, path: &Path, view: Option<&holodeck_protocol::View>) -> Result<(), ImageError> {
     // The encoder's exponent goes wrong for values below the shared exponent's
     // range (a subnormal comes out near 1e38): like Radiance, a pixel whose
     // largest channel is below 1e-32 is written as black.
@@ -68,9 +75,17 @@ pub fn write_hdr(p: &Picture, path: &Path) -> Result<(), ImageError> {
             })
         })
         .collect();
-    HdrEncoder::new(std::io::BufWriter::new(file))
+    let mut bytes = Vec::new();
+    HdrEncoder::new(&mut bytes)
         .encode(&pixels, p.width, p.height)
-        .map_err(|e| err(path, e))
+        .map_err(|e| err(path, e))?;
+    if let Some(view) = view {
+        // After the magic line `#?RADIANCE`, among the header's lines.
+        let at = bytes.iter().position(|&b| b == b'\n').map_or(0, |i| i + 1);
+        let line = format!("VIEW= {}\n", view.to_spec());
+        bytes.splice(at..at, line.into_bytes());
+    }
+    std::fs::write(path, bytes).map_err(|e| err(path, e))
 }
 
 fn srgb(v: f32) -> u8 {
@@ -90,7 +105,7 @@ pub fn write_png(p: &Picture, path: &Path, exposure: f32) -> Result<(), ImageErr
         .iter()
         .flat_map(|c| (*c * exposure).to_array().map(srgb))
         .collect();
-    image::save_buffer(path, &bytes, p.width as u32, p.height as u32, image::ColorType::Rgb8).map_err(|e| err(path, e))
+    write_rgb8(path, p.width, p.height, &bytes)
 }
 
 /// Writes 8-bit RGB bytes (rows from the top, as `ToneMap::apply` makes
@@ -105,8 +120,12 @@ pub fn write_rgb8(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Resul
         let message = format!("{} bytes for a {width}x{height} RGB picture", rgb.len());
         return Err(err(path, message));
     }
-    image::save_buffer_with_format(path, rgb, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
-        .map_err(|e| err(path, e))
+    // Encoded in memory and written whole: a full disk is an error, never
+    // a truncated file reported as written.
+    let mut png = std::io::Cursor::new(Vec::new());
+    image::write_buffer_with_format(&mut png, rgb, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
+        .map_err(|e| err(path, e))?;
+    std::fs::write(path, png.into_inner()).map_err(|e| err(path, e))
 }
 
 #[cfg(test)]
@@ -139,6 +158,33 @@ mod tests {
         assert!((q.pixels[2].z / 1500.0 - 1.0).abs() < 0.01);
         assert_eq!(q.pixels[3].x, 0.0);
         assert!((q.pixels[3].y - 0.5).abs() < 0.005);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn hdr_pictures_carry_their_view_and_a_full_disk_is_an_error() {
+        let dir = tempfile_dir();
+        let path = dir.join("view.hdr");
+        let p = Picture {
+            width: 2,
+            height: 2,
+            pixels: vec![Vec3::splat(0.5); 4],
+        };
+        let view = holodeck_protocol::View::parse("-vtv -vp 1 2 3 -vd 0 1 0 -vu 0 0 1 -vh 50 -vv 40 -vo 0.5").unwrap();
+        write_hdr_view(&p, &path, Some(&view)).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let header = String::from_utf8_lossy(&bytes[..64.min(bytes.len())]).into_owned();
+        let text = String::from_utf8_lossy(&bytes);
+        let line = text.lines().find(|l| l.starts_with("VIEW= ")).expect("a VIEW= line");
+        assert_eq!(holodeck_protocol::View::parse(line).unwrap(), view, "{header}");
+        assert!(text.starts_with("#?RADIANCE\nVIEW= "), "{header}");
+        assert_eq!(read_picture(&path).unwrap().pixels.len(), 4, "readers skip the line");
+        // /dev/full fails every write with ENOSPC, as a full disk does.
+        let full = Path::new("/dev/full");
+        if full.exists() {
+            assert!(write_hdr(&p, full).is_err());
+            assert!(write_png(&p, full, 1.0).is_err());
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -47,11 +47,18 @@ pub fn is_hdr(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("hdr") || e.eq_ignore_ascii_case("pic"))
 }
 
-/// Writes `picture` to `path`: linear RGBE for `.hdr`/`.pic`, else a PNG
-/// tone mapped by `mode` over `histogram` (the samples the display has seen).
-pub fn save(picture: &Picture, histogram: &Histogram, mode: ToneMode, path: &Path) -> Result<(), ImageError> {
+/// Writes `picture` to `path`: linear RGBE for `.hdr`/`.pic` (with `view`
+/// in its `VIEW=` line), else a PNG tone mapped by `mode` over `histogram`
+/// (the samples the display has seen).
+pub fn save(
+    picture: &Picture,
+    histogram: &Histogram,
+    mode: ToneMode,
+    path: &Path,
+    view: Option<&holodeck_protocol::View>,
+) -> Result<(), ImageError> {
     if is_hdr(path) {
-        return image_io::write_hdr(picture, path);
+        return image_io::write_hdr_view(picture, path, view);
     }
     let map = ToneMap::new(histogram, mode, DisplayRange::default());
     image_io::write_rgb8(path, picture.width, picture.height, &map.apply(picture))
@@ -94,8 +101,8 @@ mod tests {
             pixels: vec![glam::Vec3::new(0.01, 0.02, 0.03), glam::Vec3::splat(500.0)],
         };
         let hist = Histogram::from_picture(&p);
-        save(&p, &hist, ToneMode::Camera, &dir.join("a.hdr")).unwrap();
-        save(&p, &hist, ToneMode::Camera, &dir.join("a.png")).unwrap();
+        save(&p, &hist, ToneMode::Camera, &dir.join("a.hdr"), None).unwrap();
+        save(&p, &hist, ToneMode::Camera, &dir.join("a.png"), None).unwrap();
         let hdr = image::open(dir.join("a.hdr")).unwrap().into_rgb32f();
         let big = hdr.get_pixel(1, 0).0;
         assert!((big[0] - 500.0).abs() / 500.0 < 0.01, "{big:?}");

@@ -41,7 +41,12 @@ impl Projector {
             eye: viewport.view.position,
             direction: viewport.view.direction.normalize(),
             parallel: viewport.view.kind == ViewType::Parallel,
-            rays: viewport.view.rays(),
+            // Rays from the eye: depths are measured from it, fore clipping or not.
+            rays: holodeck_protocol::View {
+                fore: 0.0,
+                ..viewport.view.clone()
+            }
+            .rays(),
             width: viewport.width,
             height: viewport.height,
         }

@@ -40,13 +40,21 @@ pub struct View {
     pub shift: f64,
     /// Vertical lift, in image heights.
     pub lift: f64,
+    /// Fore clipping distance (`-vo`): nothing nearer the eye than this
+    /// (a plane across the view direction; a sphere for fisheyes) is seen.
+    #[serde(default)]
+    pub fore: f64,
+    /// Aft clipping distance (`-va`): nothing farther is seen (black, as
+    /// in Radiance); 0 for none.
+    #[serde(default)]
+    pub aft: f64,
 }
 
 /// What is wrong with a view specification.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ViewError {
     /// An option this parser does not know.
-    #[error("unknown view option {0:?} (known: -vtv -vta -vth -vtl -vp -vd -vu -vh -vv -vs -vl)")]
+    #[error("unknown view option {0:?} (known: -vtv -vta -vth -vtl -vp -vd -vu -vh -vv -vs -vl -vo -va)")]
     UnknownOption(String),
     /// An option without enough numbers after it.
     #[error("view option {option} needs {needs} number(s)")]
@@ -80,9 +88,16 @@ impl Default for View {
             vertical: 45.0,
             shift: 0.0,
             lift: 0.0,
+            fore: 0.0,
+            aft: 0.0,
         }
     }
 }
+
+/// Words Radiance writes before a view's options (`rview -vtv …` from
+/// rview's `view` command, `VIEW= -vtv …` in a picture's header), skipped
+/// where they lead a view.
+const PREFIXES: [&str; 7] = ["rview", "rpict", "rvu", "rholo", "rhpict", "VIEW=", "view="];
 
 impl View {
     /// Parses options over the default view (looking along +x, z up, 45 x 45 degrees).
@@ -114,8 +129,16 @@ impl View {
 
     /// Applies options to this view and validates the result.
     pub fn with(mut self, spec: &str) -> Result<View, ViewError> {
-        let words: Vec<&str> = spec.split_whitespace().collect();
-        let mut i = 0;
+        let mut words: Vec<&str> = spec.split_whitespace().collect();
+        // `VIEW=-vtv` (no space) as some headers have it.
+        if let Some(rest) = words
+            .first()
+            .and_then(|w| w.strip_prefix("VIEW="))
+            .filter(|r| !r.is_empty())
+        {
+            words[0] = rest;
+        }
+        let mut i = words.iter().take_while(|w| PREFIXES.contains(w)).count();
         while i < words.len() {
             let opt = words[i];
             let nums = |n: usize| -> Result<Vec<f64>, ViewError> {
@@ -171,6 +194,14 @@ impl View {
                     self.lift = nums(1)?[0];
                     1
                 }
+                "-vo" => {
+                    self.fore = nums(1)?[0];
+                    1
+                }
+                "-va" => {
+                    self.aft = nums(1)?[0];
+                    1
+                }
                 other => return Err(ViewError::UnknownOption(other.to_string())),
             };
             i += 1 + used;
@@ -183,8 +214,20 @@ impl View {
             && [self.horizontal, self.vertical, self.shift, self.lift]
                 .iter()
                 .all(|v| v.is_finite());
-        if !finite {
+        if !(finite && self.fore.is_finite() && self.aft.is_finite()) {
             return Err(ViewError::Impossible("a value is not finite".into()));
+        }
+        if self.fore < 0.0 || self.aft < 0.0 {
+            return Err(ViewError::Impossible(format!(
+                "clipping distances -vo {} -va {} must not be negative",
+                self.fore, self.aft
+            )));
+        }
+        if self.aft > 0.0 && self.aft <= self.fore {
+            return Err(ViewError::Impossible(format!(
+                "aft clipping -va {} must lie beyond fore clipping -vo {}",
+                self.aft, self.fore
+            )));
         }
         // Scale by the largest component first: tiny and huge vectors normalize
         // without underflow or overflow.
@@ -232,15 +275,50 @@ impl View {
         };
         let v = |d: DVec3| format!("{} {} {}", d.x, d.y, d.z);
         format!(
-            "-vt{t} -vp {} -vd {} -vu {} -vh {} -vv {} -vs {} -vl {}",
+            "-vt{t} -vp {} -vd {} -vu {} -vh {} -vv {} -vo {} -va {} -vs {} -vl {}",
             v(self.position),
             v(self.direction),
             v(self.up),
             self.horizontal,
             self.vertical,
+            self.fore,
+            self.aft,
             self.shift,
             self.lift
         )
+    }
+
+    /// The ray parameter at which a ray from [`View::ray`] (`origin`, unit
+    /// `dir`) crosses the aft clipping plane; infinite without one.
+    pub fn aft_limit(&self, origin: DVec3, dir: DVec3) -> f64 {
+        if self.aft <= 0.0 {
+            return f64::INFINITY;
+        }
+        match self.kind {
+            ViewType::Perspective | ViewType::Parallel => {
+                let along = dir.dot(self.direction);
+                if along <= 0.0 {
+                    return f64::INFINITY;
+                }
+                (self.aft - (origin - self.position).dot(self.direction)) / along
+            }
+            ViewType::Angular | ViewType::Hemispherical => self.aft - self.fore,
+        }
+    }
+
+    /// Where a ray along unit `dir` from the eye starts: on the fore
+    /// clipping plane (sphere for fisheyes), or at the eye without one.
+    fn fore_origin(&self, origin: DVec3, dir: DVec3) -> DVec3 {
+        if self.fore <= 0.0 {
+            return origin;
+        }
+        match self.kind {
+            ViewType::Perspective | ViewType::Parallel => {
+                let along = dir.dot(self.direction).max(1e-12);
+                origin + dir * (self.fore / along)
+            }
+            ViewType::Angular | ViewType::Hemispherical => origin + dir * self.fore,
+        }
     }
 
     /// Unit right and up vectors of the image plane.
@@ -250,9 +328,16 @@ impl View {
         (right, up)
     }
 
-    /// The ray through image point (x, y): origin and unit direction, or `None`
-    /// outside a fisheye's circle.
+    /// The ray through image point (x, y): origin (on the fore clipping
+    /// plane where there is one) and unit direction, or `None` outside a
+    /// fisheye's circle.
     pub fn ray(&self, x: f64, y: f64) -> Option<(DVec3, DVec3)> {
+        let (origin, dir) = self.eye_ray(x, y)?;
+        Some((self.fore_origin(origin, dir), dir))
+    }
+
+    /// [`View::ray`] from the eye, before fore clipping.
+    fn eye_ray(&self, x: f64, y: f64) -> Option<(DVec3, DVec3)> {
         let (right, up) = self.basis();
         let (dx, dy) = (x - 0.5 + self.shift, y - 0.5 + self.lift);
         match self.kind {
@@ -371,6 +456,8 @@ impl View {
             sy,
             shift: self.shift,
             lift: self.lift,
+            fore: self.fore,
+            aft: if self.aft > 0.0 { self.aft } else { f64::INFINITY },
         }
     }
 }
@@ -413,6 +500,10 @@ pub struct ViewProjector {
     sy: f64,
     shift: f64,
     lift: f64,
+    /// Clipping range: along the view direction (perspective, parallel) or
+    /// from the eye (fisheyes).
+    fore: f64,
+    aft: f64,
 }
 
 impl ViewProjector {
@@ -423,14 +514,14 @@ impl ViewProjector {
         let (fx, fy, fz) = (d.dot(self.right), d.dot(self.up), d.dot(self.direction));
         let (dx, dy, depth) = match self.kind {
             ViewType::Perspective => {
-                if fz <= 0.0 {
+                if fz <= 0.0 || fz < self.fore || fz > self.aft {
                     return None;
                 }
                 (fx / fz / self.sx, fy / fz / self.sy, d.length())
             }
             ViewType::Angular => {
                 let len = d.length();
-                if len == 0.0 {
+                if len == 0.0 || len < self.fore || len > self.aft {
                     return None;
                 }
                 let r = (fz / len).clamp(-1.0, 1.0).acos();
@@ -440,12 +531,17 @@ impl ViewProjector {
             }
             ViewType::Hemispherical => {
                 let len = d.length();
-                if len == 0.0 || fz < 0.0 {
+                if len == 0.0 || fz < 0.0 || len < self.fore || len > self.aft {
                     return None;
                 }
                 (fx / len / self.sx, fy / len / self.sy, len)
             }
-            ViewType::Parallel => (fx / self.sx, fy / self.sy, fz),
+            ViewType::Parallel => {
+                if fz < self.fore || fz > self.aft {
+                    return None;
+                }
+                (fx / self.sx, fy / self.sy, fz)
+            }
         };
         Some((dx + 0.5 - self.shift, dy + 0.5 - self.lift, depth))
     }
@@ -469,8 +565,8 @@ impl ViewRays {
             return self.view.ray(x, y);
         }
         let (dx, dy) = (x - 0.5 + self.view.shift, y - 0.5 + self.view.lift);
-        let d = self.view.direction + self.right * (dx * self.h) + self.up * (dy * self.v);
-        Some((self.view.position, d.normalize()))
+        let d = (self.view.direction + self.right * (dx * self.h) + self.up * (dy * self.v)).normalize();
+        Some((self.view.fore_origin(self.view.position, d), d))
     }
 }
 
@@ -495,6 +591,43 @@ mod tests {
         }
         let (_, d) = v.ray(1.0, 0.5).unwrap();
         assert!((d.x - 30f64.to_radians().sin()).abs() < 1e-12 && d.x > 0.0);
+    }
+
+    #[test]
+    fn radiance_view_lines_are_read_as_rview_and_pictures_write_them() {
+        let line = "rview -vtv -vp 2.5 1 1.6 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45 -vo 1.5 -va 9 -vs 0.1 -vl -0.05";
+        let v = View::parse(line).unwrap();
+        assert_eq!((v.fore, v.aft, v.shift, v.lift), (1.5, 9.0, 0.1, -0.05));
+        for header in [
+            "VIEW= -vtv -vp 2.5 1 1.6 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45 -vo 1.5 -va 9 -vs 0.1 -vl -0.05",
+            "VIEW=-vtv -vp 2.5 1 1.6 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45 -vo 1.5 -va 9 -vs 0.1 -vl -0.05",
+            "rpict -vtv -vp 2.5 1 1.6 -vd 0 1 0 -vu 0 0 1 -vh 60 -vv 45 -vo 1.5 -va 9 -vs 0.1 -vl -0.05",
+        ] {
+            assert_eq!(View::parse(header).unwrap(), v, "{header}");
+        }
+        assert_eq!(View::parse(&v.to_spec()).unwrap(), v);
+        // Rays start on the fore plane, 1.5 along the view direction.
+        let (o, d) = v.ray(0.9, 0.2).unwrap();
+        assert!(((o - v.position).dot(v.direction) - 1.5).abs() < 1e-12);
+        assert!(
+            ((o - v.position).normalize() - d).length() < 1e-12,
+            "on the ray from the eye"
+        );
+        assert_eq!(v.rays().ray(0.9, 0.2), Some((o, d)));
+        // The aft plane 9 along the view direction.
+        let t = v.aft_limit(o, d);
+        assert!(((o + d * t - v.position).dot(v.direction) - 9.0).abs() < 1e-9);
+        // Points outside the clipping range are not projected.
+        let p = |along: f64| v.position + v.direction * along;
+        assert!(v.project(p(1.0)).is_none(), "nearer than -vo");
+        assert!(v.project(p(5.0)).is_some());
+        assert!(v.project(p(9.5)).is_none(), "beyond -va");
+        assert!(View::parse("-vo 2 -va 1").unwrap_err().to_string().contains("beyond"));
+        assert!(View::parse("-vo -1").is_err());
+        assert_eq!(
+            View::parse("-vp 0 0 0").unwrap().aft_limit(DVec3::ZERO, DVec3::X),
+            f64::INFINITY
+        );
     }
 
     #[test]

@@ -154,3 +154,56 @@ fn a_stand_in_caster_renders_the_same_picture() {
     // Every sample's first hit, and more for the bounces; shadow rays.
     assert!(nearest > 32 * 24 * 8 && occluded > 32 * 24 * 8, "{nearest} {occluded}");
 }
+
+#[test]
+fn a_radiance_view_line_clips_a_near_object_and_the_far_wall() {
+    use glam::{Mat4, Vec3};
+    use holodeck_sampler::{Material, SceneBuilder, Sky};
+    // A black card 2 m ahead hides a white wall 10 m ahead; a sky lights the wall.
+    let mut b = SceneBuilder::new();
+    let black = b.material("black", Material::lambertian([0.0; 3])).unwrap();
+    let white = b.material("white", Material::lambertian([0.8; 3])).unwrap();
+    let quad = |x: f32, r: f32| {
+        [
+            Vec3::new(x, -r, -r),
+            Vec3::new(x, r, -r),
+            Vec3::new(x, r, r),
+            Vec3::new(x, -r, r),
+        ]
+    };
+    b.add_mesh(
+        "card",
+        &quad(2.0, 3.0),
+        &[[0, 1, 2], [0, 2, 3]],
+        &[black],
+        Mat4::IDENTITY,
+    )
+    .unwrap();
+    b.add_mesh(
+        "wall",
+        &quad(10.0, 50.0),
+        &[[0, 2, 1], [0, 3, 2]],
+        &[white],
+        Mat4::IDENTITY,
+    )
+    .unwrap();
+    b.sky(Sky::Constant { radiance: [1.0; 3] }).unwrap();
+    let tracer = Tracer::new(b.finish(), TraceOptions::default());
+    let opts = RenderOptions {
+        width: 6,
+        height: 6,
+        spp: 4,
+        seed: 1,
+    };
+    let mean = |line: &str| {
+        let view = View::parse(line).unwrap();
+        render(&tracer, &view, &opts, &|_, _| {}).unwrap().mean_luminance()
+    };
+    let base = "rview -vtv -vp 0 0 0 -vd 1 0 0 -vu 0 0 1 -vh 40 -vv 40";
+    let hidden = mean(base);
+    let through = mean(&format!("{base} -vo 3"));
+    let clipped = mean(&format!("{base} -vo 3 -va 5"));
+    assert!(hidden < 1e-6, "the black card fills the view: {hidden}");
+    assert!(through > 0.3, "-vo 3 clips the card away and shows the wall: {through}");
+    assert!(clipped < 1e-6, "-va 5 clips the wall too: {clipped}");
+}

@@ -8,7 +8,6 @@ use anyhow::{bail, Context, Result};
 use holodeck_display::compare::{Metrics, ReferenceNoise, Yardstick, DEFAULT_CLAMP};
 use holodeck_display::image_io::read_picture;
 use holodeck_display::tonemap::{ToneMap, ToneMode};
-use holodeck_protocol::View;
 use holodeck_sampler::render::silhouettes;
 use holodeck_sampler::TraceOptions;
 
@@ -82,7 +81,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     .with_clamp(a.clamp);
     let yardstick = match &a.scene {
         Some(scene) => {
-            let view = View::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
+            let view = super::view_arg::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
             let input = SceneInput::open(scene, None, None)?;
             let tracer = input.tracer(TraceOptions::default());
             let (w, h) = (yardstick.reference().width, yardstick.reference().height);

@@ -23,4 +23,5 @@ pub mod scene;
 pub mod scene_input;
 pub mod serve;
 pub mod view;
+pub mod view_arg;
 pub mod window;

@@ -51,6 +51,9 @@ pub struct Args {
     /// The holodeck file.
     file: PathBuf,
     /// View options (Radiance notation); default: the built-in room's view.
+    /// A Radiance view line (`rview -vtv -vp …`, `VIEW= …`) works as written;
+    /// `-vo`/`-va` clip fore and aft, `-vs`/`-vl` shift and lift, `-vf FILE`
+    /// reads a view file or a Radiance picture's header.
     #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true, conflicts_with = "views")]
     view: String,
     /// A file of views, one per line (a scripted path): numbered frames.
@@ -245,7 +248,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
             v
         }
-        None => vec![View::parse(&a.view).context("--view")?],
+        None => vec![super::view_arg::parse(&a.view).context("--view")?],
     };
     let mut file =
         HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;
@@ -269,10 +272,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         } else {
             output.clone()
         };
-        let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
+        let viewport = Viewport::new(view.clone(), a.frame.width, a.frame.height)?;
         let (picture, hist, s) = draw(&mut file, viewport, &driver, a.stride, i as u64)?;
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
-        output::save(&picture, &hist, mode, &out)?;
+        output::save(&picture, &hist, mode, &out, Some(&view))?;
         let secs = s.recall.as_secs_f64();
         let denoised = match driver.denoise {
             Denoiser::Off => String::new(),

@@ -43,6 +43,9 @@ pub struct Args {
     /// Scene file, or builtin:NAME.
     scene: String,
     /// View options (Radiance notation); the default looks at the built-in room's window.
+    /// A Radiance view line (`rview -vtv -vp …`, `VIEW= …`) works as written;
+    /// `-vo`/`-va` clip fore and aft, `-vs`/`-vl` shift and lift, `-vf FILE`
+    /// reads a view file or a Radiance picture's header.
     #[arg(long, default_value = ROOM_VIEW, allow_hyphen_values = true)]
     view: String,
     /// Image width.
@@ -113,9 +116,9 @@ fn picture_ext(path: &Path, what: &str) -> Result<String> {
 }
 
 /// Writes `picture` as .hdr (linear) or .png (at `exposure`, automatic if none).
-fn write_picture(picture: &holodeck_protocol::Picture, path: &Path, exposure: Option<f32>) -> Result<()> {
+fn write_picture(picture: &holodeck_protocol::Picture, path: &Path, exposure: Option<f32>, view: &View) -> Result<()> {
     match picture_ext(path, "output")?.as_str() {
-        "hdr" => holodeck_display::image_io::write_hdr(picture, path)?,
+        "hdr" => holodeck_display::image_io::write_hdr_view(picture, path, Some(view))?,
         _ => holodeck_display::image_io::write_png(picture, path, exposure.unwrap_or_else(|| picture.auto_exposure()))?,
     }
     Ok(())
@@ -174,7 +177,7 @@ pub fn denoise_oidn(
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     frame_size(a.width, a.height)?;
-    let view = View::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
+    let view = super::view_arg::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
     picture_ext(&a.output, "output")?;
     for (p, what) in [(&a.albedo, "--albedo"), (&a.normal, "--normal")] {
         if let Some(p) = p {
@@ -236,7 +239,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     if let Some((albedo, normal)) = &aovs {
         if let Some(p) = &a.albedo {
-            write_picture(albedo, p, Some(1.0))?;
+            write_picture(albedo, p, Some(1.0), &view)?;
         }
         if let Some(p) = &a.normal {
             // Unit vectors as colours: (n + 1) / 2, which RGBE and PNG can hold.
@@ -245,14 +248,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 height: normal.height,
                 pixels: normal.pixels.iter().map(|n| (*n + glam::Vec3::ONE) * 0.5).collect(),
             };
-            write_picture(&shown, p, Some(1.0))?;
+            write_picture(&shown, p, Some(1.0), &view)?;
         }
     }
     let picture = match (&aovs, oidn) {
         (Some((albedo, normal)), true) => denoise_oidn(&picture, albedo, normal)?,
         _ => picture,
     };
-    write_picture(&picture, &a.output, a.exposure)?;
+    write_picture(&picture, &a.output, a.exposure, &view)?;
     let samples = u64::from(a.width) * u64::from(a.height) * u64::from(a.spp);
     println!(
         "{}: {} x {} at {} spp in {secs:.2} s ({:.2} M samples/s, {} threads); {} triangles, tree {build:.2} s",

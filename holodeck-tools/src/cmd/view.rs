@@ -118,6 +118,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut driver = a.frame.driver_choice()?.make(first)?;
     let mut hist = Histogram::new();
     let save = |driver: &mut dyn holodeck_display::Driver,
+                view: &View,
                 hist: &Histogram,
                 name: String,
                 new: u64,
@@ -129,7 +130,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let render = start.elapsed();
         let path = output.join(name);
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
-        output::save(&picture, hist, mode, &path)?;
+        output::save(&picture, hist, mode, &path, Some(view))?;
         println!(
             "{}: {} new samples in {:.0} ms ({} in all, {} pixel estimates), drawn in {:.1} ms",
             path.display(),
@@ -182,7 +183,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let t = session.request(&request, resend, &mut sink)?;
         let mut received = t.samples;
         let name = |step: u32| format!("view{:04}_{step:02}.{}", i + 1, a.format);
-        save(driver.as_mut(), &hist, name(0), t.samples, received, t.elapsed)?;
+        save(
+            driver.as_mut(),
+            &viewport.view,
+            &hist,
+            name(0),
+            t.samples,
+            received,
+            t.elapsed,
+        )?;
         if wait.is_zero() {
             continue;
         }
@@ -212,7 +221,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 }
             }
             received += new;
-            save(driver.as_mut(), &hist, name(step), new, received, start.elapsed())?;
+            save(
+                driver.as_mut(),
+                &viewport.view,
+                &hist,
+                name(step),
+                new,
+                received,
+                start.elapsed(),
+            )?;
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -72,6 +72,9 @@ pub fn render(
                 let mut s = 0;
                 while s < spp {
                     let mut batch = [(Vec3::ZERO, Vec3::ZERO); PACKET];
+                    // Where each ray meets the aft clipping plane: what
+                    // lies beyond is black, as Radiance renders it.
+                    let mut aft = [f32::INFINITY; PACKET];
                     let mut n = 0;
                     for s in s..(s + PACKET as u32).min(spp) {
                         let (jx, jy) = rng.f32x2();
@@ -87,10 +90,15 @@ pub fn render(
                         let y = 1.0 - (row as f64 + f64::from(sy)) / h as f64;
                         if let Some((origin, dir)) = rays.ray(x, y) {
                             batch[n] = (origin.as_vec3(), dir.as_vec3());
+                            aft[n] = view.aft_limit(origin, dir) as f32;
                             n += 1;
                         }
                     }
-                    tracer.trace_together(&batch[..n], &mut rng, |_, sample| sum += sample.radiance);
+                    tracer.trace_together(&batch[..n], &mut rng, |k, sample| {
+                        if sample.distance <= aft[k] {
+                            sum += sample.radiance;
+                        }
+                    });
                     s += PACKET as u32;
                 }
                 out.push(sum / spp as f32);

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use holodeck_display::EstimatorOptions;
-use holodeck_protocol::{grid_for_beam_count, Section, View};
+use holodeck_protocol::{grid_for_beam_count, Section};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::settings::Settings;
 use holodeck_server::{HoloFile, OpenOptions};
@@ -80,7 +80,7 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
         anyhow::bail!("scene {} defines no holodeck section", a.scene);
     };
     let hash = holodeck_sampler::scene::hash::content_hash(&scene);
-    let view = View::parse(&a.view).context("--view")?;
+    let view = crate::cmd::view_arg::parse(&a.view).context("--view")?;
     let tracer = Tracer::new(scene, TraceOptions::default());
     let halves = crate::truth::reference_halves(&tracer, &view, (a.width, a.height), a.reference_spp, 0x5eed)?;
     let truth = Truth::new(&tracer, &view, halves)?;
