@@ -213,3 +213,50 @@ fn the_mandelbulb_streams_into_a_scene_file_that_recodes_to_zstd() {
     assert!(!o.status.success());
     assert!(text(&o).contains("9000"), "{}", text(&o));
 }
+
+#[test]
+fn scene_info_lists_textures_import_notes_and_the_radiance_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    image::RgbaImage::from_pixel(8, 8, image::Rgba([200, 100, 50, 255]))
+        .save(p.join("wood.png"))
+        .unwrap();
+    std::fs::write(
+        p.join("t.mtl"),
+        "newmtl wood\nillum 2\nd 0\nKd 1 1 1\nmap_Kd wood.png\nmap_Ks gloss.png\n",
+    )
+    .unwrap();
+    std::fs::write(
+        p.join("t.obj"),
+        "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nusemtl wood\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        p.join("gensky.rad"),
+        "void light solar 0 0 3 6.38e+06 6.38e+06 6.38e+06\nsolar source sun 0 0 4 0 -0.644212 0.764848 0.5\n\
+         void brightfunc skyfunc 2 skybr skybright.cal 0 7 1 3.56e+01 4.38e+01 2.41e-01 0 -0.644212 0.764848\n\
+         skyfunc glow sky_mat 0 0 4 0.9 0.9 1.15 0\nsky_mat source sky 0 0 4 0 0 1 180\n",
+    )
+    .unwrap();
+    std::fs::write(
+        p.join("scene.toml"),
+        "[[geometry]]\nfile = \"t.obj\"\n\n[[geometry]]\nfile = \"gensky.rad\"\n",
+    )
+    .unwrap();
+    let o = holodeck(&["scene", "info", p.join("scene.toml").to_str().unwrap()]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    for want in [
+        "textures     1 images,",
+        "import note",
+        "d 0 ignored: illum 2 is an opaque model",
+        "map_Ks is not used",
+        "CIE clear sky (skybright.cal)",
+    ] {
+        assert!(out.contains(want), "missing {want:?} in\n{out}");
+    }
+    // At the default verbosity the notes come as one summary line.
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("dropped or approximated on import"), "{stderr}");
+    assert!(!stderr.contains("map_Ks"), "details only with -v: {stderr}");
+}

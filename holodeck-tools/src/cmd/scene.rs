@@ -461,7 +461,40 @@ fn sky(s: &Sky) -> String {
         Sky::Sun {
             direction,
             sun_radiance,
+            zenith,
+            horizon,
+            ground,
             ..
-        } => format!("sun toward {direction:?}, radiance {sun_radiance:?}"),
+        } => format!(
+            "sun toward {direction:?}, radiance {sun_radiance:?}; sky {zenith:?} at the zenith, {horizon:?} at the horizon, ground {ground:?}"
+        ),
+        Sky::Radiance { distribution, sun, .. } => {
+            use holodeck_sampler::scene::sky_distribution::{CieSky, SkyDistribution};
+            let model = match distribution {
+                SkyDistribution::Cie { kind, .. } => match kind {
+                    CieSky::Clear => "CIE clear sky (skybright.cal)",
+                    CieSky::Overcast => "CIE overcast sky (skybright.cal)",
+                    CieSky::Uniform => "uniform sky (skybright.cal)",
+                    CieSky::Intermediate => "CIE intermediate sky (skybright.cal)",
+                },
+                SkyDistribution::Perez { .. } => "Perez all-weather sky (perezlum.cal)",
+            };
+            // What rays see, as traced.
+            let traced = holodeck_sampler::shade::sky::SkyModel::new(s);
+            let at = |d: glam::Vec3| traced.background(d.normalize()).to_array();
+            let mut out = format!(
+                "{model}: radiance {:?} at the zenith, {:?} at the horizon to the south (-y), ground {:?}",
+                at(glam::Vec3::Z),
+                at(glam::Vec3::new(0.0, -1.0, 0.01)),
+                at(-glam::Vec3::Z)
+            );
+            if let Some(s) = sun {
+                out.push_str(&format!(
+                    "; sun toward {:?}, radiance {:?}, {} degrees",
+                    s.direction, s.radiance, s.diameter_deg
+                ));
+            }
+            out
+        }
     }
 }

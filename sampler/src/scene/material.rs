@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::sky_distribution::SkyDistribution;
+
 /// A surface's reflectance model. Colors are linear RGB in [0, 1] unless noted.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
@@ -195,10 +197,48 @@ pub enum Sky {
         /// Radiance below the horizon.
         ground: [f32; 3],
     },
+    /// A Radiance sky: a brightness distribution (gensky's CIE skies,
+    /// gendaylit's Perez sky) times one colour above the horizon and
+    /// another below (the `glow`s it modifies), with an optional sun.
+    Radiance {
+        /// The brightness per direction.
+        distribution: SkyDistribution,
+        /// Colour multiplying it above the horizon (the sky glow's).
+        sky: [f32; 3],
+        /// Colour multiplying it below the horizon (the ground glow's; black without one).
+        ground: [f32; 3],
+        /// Whether the distribution shapes the sky above the horizon (else
+        /// `sky` is sent uniformly, as a glow with no `skyfunc` does).
+        #[serde(default = "yes")]
+        sky_shaped: bool,
+        /// The same below the horizon.
+        #[serde(default = "yes")]
+        ground_shaped: bool,
+        /// The sun (gensky's `light` source), if any.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sun: Option<SunDisk>,
+    },
+}
+
+fn yes() -> bool {
+    true
 }
 
 fn sun_diameter() -> f32 {
     0.53
+}
+
+/// A sun disk: direction, radiance and angular size.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SunDisk {
+    /// Direction toward the sun (normalized on use).
+    pub direction: [f32; 3],
+    /// Radiance of the disk.
+    pub radiance: [f32; 3],
+    /// Angular diameter, degrees.
+    #[serde(default = "sun_diameter")]
+    pub diameter_deg: f32,
 }
 
 impl Sky {
@@ -236,13 +276,39 @@ impl Sky {
                 radiance("horizon", horizon)?;
                 radiance("ground", ground)
             }
+            Sky::Radiance {
+                distribution,
+                sky,
+                ground,
+                sun,
+                ..
+            } => {
+                distribution.validate().map_err(SkyError::Distribution)?;
+                radiance("sky", sky)?;
+                radiance("ground", ground)?;
+                if let Some(s) = sun {
+                    Sky::Sun {
+                        direction: s.direction,
+                        sun_radiance: s.radiance,
+                        diameter_deg: s.diameter_deg,
+                        zenith: [0.0; 3],
+                        horizon: [0.0; 3],
+                        ground: [0.0; 3],
+                    }
+                    .validate()?;
+                }
+                Ok(())
+            }
         }
     }
 }
 
 /// Why a sky's parameters are impossible, naming the key.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SkyError {
+    /// A brightness distribution with impossible arguments.
+    #[error("distribution: {0}")]
+    Distribution(String),
     /// A sun direction that is zero or not finite: it points nowhere.
     #[error("direction {0:?} must be finite and not zero: it points toward the sun")]
     Direction([f32; 3]),

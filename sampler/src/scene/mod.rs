@@ -12,6 +12,7 @@ pub mod import;
 pub mod maps;
 pub mod material;
 pub mod section;
+pub mod sky_distribution;
 pub mod texture;
 
 use glam::{Vec2, Vec3};

@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use super::sampling::{uniform_cone, Frame};
+use crate::scene::sky_distribution::SkyDistribution;
 use crate::scene::Sky;
 
 /// A sky ready for shading.
@@ -17,7 +18,17 @@ pub struct SkyModel {
 #[derive(Clone, Debug)]
 enum Background {
     Constant(Vec3),
-    Gradient { zenith: Vec3, horizon: Vec3, ground: Vec3 },
+    Gradient {
+        zenith: Vec3,
+        horizon: Vec3,
+        ground: Vec3,
+    },
+    Distribution {
+        brightness: SkyDistribution,
+        sky: Vec3,
+        ground: Vec3,
+        shaped: [bool; 2],
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -26,6 +37,28 @@ struct Sun {
     cos_max: f32,
     one_minus_cos: f32,
     radiance: Vec3,
+}
+
+impl Sun {
+    /// A sun toward `direction` (any length) of `radiance`, `diameter_deg`
+    /// across; `None` where it points nowhere or has no size.
+    fn new(direction: &[f32; 3], radiance: &[f32; 3], diameter_deg: f32) -> Option<Sun> {
+        // Normalized in double precision: huge or tiny directions
+        // would overflow or underflow single precision on the way.
+        let dir = Vec3::from_array(*direction).as_dvec3();
+        let length = dir.length();
+        let pointed = length > 0.0 && length.is_finite();
+        (pointed && diameter_deg > 0.0 && diameter_deg <= 180.0).then(|| Sun {
+            frame: Frame::new((dir / length).as_vec3()),
+            cos_max: (f64::from(diameter_deg).to_radians() * 0.5).cos() as f32,
+            one_minus_cos: {
+                // 1 - cos(x) = 2 sin^2(x/2): exact even for a tiny sun.
+                let h = (f64::from(diameter_deg).to_radians() * 0.25).sin();
+                (2.0 * h * h) as f32
+            },
+            radiance: Vec3::from_array(*radiance).max(Vec3::ZERO).min(Vec3::splat(f32::MAX)),
+        })
+    }
 }
 
 impl SkyModel {
@@ -49,21 +82,7 @@ impl SkyModel {
                 horizon,
                 ground,
             } => {
-                // Normalized in double precision: huge or tiny directions
-                // would overflow or underflow single precision on the way.
-                let dir = Vec3::from_array(*direction).as_dvec3();
-                let length = dir.length();
-                let pointed = length > 0.0 && length.is_finite();
-                let sun = (pointed && *diameter_deg > 0.0 && *diameter_deg <= 180.0).then(|| Sun {
-                    frame: Frame::new((dir / length).as_vec3()),
-                    cos_max: (f64::from(*diameter_deg).to_radians() * 0.5).cos() as f32,
-                    one_minus_cos: {
-                        // 1 - cos(x) = 2 sin^2(x/2): exact even for a tiny sun.
-                        let h = (f64::from(*diameter_deg).to_radians() * 0.25).sin();
-                        (2.0 * h * h) as f32
-                    },
-                    radiance: c(sun_radiance),
-                });
+                let sun = Sun::new(direction, sun_radiance, *diameter_deg);
                 SkyModel {
                     background: Background::Gradient {
                         zenith: c(zenith),
@@ -73,6 +92,24 @@ impl SkyModel {
                     sun,
                 }
             }
+            Sky::Radiance {
+                distribution,
+                sky,
+                ground,
+                sky_shaped,
+                ground_shaped,
+                sun,
+            } => SkyModel {
+                background: Background::Distribution {
+                    brightness: distribution.clone(),
+                    sky: c(sky),
+                    ground: c(ground),
+                    shaped: [*sky_shaped, *ground_shaped],
+                },
+                sun: sun
+                    .as_ref()
+                    .and_then(|s| Sun::new(&s.direction, &s.radiance, s.diameter_deg)),
+            },
         }
     }
 
@@ -91,6 +128,23 @@ impl SkyModel {
                     let t = d.z.sqrt();
                     *horizon * (1.0 - t) + *zenith * t
                 }
+            }
+            Background::Distribution {
+                brightness,
+                sky,
+                ground,
+                shaped,
+            } => {
+                let (color, shaped) = if d.z < 0.0 {
+                    (*ground, shaped[1])
+                } else {
+                    (*sky, shaped[0])
+                };
+                if !shaped {
+                    return color;
+                }
+                let b = brightness.brightness(d.as_dvec3().to_array()) as f32;
+                color * if b.is_finite() { b.max(0.0) } else { 0.0 }
             }
         }
     }

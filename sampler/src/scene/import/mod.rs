@@ -100,8 +100,8 @@ pub fn import_file(
 /// [`import_file`] with every option, including the material list that PLY
 /// per-face `material_index` values index and the file's up axis. The file is
 /// turned +z up first; `transform` then places it in the scene. What a
-/// Radiance file approximated is logged once per kind ([`rad::read_rad`]
-/// returns it as a list).
+/// file dropped or approximated becomes the scene's import notes (a
+/// Radiance file's once per kind).
 pub fn import_file_with(
     b: &mut SceneBuilder,
     path: &Path,
@@ -119,7 +119,7 @@ pub fn import_file_with(
         Some("obj") => obj::import(b, path, transform, options),
         Some("ply") => ply::import(b, path, transform, options),
         Some("gltf") | Some("glb") => gltf::import(b, path, transform, options),
-        Some("rad") => rad::read_rad(b, path, transform, options).map(|report| report.log()),
+        Some("rad") => rad::read_rad(b, path, transform, options).map(|report| report.note_into(b, path)),
         _ => Err(SceneError::UnsupportedFormat {
             path: path.to_path_buf(),
         }),

@@ -26,7 +26,10 @@
 //! * `plastic2`, `metal2`, `trans2`: as the isotropic ones, with the mean of
 //!   the two roughnesses.
 //! * `mist`: invisible. Patterns and textures: ignored (the material keeps
-//!   its base color). Mixtures: their foreground (background if `void`).
+//!   its base color), except the sky distributions of gensky
+//!   (`brightfunc skybr skybright.cal`) and gendaylit (`brightfunc skybright
+//!   perezlum.cal`) on `glow` sources, which shape the sky. Mixtures: their
+//!   foreground (background if `void`).
 //! * Other materials (`BRTDfunc`, `BSDF`, `plasfunc`, `antimatter`, ...):
 //!   refused where a surface uses them.
 
@@ -36,6 +39,7 @@ use super::error::{Location, RadError, RadErrorKind};
 use super::parse::Primitive;
 use super::report::{NoteKind, RadReport};
 use crate::scene::material::Material;
+use crate::scene::sky_distribution::{CieSky, SkyDistribution};
 
 /// Radiance's index of refraction for `glass` without one.
 const GLASS_IOR: f64 = 1.52;
@@ -123,6 +127,9 @@ pub(super) struct Slot {
     pub light: LightKind,
     /// Where it is defined.
     pub at: Location,
+    /// The sky distribution that modifies it (a `glow` under gensky's or
+    /// gendaylit's `skyfunc`).
+    pub sky: Option<SkyDistribution>,
 }
 
 /// The modifiers defined so far.
@@ -130,6 +137,9 @@ pub(super) struct Slot {
 pub(super) struct Modifiers {
     /// Each name's latest definition, resolved.
     names: HashMap<String, Resolved>,
+    /// Sky brightness patterns by name (`brightfunc` over `skybright.cal`
+    /// or `perezlum.cal`).
+    skies: HashMap<String, SkyDistribution>,
     /// Every material definition, in file order.
     pub slots: Vec<Slot>,
 }
@@ -167,7 +177,15 @@ impl Modifiers {
             let target = p.strings.first().map_or("", String::as_str);
             self.lookup(target, at)?
         } else if PATTERNS.contains(&kind) {
-            report.note(NoteKind::PatternIgnored, at, || p.what());
+            match sky_pattern(p, at)? {
+                Some(sky) => {
+                    self.skies.insert(p.name.clone(), sky);
+                }
+                None => {
+                    self.skies.remove(&p.name);
+                    report.note(NoteKind::PatternIgnored, at, || p.what());
+                }
+            }
             self.lookup(&p.modifier, at)?
         } else if MIXTURES.contains(&kind) {
             let [fore, back] = match &p.strings[..] {
@@ -205,17 +223,94 @@ impl Modifiers {
                 let (what, message) = (p.what(), e.to_string());
                 RadError::new(at, RadErrorKind::BadArguments { what, message })
             })?;
+            let sky = match light {
+                LightKind::Glow => self.skies.get(&p.modifier).cloned(),
+                _ => None,
+            };
             self.slots.push(Slot {
                 name: p.name.clone(),
                 material,
                 light,
                 at: at.clone(),
+                sky,
             });
             Resolved::Material(self.slots.len() - 1)
         };
         self.names.insert(p.name.clone(), resolved);
         Ok(true)
     }
+}
+
+/// The sky distribution of a `brightfunc` over gensky's `skybright.cal`
+/// (functions `skybr`, and the older `skybright`) or gendaylit's
+/// `perezlum.cal` (`skybright`); `None` for any other pattern.
+fn sky_pattern(p: &Primitive, at: &Location) -> Result<Option<SkyDistribution>, RadError> {
+    if p.kind != "brightfunc" {
+        return Ok(None);
+    }
+    let [function, file, ..] = &p.strings[..] else {
+        return Ok(None);
+    };
+    let file = file.rsplit(['/', '\\']).next().unwrap_or(file);
+    let r: Vec<f32> = p.reals.iter().map(|&v| v as f32).collect();
+    let sky = match (file, function.as_str()) {
+        ("skybright.cal", "skybr" | "skybright") => {
+            if r.len() != 7 {
+                return Err(count_error(
+                    p,
+                    at,
+                    "7 reals: type zenith-brightness ground-brightness normalization sun-x sun-y sun-z",
+                ));
+            }
+            let kind = if function == "skybright" {
+                // The older function: a positive first argument is cloudy.
+                if r[0] > 0.0 {
+                    CieSky::Overcast
+                } else {
+                    CieSky::Clear
+                }
+            } else {
+                match r[0].round() as i64 {
+                    1 => CieSky::Clear,
+                    2 => CieSky::Overcast,
+                    3 => CieSky::Uniform,
+                    4 => CieSky::Intermediate,
+                    other => {
+                        let (what, message) = (p.what(), format!("sky type {other} is not 1 to 4"));
+                        return Err(RadError::new(at, RadErrorKind::BadArguments { what, message }));
+                    }
+                }
+            };
+            SkyDistribution::Cie {
+                kind,
+                zenith: r[1],
+                ground: r[2],
+                normalization: r[3],
+                toward_sun: [r[4], r[5], r[6]],
+            }
+        }
+        ("perezlum.cal", "skybright") => {
+            if r.len() != 10 {
+                return Err(count_error(
+                    p,
+                    at,
+                    "10 reals: normalization ground-brightness a b c d e sun-x sun-y sun-z",
+                ));
+            }
+            SkyDistribution::Perez {
+                normalization: r[0],
+                ground: r[1],
+                coefficients: [r[2], r[3], r[4], r[5], r[6]],
+                toward_sun: [r[7], r[8], r[9]],
+            }
+        }
+        _ => return Ok(None),
+    };
+    sky.validate().map_err(|message| {
+        let what = p.what();
+        RadError::new(at, RadErrorKind::BadArguments { what, message })
+    })?;
+    Ok(Some(sky))
 }
 
 /// Whether `kind` is a material [`convert`] handles.

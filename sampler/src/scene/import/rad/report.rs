@@ -53,6 +53,8 @@ pub enum NoteKind {
     /// A `glow` source covering a hemisphere became the sky's color there
     /// (uniform: its patterns are ignored).
     GlowSky,
+    /// Glow sources under different sky distributions: the first shapes the whole sky.
+    SkyDistributions,
 }
 
 impl NoteKind {
@@ -78,7 +80,10 @@ impl NoteKind {
             NoteKind::NegativeRadius => "a negative radius turns the surface inside out",
             NoteKind::ZeroArea => "polygons of zero area are left out",
             NoteKind::Fanned => "polygons that could not be ear-clipped are fanned from their first vertex",
-            NoteKind::GlowSky => "glow sources become a uniform sky color",
+            NoteKind::GlowSky => "glow sources without a sky distribution become a uniform sky color",
+            NoteKind::SkyDistributions => {
+                "glow sources under different sky distributions: the first shapes the whole sky"
+            }
         }
     }
 }
@@ -122,10 +127,13 @@ impl RadReport {
         self.notes.iter().find(|n| n.kind == kind).map_or(0, |n| n.count)
     }
 
-    /// Logs one warning per kind.
-    pub fn log(&self) {
+    /// Adds one import note per kind to the scene `b` builds, naming the
+    /// file `path` (loading a scene says them once: a summary line, each
+    /// with `-v`).
+    pub fn note_into(&self, b: &mut crate::scene::SceneBuilder, path: &std::path::Path) {
         for n in &self.notes {
-            tracing::warn!("{}: {} ({}; {} in all)", n.first, n.kind.summary(), n.detail, n.count);
+            let what = format!("{}: {} ({}; {} in all)", n.first, n.kind.summary(), n.detail, n.count);
+            b.note(&path.display().to_string(), None, what);
         }
     }
 }

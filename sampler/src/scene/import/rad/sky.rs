@@ -1,17 +1,18 @@
-//! Distant `source`s as the scene's sky. The scene has one sun and a sky of
-//! three colors (zenith, horizon, ground), so a `light` source becomes the sun
-//! (its radiance and angular diameter as given) and a `glow` source at least a
-//! hemisphere wide becomes the sky color of the half it faces (both halves
-//! from 360 degrees), uniform: the patterns that shade a Radiance sky are
-//! ignored. A second sun, a narrower glow source and sources of any other
-//! material are refused.
+//! Distant `source`s as the scene's sky. A `light` source becomes the sun
+//! (its radiance and angular diameter as given). A `glow` source at least a
+//! hemisphere wide becomes the sky of the half it faces (both halves from
+//! 360 degrees): shaped by its sky distribution where gensky's or
+//! gendaylit's `skyfunc` modifies it (the colour multiplying the
+//! distribution, as in Radiance), else uniform. A second sun, a narrower
+//! glow source and sources of any other material are refused.
 
 use glam::{DVec3, Mat4, Vec3};
 
 use super::error::{Location, RadError, RadErrorKind};
 use super::materials::{LightKind, Slot};
 use super::report::{NoteKind, RadReport};
-use crate::scene::material::Sky;
+use crate::scene::material::{Sky, SunDisk};
+use crate::scene::sky_distribution::SkyDistribution;
 
 /// A distant source as read.
 #[derive(Clone, Debug, PartialEq)]
@@ -38,6 +39,9 @@ pub(super) fn sky(
 ) -> Result<Option<Sky>, RadError> {
     let mut sun: Option<(&Source, Vec3, [f32; 3])> = None;
     let (mut upper, mut lower) = (None::<[f32; 3]>, None::<[f32; 3]>);
+    let mut distribution: Option<SkyDistribution> = None;
+    // Whether the glows of the upper and lower half are shaped by it.
+    let mut shaped = [false; 2];
     let refuse = |s: &Source, message: String| {
         let what = s.what.clone();
         RadError::new(&s.at, RadErrorKind::Source { what, message })
@@ -65,16 +69,25 @@ pub(super) fn sky(
                     );
                     return Err(refuse(s, message));
                 }
-                report.note(NoteKind::GlowSky, &s.at, || s.what.clone());
+                match (&slot.sky, &distribution) {
+                    (Some(d), None) => distribution = Some(d.clone()),
+                    (Some(d), Some(first)) if d != first => {
+                        report.note(NoteKind::SkyDistributions, &s.at, || s.what.clone());
+                    }
+                    (Some(_), Some(_)) => {}
+                    (None, _) => report.note(NoteKind::GlowSky, &s.at, || s.what.clone()),
+                }
                 let add = |half: &mut Option<[f32; 3]>| {
                     let before = half.unwrap_or([0.0; 3]);
                     *half = Some([0, 1, 2].map(|k| before[k] + radiance[k]));
                 };
                 if s.angle >= 360.0 || direction.z >= 0.0 {
                     add(&mut upper);
+                    shaped[0] |= slot.sky.is_some();
                 }
                 if s.angle >= 360.0 || direction.z < 0.0 {
                     add(&mut lower);
+                    shaped[1] |= slot.sky.is_some();
                 }
             }
             LightKind::None | LightKind::Spot => {
@@ -87,6 +100,25 @@ pub(super) fn sky(
         }
     }
     let (up, down) = (upper.unwrap_or([0.0; 3]), lower.unwrap_or([0.0; 3]));
+    if let Some(distribution) = distribution {
+        let sun = sun.map(|(s, direction, radiance)| SunDisk {
+            direction: direction.normalize().to_array(),
+            radiance,
+            diameter_deg: s.angle as f32,
+        });
+        let sky = Sky::Radiance {
+            distribution: turned(distribution, transform),
+            sky: up,
+            ground: down,
+            sky_shaped: shaped[0],
+            ground_shaped: shaped[1],
+            sun,
+        };
+        if let (Err(e), Some(s)) = (sky.validate(), sources.first()) {
+            return Err(refuse(s, e.to_string()));
+        }
+        return Ok(Some(sky));
+    }
     let sky = match sun {
         Some((s, direction, radiance)) => {
             let sky = Sky::Sun {
@@ -112,4 +144,40 @@ pub(super) fn sky(
         },
     };
     Ok(Some(sky))
+}
+
+/// `d` with its sun direction turned by `transform` (the import's).
+fn turned(d: SkyDistribution, transform: Mat4) -> SkyDistribution {
+    // Turned, its length kept: the .cal files use the numbers as given.
+    let turn = |v: [f32; 3]| {
+        let v = Vec3::from_array(v);
+        let t = transform.transform_vector3(v);
+        t.try_normalize().map_or(v, |t| t * v.length()).to_array()
+    };
+    match d {
+        SkyDistribution::Cie {
+            kind,
+            zenith,
+            ground,
+            normalization,
+            toward_sun,
+        } => SkyDistribution::Cie {
+            kind,
+            zenith,
+            ground,
+            normalization,
+            toward_sun: turn(toward_sun),
+        },
+        SkyDistribution::Perez {
+            normalization,
+            ground,
+            coefficients,
+            toward_sun,
+        } => SkyDistribution::Perez {
+            normalization,
+            ground,
+            coefficients,
+            toward_sun: turn(toward_sun),
+        },
+    }
 }

@@ -178,19 +178,26 @@ m polygon p 0 0 9 0 0 0 1 0 0 0 1 0
 ";
     let (s, report) = read(dir.path(), "sky.rad", text).unwrap();
     match &s.sky {
-        Sky::Sun {
-            sun_radiance,
-            zenith,
-            horizon,
+        Sky::Radiance {
+            sky,
             ground,
+            sky_shaped,
+            ground_shaped,
+            sun,
             ..
         } => {
-            assert_eq!(*sun_radiance, [0.0; 3]);
-            assert_eq!((*zenith, *horizon), ([0.9, 0.9, 1.1], [0.9, 0.9, 1.1]));
-            assert_eq!(*ground, [0.2, 0.18, 0.15]);
+            assert_eq!((*sky, *sky_shaped), ([0.9, 0.9, 1.1], true));
+            assert_eq!(
+                (*ground, *ground_shaped),
+                ([0.2, 0.18, 0.15], false),
+                "its glow has no skyfunc"
+            );
+            assert_eq!(*sun, None);
         }
         other => panic!("{other:?}"),
     }
-    assert_eq!(report.count(NoteKind::GlowSky), 2);
+    assert_eq!(report.count(NoteKind::GlowSky), 1, "the ground glow alone is uniform");
+    let model = crate::shade::sky::SkyModel::new(&s.sky);
+    assert_eq!(model.background(-glam::Vec3::Z), glam::Vec3::new(0.2, 0.18, 0.15));
     assert_eq!(material(&s, "m"), &Material::lambertian([0.5; 3]));
 }

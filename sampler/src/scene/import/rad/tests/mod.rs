@@ -12,6 +12,7 @@ mod commands;
 mod errors;
 mod materials;
 mod render;
+mod sky;
 mod surfaces;
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
