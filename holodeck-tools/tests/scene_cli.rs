@@ -260,3 +260,39 @@ fn scene_info_lists_textures_import_notes_and_the_radiance_sky() {
     assert!(stderr.contains("dropped or approximated on import"), "{stderr}");
     assert!(!stderr.contains("map_Ks"), "details only with -v: {stderr}");
 }
+
+#[test]
+fn sections_that_cut_geometry_are_reported_and_a_proposed_one_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = holodeck(&["scene", "section", "builtin:room", "--eye", "3", "2", "1.6"]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    let table = &out[out.find("[[section]]").expect("a [[section]] table")..];
+    // The room with the proposed section, and with one through the table.
+    let write = |name: &str, section: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, format!("[[builtin]]\nname = \"room\"\n\n{section}\n")).unwrap();
+        path
+    };
+    let fits = write("fits.toml", table);
+    let o = holodeck(&["scene", "info", fits.to_str().unwrap()]);
+    assert!(o.status.success() && !text(&o).contains("warning"), "{}", text(&o));
+    assert!(text(&o).contains("section 0    interior"), "{}", text(&o));
+    let cuts = write(
+        "cuts.toml",
+        "[[section]]\nkind = \"interior\"\norigin = [2, 1, 0.5]\naxes = [[2, 0, 0], [0, 2, 0], [0, 0, 1]]",
+    );
+    let o = holodeck(&["scene", "info", cuts.to_str().unwrap()]);
+    let out = text(&o);
+    assert!(out.contains("reach into interior section 0"), "{out}");
+    // A fill warns too, naming the file.
+    let hdk = dir.path().join("cuts.hdk");
+    let o = holodeck(&["fill", cuts.to_str().unwrap(), hdk.to_str().unwrap(), "--rays", "1000"]);
+    assert!(text(&o).contains("reach into interior section 0"), "{}", text(&o));
+    let o = holodeck(&["scene", "section", "builtin:room", "--eye", "3", "2", "0.02"]);
+    assert!(
+        !o.status.success() && text(&o).contains("within --margin"),
+        "{}",
+        text(&o)
+    );
+}

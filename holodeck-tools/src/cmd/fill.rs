@@ -117,6 +117,11 @@ pub fn prepare(
         ..OpenOptions::default()
     };
     let file = HoloFile::open(path, &options)?;
+    if let SceneInput::InCore(s) = &scene {
+        for cut in super::scene::section_cuts(s, &file.settings().sections) {
+            tracing::warn!("{}: {cut}", path.display());
+        }
+    }
     match &file.settings().scene {
         Some(h) if *h != hash => bail!(
             "{} holds rays of another scene ({h}); this scene is {hash}. Use a new file.",

@@ -38,7 +38,7 @@ pub struct Args {
 
 #[derive(clap::Subcommand)]
 enum SceneCommand {
-    /// Generate a built-in scene: writes OUT.toml and its mesh OUT.ply next to it.
+    /// Generate a built-in scene: writes OUT.toml, its mesh OUT.ply and its textures (OUT-K.png) next to it.
     Gen(GenArgs),
     /// Load a scene file; print its triangles, materials, bounds, sections and content hash.
     Info(InfoArgs),
@@ -46,6 +46,38 @@ enum SceneCommand {
     Build(BuildArgs),
     /// Rewrite a scene file (.hds) with another block codec, without building it again.
     Recode(RecodeArgs),
+    /// Propose a section that fits the scene: the largest free box around an eye, or the box around it all.
+    Section(SectionArgs),
+}
+
+/// Arguments of `holodeck scene section`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+An interior section is where the eye moves: no geometry may reach into it (what does draws
+as black wedges). With --eye, proposes the largest axis-aligned box around that point that no
+triangle enters, kept --margin from every surface; with --exterior, the box around all the
+geometry, --margin larger on every side. Prints it as `holodeck create --section` takes it
+and as a scene file's [[section]] table.
+
+Examples:
+  holodeck scene section builtin:room --eye 3 2 1.6
+  holodeck scene section sponza.toml --eye 0 0 2 --margin 0.2
+  holodeck scene section bunny.toml --exterior")]
+pub struct SectionArgs {
+    /// Scene file, or builtin:NAME.
+    scene: String,
+    /// The point the interior section grows around.
+    #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"], allow_hyphen_values = true, required_unless_present = "exterior")]
+    eye: Option<Vec<f64>>,
+    /// Propose the exterior section around all the geometry instead.
+    #[arg(long, conflicts_with = "eye")]
+    exterior: bool,
+    /// Distance kept from every surface (interior) or added around the geometry (exterior), meters.
+    #[arg(long, default_value_t = 0.1)]
+    margin: f64,
+    /// Triangles for builtin:landscape (K, M suffixes).
+    #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
+    triangles: Option<u64>,
 }
 
 /// Arguments of `holodeck scene recode`.
@@ -118,6 +150,10 @@ pub struct BuildArgs {
 Scenes (z up, meters):
   room        a furnished 6 x 4 x 2.7 m room with a window, mirror, glass sphere, area light
   landscape   the room looking out on fBm terrain and a forest; --triangles (default 1M)
+  gallery     the landscape with textured things in the room: a rug, a painting, a brick wall
+              with a height map and a plant of alpha-masked leaves (textures written as PNG)
+  arcade      a courtyard's arcade lit mostly by sunlight bounced off the courtyard
+  blind       a room lit through a venetian blind
   mandelbulb  the power-8 Mandelbulb on a ground plane; --resolution (default 128)
   bunny       the Stanford bunny on a table in a lit room; built in, or --bunny FILE.obj (Y up)
 
@@ -162,6 +198,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     match a.command {
         SceneCommand::Gen(g) => generate(g),
         SceneCommand::Info(i) => info(i),
+        SceneCommand::Section(a) => propose_section(a),
         SceneCommand::Build(b) => build(b),
         SceneCommand::Recode(r) => recode(r),
     }
@@ -413,6 +450,9 @@ fn describe(s: &Scene) -> String {
         );
     }
     line("sky", sky(&s.sky));
+    for cut in section_cuts(s, &s.sections) {
+        line("warning", cut);
+    }
     for (k, sec) in s.sections.iter().enumerate() {
         let (o, ax, g) = (sec.origin(), sec.axes(), sec.grid());
         line(
@@ -441,6 +481,101 @@ fn describe(s: &Scene) -> String {
         line("import note", note.to_string());
     }
     out
+}
+
+/// One line per section of `sections` that cuts geometry of `scene`: how
+/// many triangles, and where.
+pub fn section_cuts(scene: &Scene, sections: &[holodeck_protocol::Section]) -> Vec<String> {
+    use holodeck_sampler::scene::section_fit::cut;
+    sections
+        .iter()
+        .enumerate()
+        .filter_map(|(k, sec)| {
+            let c = cut(scene, sec)?;
+            let (lo, hi) = c.bounds;
+            let what = match sec.kind() {
+                holodeck_protocol::SectionKind::Interior => "reach into interior",
+                holodeck_protocol::SectionKind::Exterior => "cross the walls of exterior",
+            };
+            Some(format!(
+                "{} triangles {what} section {k}, between x {:.3} .. {:.3}, y {:.3} .. {:.3}, z {:.3} .. {:.3} m: \
+                 they draw as black wedges; `holodeck scene section` proposes a section that fits",
+                count(c.triangles),
+                lo.x,
+                hi.x,
+                lo.y,
+                hi.y,
+                lo.z,
+                hi.z
+            ))
+        })
+        .collect()
+}
+
+/// `holodeck scene section`: a section that fits the scene.
+fn propose_section(a: SectionArgs) -> Result<ExitCode> {
+    use holodeck_sampler::scene::section_fit::{around, cut, free_box};
+    if !(a.margin.is_finite() && a.margin >= 0.0) {
+        anyhow::bail!("--margin {} must be a distance of at least 0", a.margin);
+    }
+    let scene = super::render::load(&a.scene, a.triangles)?;
+    let (lo, hi) = scene.bounds();
+    let extent = (hi - lo).max_element().max(1.0) as f64;
+    let (kind, (lo, hi)) = match &a.eye {
+        Some(eye) => {
+            let eye = glam::DVec3::new(eye[0], eye[1], eye[2]);
+            if !eye.is_finite() {
+                anyhow::bail!("--eye must be three finite numbers");
+            }
+            let found = free_box(&scene, eye, a.margin, 2.0 * extent).with_context(|| {
+                format!(
+                    "a surface passes within --margin {} m of the eye {eye}: move the eye or lower the margin",
+                    a.margin
+                )
+            })?;
+            (holodeck_protocol::SectionKind::Interior, found)
+        }
+        None => (
+            holodeck_protocol::SectionKind::Exterior,
+            around(&scene, a.margin).context("the scene has no geometry")?,
+        ),
+    };
+    let size = hi - lo;
+    let section = holodeck_sampler::scene::section::box_section(kind, lo.to_array(), size.to_array())
+        .map_err(|e| anyhow::anyhow!("no section fits there: {e}"))?;
+    if let Some(c) = cut(&scene, &section) {
+        anyhow::bail!("the proposed section still cuts {} triangles (a bug)", c.triangles);
+    }
+    let f = |v: glam::DVec3| format!("{:.4},{:.4},{:.4}", v.x, v.y, v.z);
+    let name = kind.name();
+    let axes = [
+        glam::DVec3::new(size.x, 0.0, 0.0),
+        glam::DVec3::new(0.0, size.y, 0.0),
+        glam::DVec3::new(0.0, 0.0, size.z),
+    ];
+    println!(
+        "{name} section {:.3} x {:.3} x {:.3} m, {} beams",
+        size.x,
+        size.y,
+        size.z,
+        count(u64::from(section.beam_count()))
+    );
+    println!(
+        "--section '{name} origin={} x={} y={} z={}'",
+        f(lo),
+        f(axes[0]),
+        f(axes[1]),
+        f(axes[2])
+    );
+    let t = |v: glam::DVec3| format!("[{:.4}, {:.4}, {:.4}]", v.x, v.y, v.z);
+    println!(
+        "\n[[section]]\nkind = \"{name}\"\norigin = {}\naxes = [{}, {}, {}]",
+        t(lo),
+        t(axes[0]),
+        t(axes[1]),
+        t(axes[2])
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 fn kind(m: &Material) -> &'static str {

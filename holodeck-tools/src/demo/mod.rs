@@ -1,5 +1,5 @@
-//! `holodeck demo`: the whole system on the built-in room with scenery
-//! outside its window, in one command. It fills a holodeck for a walk
+//! `holodeck demo`: the whole system on the built-in room (with textured
+//! things in it) and scenery outside its window, in one command. It fills a holodeck for a walk
 //! through the room and out across the terrain, draws every view with every
 //! display driver (on its own and denoised), renders each view directly as
 //! its reference and as what a user would otherwise do (a direct render in
@@ -52,8 +52,9 @@ pub struct Demo {
     pub seed: u64,
 }
 
-/// The scene: the furnished room, with terrain and a forest outside its window.
-pub const SCENE: &str = "builtin:landscape";
+/// The scene: the furnished room with its textured rug, painting, brick
+/// wall and alpha-masked plant, and terrain and a forest outside its window.
+pub const SCENE: &str = "builtin:gallery";
 
 /// A point of the convergence chart: paths (holodeck rays or direct
 /// samples), seconds, FLIP.

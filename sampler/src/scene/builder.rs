@@ -77,6 +77,13 @@ impl SceneBuilder {
         self.by_name.get(name).copied()
     }
 
+    /// Gives material `id` (added earlier) the textures `maps`.
+    pub fn set_maps(&mut self, id: u32, maps: MaterialMaps) {
+        if let Some(m) = self.scene.maps.get_mut(id as usize) {
+            *m = maps;
+        }
+    }
+
     /// The textures of material `id` (default for one without).
     pub fn material_maps(&self, id: u32) -> Option<&MaterialMaps> {
         self.scene.maps.get(id as usize)
@@ -250,9 +257,27 @@ impl SceneBuilder {
         &mut self,
         source: &str,
         positions: Vec<Vec3>,
+        triangles: Vec<Triangle>,
+    ) -> Result<(), SceneError> {
+        self.add_world_mesh_uv(source, positions, None, triangles)
+    }
+
+    /// [`SceneBuilder::add_world_mesh`] with texture coordinates by vertex
+    /// (as many as `positions`).
+    pub fn add_world_mesh_uv(
+        &mut self,
+        source: &str,
+        positions: Vec<Vec3>,
+        uvs: Option<Vec<Vec2>>,
         mut triangles: Vec<Triangle>,
     ) -> Result<(), SceneError> {
         use rayon::prelude::*;
+        if uvs.as_ref().is_some_and(|uvs| uvs.len() != positions.len()) {
+            return Err(SceneError::Invalid {
+                what: source.to_string(),
+                message: "texture coordinates and vertices differ in number".to_string(),
+            });
+        }
         if triangles.is_empty() {
             self.scene.stats.empty_meshes += 1;
             tracing::warn!("{source}: mesh has no triangles; skipped");
@@ -317,6 +342,16 @@ impl SceneBuilder {
             triangles.par_iter_mut().for_each(|t| t.v = t.v.map(|i| i + offset));
         }
         let kept = triangles.len() as u64;
+        if uvs.is_some() || !self.scene.uvs.is_empty() {
+            self.scene.uvs.resize(base, Vec2::ZERO);
+            match uvs {
+                Some(uvs) => self
+                    .scene
+                    .uvs
+                    .extend(uvs.into_iter().map(|uv| if uv.is_finite() { uv } else { Vec2::ZERO })),
+                None => self.scene.uvs.resize(base + positions.len(), Vec2::ZERO),
+            }
+        }
         if self.scene.positions.is_empty() {
             self.scene.positions = positions;
         } else {

@@ -9,13 +9,14 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::file::GeometryEntry;
+use super::file::{write_textures, GeometryEntry};
 use super::hash::content_hash;
 use super::Scene;
 use crate::error::SceneError;
 
 /// Writes `scene` as the scene file `toml_path` and its mesh as a PLY file of
-/// the same name next to it; returns the PLY path.
+/// the same name next to it (with texture coordinates where it has them,
+/// and its textures as PNG files `NAME-K.png` beside); returns the PLY path.
 pub fn write_scene(scene: &Scene, toml_path: &Path) -> Result<PathBuf, SceneError> {
     let ply_path = toml_path.with_extension("ply");
     let ply_name = ply_path
@@ -23,10 +24,20 @@ pub fn write_scene(scene: &Scene, toml_path: &Path) -> Result<PathBuf, SceneErro
         .map(PathBuf::from)
         .unwrap_or_else(|| ply_path.clone());
     write_ply(scene, &ply_path)?;
-    let text = scene_text(scene, &ply_name).map_err(|source| SceneError::Export {
+    let dir = toml_path.parent().unwrap_or(Path::new(""));
+    let stem = toml_path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene");
+    let textures = write_textures(scene, dir, stem)?;
+    let mut text = scene_text(scene, &ply_name).map_err(|source| SceneError::Export {
         path: toml_path.to_path_buf(),
         source,
     })?;
+    for (name, entry) in &textures {
+        text += &format!("\n[textures.{}]\n", key(name));
+        text += &to_toml("[textures]", entry).map_err(|source| SceneError::Export {
+            path: toml_path.to_path_buf(),
+            source,
+        })?;
+    }
     std::fs::write(toml_path, text).map_err(|source| SceneError::Io {
         path: toml_path.to_path_buf(),
         source,
@@ -123,20 +134,32 @@ pub fn write_ply(scene: &Scene, path: &Path) -> Result<(), SceneError> {
         source,
     };
     let mut w = BufWriter::with_capacity(1 << 22, File::create(path).map_err(io)?);
+    let with_uvs = !scene.uvs.is_empty();
     let header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment holodeck scene\nelement vertex {}\n\
-         property float x\nproperty float y\nproperty float z\nelement face {}\n\
+         property float x\nproperty float y\nproperty float z\n{}element face {}\n\
          property list uchar uint vertex_indices\nproperty uint material_index\nend_header\n",
         scene.positions.len(),
+        if with_uvs {
+            "property float u\nproperty float v\n"
+        } else {
+            ""
+        },
         scene.triangles.len()
     );
     w.write_all(header.as_bytes()).map_err(io)?;
     let mut buf = Vec::with_capacity(1 << 20);
-    for chunk in scene.positions.chunks(1 << 16) {
+    for (k, chunk) in scene.positions.chunks(1 << 16).enumerate() {
         buf.clear();
-        for p in chunk {
+        for (i, p) in chunk.iter().enumerate() {
             for c in p.to_array() {
                 buf.extend_from_slice(&c.to_le_bytes());
+            }
+            if with_uvs {
+                // PLY's v grows upward.
+                let uv = scene.uvs[(k << 16) + i];
+                buf.extend_from_slice(&uv.x.to_le_bytes());
+                buf.extend_from_slice(&(1.0 - uv.y).to_le_bytes());
             }
         }
         w.write_all(&buf).map_err(io)?;

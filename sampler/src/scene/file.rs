@@ -22,6 +22,9 @@ use super::gen::{self, GenParams};
 use super::import::{import_file_with, ImportOptions, UpAxis};
 use super::material::{Material, Sky};
 use super::Scene;
+pub use textures::{write_textures, TextureEntry, WrapMode};
+
+mod textures;
 use crate::error::SceneError;
 use holodeck_protocol::SectionSpec;
 
@@ -35,6 +38,9 @@ pub struct SceneFile {
     /// Named materials, in file order.
     #[serde(default)]
     pub materials: NamedMaterials,
+    /// Textures of named materials, in file order.
+    #[serde(default)]
+    pub textures: Named<TextureEntry>,
     /// Geometry files.
     #[serde(default)]
     pub geometry: Vec<GeometryEntry>,
@@ -46,27 +52,37 @@ pub struct SceneFile {
     pub section: Vec<SectionSpec>,
 }
 
-/// `[materials.NAME]` tables in the order written (so material ids are stable).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct NamedMaterials(pub Vec<(String, Material)>);
+/// `[materials.NAME]` or `[textures.NAME]` tables in the order written
+/// (so material and texture ids are stable).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Named<T>(pub Vec<(String, T)>);
 
-impl<'de> Deserialize<'de> for NamedMaterials {
+impl<T> Default for Named<T> {
+    fn default() -> Self {
+        Named(Vec::new())
+    }
+}
+
+/// `[materials.NAME]` tables in the order written.
+pub type NamedMaterials = Named<Material>;
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Named<T> {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct Ordered;
-        impl<'de> Visitor<'de> for Ordered {
-            type Value = NamedMaterials;
+        struct Ordered<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> Visitor<'de> for Ordered<T> {
+            type Value = Named<T>;
             fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a table of named materials")
+                f.write_str("a table of named tables")
             }
-            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<NamedMaterials, A::Error> {
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Named<T>, A::Error> {
                 let mut out = Vec::new();
-                while let Some((name, m)) = map.next_entry::<String, Material>()? {
+                while let Some((name, m)) = map.next_entry::<String, T>()? {
                     out.push((name, m));
                 }
-                Ok(NamedMaterials(out))
+                Ok(Named(out))
             }
         }
-        d.deserialize_map(Ordered)
+        d.deserialize_map(Ordered(std::marker::PhantomData))
     }
 }
 
@@ -243,6 +259,18 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
             .material(name, m.clone())
             .map_err(|e| at(format!("[materials.{name}]"), e))?;
         overrides.insert(name.clone(), id);
+    }
+    for (name, entry) in &file.textures.0 {
+        let what = format!("{}: [textures.{name}]", path.display());
+        let Some(&id) = overrides.get(name) else {
+            return Err(SceneError::UnknownMaterial {
+                what,
+                name: name.clone(),
+                known: b.material_list(),
+            });
+        };
+        let maps = entry.maps(&mut b, base, &what)?;
+        b.set_maps(id, maps);
     }
     let mut settings = Vec::new();
     for entry in &file.builtin {

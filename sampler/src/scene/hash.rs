@@ -46,9 +46,16 @@ pub fn content_hash(scene: &Scene) -> String {
             h.update(&uv.x.to_bits().to_le_bytes());
             h.update(&uv.y.to_bits().to_le_bytes());
         }
-        h.update(format!("{:?}", scene.maps).as_bytes());
-        for t in scene.textures.iter() {
-            h.update(&t.digest);
+        // Each map by what its image holds, not by where the image sits in
+        // the texture list: the same scene loaded another way hashes the same.
+        for maps in &scene.maps {
+            let mut maps = maps.clone();
+            for r in maps.refs_mut() {
+                let digest = scene.textures.get(r.texture).map_or([0; 32], |t| t.digest);
+                h.update(&digest);
+                r.texture = 0;
+            }
+            h.update(format!("{maps:?}").as_bytes());
         }
     }
     format!("blake3:{}", h.finalize().to_hex())

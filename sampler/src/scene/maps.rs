@@ -144,7 +144,7 @@ pub struct Pbr {
 }
 
 /// The textures of one material; all empty for an untextured one.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct MaterialMaps {
     /// Multiplies the material's colour (albedo, metal or glass colour).
     pub base_color: Option<TexRef>,
@@ -161,7 +161,32 @@ pub struct MaterialMaps {
     pub roughness: Option<TexRef>,
 }
 
+impl Default for MaterialMaps {
+    fn default() -> Self {
+        MaterialMaps {
+            base_color: None,
+            coverage: None,
+            alpha: 1.0,
+            relief: None,
+            pbr: None,
+            roughness: None,
+        }
+    }
+}
+
 impl MaterialMaps {
+    /// The textures it uses, in a fixed order (base colour, roughness,
+    /// relief, coverage, metallic-roughness), with a mutable handle on each.
+    pub fn refs_mut(&mut self) -> Vec<&mut TexRef> {
+        let mut out: Vec<&mut TexRef> = Vec::new();
+        out.extend(self.base_color.as_mut());
+        out.extend(self.roughness.as_mut());
+        out.extend(self.relief.as_mut().map(|r| &mut r.0));
+        out.extend(self.coverage.as_mut().and_then(|c| c.0.as_mut()).map(|c| &mut c.0));
+        out.extend(self.pbr.as_mut().and_then(|p| p.texture.as_mut()));
+        out
+    }
+
     /// Whether the material shades as written.
     pub fn is_empty(&self) -> bool {
         self.base_color.is_none()

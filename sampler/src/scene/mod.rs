@@ -12,6 +12,7 @@ pub mod import;
 pub mod maps;
 pub mod material;
 pub mod section;
+pub mod section_fit;
 pub mod sky_distribution;
 pub mod texture;
 

@@ -139,6 +139,13 @@ fn generated_scenes_round_trip_with_the_same_hash() {
                 ..Default::default()
             },
         ),
+        (
+            "gallery",
+            GenParams {
+                triangles: Some(20_000),
+                ..Default::default()
+            },
+        ),
     ] {
         let s = gen::generate(name, &params).unwrap();
         let path = dir.path().join(format!("{name}.toml"));
@@ -150,6 +157,11 @@ fn generated_scenes_round_trip_with_the_same_hash() {
         assert_eq!(back.materials, s.materials);
         assert_eq!(back.sky, s.sky);
         assert_eq!(back.sections, s.sections);
+        assert_eq!(back.uvs, s.uvs, "{name}: texture coordinates read back bit for bit");
+        assert_eq!(
+            back.maps.iter().filter(|m| !m.is_empty()).count(),
+            s.maps.iter().filter(|m| !m.is_empty()).count()
+        );
         assert_eq!(content_hash(&back), content_hash(&s), "{name}");
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains(&content_hash(&s)));
@@ -157,7 +169,56 @@ fn generated_scenes_round_trip_with_the_same_hash() {
             !text.contains("0.800000011920929"),
             "floats written in their short form:\n{text}"
         );
+        if name == "gallery" {
+            assert!(
+                text.contains("[textures.rug]") && text.contains("bump_scale = 0.5"),
+                "{text}"
+            );
+            assert!(
+                dir.path().join("gallery-0.png").is_file(),
+                "textures written beside the scene"
+            );
+        }
     }
+}
+
+#[test]
+fn texture_tables_texture_ply_geometry_and_bad_ones_name_the_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    image::RgbaImage::from_pixel(2, 2, image::Rgba([255, 0, 0, 255]))
+        .save(p.join("red.png"))
+        .unwrap();
+    // An ASCII PLY with s, t texture coordinates (t upward, as Blender writes it).
+    std::fs::write(
+        p.join("q.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+         property float s\nproperty float t\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 0.25\n3 0 1 2\n",
+    )
+    .unwrap();
+    let scene = |textures: &str| {
+        let text = format!(
+            "[materials.paint]\ntype = \"lambertian\"\nalbedo = [1, 1, 1]\n\n[[geometry]]\nfile = \"q.ply\"\nmaterial = \"paint\"\n\n{textures}"
+        );
+        std::fs::write(p.join("s.toml"), text).unwrap();
+        load_scene(&p.join("s.toml"))
+    };
+    let s = scene("[textures.paint]\nbase_color = \"red.png\"\nscale = [2, 2]\nwrap = \"clamp\"\n").unwrap();
+    assert_eq!(s.uvs[2], glam::Vec2::new(0.0, 0.75), "t flipped to grow downward");
+    let maps = s.maps_of(0).unwrap();
+    let base = maps.base_color.unwrap();
+    assert_eq!(
+        (base.transform.scale, base.wrap),
+        ([2.0, 2.0], [crate::scene::texture::Wrap::Clamp; 2])
+    );
+    let err = scene("[textures.nothing]\nbase_color = \"red.png\"\n").unwrap_err();
+    assert!(err.to_string().contains("nothing"), "{err}");
+    let err = scene("[textures.paint]\nbase_color = \"blue.png\"\n").unwrap_err();
+    assert!(
+        err.to_string().contains("[textures.paint] base_color") && err.to_string().contains("blue.png"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -1,5 +1,6 @@
 //! PLY import through `ply-rs-bw`: ASCII, binary little- and big-endian.
-//! Reads `vertex` x, y, z (any numeric type) and `face` `vertex_indices` (or
+//! Reads `vertex` x, y, z (any numeric type), texture coordinates u, v (or
+//! s, t; texture_u, texture_v), v flipped to grow downward, and `face` `vertex_indices` (or
 //! `vertex_index`) lists, fan-triangulating polygons, with an optional integer
 //! per-face `material_index` into the caller's material list. Elements are read
 //! one at a time straight into the scene's arrays, so memory stays at the size
@@ -8,7 +9,7 @@
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{ElementDef, Encoding, Header, Property, PropertyAccess, PropertyType};
 use rayon::prelude::*;
@@ -18,24 +19,32 @@ use crate::error::SceneError;
 use crate::scene::builder::SceneBuilder;
 use crate::scene::Triangle;
 
-/// A vertex as read: only the position is kept.
-struct Vertex([f64; 3]);
+/// A vertex as read: its position and texture coordinates.
+struct Vertex([f64; 3], [f64; 2]);
 
 impl PropertyAccess for Vertex {
     fn new() -> Self {
-        Vertex([f64::NAN; 3])
+        Vertex([f64::NAN; 3], [0.0; 2])
     }
     fn set_property(&mut self, name: String, property: Property) {
-        let axis = match name.as_str() {
-            "x" => 0,
-            "y" => 1,
-            "z" => 2,
-            _ => return,
-        };
-        if let Some(v) = scalar(&property) {
-            self.0[axis] = v;
+        let Some(v) = scalar(&property) else { return };
+        match name.as_str() {
+            "x" => self.0[0] = v,
+            "y" => self.0[1] = v,
+            "z" => self.0[2] = v,
+            "u" | "s" | "texture_u" | "texture_s" => self.1[0] = v,
+            "v" | "t" | "texture_v" | "texture_t" => self.1[1] = v,
+            _ => {}
         }
     }
+}
+
+/// Whether the vertex element of `header` has texture coordinates.
+fn has_uvs(header: &Header) -> bool {
+    header.elements.get("vertex").is_some_and(|e| {
+        let has = |names: [&str; 4]| names.iter().any(|n| e.properties.contains_key(*n));
+        has(["u", "s", "texture_u", "texture_s"]) && has(["v", "t", "texture_v", "texture_t"])
+    })
 }
 
 /// A face as read: its vertex list (negative entries marked) and material index.
@@ -141,6 +150,8 @@ pub(super) fn import(
     // Every element takes at least one byte, which bounds what a lying header can reserve.
     let bound = |n: usize| n.min(usize::try_from(file_len).unwrap_or(usize::MAX));
     let mut positions: Vec<Vec3> = Vec::new();
+    let with_uvs = has_uvs(&header);
+    let mut uvs: Vec<Vec2> = Vec::new();
     let mut triangles: Vec<Triangle> = Vec::new();
     let (mut skipped_faces, mut line) = (0u64, String::new());
     for (name, def) in &header.elements {
@@ -158,8 +169,12 @@ pub(super) fn import(
             "vertex" => {
                 positions.reserve_exact(bound(def.count));
                 for k in 0..def.count {
-                    let Vertex(p) = read_element(&mut reader, &header, def, &mut line).map_err(|e| fail(k, e))?;
+                    let Vertex(p, uv) = read_element(&mut reader, &header, def, &mut line).map_err(|e| fail(k, e))?;
                     positions.push(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+                    if with_uvs {
+                        // PLY's v grows upward, as OBJ's does.
+                        uvs.push(Vec2::new(uv[0] as f32, (1.0 - uv[1]) as f32));
+                    }
                 }
             }
             "face" => {
@@ -202,7 +217,8 @@ pub(super) fn import(
             .par_iter_mut()
             .for_each(|p| *p = transform.transform_point3(*p));
     }
-    b.add_world_mesh(&path.display().to_string(), positions, triangles)
+    let uvs = (with_uvs && uvs.len() == positions.len()).then_some(uvs);
+    b.add_world_mesh_uv(&path.display().to_string(), positions, uvs, triangles)
 }
 
 /// Requires a vertex element with x, y, z and a face element with an index list.

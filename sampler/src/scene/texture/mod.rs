@@ -252,6 +252,16 @@ impl Texture {
         self.levels.len()
     }
 
+    /// The full-size image as 8-bit RGBA texels, as stored (width, height,
+    /// texels); `None` for a float texture.
+    pub fn level0_rgba8(&self) -> Option<(u32, u32, &[[u8; 4]])> {
+        let l = &self.levels[0];
+        match &l.texels {
+            Texels::Byte(t) => Some((l.width, l.height, t)),
+            Texels::Float(_) => None,
+        }
+    }
+
     /// Bytes the pyramid's texels take in memory.
     pub fn bytes(&self) -> usize {
         self.levels.iter().map(Level::bytes).sum()
