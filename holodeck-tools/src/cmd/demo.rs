@@ -11,8 +11,8 @@ use crate::human::count_in;
 /// Arguments of `holodeck demo`.
 #[derive(clap::Args)]
 #[command(after_help = "\
-Builds the furnished room with terrain and a forest outside its window, renders the views of a
-walk through the room and out across the terrain directly as references (two independent
+Builds the furnished room (with a textured rug, painting, brick wall and plant) with terrain and
+a forest outside its window, renders the views of a walk through the room and out across the terrain directly as references (two independent
 halves each, which state the reference's own noise), fills a holodeck for the walk (all cores,
 with a progress bar), draws every view with every display driver (quadtree on the CPU; Voronoi
 cones and the spherical Delaunay mesh on the GPU, or on Mesa's software Vulkan where there is

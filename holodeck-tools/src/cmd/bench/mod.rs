@@ -14,6 +14,7 @@ pub mod report;
 pub mod scene_file;
 pub mod share;
 pub mod storage;
+pub mod textures;
 pub mod tracer;
 
 use std::path::PathBuf;
@@ -35,6 +36,7 @@ Examples:
   holodeck bench network --seconds 8
   holodeck bench share
   holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0
+  holodeck bench textures --repeats 5
 
 `holodeck bench BENCH --help` lists each one's flags.")]
 pub struct Args {
@@ -64,6 +66,8 @@ enum Bench {
     Share(share::Args),
     /// Holodeck pictures against direct renders at equal compute: one view, a walkthrough.
     Accuracy(accuracy::Args),
+    /// What textures cost: loading, building, memory and samples/s, textured against untextured.
+    Textures(textures::Args),
     /// Internal: stream one file's beams (the child process of a memory measurement).
     #[command(hide = true)]
     Stream(storage::ChildArgs),
@@ -95,6 +99,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Bench::Network(a) => network::run_args(&a),
         Bench::Share(a) => share::run_args(&a),
         Bench::Accuracy(a) => accuracy::run_args(&a),
+        Bench::Textures(a) => textures::run_args(&a),
         Bench::Stream(a) => storage::run_stream(&a),
         Bench::Fill(a) => storage::run_fill(&a),
     }

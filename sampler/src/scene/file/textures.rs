@@ -113,7 +113,17 @@ impl TextureEntry {
             ..MaterialMaps::default()
         };
         maps.base_color = load(b, "base_color", &self.base_color, Encoding::Srgb)?;
-        if let Some(tex) = load(b, "alpha", &self.alpha, Encoding::Linear)? {
+        // The colour image's own alpha (the same file): one texture serves
+        // both, as alpha is stored linear whatever the colour's encoding.
+        let own_alpha = maps.base_color.filter(|t| {
+            self.alpha.is_some()
+                && self.alpha == self.base_color
+                && b.textures().get(t.texture).is_some_and(|t| t.has_alpha)
+        });
+        if let Some(tex) = own_alpha {
+            let cutoff = self.alpha_cutoff.unwrap_or(0.5);
+            maps.coverage = Some((Some((tex, Channel::Alpha)), Coverage::Mask { cutoff }));
+        } else if let Some(tex) = load(b, "alpha", &self.alpha, Encoding::Linear)? {
             let channel = match b.textures().get(tex.texture) {
                 Some(t) if t.has_alpha => Channel::Alpha,
                 _ => Channel::Red,

@@ -143,7 +143,15 @@ pub(super) fn convert(b: &mut SceneBuilder, m: &tobj::Material, dir: &Path, file
     if let Some(text) = &m.diffuse_texture {
         maps.base_color = load(b, "map_Kd", text, Encoding::Srgb).map(|t| t.0);
     }
-    if let Some(text) = &m.dissolve_texture {
+    let own_alpha = maps.base_color.filter(|t| {
+        m.dissolve_texture.is_some()
+            && m.dissolve_texture == m.diffuse_texture
+            && b.textures().get(t.texture).is_some_and(|t| t.has_alpha)
+    });
+    if let Some(tex) = own_alpha {
+        // map_d names the colour image itself: its alpha (stored linear) is the coverage.
+        maps.coverage = Some((Some((tex, Channel::Alpha)), Coverage::Mask { cutoff: 0.5 }));
+    } else if let Some(text) = &m.dissolve_texture {
         if let Some((tex, _)) = load(b, "map_d", text, Encoding::Linear) {
             let channel = match b.textures().get(tex.texture) {
                 Some(t) if t.has_alpha => Channel::Alpha,
