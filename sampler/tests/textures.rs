@@ -426,3 +426,54 @@ fn a_built_scene_file_takes_the_textures_mean_and_hashes_apart() {
     assert!(baked.uvs.is_empty() && baked.textures.is_empty());
     assert_ne!(holodeck_sampler::scene::content_hash(&baked), before);
 }
+
+#[test]
+fn an_emission_texture_glows_where_it_is_bright_and_lights_the_room_as_it_says() {
+    let dir = tempfile::tempdir().unwrap();
+    // Left half white, right half black (fine enough that filtering blurs
+    // only a sliver between them).
+    image::RgbaImage::from_fn(64, 4, |x, _| {
+        if x < 32 {
+            image::Rgba([255; 4])
+        } else {
+            image::Rgba([0, 0, 0, 255])
+        }
+    })
+    .save(dir.path().join("glow.png"))
+    .unwrap();
+    write(
+        dir.path(),
+        "g.mtl",
+        "newmtl panel\nillum 1\nKd 0 0 0\nKe 2 2 2\nmap_Ke -clamp on glow.png\nnewmtl lamp\nKe 2 2 2\nnewmtl dark\nKd 0 0 0\nnewmtl floor\nKd 0.5 0.5 0.5\n",
+    );
+    // The panel faces down from z = 1 over a floor at z = 0.
+    let panel = "mtllib g.mtl\nv 0 0 1\nv 0 1 1\nv 1 1 1\nv 1 0 1\nvt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\nusemtl panel\nf 1/1 2/2 3/3 4/4\n";
+    // The same light made of two plain quads: a lamp on the left half, black on the right.
+    let halves = "mtllib g.mtl\nv 0 0 1\nv 0 1 1\nv 0.5 1 1\nv 0.5 0 1\nv 1 1 1\nv 1 0 1\nusemtl lamp\nf 1 2 3 4\nusemtl dark\nf 4 3 5 6\n";
+    let floor = "mtllib g.mtl\nv -3 -3 0\nv 4 -3 0\nv 4 4 0\nv -3 4 0\nusemtl floor\nf 1 2 3 4\n";
+    let build = |light: &str| {
+        let obj = write(dir.path(), "light.obj", light);
+        let fl = write(dir.path(), "floor.obj", floor);
+        let mut b = SceneBuilder::new();
+        import(&obj, &mut b);
+        import(&fl, &mut b);
+        let s = b.finish();
+        Tracer::new(s, TraceOptions::default())
+    };
+    let textured = build(panel);
+    let plain = build(halves);
+    // Seen from below: the white half glows at 2, the black half not at all.
+    let white = radiance(&textured, Vec3::new(0.25, 0.5, 0.5), Vec3::Z, 4);
+    let black = radiance(&textured, Vec3::new(0.75, 0.5, 0.5), Vec3::Z, 4);
+    assert!((white.x - 2.0).abs() < 1e-3 && black.x < 1e-3, "{white} {black}");
+    // The floor below, lit by light sampling and by bounces: the same as the plain halves.
+    for x in [0.25f32, 0.75, 1.5] {
+        let at = Vec3::new(x, 0.5, 0.3);
+        let dir = Vec3::new(0.0, 0.1, -1.0);
+        let (a, b) = (radiance(&textured, at, dir, 20_000), radiance(&plain, at, dir, 20_000));
+        assert!(
+            (a.x - b.x).abs() < 0.03 * b.x.max(0.01),
+            "floor at x {x}: textured {a}, halves {b}"
+        );
+    }
+}

@@ -159,6 +159,12 @@ pub struct MaterialMaps {
     pub pbr: Option<Pbr>,
     /// Roughness from a texture's red channel, multiplying the material's (MTL `map_Pr`).
     pub roughness: Option<TexRef>,
+    /// Emission from a texture (sRGB) times `emission`, added to what the
+    /// material emits (MTL `map_Ke` with `Ke`, glTF `emissiveTexture` with
+    /// its factor and strength).
+    pub emissive: Option<TexRef>,
+    /// The radiance an emission texture's white stands for.
+    pub emission: [f32; 3],
 }
 
 impl Default for MaterialMaps {
@@ -170,6 +176,8 @@ impl Default for MaterialMaps {
             relief: None,
             pbr: None,
             roughness: None,
+            emissive: None,
+            emission: [0.0; 3],
         }
     }
 }
@@ -184,7 +192,27 @@ impl MaterialMaps {
         out.extend(self.relief.as_mut().map(|r| &mut r.0));
         out.extend(self.coverage.as_mut().and_then(|c| c.0.as_mut()).map(|c| &mut c.0));
         out.extend(self.pbr.as_mut().and_then(|p| p.texture.as_mut()));
+        out.extend(self.emissive.as_mut());
         out
+    }
+
+    /// The emission factor and the emission texture's mean colour, where
+    /// the material glows through a texture.
+    pub fn emissive_parts(&self, textures: &TextureSet) -> Option<(Vec3, Vec3)> {
+        let tex = self.emissive?;
+        let factor = Vec3::from_array(self.emission);
+        if factor.max_element() <= 0.0 {
+            return None;
+        }
+        Some((factor, tex.sample(textures, Vec2::splat(0.5), f32::MAX).truncate()))
+    }
+
+    /// Radiance emitted at `uv` through the emission texture (zero without one).
+    pub fn emission_at(&self, textures: &TextureSet, uv: Vec2, width: f32) -> Vec3 {
+        match &self.emissive {
+            Some(t) => Vec3::from_array(self.emission) * t.sample(textures, uv, width).truncate(),
+            None => Vec3::ZERO,
+        }
     }
 
     /// Whether the material shades as written.
@@ -194,6 +222,7 @@ impl MaterialMaps {
             && self.relief.is_none()
             && self.pbr.is_none()
             && self.roughness.is_none()
+            && self.emissive.is_none()
     }
 
     /// Whether rays may pass through parts of the surface.

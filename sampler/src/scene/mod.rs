@@ -126,6 +126,12 @@ impl Scene {
             if !maps.is_empty() && maps.pbr.is_none() {
                 *m = maps.material_at(m, &self.textures, Vec2::splat(0.5), f32::MAX);
             }
+            // A diffuse surface keeps the mean of what it glows with.
+            if let (Some((factor, mean)), Material::Lambertian { emission, .. }) =
+                (maps.emissive_parts(&self.textures), &mut *m)
+            {
+                *emission = (Vec3::from_array(*emission) + factor * mean).to_array();
+            }
         }
         self.maps.clear();
         self.uvs = Vec::new();

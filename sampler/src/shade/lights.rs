@@ -13,10 +13,15 @@ pub struct LightSample {
     pub point: Vec3,
     /// Unit geometric normal (the emitting side).
     pub normal: Vec3,
-    /// Emitted radiance.
+    /// Emitted radiance (before an emission texture, which the tracer
+    /// applies at `tri` and `bary`).
     pub radiance: Vec3,
     /// Pdf of choosing this point, per unit area.
     pub pdf_area: f32,
+    /// The triangle it lies on.
+    pub tri: u32,
+    /// Its barycentric weights of the triangle's vertices 1 and 2.
+    pub bary: (f32, f32),
 }
 
 /// The emissive triangles and their selection distribution.
@@ -33,24 +38,43 @@ pub struct Lights {
 }
 
 impl Lights {
-    /// Collects the emitters of a scene.
+    /// Collects the emitters of a scene: triangles whose material emits,
+    /// or whose emission texture does (chosen by its mean).
     pub fn new(scene: &Scene) -> Lights {
-        Lights::from_emitters(scene.triangles.iter().enumerate().filter_map(|(i, t)| {
-            let le = Vec3::from_array(scene.materials[t.material as usize].emission());
-            (le.max_element() > 0.0).then(|| (i as u32, scene.vertices(i), le))
+        let emission: Vec<(Vec3, f32)> = (0..scene.materials.len())
+            .map(|m| {
+                let le = Vec3::from_array(scene.materials[m].emission());
+                match scene
+                    .maps_of(m as u32)
+                    .and_then(|maps| maps.emissive_parts(&scene.textures))
+                {
+                    Some((factor, mean)) => (le + factor, luminance(factor * mean).max(luminance(le))),
+                    None => (le, luminance(le)),
+                }
+            })
+            .collect();
+        Lights::weighted(scene.triangles.iter().enumerate().filter_map(|(i, t)| {
+            let (le, weight) = emission[t.material as usize];
+            (le.max_element() > 0.0).then(|| (i as u32, scene.vertices(i), le, weight))
         }))
     }
 
     /// Lights from emissive triangles given as (id, vertices, emitted radiance).
     pub fn from_emitters(emitters: impl Iterator<Item = (u32, [Vec3; 3], Vec3)>) -> Lights {
+        Lights::weighted(emitters.map(|(id, v, le)| (id, v, le, luminance(le))))
+    }
+
+    /// Lights from emissive triangles given as (id, vertices, emitted
+    /// radiance, luminance to choose them by).
+    fn weighted(emitters: impl Iterator<Item = (u32, [Vec3; 3], Vec3, f32)>) -> Lights {
         // (id, vertices and radiance, power, area)
         let mut lights = Vec::new();
-        for (id, [a, b, c], le) in emitters {
+        for (id, [a, b, c], le, weight) in emitters {
             if le.max_element() <= 0.0 {
                 continue;
             }
             let area = 0.5 * (b - a).cross(c - a).length();
-            let w = area * luminance(le).max(1e-6);
+            let w = area * weight.max(1e-6);
             if w.is_finite() && w > 0.0 {
                 lights.push((id, ([a, b, c], le), w, area));
             }
@@ -105,6 +129,8 @@ impl Lights {
             normal,
             radiance,
             pdf_area: self.pdf[k],
+            tri: self.tris[k],
+            bary: (b1, b2),
         })
     }
 }

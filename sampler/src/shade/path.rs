@@ -245,9 +245,9 @@ impl Tracer {
         let proxy;
         let ng = hit.ng;
         p.length += hit.t;
-        let (textured, relief) = match self.textured(&hit, ng, p.length) {
-            Some((m, relief)) => (Some(m), relief),
-            None => (None, None),
+        let (textured, relief, glow) = match self.textured(&hit, ng, p.length) {
+            Some(t) => (Some(t.material), t.normal, t.emission),
+            None => (None, None, Vec3::ZERO),
         };
         let m = match (&textured, hit.material) {
             (Some(m), _) => m,
@@ -266,7 +266,7 @@ impl Tracer {
         p.travelled += hit.t;
         let wo_world = -p.ray.dir;
         let cos_o = wo_world.dot(ng);
-        let le = Vec3::from_array(m.emission());
+        let le = Vec3::from_array(m.emission()) + glow;
         if cos_o > 0.0 && le.max_element() > 0.0 {
             let w = if p.prev_delta || !o.light_sampling {
                 1.0
@@ -392,7 +392,7 @@ impl Tracer {
                     };
                     shadows[0] = Some((
                         ray,
-                        e.f_cos * ls.radiance * (power_heuristic(pdf_light, e.pdf) / pdf_light),
+                        e.f_cos * self.light_radiance(&ls) * (power_heuristic(pdf_light, e.pdf) / pdf_light),
                     ));
                 }
             }

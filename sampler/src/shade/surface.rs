@@ -11,6 +11,7 @@
 
 use glam::{Vec2, Vec3};
 
+use super::lights::LightSample;
 use super::path::SurfaceHit;
 use super::tracer::Tracer;
 use crate::accel::Hit;
@@ -115,11 +116,12 @@ impl Tracer {
         })
     }
 
-    /// The material at `hit` with its textures applied, and the shading
-    /// normal its relief map gives (on the side of `n`, the geometric
-    /// normal as shading faces it); `None` where the material has no
-    /// textures. `length` is how far the path has come, for the footprint.
-    pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<(Material, Option<Vec3>)> {
+    /// The material at `hit` with its textures applied, the shading normal
+    /// its relief map gives (on the side of `n`, the geometric normal as
+    /// shading faces it) and the radiance its emission texture adds;
+    /// `None` where the material has no textures. `length` is how far the
+    /// path has come, for the footprint.
+    pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<Textured> {
         let material = hit.material?;
         let maps = self.scene.maps_of(material)?;
         if hit.tri == u32::MAX || self.scene.uvs.is_empty() {
@@ -136,6 +138,7 @@ impl Tracer {
         let width = CONE_SPREAD * length * (uv_area / world_area).sqrt();
         let textures = &self.scene.textures;
         let m = maps.material_at(&self.scene.materials[material as usize], textures, uv, width);
+        let emission = maps.emission_at(textures, uv, width);
         let normal = maps.relief.and_then(|_| {
             // The directions in which u and v grow, from the triangle's edges.
             let det = d1.x * d2.y - d1.y * d2.x;
@@ -146,6 +149,36 @@ impl Tracer {
             let b = (e2 * d1.x - e1 * d2.x) / det;
             maps.normal_at(textures, uv, n, t, b)
         });
-        Some((m, normal))
+        Some(Textured {
+            material: m,
+            normal,
+            emission,
+        })
     }
+
+    /// The radiance a light sample brings: its light's, or where the light
+    /// glows through an emission texture, what the texture says there.
+    pub(super) fn light_radiance(&self, ls: &LightSample) -> Vec3 {
+        let Some(t) = self.scene.triangles.get(ls.tri as usize) else {
+            return ls.radiance;
+        };
+        match self.scene.maps_of(t.material).filter(|m| m.emissive.is_some()) {
+            Some(maps) if !self.scene.uvs.is_empty() => {
+                let uv = self.uv_at(ls.tri, Vec2::new(ls.bary.0, ls.bary.1));
+                Vec3::from_array(self.scene.materials[t.material as usize].emission())
+                    + maps.emission_at(&self.scene.textures, uv, 0.0)
+            }
+            _ => ls.radiance,
+        }
+    }
+}
+
+/// A textured hit's material, shading normal and emission.
+pub(super) struct Textured {
+    /// The material with its textures applied.
+    pub(super) material: Material,
+    /// The relief map's shading normal, if any.
+    pub(super) normal: Option<Vec3>,
+    /// Radiance the emission texture adds.
+    pub(super) emission: Vec3,
 }

@@ -62,6 +62,12 @@ pub struct TextureEntry {
     /// Roughness image (red channel) multiplying the material's roughness.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub roughness: Option<PathBuf>,
+    /// Emission image (sRGB): the surface glows with it times `emission`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub emissive: Option<PathBuf>,
+    /// Radiance the emission image's white stands for (W/sr/m²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub emission: Option<[f32; 3]>,
     /// Texture coordinates multiplied by this first.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<[f32; 2]>,
@@ -139,6 +145,15 @@ impl TextureEntry {
             maps.relief = Some((tex, Relief::Normal { scale: 1.0 }));
         }
         maps.roughness = load(b, "roughness", &self.roughness, Encoding::Linear)?;
+        maps.emissive = load(b, "emissive", &self.emissive, Encoding::Srgb)?;
+        let emission = self.emission.unwrap_or([1.0; 3]);
+        if !emission.iter().all(|v| v.is_finite() && *v >= 0.0) {
+            return Err(SceneError::Invalid {
+                what: what.to_string(),
+                message: format!("emission {emission:?} must be finite and non-negative"),
+            });
+        }
+        maps.emission = if maps.emissive.is_some() { emission } else { [0.0; 3] };
         Ok(maps)
     }
 }
@@ -161,12 +176,16 @@ pub fn write_textures(scene: &Scene, dir: &Path, stem: &str) -> Result<Vec<(Stri
         if maps.pbr.is_some() {
             return Err(unsupported("its model is chosen per texel (glTF)"));
         }
-        let refs: Vec<&TexRef> = [maps.base_color.as_ref(), maps.roughness.as_ref()]
-            .into_iter()
-            .flatten()
-            .chain(maps.relief.as_ref().map(|r| &r.0))
-            .chain(maps.coverage.as_ref().and_then(|c| c.0.as_ref()).map(|c| &c.0))
-            .collect();
+        let refs: Vec<&TexRef> = [
+            maps.base_color.as_ref(),
+            maps.roughness.as_ref(),
+            maps.emissive.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+        .chain(maps.relief.as_ref().map(|r| &r.0))
+        .chain(maps.coverage.as_ref().and_then(|c| c.0.as_ref()).map(|c| &c.0))
+        .collect();
         let Some(first) = refs.first() else {
             return Err(unsupported("coverage without an image"));
         };
@@ -225,6 +244,8 @@ pub fn write_textures(scene: &Scene, dir: &Path, stem: &str) -> Result<Vec<(Stri
                 bump,
                 bump_scale,
                 roughness: file(maps.roughness.as_ref())?,
+                emissive: file(maps.emissive.as_ref())?,
+                emission: maps.emissive.is_some().then_some(maps.emission),
                 scale: (t.scale != [1.0; 2]).then_some(t.scale),
                 offset: (t.offset != [0.0; 2]).then_some(t.offset),
                 wrap,

@@ -10,8 +10,9 @@
 //! coordinates); alpha modes MASK (with `alphaCutoff`) and BLEND (partial
 //! coverage) cut holes every ray passes; `KHR_materials_transmission`
 //! (factor), `_ior` and `_emissive_strength` are read. Emission glows only
-//! where it is a constant: an `emissiveTexture` is dropped (noted), as are
-//! occlusion textures (the path tracer finds occlusion itself), transmission
+//! through `emissiveTexture` (times its factor and strength) on a surface
+//! that keeps its model, or as an emitter where the factor alone glows.
+//! Dropped (noted): occlusion textures (the path tracer finds occlusion itself), transmission
 //! textures, texture coordinate sets other than 0, and other extensions.
 
 use std::path::Path;
@@ -44,12 +45,11 @@ impl Source<'_> {
         let emissive = m
             .emissive_factor()
             .map(|v| if v.is_finite() { (v * strength).max(0.0) } else { 0.0 });
-        if m.emissive_texture().is_some() {
-            note(
-                b,
-                "emissiveTexture: textured emission is not supported; the surface does not glow".to_string(),
-            );
-        } else if emissive.iter().any(|&v| v > 0.0) {
+        let glow = m
+            .emissive_texture()
+            .filter(|_| emissive.iter().any(|&v| v > 0.0))
+            .and_then(|info| self.texture(b, &info, Encoding::Srgb, name, "emissiveTexture"));
+        if glow.is_none() && m.emissive_texture().is_none() && emissive.iter().any(|&v| v > 0.0) {
             return (Material::Emitter { radiance: emissive }, MaterialMaps::default());
         }
         if m.occlusion_texture().is_some() {
@@ -63,6 +63,8 @@ impl Source<'_> {
         let base = unit_color([r, g, bl]);
         let mut maps = MaterialMaps {
             alpha: if a.is_finite() { a.clamp(0.0, 1.0) } else { 1.0 },
+            emissive: glow,
+            emission: if glow.is_some() { emissive } else { [0.0; 3] },
             ..MaterialMaps::default()
         };
         maps.base_color = pbr
@@ -134,7 +136,7 @@ impl Source<'_> {
                 transmission,
                 ior,
             });
-        } else if maps.base_color.is_some() {
+        } else if maps.base_color.is_some() || maps.emissive.is_some() {
             // The model is fixed by the factors; the texture tints it.
             maps.pbr = Some(Pbr {
                 base,

@@ -11,10 +11,11 @@
 //! Maps: `map_Kd` multiplies the colour (sRGB), `map_d` cuts holes where
 //! its alpha (or, for images without alpha, its red channel) is below one
 //! half, `bump`/`map_Bump` (heights, `-bm` scale) and `norm` (tangent-space
-//! normals) bend the shading normal, `map_Pr` scales roughness. Options
+//! normals) bend the shading normal, `map_Pr` scales roughness, `map_Ke`
+//! (sRGB) times `Ke` glows on a surface that keeps its model. Options
 //! `-s` and `-o` place the coordinates and `-clamp on` clamps them; the
 //! rest are read past. What is dropped or approximated is noted per
-//! material: `map_Ka`, `map_Ks`, `map_Ns`, `map_Ke`, `map_Pm`, `disp`,
+//! material: `map_Ka`, `map_Ks`, `map_Ns`, `map_Pm`, `disp`,
 //! `refl`, `illum` 0 (unlit) and 10 (shadow matte).
 
 use std::path::Path;
@@ -112,7 +113,18 @@ pub(super) fn parse_map(text: &str) -> Option<MapSpec> {
 /// loading its textures into `b` and noting what is dropped.
 pub(super) fn convert(b: &mut SceneBuilder, m: &tobj::Material, dir: &Path, file: &str) -> (Material, MaterialMaps) {
     let name = m.name.as_str();
-    let material = model(b, m, file);
+    // `map_Ke` with `Ke`: the surface glows through the texture and keeps
+    // the model its `illum` gives (an emitter would reflect nothing).
+    let glows = m.unknown_param.contains_key("map_Ke") && m.emissive.is_some_and(|ke| ke.iter().any(|&v| v > 0.0));
+    let material = if glows {
+        let plain = tobj::Material {
+            emissive: None,
+            ..m.clone()
+        };
+        model(b, &plain, file)
+    } else {
+        model(b, m, file)
+    };
     let mut maps = MaterialMaps {
         alpha: 1.0,
         ..MaterialMaps::default()
@@ -187,7 +199,22 @@ pub(super) fn convert(b: &mut SceneBuilder, m: &tobj::Material, dir: &Path, file
             b.note(file, Some(name), format!("{key} is not used; dropped"));
         }
     }
-    for key in ["map_Ke", "map_Pm", "disp", "refl", "map_refl", "decal", "map_aat"] {
+    if let Some(text) = m.unknown_param.get("map_Ke") {
+        if glows {
+            maps.emissive = load(b, "map_Ke", text, Encoding::Srgb).map(|t| t.0);
+            maps.emission = m
+                .emissive
+                .unwrap_or([0.0; 3])
+                .map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 });
+        } else {
+            b.note(
+                file,
+                Some(name),
+                "map_Ke without Ke above 0 glows with nothing; dropped",
+            );
+        }
+    }
+    for key in ["map_Pm", "disp", "refl", "map_refl", "decal", "map_aat"] {
         if m.unknown_param.contains_key(key) {
             b.note(file, Some(name), format!("{key} is not used; dropped"));
         }
