@@ -398,7 +398,7 @@ fn khr_texture_transform_places_the_texture() {
 }
 
 #[test]
-fn a_built_scene_file_takes_the_textures_mean_and_hashes_apart() {
+fn baking_textures_keeps_their_mean_and_hashes_apart() {
     let dir = tempfile::tempdir().unwrap();
     // Half black, half white: the mean colour is linear 0.5 times Kd.
     image::RgbaImage::from_fn(4, 4, |x, _| {

@@ -172,6 +172,27 @@ impl Cache {
             .is_some_and(|s| !s.load(Ordering::Acquire, &guard).is_null())
     }
 
+    /// Reads and checks a block that holds no treelet (textures, their
+    /// coordinates): its decompressed bytes.
+    pub fn read_raw(&self, id: u32) -> Result<Vec<u8>, OocError> {
+        let e = self.entry(id).ok_or(OocError::Block {
+            block: id,
+            message: "no such block".into(),
+        })?;
+        let bad = |message: String| OocError::Block { block: id, message };
+        let start = e.offset as usize;
+        let packed = self
+            .mmap
+            .get(start..start + e.packed as usize)
+            .ok_or_else(|| bad("lies past the end of the file".into()))?;
+        if crc32c::crc32c(packed) != e.crc {
+            return Err(OocError::Checksum(format!("block {id}")));
+        }
+        self.codec
+            .decompress(packed, e.len as usize)
+            .map_err(|c| bad(c.to_string()))
+    }
+
     /// Reads, checks and decodes a block from the file (no caching).
     pub fn read(&self, id: u32) -> Result<Block, OocError> {
         let e = self.entry(id).ok_or(OocError::Block {

@@ -1,7 +1,8 @@
 //! The scene file (`.hds`) layout. A preamble (magic, version, header length),
 //! the header as TOML (codec, content hash, materials, sky, sections, the
-//! emitters, the root link and sizes) with its CRC-32C, the compressed blocks
-//! ordered by LOD level (coarsest first), the block index (offset, sizes,
+//! emitters, the root link and sizes, and where a textured scene's textures,
+//! maps and texture coordinates are) with its CRC-32C, the compressed blocks
+//! ordered by LOD level (coarsest first; texture blocks last), the block index (offset, sizes,
 //! CRC-32C of the compressed bytes and level of every block), and a trailer
 //! that locates the index and closes the file. A file without its trailer
 //! is one whose writing did not finish.
@@ -146,6 +147,38 @@ pub struct Header {
     pub sections: Vec<Section>,
     /// The emissive triangles.
     pub emitters: Vec<Emitter>,
+    /// The images textured materials use, one block each (full size; the
+    /// mip levels are made again on opening).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub textures: Vec<HeaderTexture>,
+    /// The block holding every material's maps (postcard), where any
+    /// material is textured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub maps_block: Option<u32>,
+    /// Blocks of the textured triangles' texture coordinates: records of a
+    /// triangle id (u32) and its vertices' (u, v) (six f32), little-endian.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub uv_blocks: Vec<u32>,
+}
+
+/// Bytes of one texture coordinate record of a `uv_blocks` block.
+pub const UV_RECORD: usize = 28;
+
+/// One texture of a scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeaderTexture {
+    /// Where it came from, for reports.
+    pub name: String,
+    /// How its 8-bit texels decode.
+    pub encoding: crate::scene::texture::Encoding,
+    /// Width, texels.
+    pub width: u32,
+    /// Height, texels.
+    pub height: u32,
+    /// Float texels (4 f32 each) rather than 8-bit (4 bytes each).
+    pub float: bool,
+    /// The block that holds its texels, rows from the top.
+    pub block: u32,
 }
 
 impl Header {
@@ -202,6 +235,17 @@ impl Header {
             return Err(OocError::Header(
                 "an emitter names a material that does not exist".into(),
             ));
+        }
+        let blocks = header.blocks;
+        let beyond = header
+            .textures
+            .iter()
+            .map(|t| t.block)
+            .chain(header.maps_block)
+            .chain(header.uv_blocks.iter().copied())
+            .any(|b| b >= blocks);
+        if beyond {
+            return Err(OocError::Header("a texture block is out of range".into()));
         }
         if header.blocks == 0 || header.root.block >= header.blocks || header.root.to_link().is_none() {
             return Err(OocError::Header("the root link is out of range".into()));

@@ -50,7 +50,16 @@ impl OocScene {
     pub fn in_core(&self) -> Result<(Scene, KdTree, InCoreReport), OocError> {
         let start = Instant::now();
         let h = self.header();
-        let blocks: Vec<Block> = (0..h.blocks)
+        // Texture blocks come after every treelet's.
+        let tree_blocks = h
+            .textures
+            .iter()
+            .map(|t| t.block)
+            .chain(h.maps_block)
+            .chain(h.uv_blocks.iter().copied())
+            .min()
+            .unwrap_or(h.blocks);
+        let blocks: Vec<Block> = (0..tree_blocks)
             .into_par_iter()
             .map(|id| self.cache().read(id))
             .collect::<Result<_, _>>()?;
@@ -89,6 +98,23 @@ impl OocScene {
             .enumerate()
             .map(|(id, t)| t.ok_or_else(|| corrupt(format!("triangle {id} is in no block"))))
             .collect::<Result<_, _>>()?;
+        // Textured triangles get vertices of their own, with their texture coordinates.
+        if !self.texturing.uvs.is_empty() {
+            scene.uvs = vec![glam::Vec2::ZERO; scene.positions.len()];
+            for (id, uv) in &self.texturing.uvs {
+                let t = scene
+                    .triangles
+                    .get_mut(*id as usize)
+                    .ok_or_else(|| corrupt(format!("texture coordinates of triangle {id} of {count}")))?;
+                let base = scene.positions.len() as u32;
+                for (&v, &uv) in t.v.iter().zip(uv) {
+                    let p = scene.positions[v as usize];
+                    scene.positions.push(p);
+                    scene.uvs.push(uv);
+                }
+                t.v = [base, base + 1, base + 2];
+            }
+        }
 
         // The tree: links are followed, not kept; a walk through more links
         // than there are levels means links that cycle.

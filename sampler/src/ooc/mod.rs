@@ -114,6 +114,78 @@ pub struct OocScene {
     bounds: Aabb,
     fetchers: cache::Fetchers,
     corrupt: AtomicU64,
+    /// The textures, every material's maps, and the textured triangles'
+    /// texture coordinates by id (ascending), read whole on opening.
+    pub(crate) texturing: Texturing,
+}
+
+/// What a scene file keeps of its scene's textures.
+#[derive(Default)]
+pub(crate) struct Texturing {
+    pub(crate) textures: crate::scene::TextureSet,
+    pub(crate) maps: Vec<crate::scene::MaterialMaps>,
+    pub(crate) uvs: Vec<(u32, [glam::Vec2; 3])>,
+}
+
+/// Reads the textures, maps and texture coordinates the header points at.
+fn read_texturing(header: &Header, cache: &Cache) -> Result<Texturing, OocError> {
+    use crate::scene::texture::Texture;
+    let mut out = Texturing::default();
+    for (k, t) in header.textures.iter().enumerate() {
+        let bytes = cache.read_raw(t.block)?;
+        let bad = |e: crate::scene::texture::TextureError| OocError::Header(format!("texture {k}: {e}"));
+        let texture = if t.float {
+            let texels: Vec<[f32; 4]> = bytes
+                .chunks_exact(16)
+                .map(|c| {
+                    std::array::from_fn(|i| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]))
+                })
+                .collect();
+            Texture::from_rgba32f(&t.name, t.width, t.height, texels).map_err(bad)?
+        } else {
+            let texels: Vec<[u8; 4]> = bytes.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
+            Texture::from_rgba8(&t.name, t.width, t.height, texels, t.encoding).map_err(bad)?
+        };
+        out.textures.add(texture);
+    }
+    if let Some(block) = header.maps_block {
+        let bytes = cache.read_raw(block)?;
+        out.maps = postcard::from_bytes(&bytes).map_err(|e| OocError::Header(format!("material maps: {e}")))?;
+        let textures = out.textures.len() as u32;
+        let mut maps = out.maps.clone();
+        if maps.len() != header.materials.len()
+            || maps
+                .iter_mut()
+                .any(|m| m.refs_mut().iter().any(|r| r.texture >= textures))
+        {
+            return Err(OocError::Header(
+                "material maps do not match the materials and textures".into(),
+            ));
+        }
+    }
+    for &block in &header.uv_blocks {
+        let bytes = cache.read_raw(block)?;
+        if bytes.len() % format::UV_RECORD != 0 {
+            return Err(OocError::Block {
+                block,
+                message: "texture coordinates: not whole records".into(),
+            });
+        }
+        for r in bytes.chunks_exact(format::UV_RECORD) {
+            let f = |i: usize| f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
+            let id = u32::from_le_bytes([r[0], r[1], r[2], r[3]]);
+            let uv = [0, 1, 2].map(|k| glam::Vec2::new(f(4 + 8 * k), f(8 + 8 * k)));
+            out.uvs.push((id, uv));
+        }
+    }
+    if !out.uvs.windows(2).all(|w| w[0].0 < w[1].0)
+        || out.uvs.last().is_some_and(|u| u64::from(u.0) >= header.triangles)
+    {
+        return Err(OocError::Header(
+            "texture coordinates: ids out of order or out of range".into(),
+        ));
+    }
+    Ok(out)
 }
 
 impl OocScene {
@@ -152,13 +224,22 @@ impl OocScene {
                 })
                 .max(1),
         ));
+        let texturing = read_texturing(&header, &cache)?;
         Ok(OocScene {
             header,
             root,
             bounds,
             fetchers: cache::Fetchers::start(cache, fetchers),
             corrupt: AtomicU64::new(0),
+            texturing,
         })
+    }
+
+    /// The texture coordinates of triangle `id`'s vertices, where it is textured.
+    #[inline]
+    pub fn triangle_uvs(&self, id: u32) -> Option<[glam::Vec2; 3]> {
+        let uvs = &self.texturing.uvs;
+        uvs.binary_search_by_key(&id, |u| u.0).ok().map(|k| uvs[k].1)
     }
 
     /// The header.
@@ -261,6 +342,8 @@ impl OocScene {
             material_names: h.material_names.clone(),
             sky: h.sky.clone(),
             sections: h.sections.clone(),
+            textures: self.texturing.textures.clone(),
+            maps: self.texturing.maps.clone(),
             ..Scene::default()
         };
         s.stats.triangles = h.triangles;

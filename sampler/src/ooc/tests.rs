@@ -668,3 +668,65 @@ fn among_blocks_last_used_together_the_finer_is_evicted_first() {
     assert!(cache.is_resident(3));
     assert_eq!(cache.stats().evictions, 1);
 }
+
+#[test]
+fn a_textured_scene_file_keeps_its_textures_and_renders_as_the_scene_does() {
+    use crate::render::{render, RenderOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let params = GenParams {
+        triangles: Some(20_000),
+        ..GenParams::default()
+    };
+    let scene = generate("gallery", &params).unwrap();
+    let (path, _) = build(&scene, dir.path(), scene.triangles.len() as u64, Codec::Lz4);
+    let file = Arc::new(OocScene::open(&path, None, 1).unwrap());
+    let h = file.header();
+    assert_eq!(
+        h.content_hash,
+        crate::scene::content_hash(&scene),
+        "it is the same scene"
+    );
+    assert_eq!(h.textures.len(), scene.textures.len());
+    let shell = file.shell();
+    assert_eq!(shell.maps, scene.maps);
+    let textured: Vec<usize> = (0..scene.triangles.len())
+        .filter(|&t| scene.maps_of(scene.triangles[t].material).is_some())
+        .collect();
+    assert!(textured.len() >= 20, "{}", textured.len());
+    for &t in &textured {
+        assert_eq!(file.triangle_uvs(t as u32), Some(scene.triangle_uvs(t)), "triangle {t}");
+    }
+    assert_eq!(file.triangle_uvs(0), None, "the terrain has none");
+    // The room toward the rug, the bricks and the plant, three ways.
+    let view = holodeck_protocol::View::parse("-vtv -vp 1.0 3.2 1.6 -vd 1 -0.7 -0.35 -vu 0 0 1 -vh 80 -vv 60").unwrap();
+    let options = RenderOptions {
+        width: 48,
+        height: 36,
+        spp: 16,
+        seed: 3,
+    };
+    let picture = |t: &crate::Tracer| render(t, &view, &options, &|_, _| {}).unwrap();
+    let core = picture(&crate::Tracer::new(scene.clone(), crate::TraceOptions::default()));
+    let out_of_core = picture(&crate::Tracer::out_of_core(
+        file.clone(),
+        crate::TraceOptions::default(),
+    ));
+    let assembled = picture(&crate::Tracer::in_core_from_file(&file, crate::TraceOptions::default()).unwrap());
+    let mut baked = scene.clone();
+    baked.bake_textures();
+    let untextured = picture(&crate::Tracer::new(baked, crate::TraceOptions::default()));
+    let rel = |a: &crate::render::Picture, b: &crate::render::Picture| {
+        a.mse(b).unwrap().sqrt() / b.mean_luminance()
+    };
+    assert!(
+        rel(&out_of_core, &core) < 0.02,
+        "out of core {}",
+        rel(&out_of_core, &core)
+    );
+    assert!(rel(&assembled, &core) < 0.02, "assembled {}", rel(&assembled, &core));
+    assert!(
+        rel(&untextured, &core) > 0.05,
+        "textures show: {}",
+        rel(&untextured, &core)
+    );
+}

@@ -4,6 +4,7 @@
 //! bending its shading normal. A material without maps shades as written.
 
 use glam::{Vec2, Vec3, Vec4};
+use serde::{Deserialize, Serialize};
 
 use super::material::Material;
 use super::texture::{TextureSet, Wrap};
@@ -11,7 +12,7 @@ use super::texture::{TextureSet, Wrap};
 /// A placement of 2D texture coordinates: scale, then rotate
 /// (counter-clockwise, radians), then offset, as glTF's
 /// `KHR_texture_transform` and MTL's `-s`/`-o` options give it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct UvTransform {
     /// Added after scaling and rotating.
     pub offset: [f32; 2],
@@ -49,7 +50,7 @@ impl UvTransform {
 }
 
 /// One texture as a material uses it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TexRef {
     /// Index into the scene's [`TextureSet`].
     pub texture: u32,
@@ -87,7 +88,7 @@ impl TexRef {
 }
 
 /// Which channel of a coverage texture holds coverage.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Channel {
     /// The alpha channel (glTF; MTL `map_d` images that have one).
     Alpha,
@@ -96,7 +97,7 @@ pub enum Channel {
 }
 
 /// How much of a surface is there.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Coverage {
     /// Alpha below `cutoff` is a hole, above it solid (glTF MASK, MTL `map_d`).
     Mask {
@@ -109,7 +110,7 @@ pub enum Coverage {
 }
 
 /// How a normal map encodes the surface.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Relief {
     /// Tangent-space normals in RGB (glTF `normalTexture`, MTL `norm`),
     /// scaled in x and y by `scale`.
@@ -127,7 +128,7 @@ pub enum Relief {
 
 /// glTF's metallic-roughness model with its factors, for materials whose
 /// metalness or roughness comes from a texture: the model is chosen per texel.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Pbr {
     /// Base colour factor (linear RGB).
     pub base: [f32; 3],
@@ -144,7 +145,7 @@ pub struct Pbr {
 }
 
 /// The textures of one material; all empty for an untextured one.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MaterialMaps {
     /// Multiplies the material's colour (albedo, metal or glass colour).
     pub base_color: Option<TexRef>,

@@ -39,6 +39,8 @@ pub(super) struct SurfaceHit {
     pub(super) tri: u32,
     /// Barycentric weights of the triangle's vertices 1 and 2 (texture lookups).
     pub(super) bary: Vec2,
+    /// The triangle's vertices (texture footprints and tangents; zero for a voxel).
+    pub(super) verts: [Vec3; 3],
     /// Material index, or `None` for a voxel (a diffuse proxy of `color`).
     pub(super) material: Option<u32>,
     pub(super) color: Vec3,

@@ -40,18 +40,28 @@ fn coverage_number(tri: u32, bary: Vec2, dir: Vec3) -> f32 {
 }
 
 impl Tracer {
+    /// The texture coordinates of triangle `tri`'s vertices (in core, or
+    /// kept by a scene file), if it has any.
+    #[inline]
+    fn tri_uvs(&self, tri: u32) -> Option<[Vec2; 3]> {
+        match &self.ooc {
+            Some(ooc) => ooc.triangle_uvs(tri),
+            None if self.scene.uvs.is_empty() => None,
+            None => Some(self.scene.triangle_uvs(tri as usize)),
+        }
+    }
+
     /// The texture coordinates of triangle `tri` at barycentrics `bary`.
     #[inline]
     fn uv_at(&self, tri: u32, bary: Vec2) -> Vec2 {
-        let [a, b, c] = self.scene.triangle_uvs(tri as usize);
+        let [a, b, c] = self.tri_uvs(tri).unwrap_or([Vec2::ZERO; 3]);
         a * (1.0 - bary.x - bary.y) + b * bary.x + c * bary.y
     }
 
-    /// Whether a ray along `dir` passes through triangle `tri` at `bary`
-    /// (a hole of its material's alpha mask).
+    /// Whether a ray along `dir` passes through triangle `tri` (of
+    /// `material`) at `bary` (a hole of its material's alpha mask).
     #[inline]
-    pub(super) fn cut_at(&self, tri: u32, bary: Vec2, dir: Vec3) -> bool {
-        let material = self.scene.triangles[tri as usize].material;
+    pub(super) fn cut_at(&self, tri: u32, material: u32, bary: Vec2, dir: Vec3) -> bool {
         let Some(maps) = self.scene.maps_of(material) else {
             return false;
         };
@@ -63,17 +73,52 @@ impl Tracer {
             )
     }
 
-    /// Whether triangle `tri` with `vertices`, crossed by `ray`, is a hole
-    /// there (for shadow rays, which learn only which triangle they met).
-    pub(super) fn cut_along(&self, ray: &Ray, tri: u32, [a, b, c]: [Vec3; 3]) -> bool {
+    /// Whether triangle `tri` of `material` with `vertices`, crossed by
+    /// `ray`, is a hole there (for shadow rays, which learn only which
+    /// triangle they met).
+    pub(super) fn cut_along(&self, ray: &Ray, tri: u32, material: u32, [a, b, c]: [Vec3; 3]) -> bool {
         if !self.cutouts {
             return false;
         }
         let prep = RayPrep::new(ray.origin, ray.dir);
         match intersect_triangle(&prep, a, b, c, f32::INFINITY) {
-            Some(h) => self.cut_at(tri, Vec2::new(h.u, h.v), ray.dir),
+            Some(h) => self.cut_at(tri, material, Vec2::new(h.u, h.v), ray.dir),
             None => false,
         }
+    }
+
+    /// Where `hit` (of `ray`, from a scene file) is a hole of an alpha
+    /// mask, the first solid surface beyond it, as `next` finds nearest
+    /// hits; `None` where the ray escapes through the holes.
+    pub(super) fn past_cutouts(
+        &self,
+        ray: &Ray,
+        mut hit: SurfaceHit,
+        mut next: impl FnMut(&Ray) -> Option<SurfaceHit>,
+    ) -> Option<SurfaceHit> {
+        if !self.cutouts {
+            return Some(hit);
+        }
+        let mut travelled = 0.0;
+        for _ in 0..MAX_CUTOUTS {
+            let Some(material) = hit.material else { break };
+            if hit.tri == u32::MAX || !self.cut_at(hit.tri, material, hit.bary, ray.dir) {
+                break;
+            }
+            let at = ray.origin + ray.dir * (travelled + hit.t);
+            let side = if ray.dir.dot(hit.ng) > 0.0 { hit.ng } else { -hit.ng };
+            let origin = offset_origin(at, side);
+            let moved = (origin - ray.origin).dot(ray.dir) / ray.dir.length_squared();
+            let beyond = Ray {
+                origin,
+                dir: ray.dir,
+                t_max: ray.t_max - moved,
+            };
+            travelled = moved;
+            hit = next(&beyond)?;
+        }
+        hit.t += travelled;
+        Some(hit)
     }
 
     /// An in-core triangle hit of `ray` as shading needs it: where the hit
@@ -84,7 +129,8 @@ impl Tracer {
             let mut r = *ray;
             let mut travelled = 0.0;
             let mut passed = 0;
-            while self.cut_at(h.tri, Vec2::new(h.u, h.v), ray.dir) {
+            let material = |t: u32| self.scene.triangles[t as usize].material;
+            while self.cut_at(h.tri, material(h.tri), Vec2::new(h.u, h.v), ray.dir) {
                 passed += 1;
                 if passed > MAX_CUTOUTS {
                     break;
@@ -109,6 +155,7 @@ impl Tracer {
             t: h.t,
             ng: (b - a).cross(c - a).normalize(),
             tri: h.tri,
+            verts: [a, b, c],
             bary: Vec2::new(h.u, h.v),
             material: Some(self.scene.triangles[h.tri as usize].material),
             color: Vec3::ZERO,
@@ -124,12 +171,11 @@ impl Tracer {
     pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<Textured> {
         let material = hit.material?;
         let maps = self.scene.maps_of(material)?;
-        if hit.tri == u32::MAX || self.scene.uvs.is_empty() {
+        if hit.tri == u32::MAX {
             return None;
         }
-        let tri = hit.tri as usize;
-        let [pa, pb, pc] = self.scene.vertices(tri);
-        let [ta, tb, tc] = self.scene.triangle_uvs(tri);
+        let [pa, pb, pc] = hit.verts;
+        let [ta, tb, tc] = self.tri_uvs(hit.tri)?;
         let uv = ta * (1.0 - hit.bary.x - hit.bary.y) + tb * hit.bary.x + tc * hit.bary.y;
         let (e1, e2) = (pb - pa, pc - pa);
         let (d1, d2) = (tb - ta, tc - ta);
@@ -163,7 +209,7 @@ impl Tracer {
             return ls.radiance;
         };
         match self.scene.maps_of(t.material).filter(|m| m.emissive.is_some()) {
-            Some(maps) if !self.scene.uvs.is_empty() => {
+            Some(maps) if self.ooc.is_none() && !self.scene.uvs.is_empty() => {
                 let uv = self.uv_at(ls.tri, Vec2::new(ls.bary.0, ls.bary.1));
                 Vec3::from_array(self.scene.materials[t.material as usize].emission())
                     + maps.emission_at(&self.scene.textures, uv, 0.0)

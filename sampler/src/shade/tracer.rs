@@ -244,8 +244,8 @@ impl Tracer {
             .materials
             .iter()
             .any(|m| matches!(m, Material::Glass { thin: true, .. }));
-        // Out of core, texture coordinates are not stored: no holes to cut.
-        let cutouts = ooc.is_none() && !scene.uvs.is_empty() && scene.maps.iter().any(|m| m.cuts());
+        // A scene file keeps its texture coordinates; in core they are in the scene.
+        let cutouts = (ooc.is_some() || !scene.uvs.is_empty()) && scene.maps.iter().any(|m| m.cuts());
         let in_core_bytes = match (&bvh, &ooc) {
             (_, Some(_)) => 0,
             (Some(b), None) => b.stats().bytes,
@@ -718,18 +718,27 @@ impl Tracer {
         let Some(ooc) = &self.ooc else {
             return self.intersect_in_core(ray).and_then(|h| self.surface(ray, h));
         };
-        let h = ooc.intersect(ray, lod, fetch)?;
-        Some(match h.surface {
+        let first = self.ooc_surface(ooc.intersect(ray, lod, fetch)?);
+        self.past_cutouts(ray, first, |r| {
+            ooc.intersect(r, lod, fetch).map(|h| self.ooc_surface(h))
+        })
+    }
+
+    /// A scene file's hit as shading needs it.
+    fn ooc_surface(&self, h: crate::ooc::OocHit) -> SurfaceHit {
+        match h.surface {
             OocSurface::Triangle {
                 id,
                 material,
                 vertices: [a, b, c],
-                ..
+                u,
+                v,
             } => SurfaceHit {
                 t: h.t,
                 ng: (b - a).cross(c - a).normalize(),
                 tri: id,
-                bary: Vec2::ZERO,
+                verts: [a, b, c],
+                bary: Vec2::new(u, v),
                 material: Some(material),
                 color: Vec3::ZERO,
                 radius: 0.0,
@@ -738,12 +747,13 @@ impl Tracer {
                 t: h.t,
                 ng: sample.normal,
                 tri: u32::MAX,
+                verts: [Vec3::ZERO; 3],
                 bary: Vec2::ZERO,
                 material: None,
                 color: sample.color,
                 radius,
             },
-        })
+        }
     }
 
     /// True if a surface for which `blocks(id, material, vertices)` says so
@@ -847,7 +857,7 @@ impl Tracer {
         material: u32,
         [a, b, c]: [Vec3; 3],
     ) -> bool {
-        if self.cut_along(ray, tri, [a, b, c]) {
+        if self.cut_along(ray, tri, material, [a, b, c]) {
             return false;
         }
         let m = &self.scene.materials[material as usize];

@@ -24,11 +24,12 @@ use rayon::prelude::*;
 
 use super::block::MAX_BLOCK_ITEMS;
 use super::codec::Codec;
-use super::format::{Emitter, Header, HeaderLink, IndexEntry};
+use super::format::{Emitter, Header, HeaderLink, HeaderTexture, IndexEntry, UV_RECORD};
 use super::treelet::{decompose, split_box, Decomposed};
 use super::writer::FileWriter;
 use super::OocError;
 use crate::geom::Aabb;
+use crate::scene::Scene;
 pub use chunk::shade_color;
 use chunk::Chunk;
 pub use source::{LandscapeSource, MandelbulbSource, RawTri, SceneMeta, SceneSource, StreamHash, TriangleSource};
@@ -107,6 +108,76 @@ struct Blocks {
 }
 
 impl Blocks {
+    /// Adds a block of `raw` bytes that is no treelet (textures, their
+    /// coordinates), after every level; returns its index.
+    fn add_raw(&mut self, raw: &[u8]) -> Result<u32, OocError> {
+        let bytes = self.codec.compress(raw);
+        self.file.write_all(&bytes).map_err(|e| OocError::io(&self.path, e))?;
+        self.entries.push(IndexEntry {
+            offset: self.at,
+            packed: bytes.len() as u32,
+            len: raw.len() as u32,
+            crc: crc32c::crc32c(&bytes),
+            level: u16::MAX,
+        });
+        self.at += bytes.len() as u64;
+        self.raw += raw.len() as u64;
+        Ok(self.entries.len() as u32 - 1)
+    }
+
+    /// Adds the textures, maps and texture coordinates of `scene` (the
+    /// scene the stream came from, triangle ids its indices).
+    fn add_textures(&mut self, scene: &Scene) -> Result<Texturing, OocError> {
+        let mut textures = Vec::with_capacity(scene.textures.len());
+        for t in scene.textures.iter() {
+            let (width, height) = (t.width(), t.height());
+            let (float, bytes) = match t.level0_rgba8() {
+                Some((_, _, texels)) => (false, texels.as_flattened().to_vec()),
+                None => (
+                    true,
+                    t.level0_rgba32f().map_or_else(Vec::new, |(_, _, texels)| {
+                        texels.iter().flatten().flat_map(|c| c.to_le_bytes()).collect()
+                    }),
+                ),
+            };
+            let block = self.add_raw(&bytes)?;
+            textures.push(HeaderTexture {
+                name: t.name.clone(),
+                encoding: t.encoding(),
+                width,
+                height,
+                float,
+                block,
+            });
+        }
+        let maps = postcard::to_allocvec(&scene.maps).map_err(|e| OocError::Build(format!("material maps: {e}")))?;
+        let maps_block = Some(self.add_raw(&maps)?);
+        let mut uv_blocks = Vec::new();
+        let mut records = Vec::new();
+        for (i, t) in scene.triangles.iter().enumerate() {
+            if scene.maps_of(t.material).is_none() {
+                continue;
+            }
+            records.extend((i as u32).to_le_bytes());
+            for uv in scene.triangle_uvs(i) {
+                records.extend(uv.x.to_le_bytes());
+                records.extend(uv.y.to_le_bytes());
+            }
+            if records.len() >= UV_RECORD << 16 {
+                uv_blocks.push(self.add_raw(&records)?);
+                records.clear();
+            }
+        }
+        if !records.is_empty() {
+            uv_blocks.push(self.add_raw(&records)?);
+        }
+        Ok(Texturing {
+            textures,
+            maps_block,
+            uv_blocks,
+        })
+    }
+
     fn add(&mut self, d: Decomposed) -> Result<super::Link, OocError> {
         self.levels = self.levels.max(d.levels);
         let blocks = d.blocks;
@@ -141,6 +212,14 @@ impl Blocks {
         }
         Ok(d.root)
     }
+}
+
+/// Where a scene file's textures went.
+#[derive(Default)]
+struct Texturing {
+    textures: Vec<HeaderTexture>,
+    maps_block: Option<u32>,
+    uv_blocks: Vec<u32>,
 }
 
 fn midpoint(b: &Aabb) -> (usize, f32) {
@@ -443,6 +522,10 @@ fn build_in(
     let first = blocks.entries.len() as u32;
     let d = decompose(&top, root, bounds, first, 0, settings.block_bytes);
     let root_link = blocks.add(d)?;
+    let texturing = match source.textured() {
+        Some(scene) => blocks.add_textures(scene)?,
+        None => Texturing::default(),
+    };
     blocks.file.flush().map_err(|e| OocError::io(&blocks.path, e))?;
 
     // The file: header, blocks by level, index, trailer.
@@ -463,6 +546,9 @@ fn build_in(
         sky: meta.sky.clone(),
         sections: source.sections()?,
         emitters,
+        textures: texturing.textures,
+        maps_block: texturing.maps_block,
+        uv_blocks: texturing.uv_blocks,
     };
     let mut order: Vec<usize> = (0..blocks.entries.len()).collect();
     order.sort_by_key(|&i| (blocks.entries[i].level, i));

@@ -94,6 +94,11 @@ pub trait TriangleSource {
     fn sections(&self) -> Result<Vec<Section>, OocError> {
         Ok(self.meta().sections.clone())
     }
+    /// The scene whose textures, maps and texture coordinates the file
+    /// keeps (its triangle indices the stream's ids); `None` for untextured streams.
+    fn textured(&self) -> Option<&Scene> {
+        None
+    }
 }
 
 /// Numbers streamed triangles and sends them on in batches, leaving out
@@ -158,16 +163,8 @@ pub struct SceneSource {
 }
 
 impl SceneSource {
-    /// Wraps a scene. A scene file keeps no textures: a textured scene's
-    /// materials take their textures' means, and it hashes as that
-    /// untextured scene, so its holodecks are not mixed with the textured one's.
-    pub fn new(mut scene: Scene) -> SceneSource {
-        if scene.bake_textures() {
-            tracing::warn!(
-                "a built scene file keeps no textures: textured materials take their textures' mean colour, \
-                 alpha-masked surfaces are solid, and its content hash is that of the untextured scene"
-            );
-        }
+    /// Wraps a scene; a textured scene's file keeps its textures.
+    pub fn new(scene: Scene) -> SceneSource {
         let meta = SceneMeta {
             materials: scene.materials.clone(),
             material_names: scene.material_names.clone(),
@@ -181,6 +178,9 @@ impl SceneSource {
 impl TriangleSource for SceneSource {
     fn meta(&self) -> &SceneMeta {
         &self.meta
+    }
+    fn textured(&self) -> Option<&Scene> {
+        self.scene.maps.iter().any(|m| !m.is_empty()).then_some(&self.scene)
     }
     fn stream(&self, emit: &mut dyn FnMut(&[RawTri]) -> Result<(), OocError>) -> Result<(), OocError> {
         let mut batch = Vec::with_capacity(1 << 14);

@@ -17,7 +17,7 @@ use glam::{Vec2, Vec4};
 pub use set::{TextureError, TextureSet, MAX_TEXTURE_PIXELS};
 
 /// How a texture's 8-bit values become linear numbers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Encoding {
     /// Colour (base colour, emission): sRGB-encoded, decoded to linear.
     Srgb,
@@ -26,7 +26,7 @@ pub enum Encoding {
 }
 
 /// What a coordinate outside [0, 1] reads.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Wrap {
     /// The image tiles (the default of OBJ and glTF).
     #[default]
@@ -259,6 +259,16 @@ impl Texture {
         match &l.texels {
             Texels::Byte(t) => Some((l.width, l.height, t)),
             Texels::Float(_) => None,
+        }
+    }
+
+    /// The full-size image as float RGBA texels (width, height, texels);
+    /// `None` for an 8-bit texture.
+    pub fn level0_rgba32f(&self) -> Option<(u32, u32, &[[f32; 4]])> {
+        let l = &self.levels[0];
+        match &l.texels {
+            Texels::Float(t) => Some((l.width, l.height, t)),
+            Texels::Byte(_) => None,
         }
     }
 
