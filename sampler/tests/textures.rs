@@ -289,6 +289,11 @@ map_Kd -s 2 2 1 missing.png
 /// A glTF file with one textured triangle, its buffers and images inline,
 /// and `material` as the material's JSON.
 fn gltf_triangle(material: &str, images: &[&[u8]]) -> String {
+    gltf_triangle_with(material, images, None)
+}
+
+/// [`gltf_triangle`] with a TANGENT for every vertex where given.
+fn gltf_triangle_with(material: &str, images: &[&[u8]], tangent: Option<[f32; 4]>) -> String {
     use base64::encode;
     let mut bin = Vec::new();
     for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]] {
@@ -302,6 +307,22 @@ fn gltf_triangle(material: &str, images: &[&[u8]]) -> String {
             bin.extend_from_slice(&c.to_le_bytes());
         }
     }
+    if let Some(t) = tangent {
+        for _ in 0..3 {
+            for c in t {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    let (tangent_attribute, tangent_accessor, tangent_view) = if tangent.is_some() {
+        (
+            ",\"TANGENT\":2",
+            ",{\"bufferView\":2,\"componentType\":5126,\"count\":3,\"type\":\"VEC4\"}",
+            ",{\"buffer\":0,\"byteOffset\":60,\"byteLength\":48}",
+        )
+    } else {
+        ("", "", "")
+    };
     let images: Vec<String> = images
         .iter()
         .map(|png| format!("{{\"uri\":\"data:image/png;base64,{}\"}}", encode(png)))
@@ -309,13 +330,13 @@ fn gltf_triangle(material: &str, images: &[&[u8]]) -> String {
     let textures: Vec<String> = (0..images.len()).map(|i| format!("{{\"source\":{i}}}")).collect();
     format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"material":0}}]}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1{tangent_attribute}}},"material":0}}]}}],
 "materials":[{material}],
 "textures":[{}],"images":[{}],
 "extensionsUsed":["KHR_texture_transform","KHR_materials_sheen"],
 "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,-1],"max":[1,0,0]}},
-{{"bufferView":1,"componentType":5126,"count":3,"type":"VEC2"}}],
-"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":24}}],
+{{"bufferView":1,"componentType":5126,"count":3,"type":"VEC2"}}{tangent_accessor}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":24}}{tangent_view}],
 "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
         textures.join(","),
         images.join(","),
@@ -476,4 +497,45 @@ fn an_emission_texture_glows_where_it_is_bright_and_lights_the_room_as_it_says()
             "floor at x {x}: textured {a}, halves {b}"
         );
     }
+}
+
+#[test]
+fn gltf_tangents_orient_the_normal_map_where_given() {
+    let dir = tempfile::tempdir().unwrap();
+    // A normal tilted 30 degrees toward the tangent.
+    let (s, c) = 30f32.to_radians().sin_cos();
+    let enc = |v: f32| ((v * 0.5 + 0.5) * 255.0).round() as u8;
+    let map = png(&image::RgbaImage::from_pixel(
+        4,
+        4,
+        image::Rgba([enc(s), enc(0.0), enc(c), 255]),
+    ));
+    let material = r#"{"name":"bumpy","pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0.0,"roughnessFactor":1.0},"normalTexture":{"index":0}}"#;
+    // The sun 30 degrees from the zenith toward +x; u grows toward +x.
+    let sun = Sky::Sun {
+        direction: [s, 0.0, c],
+        sun_radiance: [1e4; 3],
+        diameter_deg: 0.53,
+        zenith: [0.0; 3],
+        horizon: [0.0; 3],
+        ground: [0.0; 3],
+    };
+    let seen = |tangent: Option<[f32; 4]>| {
+        let path = write(dir.path(), "n.gltf", &gltf_triangle_with(material, &[&map], tangent));
+        let mut b = SceneBuilder::new();
+        holodeck_sampler::scene::import_file_with(&mut b, &path, Mat4::IDENTITY, &ImportOptions::default()).unwrap();
+        b.sky(sun.clone()).unwrap();
+        let t = Tracer::new(b.finish(), TraceOptions::default());
+        radiance(&t, Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 64).x
+    };
+    // Generated from the coordinates, the tangent is +x: the normal faces the sun.
+    let generated = seen(None);
+    // The file says the tangent is -x: the normal tilts away, 60 degrees from the sun.
+    let reversed = seen(Some([-1.0, 0.0, 0.0, 1.0]));
+    let along = seen(Some([1.0, 0.0, 0.0, 1.0]));
+    assert!((along / generated - 1.0).abs() < 0.01, "{along} {generated}");
+    assert!(
+        (reversed / generated - 0.5).abs() < 0.02,
+        "cos 60 / cos 0: {reversed} / {generated}"
+    );
 }

@@ -715,9 +715,7 @@ fn a_textured_scene_file_keeps_its_textures_and_renders_as_the_scene_does() {
     let mut baked = scene.clone();
     baked.bake_textures();
     let untextured = picture(&crate::Tracer::new(baked, crate::TraceOptions::default()));
-    let rel = |a: &crate::render::Picture, b: &crate::render::Picture| {
-        a.mse(b).unwrap().sqrt() / b.mean_luminance()
-    };
+    let rel = |a: &crate::render::Picture, b: &crate::render::Picture| a.mse(b).unwrap().sqrt() / b.mean_luminance();
     assert!(
         rel(&out_of_core, &core) < 0.02,
         "out of core {}",

@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use holodeck_protocol::Section;
 
 use super::maps::MaterialMaps;
@@ -239,6 +239,11 @@ impl SceneBuilder {
         self.scene.materials.get(id as usize)
     }
 
+    /// Vertices added so far.
+    pub fn vertex_count(&self) -> usize {
+        self.scene.positions.len()
+    }
+
     /// Triangles kept so far.
     pub fn triangle_count(&self) -> usize {
         self.scene.triangles.len()
@@ -403,8 +408,33 @@ impl SceneBuilder {
         self.scene.sections.push(s);
     }
 
+    /// Gives the vertices from `first` on (those of the mesh just added,
+    /// before `transform`) the tangents `tangents` (xyz, w the bitangent's
+    /// side), turned into the scene's frame; non-finite or zero ones are left out.
+    pub fn set_tangents(&mut self, first: usize, tangents: &[Vec4], transform: Mat4) {
+        let mirror = transform.determinant() < 0.0;
+        if first + tangents.len() > self.scene.positions.len() {
+            return;
+        }
+        self.scene.tangents.resize(first, Vec4::ZERO);
+        self.scene.tangents.extend(tangents.iter().map(|t| {
+            let xyz = transform.transform_vector3(t.truncate());
+            match xyz.try_normalize() {
+                Some(d) if t.w.is_finite() && t.w != 0.0 => {
+                    let w = if (t.w < 0.0) != mirror { -1.0 } else { 1.0 };
+                    d.extend(w)
+                }
+                _ => Vec4::ZERO,
+            }
+        }));
+    }
+
     /// The finished scene.
     pub fn finish(mut self) -> Scene {
+        if !self.scene.tangents.is_empty() {
+            let n = self.scene.positions.len();
+            self.scene.tangents.resize(n, Vec4::ZERO);
+        }
         if !self.scene.uvs.is_empty() {
             let n = self.scene.positions.len();
             self.scene.uvs.resize(n, Vec2::ZERO);

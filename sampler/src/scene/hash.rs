@@ -42,6 +42,11 @@ pub fn content_hash(scene: &Scene) -> String {
     if !scene.uvs.is_empty() || scene.maps.iter().any(|m| !m.is_empty()) {
         h.update(b"textures v1");
         h.update(&(scene.uvs.len() as u64).to_le_bytes());
+        for t in &scene.tangents {
+            for c in t.to_array() {
+                h.update(&c.to_bits().to_le_bytes());
+            }
+        }
         for uv in &scene.uvs {
             h.update(&uv.x.to_bits().to_le_bytes());
             h.update(&uv.y.to_bits().to_le_bytes());

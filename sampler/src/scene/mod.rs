@@ -16,7 +16,7 @@ pub mod section_fit;
 pub mod sky_distribution;
 pub mod texture;
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use holodeck_protocol::Section;
 
 pub use builder::{ImportStats, SceneBuilder};
@@ -58,6 +58,10 @@ pub struct Scene {
     /// Texture coordinates by vertex (parallel to [`Scene::positions`]), or
     /// empty when no mesh has any. glTF's convention: v grows downward.
     pub uvs: Vec<Vec2>,
+    /// Tangents by vertex (xyz, and w: +1 or -1, the bitangent's side, as
+    /// glTF gives them), or empty; a zero tangent means none (generated from
+    /// the texture coordinates where a normal map needs one).
+    pub tangents: Vec<Vec4>,
     /// The images materials use, each once.
     pub textures: TextureSet,
     /// Each material's textures, by material index (missing entries: none).
@@ -104,6 +108,14 @@ impl Scene {
         self.maps.get(m as usize).filter(|maps| !maps.is_empty())
     }
 
+    /// Tangents of triangle `t`'s vertices, where it has them all.
+    #[inline]
+    pub fn triangle_tangents(&self, t: usize) -> Option<[Vec4; 3]> {
+        let v = self.triangles[t].v;
+        let tangents = v.map(|i| self.tangents.get(i as usize).copied().unwrap_or(Vec4::ZERO));
+        tangents.iter().all(|t| t.w != 0.0).then_some(tangents)
+    }
+
     /// Texture coordinates of triangle `t`'s vertices (zero without UVs).
     #[inline]
     pub fn triangle_uvs(&self, t: usize) -> [Vec2; 3] {
@@ -135,6 +147,7 @@ impl Scene {
         }
         self.maps.clear();
         self.uvs = Vec::new();
+        self.tangents = Vec::new();
         self.textures = TextureSet::new();
         true
     }

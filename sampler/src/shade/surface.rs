@@ -51,6 +51,15 @@ impl Tracer {
         }
     }
 
+    /// The tangents of triangle `tri`'s vertices, where its file gave them (in core).
+    #[inline]
+    fn tri_tangents(&self, tri: u32) -> Option<[glam::Vec4; 3]> {
+        if self.ooc.is_some() || self.scene.tangents.is_empty() {
+            return None;
+        }
+        self.scene.triangle_tangents(tri as usize)
+    }
+
     /// The texture coordinates of triangle `tri` at barycentrics `bary`.
     #[inline]
     fn uv_at(&self, tri: u32, bary: Vec2) -> Vec2 {
@@ -186,6 +195,14 @@ impl Tracer {
         let m = maps.material_at(&self.scene.materials[material as usize], textures, uv, width);
         let emission = maps.emission_at(textures, uv, width);
         let normal = maps.relief.and_then(|_| {
+            // The file's tangents where it gives them (glTF): the bitangent,
+            // cross(n, t) * w, is where the map's green points, against +v.
+            if let Some(tangents) = self.tri_tangents(hit.tri) {
+                let w = [1.0 - hit.bary.x - hit.bary.y, hit.bary.x, hit.bary.y];
+                let t: Vec3 = tangents.iter().zip(w).map(|(t, w)| t.truncate() * w).sum();
+                let side = tangents[0].w;
+                return maps.normal_at(textures, uv, n, t, -n.cross(t) * side);
+            }
             // The directions in which u and v grow, from the triangle's edges.
             let det = d1.x * d2.y - d1.y * d2.x;
             if det == 0.0 || !det.is_finite() {

@@ -1,9 +1,11 @@
 //! glTF 2.0 (`.gltf` with embedded or external buffers, and `.glb`) import
 //! through the `gltf` crate: every node of the default scene (else the first)
 //! with its world transform, primitives in triangle mode only (points, lines,
-//! strips and fans are skipped and counted), with TEXCOORD_0. Materials are
-//! converted as `gltf_material.rs` says. Vertex colours and normals are not
-//! read (shading uses the geometric normal, or a normal map's). Positions are
+//! strips and fans are skipped and counted), with TEXCOORD_0 and TANGENT
+//! (for normal maps; generated from the texture coordinates where missing).
+//! Materials are converted as `gltf_material.rs` says. Vertex colours and
+//! normals are not read (shading uses the geometric normal, or a normal
+//! map's). Positions are
 //! read in glTF's +y-up frame; the transform the caller passes turns them
 //! +z up (see [`super::UpAxis`]).
 
@@ -181,8 +183,16 @@ impl Context<'_, '_> {
                 self.no_uvs += 1;
             }
             let source = format!("{}: {what}", self.path.display());
+            let first = self.b.vertex_count();
             self.b
                 .add_mesh_uv(&source, &positions, uvs.as_deref(), &triangles, &[material], world)?;
+            let tangents: Option<Vec<glam::Vec4>> = reader
+                .read_tangents()
+                .map(|t| t.map(glam::Vec4::from).collect::<Vec<_>>())
+                .filter(|t| t.len() == positions.len());
+            if let Some(tangents) = tangents {
+                self.b.set_tangents(first, &tangents, world);
+            }
         }
         Ok(())
     }
