@@ -159,10 +159,16 @@ pub struct Header {
     /// triangle id (u32) and its vertices' (u, v) (six f32), little-endian.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub uv_blocks: Vec<u32>,
+    /// Whether each texture coordinate record goes on with the vertices'
+    /// tangents (four f32 each, zero for none).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub uv_tangents: bool,
 }
 
 /// Bytes of one texture coordinate record of a `uv_blocks` block.
 pub const UV_RECORD: usize = 28;
+/// Bytes of the tangents that follow a record where the file keeps them.
+pub const TANGENT_RECORD: usize = 48;
 
 /// One texture of a scene file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -101,7 +101,10 @@ impl OocScene {
         // Textured triangles get vertices of their own, with their texture coordinates.
         if !self.texturing.uvs.is_empty() {
             scene.uvs = vec![glam::Vec2::ZERO; scene.positions.len()];
-            for (id, uv) in &self.texturing.uvs {
+            if !self.texturing.tangents.is_empty() {
+                scene.tangents = vec![glam::Vec4::ZERO; scene.positions.len()];
+            }
+            for (k, (id, uv)) in self.texturing.uvs.iter().enumerate() {
                 let t = scene
                     .triangles
                     .get_mut(*id as usize)
@@ -111,6 +114,9 @@ impl OocScene {
                     let p = scene.positions[v as usize];
                     scene.positions.push(p);
                     scene.uvs.push(uv);
+                }
+                if let Some(tangents) = self.texturing.tangents.get(k) {
+                    scene.tangents.extend_from_slice(tangents);
                 }
                 t.v = [base, base + 1, base + 2];
             }

@@ -125,6 +125,8 @@ pub(crate) struct Texturing {
     pub(crate) textures: crate::scene::TextureSet,
     pub(crate) maps: Vec<crate::scene::MaterialMaps>,
     pub(crate) uvs: Vec<(u32, [glam::Vec2; 3])>,
+    /// The textured triangles' tangents, in the order of `uvs`, where the file keeps them.
+    pub(crate) tangents: Vec<[glam::Vec4; 3]>,
 }
 
 /// Reads the textures, maps and texture coordinates the header points at.
@@ -163,19 +165,28 @@ fn read_texturing(header: &Header, cache: &Cache) -> Result<Texturing, OocError>
             ));
         }
     }
+    let record = format::UV_RECORD + if header.uv_tangents { format::TANGENT_RECORD } else { 0 };
     for &block in &header.uv_blocks {
         let bytes = cache.read_raw(block)?;
-        if bytes.len() % format::UV_RECORD != 0 {
+        if bytes.len() % record != 0 {
             return Err(OocError::Block {
                 block,
                 message: "texture coordinates: not whole records".into(),
             });
         }
-        for r in bytes.chunks_exact(format::UV_RECORD) {
+        for r in bytes.chunks_exact(record) {
             let f = |i: usize| f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
             let id = u32::from_le_bytes([r[0], r[1], r[2], r[3]]);
             let uv = [0, 1, 2].map(|k| glam::Vec2::new(f(4 + 8 * k), f(8 + 8 * k)));
             out.uvs.push((id, uv));
+            if header.uv_tangents {
+                let at = format::UV_RECORD;
+                let t = [0, 1, 2].map(|k| {
+                    let o = at + 16 * k;
+                    glam::Vec4::new(f(o), f(o + 4), f(o + 8), f(o + 12))
+                });
+                out.tangents.push(t);
+            }
         }
     }
     if !out.uvs.windows(2).all(|w| w[0].0 < w[1].0)
@@ -233,6 +244,15 @@ impl OocScene {
             corrupt: AtomicU64::new(0),
             texturing,
         })
+    }
+
+    /// The tangents of triangle `id`'s vertices, where it is textured and
+    /// its file gave them all.
+    #[inline]
+    pub fn triangle_tangents(&self, id: u32) -> Option<[glam::Vec4; 3]> {
+        let t = &self.texturing;
+        let k = t.uvs.binary_search_by_key(&id, |u| u.0).ok()?;
+        t.tangents.get(k).copied().filter(|v| v.iter().all(|t| t.w != 0.0))
     }
 
     /// The texture coordinates of triangle `id`'s vertices, where it is textured.

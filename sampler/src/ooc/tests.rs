@@ -677,7 +677,11 @@ fn a_textured_scene_file_keeps_its_textures_and_renders_as_the_scene_does() {
         triangles: Some(20_000),
         ..GenParams::default()
     };
-    let scene = generate("gallery", &params).unwrap();
+    let mut scene = generate("gallery", &params).unwrap();
+    // Tangents, as a glTF file gives them, on every vertex.
+    scene.tangents = (0..scene.positions.len())
+        .map(|i| glam::Vec4::new(1.0, 0.0, 0.0, if i % 2 == 0 { 1.0 } else { -1.0 }))
+        .collect();
     let (path, _) = build(&scene, dir.path(), scene.triangles.len() as u64, Codec::Lz4);
     let file = Arc::new(OocScene::open(&path, None, 1).unwrap());
     let h = file.header();
@@ -695,6 +699,11 @@ fn a_textured_scene_file_keeps_its_textures_and_renders_as_the_scene_does() {
     assert!(textured.len() >= 20, "{}", textured.len());
     for &t in &textured {
         assert_eq!(file.triangle_uvs(t as u32), Some(scene.triangle_uvs(t)), "triangle {t}");
+        assert_eq!(
+            file.triangle_tangents(t as u32),
+            scene.triangle_tangents(t),
+            "triangle {t}"
+        );
     }
     assert_eq!(file.triangle_uvs(0), None, "the terrain has none");
     // The room toward the rug, the bricks and the plant, three ways.

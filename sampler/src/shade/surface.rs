@@ -51,13 +51,14 @@ impl Tracer {
         }
     }
 
-    /// The tangents of triangle `tri`'s vertices, where its file gave them (in core).
+    /// The tangents of triangle `tri`'s vertices, where its file gave them.
     #[inline]
     fn tri_tangents(&self, tri: u32) -> Option<[glam::Vec4; 3]> {
-        if self.ooc.is_some() || self.scene.tangents.is_empty() {
-            return None;
+        match &self.ooc {
+            Some(ooc) => ooc.triangle_tangents(tri),
+            None if self.scene.tangents.is_empty() => None,
+            None => self.scene.triangle_tangents(tri as usize),
         }
-        self.scene.triangle_tangents(tri as usize)
     }
 
     /// The texture coordinates of triangle `tri` at barycentrics `bary`.

@@ -154,6 +154,7 @@ impl Blocks {
         let maps_block = Some(self.add_raw(&maps)?);
         let mut uv_blocks = Vec::new();
         let mut records = Vec::new();
+        let uv_tangents = !scene.tangents.is_empty();
         for (i, t) in scene.triangles.iter().enumerate() {
             if scene.maps_of(t.material).is_none() {
                 continue;
@@ -162,6 +163,13 @@ impl Blocks {
             for uv in scene.triangle_uvs(i) {
                 records.extend(uv.x.to_le_bytes());
                 records.extend(uv.y.to_le_bytes());
+            }
+            if uv_tangents {
+                let v =
+                    t.v.map(|v| scene.tangents.get(v as usize).copied().unwrap_or(glam::Vec4::ZERO));
+                for c in v.iter().flat_map(|t| t.to_array()) {
+                    records.extend(c.to_le_bytes());
+                }
             }
             if records.len() >= UV_RECORD << 16 {
                 uv_blocks.push(self.add_raw(&records)?);
@@ -175,6 +183,7 @@ impl Blocks {
             textures,
             maps_block,
             uv_blocks,
+            uv_tangents,
         })
     }
 
@@ -220,6 +229,7 @@ struct Texturing {
     textures: Vec<HeaderTexture>,
     maps_block: Option<u32>,
     uv_blocks: Vec<u32>,
+    uv_tangents: bool,
 }
 
 fn midpoint(b: &Aabb) -> (usize, f32) {
@@ -549,6 +559,7 @@ fn build_in(
         textures: texturing.textures,
         maps_block: texturing.maps_block,
         uv_blocks: texturing.uv_blocks,
+        uv_tangents: texturing.uv_tangents,
     };
     let mut order: Vec<usize> = (0..blocks.entries.len()).collect();
     order.sort_by_key(|&i| (blocks.entries[i].level, i));
