@@ -198,14 +198,9 @@ pub(crate) fn check_regular_file(path: &Path) -> Result<(), SceneError> {
     Ok(())
 }
 
-/// The material for a file's material named `name`: the scene's override if
+/// The material (and textures) for a file's material named `name`: the scene's override if
 /// there is one, else `m` added under `name` (or `name#2`, `name#3`, ... when
 /// another file already used the name for different parameters).
-fn file_material(b: &mut SceneBuilder, options: &ImportOptions, name: &str, m: Material) -> Result<u32, SceneError> {
-    textured_material(b, options, name, m, MaterialMaps::default())
-}
-
-/// [`file_material`] with textures.
 fn textured_material(
     b: &mut SceneBuilder,
     options: &ImportOptions,

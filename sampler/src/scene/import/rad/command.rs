@@ -177,6 +177,21 @@ fn xform(args: &[String]) -> Result<Pipeline, RadErrorKind> {
     })
 }
 
+/// The transform that xform-style options (`-t`, `-rx`, `-ry`, `-rz`,
+/// `-s`, `-mx`, `-my`, `-mz`, `-i`) give, as a pattern's arguments end with them.
+pub(super) fn transform_args(args: &[String]) -> Result<DMat4, RadErrorKind> {
+    let pipeline = xform(args)?;
+    match pipeline.producer {
+        Producer::Files(rest) if rest.is_empty() && !pipeline.invert && pipeline.modifier.is_none() => {
+            Ok(pipeline.transform)
+        }
+        _ => Err(bad(
+            "transform",
+            "only -t, -rx, -ry, -rz, -s, -mx, -my, -mz and -i may follow",
+        )),
+    }
+}
+
 /// `m` applied `n` times, by squaring.
 fn power(mut m: DMat4, mut n: u64) -> DMat4 {
     let mut out = DMat4::IDENTITY;

@@ -63,6 +63,9 @@ pub(super) struct Loader {
     pub triangles: Vec<[u32; 3]>,
     /// The material slot of each triangle.
     pub slots: Vec<usize>,
+    /// Picture coordinates (the pattern's x and y) of each vertex, once a
+    /// surface under a `colorpict` is added (zero for the others).
+    pub uvs: Vec<glam::Vec2>,
     /// Distant sources.
     pub sources: Vec<Source>,
     /// The files being read, outermost first, as found on disk.
@@ -81,6 +84,7 @@ impl Default for Loader {
             positions: Vec::new(),
             triangles: Vec::new(),
             slots: Vec::new(),
+            uvs: Vec::new(),
             sources: Vec::new(),
             stack: Vec::new(),
             includes: 0,
@@ -190,7 +194,13 @@ impl Loader {
 
     /// A primitive: a modifier is defined, a surface added, a source kept.
     fn primitive(&mut self, p: &Primitive, at: &Location, frame: &Frame) -> Result<(), RadError> {
-        if self.modifiers.define(p, at, &mut self.report)? {
+        let dir = self
+            .stack
+            .last()
+            .and_then(|f| f.parent())
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        if self.modifiers.define(p, at, &dir, &mut self.report)? {
             return Ok(());
         }
         let modifier = frame.modifier.as_deref().unwrap_or(&p.modifier);
@@ -292,6 +302,16 @@ impl Loader {
                 .iter()
                 .map(|p| frame.transform.transform_point3(*p).as_vec3()),
         );
+        if let Some(picture) = &self.modifiers.slots[slot].picture {
+            // picture.cal's pic_u and pic_v: the point's x and y in the pattern's frame.
+            self.uvs.resize(base as usize, glam::Vec2::ZERO);
+            self.uvs.extend(mesh.positions.iter().map(|p| {
+                let q = picture.inverse.transform_point3(frame.transform.transform_point3(*p));
+                glam::Vec2::new(q.x as f32, q.y as f32)
+            }));
+        } else if !self.uvs.is_empty() {
+            self.uvs.resize(self.positions.len(), glam::Vec2::ZERO);
+        }
         self.triangles.extend(mesh.triangles.iter().map(|t| {
             let t = t.map(|i| i + base);
             if frame.flip {

@@ -28,8 +28,9 @@
 //! * `mist`: invisible. Patterns and textures: ignored (the material keeps
 //!   its base color), except the sky distributions of gensky
 //!   (`brightfunc skybr skybright.cal`) and gendaylit (`brightfunc skybright
-//!   perezlum.cal`) on `glow` sources, which shape the sky. Mixtures: their
-//!   foreground (background if `void`).
+//!   perezlum.cal`) on `glow` sources, which shape the sky, and `colorpict`
+//!   pictures mapped by `picture.cal`, which colour the material. Mixtures:
+//!   their foreground (background if `void`).
 //! * Other materials (`BRTDfunc`, `BSDF`, `plasfunc`, `antimatter`, ...):
 //!   refused where a surface uses them.
 
@@ -130,6 +131,24 @@ pub(super) struct Slot {
     /// The sky distribution that modifies it (a `glow` under gensky's or
     /// gendaylit's `skyfunc`).
     pub sky: Option<SkyDistribution>,
+    /// The picture that colours it (a `colorpict` over `picture.cal`).
+    pub picture: Option<Picture>,
+}
+
+/// A `colorpict` pattern with `picture.cal`'s coordinates: the image
+/// lies on the pattern's xy plane, lower left corner at the origin, its
+/// smaller side 1 long.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Picture {
+    /// The image file, as written (relative to the file that names it).
+    pub file: String,
+    /// The directory of the file that names it.
+    pub dir: std::path::PathBuf,
+    /// World (first file's frame) to the pattern's frame.
+    pub inverse: glam::DMat4,
+    /// How coordinates beyond the image read: `pic_u` clamps, `tile_u`
+    /// repeats, `match_u` mirrors.
+    pub wrap: crate::scene::texture::Wrap,
 }
 
 /// The modifiers defined so far.
@@ -140,6 +159,8 @@ pub(super) struct Modifiers {
     /// Sky brightness patterns by name (`brightfunc` over `skybright.cal`
     /// or `perezlum.cal`).
     skies: HashMap<String, SkyDistribution>,
+    /// Picture patterns by name (`colorpict` over `picture.cal`).
+    pictures: HashMap<String, Picture>,
     /// Every material definition, in file order.
     pub slots: Vec<Slot>,
 }
@@ -158,7 +179,13 @@ impl Modifiers {
 
     /// Defines `p` if it is a modifier (material, pattern, texture, mixture or
     /// alias) and returns true; false for anything else (surfaces, unknown types).
-    pub(super) fn define(&mut self, p: &Primitive, at: &Location, report: &mut RadReport) -> Result<bool, RadError> {
+    pub(super) fn define(
+        &mut self,
+        p: &Primitive,
+        at: &Location,
+        dir: &std::path::Path,
+        report: &mut RadReport,
+    ) -> Result<bool, RadError> {
         let kind = p.kind.as_str();
         let is_modifier = kind == "alias"
             || PATTERNS.contains(&kind)
@@ -177,16 +204,26 @@ impl Modifiers {
             let target = p.strings.first().map_or("", String::as_str);
             self.lookup(target, at)?
         } else if PATTERNS.contains(&kind) {
-            match sky_pattern(p, at)? {
-                Some(sky) => {
-                    self.skies.insert(p.name.clone(), sky);
-                }
-                None => {
-                    self.skies.remove(&p.name);
-                    report.note(NoteKind::PatternIgnored, at, || p.what());
-                }
+            self.skies.remove(&p.name);
+            self.pictures.remove(&p.name);
+            if let Some(sky) = sky_pattern(p, at)? {
+                self.skies.insert(p.name.clone(), sky);
+            } else if let Some(picture) = picture_pattern(p, at, dir)? {
+                self.pictures.insert(p.name.clone(), picture);
+            } else {
+                report.note(NoteKind::PatternIgnored, at, || p.what());
             }
-            self.lookup(&p.modifier, at)?
+            match (self.lookup(&p.modifier, at)?, self.pictures.get(&p.name)) {
+                // A picture over a material (surface -> pattern -> material):
+                // surfaces that name the pattern show the material pictured.
+                (Resolved::Material(slot), Some(picture)) => {
+                    let mut pictured = self.slots[slot].clone();
+                    pictured.picture = Some(picture.clone());
+                    self.slots.push(pictured);
+                    Resolved::Material(self.slots.len() - 1)
+                }
+                (resolved, _) => resolved,
+            }
         } else if MIXTURES.contains(&kind) {
             let [fore, back] = match &p.strings[..] {
                 [fore, back, ..] => [fore, back],
@@ -227,12 +264,14 @@ impl Modifiers {
                 LightKind::Glow => self.skies.get(&p.modifier).cloned(),
                 _ => None,
             };
+            let picture = self.pictures.get(&p.modifier).cloned();
             self.slots.push(Slot {
                 name: p.name.clone(),
                 material,
                 light,
                 at: at.clone(),
                 sky,
+                picture,
             });
             Resolved::Material(self.slots.len() - 1)
         };
@@ -311,6 +350,35 @@ fn sky_pattern(p: &Primitive, at: &Location) -> Result<Option<SkyDistribution>, 
         RadError::new(at, RadErrorKind::BadArguments { what, message })
     })?;
     Ok(Some(sky))
+}
+
+/// The picture of a `colorpict` that maps its image with `picture.cal`
+/// (`red green blue` colour functions, `pic_u pic_v`, `tile_u tile_v` or
+/// `match_u match_v` coordinates, then an optional transform); `None` for
+/// any other pattern.
+fn picture_pattern(p: &Primitive, at: &Location, dir: &std::path::Path) -> Result<Option<Picture>, RadError> {
+    use crate::scene::texture::Wrap;
+    if p.kind != "colorpict" || p.strings.len() < 7 {
+        return Ok(None);
+    }
+    let s = &p.strings;
+    let cal = s[4].rsplit(['/', '\\']).next().unwrap_or(&s[4]);
+    if s[0..3] != ["red", "green", "blue"] || cal != "picture.cal" {
+        return Ok(None);
+    }
+    let wrap = match (s[5].as_str(), s[6].as_str()) {
+        ("pic_u", "pic_v") => Wrap::Clamp,
+        ("tile_u", "tile_v") => Wrap::Repeat,
+        ("match_u", "match_v") => Wrap::Mirror,
+        _ => return Ok(None),
+    };
+    let transform = super::command::transform_args(&s[7..]).map_err(|kind| RadError::new(at, kind))?;
+    Ok(Some(Picture {
+        file: s[3].clone(),
+        dir: dir.to_path_buf(),
+        inverse: transform.inverse(),
+        wrap,
+    }))
 }
 
 /// Whether `kind` is a material [`convert`] handles.

@@ -37,10 +37,12 @@ pub use error::{Location, RadError, RadErrorKind};
 pub use report::{NoteKind, RadNote, RadReport};
 pub use shapes::{SEGMENTS, SPHERE_BANDS};
 
-use super::{file_material, ImportOptions};
+use super::ImportOptions;
 use crate::error::SceneError;
 use crate::scene::builder::SceneBuilder;
+use crate::scene::maps::{MaterialMaps, TexRef, UvTransform};
 use crate::scene::material::Sky;
+use crate::scene::texture::Encoding;
 
 /// Adds the Radiance file at `path` (and what it includes) to `b`, placed by
 /// `transform`; returns what was approximated. Materials are named as in the
@@ -76,7 +78,8 @@ pub fn read_rad(
             Some(id) => id,
             None => {
                 let s = &loader.modifiers.slots[slot];
-                let id = file_material(b, options, &s.name, s.material.clone())?;
+                let maps = picture_maps(b, s, path);
+                let id = super::textured_material(b, options, &s.name, s.material.clone(), maps)?;
                 ids[slot] = Some(id);
                 id
             }
@@ -87,12 +90,64 @@ pub fn read_rad(
         tracing::info!("{}: no visible surfaces", path.display());
     } else {
         let source = path.display().to_string();
-        b.add_mesh(&source, &loader.positions, &loader.triangles, &materials, transform)?;
+        let uvs = (!loader.uvs.is_empty()).then(|| {
+            let mut uvs = loader.uvs;
+            uvs.resize(loader.positions.len(), glam::Vec2::ZERO);
+            uvs
+        });
+        b.add_mesh_uv(
+            &source,
+            &loader.positions,
+            uvs.as_deref(),
+            &loader.triangles,
+            &materials,
+            transform,
+        )?;
     }
     if let Some(sky) = sky {
         b.sky(sky)?;
     }
     Ok(loader.report)
+}
+
+/// The maps of material slot `s`: its `colorpict` picture as base colour,
+/// placed as picture.cal places it (lower left at the origin, the smaller
+/// side 1 long); none without one, or where the picture cannot be read
+/// (noted).
+fn picture_maps(b: &mut SceneBuilder, s: &materials::Slot, path: &Path) -> MaterialMaps {
+    let Some(picture) = &s.picture else {
+        return MaterialMaps::default();
+    };
+    let file = path.display().to_string();
+    let image = picture.dir.join(&picture.file);
+    match b.textures().load(&image, Encoding::Srgb) {
+        Ok(texture) => {
+            let (w, h) = b
+                .textures()
+                .get(texture)
+                .map_or((1.0, 1.0), |t| (t.width() as f32, t.height() as f32));
+            let side = w.min(h);
+            let (u_max, v_max) = (w / side, h / side);
+            MaterialMaps {
+                base_color: Some(TexRef {
+                    texture,
+                    wrap: [picture.wrap; 2],
+                    // Radiance's v grows upward, the scene's downward.
+                    transform: UvTransform {
+                        offset: [0.0, 1.0],
+                        scale: [1.0 / u_max, -1.0 / v_max],
+                        rotation: 0.0,
+                    },
+                }),
+                ..MaterialMaps::default()
+            }
+        }
+        Err(e) => {
+            tracing::warn!("{file}: material {:?}: colorpict: {e}; the picture is dropped", s.name);
+            b.note(&file, Some(&s.name), format!("colorpict: {e}; dropped"));
+            MaterialMaps::default()
+        }
+    }
 }
 
 impl From<RadError> for SceneError {

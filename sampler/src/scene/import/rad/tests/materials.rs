@@ -142,7 +142,16 @@ mix polygon f 0 0 9 0 0 5 1 0 5 0 1 5
     assert_eq!(material_at(3.0).0, "paint#2", "an alias is its target");
     assert_eq!(material_at(4.0).0, "stained", "surface -> pattern -> material");
     assert_eq!(material_at(5.0).0, "stained", "a mixture shows its foreground");
-    assert_eq!(report.count(NoteKind::PatternIgnored), 2);
+    assert_eq!(
+        report.count(NoteKind::PatternIgnored),
+        1,
+        "the brightfunc; the colorpict pictures"
+    );
+    assert!(
+        s.notes.iter().any(|n| n.what.contains("img.hdr")),
+        "its picture is missing: {:?}",
+        s.notes
+    );
     assert_eq!(report.count(NoteKind::MixtureForeground), 1);
     let first = &report.notes[0];
     assert_eq!((first.kind, first.first.line), (NoteKind::PatternIgnored, 1));

@@ -11,6 +11,7 @@ use crate::scene::{Material, Scene};
 mod commands;
 mod errors;
 mod materials;
+mod pictures;
 mod render;
 mod sky;
 mod surfaces;
