@@ -85,7 +85,31 @@ pub fn write_hdr_view(p: &Picture, path: &Path, view: Option<&holodeck_protocol:
         let line = format!("VIEW= {}\n", view.to_spec());
         bytes.splice(at..at, line.into_bytes());
     }
-    std::fs::write(path, bytes).map_err(|e| err(path, e))
+    write_whole(path, &bytes)
+}
+
+/// Writes `bytes` to `path` whole or not at all: to a temporary name, then
+/// renamed over it (a device such as /dev/stdout is written directly), so a
+/// full disk fails the write and leaves no truncated picture.
+fn write_whole(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
+    use std::io::Write;
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return std::fs::write(path, bytes).map_err(|e| err(path, e));
+    }
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.tmp", std::process::id()));
+    let tmp = path.with_file_name(name);
+    let written = (|| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(err(path, e));
+    }
+    Ok(())
 }
 
 fn srgb(v: f32) -> u8 {
@@ -125,7 +149,7 @@ pub fn write_rgb8(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Resul
     let mut png = std::io::Cursor::new(Vec::new());
     image::write_buffer_with_format(&mut png, rgb, w, h, image::ColorType::Rgb8, image::ImageFormat::Png)
         .map_err(|e| err(path, e))?;
-    std::fs::write(path, png.into_inner()).map_err(|e| err(path, e))
+    write_whole(path, &png.into_inner())
 }
 
 #[cfg(test)]

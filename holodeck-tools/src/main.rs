@@ -116,13 +116,46 @@ fn init_logging(verbose: u8, quiet: bool) {
             let windows = if verbose >= 2 { "" } else { ",winit=error" };
             tracing_subscriber::EnvFilter::new(format!("{level}{windows}"))
         });
+    // Colour only on a terminal, and never where NO_COLOR asks for none:
+    // logs sent to a file carry no escape codes.
+    use std::io::IsTerminal;
+    let colour = std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty());
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(colour)
         .init();
 }
 
+/// Standard output that closes or fills up ends the program as Unix tools
+/// end: a closed pipe quietly with status 141 (`info F | head -0`), a full
+/// device with a message and status 1 (`info F > /dev/full`), not with a
+/// panic's backtrace. Every other panic reports as before.
+fn quiet_on_closed_stdout() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") {
+            if message.contains("Broken pipe") {
+                std::process::exit(141);
+            }
+            eprintln!(
+                "holodeck: error: writing to standard output: {}",
+                message.trim_start_matches("failed printing to stdout: ")
+            );
+            std::process::exit(1);
+        }
+        default(info);
+    }));
+}
+
 fn main() -> ExitCode {
+    quiet_on_closed_stdout();
     let cli = Cli::parse();
     init_logging(cli.verbose, cli.quiet);
     if cli.exit_with_parent {

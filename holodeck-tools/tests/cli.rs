@@ -422,3 +422,57 @@ fn radiance_holodecks_export_import_and_copy_through_the_command_line() {
     assert!(!o.status.success());
     assert!(text(&o).contains("cut off"), "{}", text(&o));
 }
+
+#[test]
+fn outputs_never_destroy_inputs_devices_are_refused_and_closed_stdout_is_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let o = holodeck(&["create", f, "--section", ROOM, "--grid", "0.5"]);
+    assert!(o.status.success(), "{}", text(&o));
+    fill(&file, 4, 3);
+    let before = std::fs::read(&file).unwrap();
+    // `grid FILE -o FILE` would replace the holodeck with OBJ text.
+    let o = holodeck(&["grid", f, "-o", f]);
+    assert!(
+        !o.status.success() && text(&o).contains("would destroy it"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(std::fs::read(&file).unwrap(), before, "the holodeck is intact");
+    // A scene from a device is refused at once, not read for ever.
+    let o = holodeck(&["scene", "info", "/dev/zero"]);
+    assert!(
+        !o.status.success() && text(&o).contains("not a regular file"),
+        "{}",
+        text(&o)
+    );
+    // Standard output on a full device: a message and status 1, no panic.
+    let o = common::process::run(std::process::Command::new("sh").args([
+        "-c",
+        "\"$0\" info \"$1\" > /dev/full",
+        env!("CARGO_BIN_EXE_holodeck"),
+        f,
+    ]));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("writing to standard output") && !err.contains("panicked"),
+        "{err}"
+    );
+    // Durations that are not numbers, or too long, say so.
+    let o = holodeck(&["serve", f, "--time", "nans"]);
+    assert!(
+        text(&o).contains("not a number") || text(&o).contains("nans"),
+        "{}",
+        text(&o)
+    );
+    assert!(!text(&o).contains("non-negative"), "{}", text(&o));
+    // scene gen does not replace files silently.
+    let toml = dir.path().join("room.toml");
+    let t = toml.to_str().unwrap();
+    assert!(holodeck(&["scene", "gen", "room", "-o", t]).status.success());
+    let o = holodeck(&["scene", "gen", "room", "-o", t]);
+    assert!(!o.status.success() && text(&o).contains("--force"), "{}", text(&o));
+    assert!(holodeck(&["scene", "gen", "room", "-o", t, "--force"]).status.success());
+}

@@ -110,6 +110,20 @@ pub fn grid_for_length(axes: [[f64; 3]; 3], length: f64) -> Result<[u16; 3], Sec
 /// The grid (from some cell length) whose beam count is closest to `target`,
 /// measured by ratio. Useful to follow the paper's advice of 50k–500k beams.
 pub fn grid_for_beam_count(axes: [[f64; 3]; 3], target: u64) -> Result<[u16; 3], SectionError> {
+    // An axis too long or too short says so (its squared length may
+    // overflow: measured scaled by its largest component).
+    for (axis, a) in axes.iter().enumerate() {
+        let v = finite(["axis 0", "axis 1", "axis 2"][axis], *a)?;
+        let m = v.abs().max_element();
+        let length = if m > 0.0 && m.is_finite() {
+            m * (v / m).length()
+        } else {
+            m
+        };
+        if !(MIN_AXIS_LENGTH..=MAX_AXIS_LENGTH).contains(&length) {
+            return Err(SectionError::AxisLength { axis, length });
+        }
+    }
     let longest = axes.iter().map(|a| DVec3::from(*a).length()).fold(0.0, f64::max);
     if !(longest.is_finite() && longest > 0.0) {
         return Err(SectionError::Degenerate(axes));
@@ -464,6 +478,13 @@ mod tests {
         );
         let huge = Section::new([0.0; 3], scaled(1e30), [1, 1, 1], k).unwrap_err();
         assert!(matches!(huge, SectionError::AxisLength { axis: 0, .. }), "{huge:?}");
+        // So long that its square overflows: still too long, not degenerate.
+        let axes = [[1e155, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let e = grid_for_beam_count(axes, 1000).unwrap_err();
+        assert!(
+            matches!(e, SectionError::AxisLength { axis: 0, length } if length == 1e155),
+            "{e:?}"
+        );
         assert_eq!(huge.field(), Some(SectionField::Axis(0)));
         let far = Section::new([0.0, -2e7, 0.0], BOX, [1, 1, 1], k).unwrap_err();
         assert_eq!(

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use holodeck_server::{HoloFile, OpenOptions};
 
 /// Arguments of `holodeck grid`.
@@ -38,7 +38,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     match &a.output {
-        Some(path) => std::fs::write(path, obj).with_context(|| format!("writing {}", path.display()))?,
+        Some(path) => super::outfile::write(path, obj.as_bytes(), &[&a.file])?,
         None => print!("{obj}"),
     }
     Ok(ExitCode::SUCCESS)

@@ -15,6 +15,7 @@ pub mod grid;
 pub mod import;
 pub mod info;
 pub mod optimize;
+pub mod outfile;
 pub mod pict;
 pub mod render;
 pub mod run;

@@ -181,6 +181,9 @@ pub struct GenArgs {
     /// The scene file to write; the mesh goes to the same name with .ply.
     #[arg(short, long, value_name = "TOML")]
     output: PathBuf,
+    /// Replace the scene file and its mesh where they exist.
+    #[arg(long)]
+    force: bool,
 }
 
 /// Arguments of `holodeck scene info`.
@@ -212,6 +215,15 @@ fn spinner(message: String) -> indicatif::ProgressBar {
 }
 
 fn generate(a: GenArgs) -> Result<ExitCode> {
+    let ply = a.output.with_extension("ply");
+    if !a.force {
+        if let Some(there) = [&a.output, &ply].into_iter().find(|p| p.exists()) {
+            anyhow::bail!(
+                "{} exists; give --force to replace it (and its scene's other files)",
+                there.display()
+            );
+        }
+    }
     let params = GenParams {
         triangles: a.triangles,
         resolution: a.resolution,

@@ -22,6 +22,8 @@ a file readable by the owner only unless given on the command line:
   FILE.token         admin (--token): everything, control commands included
   FILE.writer.token  writer (--writer-token): samplers, and pause/resume
   FILE.viewer.token  viewer (--viewer-token): displays that only read
+A restarted server keeps the tokens already in those files (so running samplers and displays
+get back in); --new-tokens writes new ones, locking out everyone who had the old.
 Display requests are traced first;
 otherwise samplers fill every beam by volume (or only what --views see; none with --no-fill).
 Stops, flushing everything, on SIGINT/SIGTERM, an admin's quit, TIME, or a full DISKSPACE.
@@ -50,6 +52,9 @@ pub struct Args {
     /// Viewer access token (read-only displays); generated into FILE.viewer.token if omitted.
     #[arg(long)]
     viewer_token: Option<String>,
+    /// Generate new tokens even where the token files hold some (locks out every peer that had the old).
+    #[arg(long)]
+    new_tokens: bool,
     /// Rays per batch-fill packet.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PACKET_RAYS)))]
     packet: u32,
@@ -112,37 +117,71 @@ pub(crate) fn token_path(file: &Path, level: &str) -> PathBuf {
     file.with_file_name(name)
 }
 
-/// The given token, or a new random one written to its file.
-fn token_for(given: Option<String>, file: &Path, level: &str) -> Result<String> {
+/// The given token; else the one its file already holds (a restarted
+/// server keeps its peers), unless `fresh`; else a new random one written
+/// to its file.
+fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Result<String> {
     if let Some(t) = given {
         if t.trim().is_empty() {
             anyhow::bail!("the {level} token must not be empty");
         }
         return Ok(t);
     }
+    let path = token_path(file, level);
+    if !fresh {
+        if let Some(t) = kept_token(&path) {
+            eprintln!("{level} access token kept from {}", path.display());
+            return Ok(t);
+        }
+    }
     let t: String = (0..32)
         .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
         .collect();
-    let path = token_path(file, level);
     write_token(&path, &t)?;
     eprintln!("{level} access token written to {}", path.display());
     Ok(t)
 }
 
+/// The token a token file holds, where it is one this program wrote: a
+/// regular file (not a link), readable by its owner only, holding 32 hex digits.
+fn kept_token(path: &Path) -> Option<String> {
+    use std::os::unix::fs::PermissionsExt;
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    if !meta.file_type().is_file() || meta.permissions().mode() & 0o077 != 0 || meta.len() > 64 {
+        return None;
+    }
+    let text = std::fs::read_to_string(path).ok()?;
+    let t = text.trim();
+    (t.len() == 32 && t.chars().all(|c| c.is_ascii_hexdigit())).then(|| t.to_string())
+}
+
 /// Writes the token readable by the owner only, to a temporary name first so
-/// that a failed write leaves no empty or partial token file behind.
+/// that a failed write leaves no empty or partial token file behind. The
+/// temporary file is created new (`O_CREAT|O_EXCL|O_NOFOLLOW`): whatever
+/// lies at its name (a stale file, or a link planted to catch the token) is
+/// removed first, never written through.
 fn write_token(path: &Path, token: &str) -> Result<()> {
     use std::os::unix::fs::OpenOptionsExt;
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(format!(".{}.tmp", std::process::id()));
     let tmp = path.with_file_name(name);
     let written = (|| -> std::io::Result<()> {
-        let mut f = std::fs::OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .mode(0o600)
-            .open(&tmp)?;
+        let create = || {
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .custom_flags(libc::O_NOFOLLOW)
+                .mode(0o600)
+                .open(&tmp)
+        };
+        let mut f = match create() {
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                // Unlinks a link itself, not what it points at.
+                std::fs::remove_file(&tmp)?;
+                create()?
+            }
+            other => other?,
+        };
         writeln!(f, "{token}")?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
@@ -170,9 +209,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     )?;
     // Tokens are written once the file is open: a file that cannot be served keeps its old tokens.
     let tokens = Tokens {
-        admin: token_for(a.token, &a.file, "admin")?,
-        writer: Some(token_for(a.writer_token, &a.file, "writer")?),
-        viewer: Some(token_for(a.viewer_token, &a.file, "viewer")?),
+        admin: token_for(a.token, &a.file, "admin", a.new_tokens)?,
+        writer: Some(token_for(a.writer_token, &a.file, "writer", a.new_tokens)?),
+        viewer: Some(token_for(a.viewer_token, &a.file, "viewer", a.new_tokens)?),
     };
     if tokens.writer.as_ref() == Some(&tokens.admin)
         || tokens.viewer.as_ref() == Some(&tokens.admin)
@@ -236,4 +275,40 @@ pub fn run(a: Args) -> Result<ExitCode> {
     // Whoever started us may be gone (its end of our output with it): that is no failure.
     let _ = writeln!(std::io::stdout(), "{}: flushed and closed", a.file.display());
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn token_files_are_never_written_through_a_link_and_survive_restarts() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("room.hdk");
+        // A link planted at the temporary name, pointing at a file someone can read.
+        let bait = dir.path().join("bait");
+        std::fs::write(&bait, "unchanged").unwrap();
+        let path = token_path(&file, "admin");
+        let mut tmp = path.file_name().unwrap().to_os_string();
+        tmp.push(format!(".{}.tmp", std::process::id()));
+        std::os::unix::fs::symlink(&bait, path.with_file_name(tmp)).unwrap();
+        let first = token_for(None, &file, "admin", false).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&bait).unwrap(),
+            "unchanged",
+            "nothing written through the link"
+        );
+        let meta = std::fs::symlink_metadata(&path).unwrap();
+        assert!(meta.file_type().is_file(), "the token file is a file, not a link");
+        assert_eq!(meta.permissions().mode() & 0o777, 0o600);
+        // A restart keeps it; --new-tokens replaces it.
+        assert_eq!(token_for(None, &file, "admin", false).unwrap(), first);
+        let fresh = token_for(None, &file, "admin", true).unwrap();
+        assert_ne!(fresh, first);
+        assert_eq!(token_for(None, &file, "admin", false).unwrap(), fresh);
+        // A token file others may read, or a link, is not trusted: a new token replaces it.
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
+        assert_ne!(token_for(None, &file, "admin", false).unwrap(), fresh);
+    }
 }

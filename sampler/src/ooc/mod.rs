@@ -205,6 +205,12 @@ impl OocScene {
     /// the header, index and trailer; blocks are checked as they are loaded.
     pub fn open(path: &Path, budget: Option<usize>, fetchers: usize) -> Result<OocScene, OocError> {
         let file = File::open(path).map_err(|e| OocError::io(path, e))?;
+        if !file.metadata().map_err(|e| OocError::io(path, e))?.is_file() {
+            return Err(OocError::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file"),
+            ));
+        }
         // SAFETY: the file is opened read-only; a scene file is never modified
         // in place (the builder writes a new file and renames it over the old).
         let mmap = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| OocError::io(path, e))?;

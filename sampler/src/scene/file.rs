@@ -240,6 +240,7 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
             ..SceneFile::default()
         }
     } else {
+        check_scene_file(path)?;
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
             path: path.to_path_buf(),
             source,
@@ -347,6 +348,35 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
     let scene = b.finish();
     log_notes(path, &scene);
     Ok(scene)
+}
+
+/// Largest scene file (TOML) read: scene files name their geometry, they
+/// do not hold it.
+pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
+
+/// Refuses a scene file that is not a regular file (a device or a pipe
+/// could be read for ever) or is larger than [`MAX_SCENE_FILE_BYTES`].
+fn check_scene_file(path: &Path) -> Result<(), SceneError> {
+    let meta = std::fs::metadata(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let refuse = |message: String| SceneError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
+    if !meta.is_file() {
+        return Err(refuse(
+            "not a regular file: a scene file is TOML text (or a .rad file)".into(),
+        ));
+    }
+    if meta.len() > MAX_SCENE_FILE_BYTES {
+        return Err(refuse(format!(
+            "{} bytes is more than the {MAX_SCENE_FILE_BYTES} a scene file may have (geometry belongs in the files it names)",
+            meta.len()
+        )));
+    }
+    Ok(())
 }
 
 /// Says once what import dropped or approximated: a summary line at the

@@ -55,9 +55,13 @@ pub fn parse_duration(s: &str, default_unit: f64) -> Result<Duration, DurationEr
         .trim()
         .parse()
         .map_err(|_| DurationError::NotANumber(s.to_string()))?;
-    if !(v.is_finite() && v >= 0.0) {
+    if v.is_nan() {
+        return Err(DurationError::NotANumber(s.to_string()));
+    }
+    if v < 0.0 {
         return Err(DurationError::Negative(s.to_string()));
     }
+    // Infinite (1e400s parses so) is too long, not negative.
     Duration::try_from_secs_f64(v * unit).map_err(|_| DurationError::TooLong(s.to_string()))
 }
 
@@ -69,6 +73,22 @@ pub fn format_duration(d: Duration) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn durations_that_are_not_numbers_or_too_long_say_so() {
+        assert_eq!(
+            parse_duration("nans", 1.0),
+            Err(DurationError::NotANumber("nans".into()))
+        );
+        assert_eq!(parse_duration("nan", 1.0), Err(DurationError::NotANumber("nan".into())));
+        assert_eq!(
+            parse_duration("1e400s", 1.0),
+            Err(DurationError::TooLong("1e400s".into()))
+        );
+        assert_eq!(parse_duration("inf", 1.0), Err(DurationError::TooLong("inf".into())));
+        assert_eq!(parse_duration("-2m", 1.0), Err(DurationError::Negative("-2m".into())));
+        assert_eq!(parse_duration("1.5m", 1.0), Ok(Duration::from_secs(90)));
+    }
 
     #[test]
     fn values_that_do_not_parse_say_which_way() {
