@@ -66,6 +66,14 @@ pub struct Tree {
     pub(super) nodes: Vec<Node>,
     /// Depth of the single-pixel nodes.
     pub(super) levels: u32,
+    /// The frame's width and height, cells.
+    width: u32,
+    height: u32,
+    /// Whether block numbers go row by row rather than in key order: for
+    /// frames so far from square that the root's square would be more
+    /// than four times the frame (a 65,536 x 1 frame would otherwise
+    /// number 4 billion blocks).
+    row_major: bool,
 }
 
 impl PixelIndex for Tree {
@@ -74,6 +82,9 @@ impl PixelIndex for Tree {
         self.nodes.push(Node::EMPTY);
         let side = width.max(height);
         self.levels = if side <= 1 { 0 } else { 32 - (side - 1).leading_zeros() };
+        (self.width, self.height) = (width.max(1), height.max(1));
+        let square = 1u64 << (2 * self.levels);
+        self.row_major = square > 4 * u64::from(self.width) * u64::from(self.height);
     }
 
     #[inline]
@@ -132,10 +143,19 @@ impl PixelIndex for Tree {
 
     #[inline]
     fn block(&self, key: u64, shift: u32) -> usize {
+        if self.row_major {
+            let (col, row) = self.pixel(key);
+            let across = (self.width + (1 << shift) - 1) >> shift;
+            return (row >> shift) as usize * across as usize + (col >> shift) as usize;
+        }
         (key >> (2 * shift)) as usize
     }
 
     fn blocks(&self, shift: u32) -> usize {
+        if self.row_major {
+            let up = |n: u32| ((n + (1 << shift) - 1) >> shift) as usize;
+            return up(self.width) * up(self.height);
+        }
         1 << (2 * self.levels.saturating_sub(shift))
     }
 }
@@ -143,6 +163,26 @@ impl PixelIndex for Tree {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_far_from_square_number_their_blocks_by_row() {
+        let mut t = Tree::default();
+        // A usual frame: blocks in key order over the root's square.
+        t.reset(1024, 768);
+        assert_eq!(t.blocks(0), 1 << 20);
+        assert_eq!(t.block(t.key(5, 3), 0), t.key(5, 3) as usize);
+        // A line of 65,536 pixels: as many blocks as pixels, not 4 billion.
+        t.reset(65_536, 1);
+        assert_eq!(t.blocks(0), 65_536);
+        assert_eq!(t.blocks(1), 32_768);
+        for col in [0u32, 1, 777, 65_535] {
+            assert_eq!(t.block(t.key(col, 0), 0), col as usize);
+            assert!(t.block(t.key(col, 0), 1) < t.blocks(1));
+        }
+        t.reset(3, 2_000);
+        assert_eq!(t.blocks(0), 6_000);
+        assert_eq!(t.block(t.key(2, 1_999), 0), 1_999 * 3 + 2);
+    }
     use proptest::prelude::*;
 
     proptest! {

@@ -34,11 +34,52 @@ pub struct SequentialWriter {
 /// A temporary name to build a file under: beside the destination, and of
 /// this process and call alone, so that two builders never share one.
 pub fn temp_path(dest: &Path, purpose: &str) -> PathBuf {
+    remove_stale_temps(dest);
     static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let mut name = dest.file_name().unwrap_or_default().to_os_string();
     name.push(format!(".{purpose}.{}.{n}.tmp", std::process::id()));
     dest.with_file_name(name)
+}
+
+/// Removes the temporary files that builders of `dest` left when they were
+/// killed: names `DEST.PURPOSE.PID.N.tmp` whose process no longer runs.
+/// Those of running processes (another builder at work) are left alone.
+pub fn remove_stale_temps(dest: &Path) {
+    let Some(base) = dest.file_name().and_then(|n| n.to_str()) else {
+        return;
+    };
+    let dir = match dest.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(rest) = name.strip_prefix(base).and_then(|r| r.strip_prefix('.')) else {
+            continue;
+        };
+        let Some(rest) = rest.strip_suffix(".tmp") else {
+            continue;
+        };
+        // PURPOSE.PID.N
+        let parts: Vec<&str> = rest.rsplitn(3, '.').collect();
+        let [n, pid, _purpose] = parts[..] else { continue };
+        let (Ok(_), Ok(pid)) = (n.parse::<u64>(), pid.parse::<i32>()) else {
+            continue;
+        };
+        // SAFETY: kill with signal 0 only checks that the process exists.
+        let gone = pid > 0
+            && unsafe { libc::kill(pid, 0) } != 0
+            && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH);
+        if gone {
+            let path = entry.path();
+            if std::fs::remove_file(&path).is_ok() {
+                tracing::info!("removed {}, left by a killed process {pid}", path.display());
+            }
+        }
+    }
 }
 
 impl SequentialWriter {
@@ -239,5 +280,33 @@ impl Drop for SequentialWriter {
             // Unfinished: remove the partial temporary file.
             let _ = std::fs::remove_file(&self.tmp);
         }
+    }
+}
+
+#[cfg(test)]
+mod stale_tests {
+    use super::*;
+
+    #[test]
+    fn temporary_files_of_killed_builders_are_removed_and_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("room.hdk");
+        // A process that has ended, and this one, still running.
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let dead = child.id();
+        child.wait().unwrap();
+        let stale = dir.path().join(format!("room.hdk.building.{dead}.0.tmp"));
+        let live = dir
+            .path()
+            .join(format!("room.hdk.building.{}.7.tmp", std::process::id()));
+        let other = dir.path().join(format!("other.hdk.building.{dead}.0.tmp"));
+        for p in [&stale, &live, &other] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        let fresh = temp_path(&dest, "building");
+        assert!(!stale.exists(), "a killed builder's file is removed");
+        assert!(live.exists(), "a running builder's file is kept");
+        assert!(other.exists(), "another file's temporaries are not touched");
+        assert!(!fresh.exists());
     }
 }
