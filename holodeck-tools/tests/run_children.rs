@@ -111,3 +111,26 @@ fn run_fails_saying_so_when_its_server_is_killed() {
     // What the server had committed is intact.
     assert!(storage::check(&file, |_, _| {}).unwrap().is_clean());
 }
+
+#[test]
+fn sigterm_or_sigint_to_run_stops_it_cleanly_with_a_summary() {
+    for (signal, code) in [(libc::SIGTERM, 143), (libc::SIGINT, 130)] {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("room.hdk");
+        let mut run = start_run(&file);
+        let mut from = 0;
+        run.wait_line("a flush that made rays durable", &mut from, |l| {
+            let n: u64 = l.split("periodic flush: ").nth(1)?.split(' ').next()?.parse().ok()?;
+            (n > 0).then_some(())
+        });
+        // To run's PID alone, as `kill PID` sends it.
+        // SAFETY: kill has no memory effects; run is alive (it just printed).
+        assert_eq!(unsafe { libc::kill(run.id() as libc::pid_t, signal) }, 0);
+        let status = run.wait();
+        let text = run.text();
+        assert_eq!(status.code(), Some(code), "{text}");
+        assert!(text.contains("rays added") && text.contains("interrupted by"), "{text}");
+        let report = storage::check(&file, |_, _| {}).unwrap();
+        assert!(report.is_clean() && report.rays_ok > 0, "{report:?}");
+    }
+}

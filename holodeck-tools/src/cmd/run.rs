@@ -20,7 +20,9 @@ use crate::human::count;
 #[command(after_help = "\
 Starts `holodeck serve` on a free local port and WORKERS `holodeck sample` processes
 (one tracing thread each), lets them fill FILE for --time, then asks the server to quit
-(it flushes) and waits for everything to end. Ctrl-C stops early, also cleanly. The
+(it flushes) and waits for everything to end. Ctrl-C or SIGTERM to `run` stops early, also
+cleanly (summary printed; exit status 130 or 143). A server that stops answering fails the
+run within 20 s. The
 children stop with `run` however it ends (even killed), the server flushing its file.
 If the server, a sampler or the display dies by a signal or fails, `run` says which and
 how, stops the rest, and exits with status 1. With
@@ -180,6 +182,37 @@ fn how(status: ExitStatus) -> String {
         }
         (Some(code), None) => format!("failed with exit status {code}"),
         (None, None) => "ended for an unknown reason".into(),
+    }
+}
+
+/// The signal (SIGINT or SIGTERM) that asked `run` to stop, 0 for none.
+static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+
+extern "C" fn note_stop(signal: libc::c_int) {
+    STOP_SIGNAL.store(signal, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Makes SIGINT and SIGTERM to `run` (Ctrl-C, `kill PID`) stop the run as
+/// its TIME would: the server flushes and quits, the samplers and display
+/// stop, the summary is printed, and `run` exits 128 + the signal.
+fn stop_on_signals() {
+    for signal in [libc::SIGINT, libc::SIGTERM] {
+        // SAFETY: the handler only stores to an atomic, which is
+        // async-signal-safe; the action struct is fully initialised.
+        unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = note_stop as extern "C" fn(libc::c_int) as usize;
+            libc::sigemptyset(&mut action.sa_mask);
+            libc::sigaction(signal, &action, std::ptr::null_mut());
+        }
+    }
+}
+
+/// The signal that asked the run to stop, if one did.
+fn stop_signal() -> Option<libc::c_int> {
+    match STOP_SIGNAL.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => None,
+        s => Some(s),
     }
 }
 
@@ -346,7 +379,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let mut failures: Vec<String> = Vec::new();
     let bar = indicatif::ProgressBar::new(time.as_secs().max(1));
     let mut server_stopped = false;
+    stop_on_signals();
     while start.elapsed() < time {
+        if stop_signal().is_some() {
+            break;
+        }
         if let Some(status) = server.exited()? {
             // A server stops on its own at TIME or a full DISKSPACE; anything else is a failure.
             server.done = true;
@@ -380,8 +417,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     bar.finish_and_clear();
     if let Some(v) = viewer.as_mut().filter(|v| !v.done) {
-        if windowed {
-            // TIME is up with the window still open: close it.
+        if windowed || stop_signal().is_some() {
+            // TIME is up (or the run was stopped) with the display still at work: close it.
             let _ = v.process.kill();
             let _ = v.process.wait();
             v.done = true;
@@ -390,6 +427,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     let secs = start.elapsed().as_secs_f64();
+    if let (Some(_), false) = (stop_signal(), server_stopped) {
+        // Ctrl-C reaches the whole process group: the server may have
+        // flushed and quit on its own already.
+        std::thread::sleep(Duration::from_millis(300));
+        if let Some(status) = server.exited()? {
+            server.done = true;
+            server_stopped = true;
+            if !status.success() {
+                failures.push(format!("the server {}", how(status)));
+            }
+        }
+    }
     if !server_stopped {
         if let Err(e) = quit(&addr, &token) {
             failures.push(format!("asking the server to quit: {e:#}"));
@@ -399,7 +448,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     for w in workers.iter_mut().filter(|w| !w.done) {
         // Samplers of a server that failed fail too; that is not news.
         let failure = w.finish(Duration::from_secs(10));
-        if failures.is_empty() {
+        // Stopped by a signal, samplers that took it too are not news either.
+        if failures.is_empty() && stop_signal().is_none() {
             failures.extend(failure);
         }
     }
@@ -416,6 +466,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     );
     if !failures.is_empty() {
         bail!("{}", failures.join("; "));
+    }
+    if let Some(signal) = stop_signal() {
+        let name = if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
+        eprintln!("holodeck run: interrupted by {name}: stopped early, the file flushed");
+        return Ok(ExitCode::from(128 + signal as u8));
     }
     Ok(ExitCode::SUCCESS)
 }

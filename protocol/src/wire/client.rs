@@ -49,7 +49,19 @@ impl ClientStream {
             ClientStream::Unix(s) => s.set_read_timeout(d),
         }
     }
+
+    /// How long a write may wait before it fails (`None`: forever).
+    pub fn set_write_timeout(&self, d: Option<Duration>) -> std::io::Result<()> {
+        match self {
+            ClientStream::Tcp(s) => s.set_write_timeout(d),
+            ClientStream::Unix(s) => s.set_write_timeout(d),
+        }
+    }
 }
+
+/// Longest a control command waits for the server to greet it and answer:
+/// a server that stops answering (stopped, or stuck) fails the command.
+pub const CONTROL_TIMEOUT: Duration = Duration::from_secs(20);
 
 impl Read for ClientStream {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
@@ -78,6 +90,14 @@ impl Write for ClientStream {
 /// Why a connection or its handshake failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
+    /// The server did not answer in time.
+    #[error("server {addr} did not answer within {seconds} s (stopped or stuck?)")]
+    Timeout {
+        /// The server's address.
+        addr: String,
+        /// How long it was given.
+        seconds: f64,
+    },
     /// The server could not be reached, or the connection failed.
     #[error("server {addr}: {source}")]
     Link {
@@ -297,11 +317,61 @@ pub fn await_reply<S: Read + Write>(link: &mut FrameLink<S>, addr: &str) -> Resu
 /// Connects to `addr` as an admin with `token`, sends `control`, and waits
 /// for the server's answer: `Ok` once it was carried out.
 pub fn send_control(addr: &str, token: &str, control: Control) -> Result<ControlReply, ClientError> {
-    let (mut link, _) = open(addr, hello(Role::Admin, token, "", false))?;
+    send_control_within(addr, token, control, CONTROL_TIMEOUT)
+}
+
+/// [`send_control`] waiting at most `limit` for each read and write.
+pub fn send_control_within(
+    addr: &str,
+    token: &str,
+    control: Control,
+    limit: Duration,
+) -> Result<ControlReply, ClientError> {
+    let timed_out = |e: ClientError| match e {
+        ClientError::Link {
+            source: LinkError::Io(ref io),
+            ..
+        } if matches!(io.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+            ClientError::Timeout {
+                addr: addr.to_string(),
+                seconds: limit.as_secs_f64(),
+            }
+        }
+        e => e,
+    };
+    let stream = connect(addr)?;
+    let link_error = |e: std::io::Error| ClientError::Link {
+        addr: addr.to_string(),
+        source: LinkError::Io(e),
+    };
+    stream.set_read_timeout(Some(limit)).map_err(link_error)?;
+    stream.set_write_timeout(Some(limit)).map_err(link_error)?;
+    let mut link = FrameLink::new(stream);
+    handshake(&mut link, addr, hello(Role::Admin, token, "", false)).map_err(timed_out)?;
     link.write(&Frame::Message(Message::Control(control)))
         .map_err(|source| ClientError::Link {
             addr: addr.to_string(),
             source,
-        })?;
-    await_reply(&mut link, addr)
+        })
+        .map_err(timed_out)?;
+    await_reply(&mut link, addr).map_err(timed_out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_server_that_never_answers_fails_a_command_in_time() {
+        // Accepts the connection (the kernel's backlog would anyway) and says nothing.
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let holder = std::thread::spawn(move || listener.accept().map(|(s, _)| s));
+        let start = std::time::Instant::now();
+        let e = send_control_within(&addr, "token", Control::Quit, Duration::from_millis(300)).unwrap_err();
+        assert!(matches!(e, ClientError::Timeout { .. }), "{e:?}");
+        assert!(e.to_string().contains("did not answer within 0.3 s"), "{e}");
+        assert!(start.elapsed() < Duration::from_secs(5));
+        drop(holder.join());
+    }
 }
