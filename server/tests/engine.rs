@@ -804,3 +804,44 @@ fn format_1_files_are_read_refused_for_writing_and_converted_by_optimize() {
     assert_contents(&path, &expected);
     assert!(storage::check(&path, |_, _| {}).unwrap().is_clean());
 }
+
+#[test]
+fn a_damaged_beam_loses_its_old_rays_and_writing_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    let mut expected = std::collections::HashMap::new();
+    for b in 0..20 {
+        let k = BeamKey::new(0, b * 11);
+        f.append(k, &rays(k, 0, 8)).unwrap();
+        expected.insert(k, 8);
+    }
+    f.close().unwrap();
+    let victim = BeamKey::new(0, 77);
+    let offset = HoloFile::open(&path, &OpenOptions::read_only())
+        .unwrap()
+        .directory(0)
+        .unwrap()[77]
+        .offset;
+    flip_byte(&path, offset + 13);
+    // A writer adds rays to the damaged beam (beyond its run: it must move,
+    // reading the old rays) and to others: the flush succeeds.
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    let fresh: Vec<RayRecord> = rays(victim, 8, 40);
+    f.append(victim, &fresh).unwrap();
+    let other = BeamKey::new(0, 11);
+    f.append(other, &rays(other, 8, 5)).unwrap();
+    f.flush().expect("a damaged beam does not stop the writer");
+    let stats = f.io_stats();
+    assert_eq!((stats.damaged_beams, stats.damaged_rays), (1, 8));
+    f.close().unwrap();
+    // The victim holds only its new rays, every other beam all of its own.
+    let mut f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    assert_eq!(f.read_beam(victim).unwrap(), fresh);
+    assert_eq!(f.read_beam(other).unwrap().len(), 13);
+    drop(f);
+    assert!(
+        storage::check(&path, |_, _| {}).unwrap().is_clean(),
+        "nothing damaged is left"
+    );
+}

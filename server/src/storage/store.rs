@@ -54,6 +54,11 @@ pub struct IoStats {
     pub relocations: u64,
     /// Commits made.
     pub commits: u64,
+    /// Beams found damaged (failing their checksum) when rays were added to
+    /// them: their old rays were dropped and the new ones kept.
+    pub damaged_beams: u64,
+    /// The rays those beams lost.
+    pub damaged_rays: u64,
 }
 
 /// A range of one section's beams that one directory block describes.
@@ -552,10 +557,33 @@ impl Store {
             }
         } else {
             let existing = match (old.count, on_disk) {
-                (0, _) => Vec::new(),
-                (_, Some(rays)) if rays.len() == old.count as usize => RayRecord::slice_as_bytes(rays).to_vec(),
-                _ => self.read_run(key)?,
+                (0, _) => Some(Vec::new()),
+                (_, Some(rays)) if rays.len() == old.count as usize => Some(RayRecord::slice_as_bytes(rays).to_vec()),
+                _ => match self.read_run(key) {
+                    Ok(bytes) => Some(bytes),
+                    // A damaged beam stops nothing: its old rays are lost,
+                    // the new ones go on, and every other beam is written.
+                    Err(StorageError::BeamCorrupt { start, end, .. }) => {
+                        tracing::warn!(
+                            path = %self.path.display(),
+                            "beam {} of section {} (bytes {start}..{end}) fails its checksum: its {} damaged rays are dropped, the {} new ones kept",
+                            key.beam,
+                            key.section,
+                            old.count,
+                            tail.len()
+                        );
+                        self.stats.damaged_beams += 1;
+                        self.stats.damaged_rays += u64::from(old.count);
+                        None
+                    }
+                    Err(e) => return Err(e),
+                },
             };
+            let (existing, count) = match existing {
+                Some(bytes) => (bytes, count),
+                None => (Vec::new(), tail.len() as u32),
+            };
+            let kept_old = old.count > 0 && !existing.is_empty();
             // A beam's first run is exact; only a beam that had to move has shown it grows.
             let room = if old.count == 0 { count } else { grow(count) };
             // The only step that can fail before anything changed: the limit.
@@ -568,10 +596,10 @@ impl Store {
             }
             self.fresh.insert(offset);
             self.capacity[s][b] = room;
-            let crc = if old.count == 0 {
-                crc32c::crc32c(tail_bytes)
-            } else {
+            let crc = if kept_old {
                 crc32c::crc32c_append(old.crc, tail_bytes)
+            } else {
+                crc32c::crc32c(tail_bytes)
             };
             BeamEntry { offset, count, crc }
         };
