@@ -476,3 +476,36 @@ fn outputs_never_destroy_inputs_devices_are_refused_and_closed_stdout_is_quiet()
     assert!(!o.status.success() && text(&o).contains("--force"), "{}", text(&o));
     assert!(holodeck(&["scene", "gen", "room", "-o", t, "--force"]).status.success());
 }
+
+#[test]
+fn run_without_a_window_needs_time_and_time_bounds_a_headless_display() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let o = holodeck(&["run", "builtin:room", f, "--headless", "-o", "quadtree"]);
+    assert!(!o.status.success() && text(&o).contains("give --time"), "{}", text(&o));
+    let start = std::time::Instant::now();
+    let frames = dir.path().join("frames");
+    let o = holodeck(&[
+        "run",
+        "builtin:room",
+        f,
+        "--time",
+        "4s",
+        "--headless",
+        "-o",
+        "quadtree",
+        "--bounces",
+        "1",
+        "--frames",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    // Start-up (scene, server, samplers) plus TIME plus the display's grace and the flush.
+    assert!(
+        start.elapsed().as_secs_f64() < 4.0 + 14.0,
+        "{:?}: {}",
+        start.elapsed(),
+        text(&o)
+    );
+}

@@ -46,9 +46,10 @@ pub struct Args {
     /// Local sampler processes.
     #[arg(short = 'n', long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=MAX_WORKERS))]
     workers: u32,
-    /// How long to fill (e.g. 30s, 10m, 2h).
+    /// How long to fill (e.g. 30s, 10m, 2h); bounds every mode. A run with a
+    /// window may leave it out: it lasts until the window is closed (q).
     #[arg(long)]
-    time: String,
+    time: Option<String>,
     /// Display: none (a batch fill), or a driver (quadtree, splat) for a headless
     /// display that walks --views, drawing frames into --frames.
     #[arg(short = 'o', long, default_value = "none")]
@@ -233,7 +234,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
             holodeck_display::DRIVERS.join(", ")
         ),
     };
-    let time = parse_duration(&a.time, 1.0).context("--time")?;
+    let screen = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+    let windowed = driver.is_some() && screen && !a.headless;
+    let time = match (&a.time, windowed) {
+        (Some(t), _) => parse_duration(t, 1.0).context("--time")?,
+        // Until the window closes.
+        (None, true) => Duration::MAX,
+        (None, false) => {
+            bail!("give --time: without a window nothing else ends the run (with one, closing it does: q)")
+        }
+    };
     holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
     let (before, default_view) = {
         let (_, file) = super::fill::prepare(
@@ -327,17 +339,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             Child::spawn(format!("sampler {}", i + 1), cmd)
         })
         .collect::<Result<_>>()?;
+    let how_long = if time == Duration::MAX {
+        "until the window is closed".to_string()
+    } else {
+        format!("for {time:?}")
+    };
     println!(
-        "filling {} with {} local samplers for {:?} (server {addr})",
+        "filling {} with {} local samplers {how_long} (server {addr})",
         a.file.display(),
-        workers.len(),
-        time
+        workers.len()
     );
     let start = Instant::now();
-    let screen = ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
-    let windowed = display.is_some() && screen && !a.headless;
     let mut viewer = match &display {
         Some((driver, views)) => {
             let mut cmd = me()?;
@@ -377,7 +389,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         None => None,
     };
     let mut failures: Vec<String> = Vec::new();
-    let bar = indicatif::ProgressBar::new(time.as_secs().max(1));
+    let bar = if time == Duration::MAX {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(time.as_secs().max(1))
+    };
     let mut server_stopped = false;
     stop_on_signals();
     while start.elapsed() < time {
@@ -423,7 +439,24 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let _ = v.process.wait();
             v.done = true;
         } else {
-            failures.extend(v.finish(Duration::from_secs(30)));
+            // TIME bounds the run: a headless display still drawing gets two
+            // seconds to write its last frame, then stops.
+            let grace = Instant::now() + Duration::from_secs(2);
+            let mut status = v.exited()?;
+            while status.is_none() && Instant::now() < grace {
+                std::thread::sleep(Duration::from_millis(50));
+                status = v.exited()?;
+            }
+            match status {
+                Some(status) if !status.success() => failures.push(format!("the display {}", how(status))),
+                Some(_) => {}
+                None => {
+                    tracing::info!("the display was still drawing when TIME was up; stopped");
+                    let _ = v.process.kill();
+                    let _ = v.process.wait();
+                }
+            }
+            v.done = true;
         }
     }
     let secs = start.elapsed().as_secs_f64();
