@@ -154,8 +154,35 @@ fn quiet_on_closed_stdout() {
     }));
 }
 
+/// A Radiance view option given on its own (`holodeck render S -vp 1 2 1.5`,
+/// as rpict takes it), which clap would answer with advice about `--`; the
+/// option found, if any.
+fn loose_view_option(args: &[String]) -> Option<&str> {
+    let numeric = |t: Option<&String>| t.is_some_and(|t| t.parse::<f64>().is_ok());
+    args.iter().enumerate().skip(1).find_map(|(i, a)| {
+        let after_view = args.get(i - 1).is_some_and(|p| p == "--view" || p == "--views");
+        if after_view {
+            return None;
+        }
+        let typed = matches!(a.as_str(), "-vtv" | "-vta" | "-vth" | "-vtl");
+        let with_number = matches!(
+            a.as_str(),
+            "-vp" | "-vd" | "-vu" | "-vh" | "-vv" | "-vs" | "-vl" | "-vo" | "-va"
+        ) && numeric(args.get(i + 1));
+        (typed || with_number || a == "-vf").then_some(a.as_str())
+    })
+}
+
 fn main() -> ExitCode {
     quiet_on_closed_stdout();
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(option) = loose_view_option(&args) {
+        eprintln!(
+            "holodeck: error: {option} is a view option: give the view in --view, as one argument \
+             (for example --view '-vtv -vp 1 2 1.5 -vd 1 0 0 -vh 60 -vv 45')"
+        );
+        return ExitCode::from(2);
+    }
     let cli = Cli::parse();
     init_logging(cli.verbose, cli.quiet);
     if cli.exit_with_parent {
@@ -213,7 +240,28 @@ fn describe(e: &anyhow::Error) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::describe;
+    use super::{describe, loose_view_option};
+
+    #[test]
+    fn radiance_view_options_outside_view_are_caught_and_verbosity_is_not() {
+        let args = |s: &str| s.split_whitespace().map(String::from).collect::<Vec<_>>();
+        assert_eq!(
+            loose_view_option(&args("holodeck render builtin:room -vp 1 2 1.5")),
+            Some("-vp")
+        );
+        assert_eq!(
+            loose_view_option(&args("holodeck pict f.hdk -vtv -o a.png")),
+            Some("-vtv")
+        );
+        assert_eq!(
+            loose_view_option(&args("holodeck -vv render builtin:room -o a.png")),
+            None
+        );
+        assert_eq!(loose_view_option(&args("holodeck render s --view -vp -o a.png")), None);
+        let mut quoted = args("holodeck render s --view");
+        quoted.push("-vtv -vp 1 2 3".into());
+        assert_eq!(loose_view_option(&quoted), None);
+    }
 
     #[test]
     fn causes_already_in_a_message_are_said_once() {

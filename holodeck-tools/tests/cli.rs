@@ -509,3 +509,35 @@ fn run_without_a_window_needs_time_and_time_bounds_a_headless_display() {
         text(&o)
     );
 }
+
+#[test]
+fn pictures_make_their_folders_and_a_view_that_sees_nothing_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    assert!(holodeck(&["create", f, "--section", ROOM, "--grid", "0.5"])
+        .status
+        .success());
+    fill(&file, 4, 3);
+    let out = dir.path().join("frames/far/away.png");
+    let o = holodeck(&[
+        "pict",
+        f,
+        "--view",
+        "-vtv -vp 100 100 100 -vd 1 0 0 -vu 0 0 1",
+        "-x",
+        "32",
+        "-y",
+        "24",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(out.is_file(), "the folders were made");
+    assert!(text(&o).contains("is black: the view sees no rays"), "{}", text(&o));
+    let o = holodeck(&["info", f]);
+    assert!(text(&o).contains("TIME=unlimited REPORT=off"), "{}", text(&o));
+    let o = holodeck(&["render", "builtin:room", "-vp", "1", "2", "1.5", "-o", "x.png"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).contains("give the view in --view"), "{}", text(&o));
+}

@@ -70,8 +70,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
         100.0 * s.free_bytes as f64 / s.file_bytes.max(1) as f64
     );
     let st = f.settings();
+    let unset = |d: std::time::Duration, none: &str| {
+        if d.is_zero() {
+            none.to_string()
+        } else {
+            format!("{d:?}")
+        }
+    };
     println!(
-        "settings: OBSTRUCTIONS={} VDISTANCE={} CACHE={} DISKSPACE={} TIME={:?} REPORT={:?}{}",
+        "settings: OBSTRUCTIONS={} VDISTANCE={} CACHE={} DISKSPACE={} TIME={} REPORT={}{}",
         st.obstructions,
         st.vdistance,
         bytes(st.cache_bytes),
@@ -80,8 +87,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         } else {
             bytes(st.diskspace_bytes)
         },
-        st.time,
-        st.report,
+        unset(st.time, "unlimited"),
+        unset(st.report, "off"),
         st.scene.as_ref().map(|h| format!(" SCENE={h}")).unwrap_or_default()
     );
     if st.stale {

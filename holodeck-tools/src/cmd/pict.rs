@@ -275,7 +275,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let viewport = Viewport::new(view.clone(), a.frame.width, a.frame.height)?;
         let (picture, hist, s) = draw(&mut file, viewport, &driver, a.stride, i as u64)?;
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
+        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        }
         output::save(&picture, &hist, mode, &out, Some(&view))?;
+        if s.samples == 0 {
+            eprintln!(
+                "holodeck pict: warning: {} is black: the view sees no rays of {} (is the eye inside an \
+                 interior section, or outside looking at an exterior one? `holodeck info` lists the sections)",
+                out.display(),
+                a.file.display()
+            );
+        }
         let secs = s.recall.as_secs_f64();
         let denoised = match driver.denoise {
             Denoiser::Off => String::new(),
