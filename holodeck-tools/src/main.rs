@@ -65,7 +65,7 @@ enum Command {
     Info(cmd::info::Args),
     /// Verify every checksum; optionally salvage what verifies into a new file.
     Check(cmd::check::Args),
-    /// Rewrite a file with beams collated in beam order and no free space (like rhoptimize).
+    /// Rewrite a file with beams collated in beam order and no free space but the gap between metadata copies (like rhoptimize).
     Optimize(cmd::optimize::Args),
     /// Add the rays of one holodeck to another: merged, or resampled into other sections (like rhcopy).
     Copy(cmd::copy::Args),

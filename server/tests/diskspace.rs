@@ -14,7 +14,9 @@ use holodeck_server::testing::{
 };
 use rand::{Rng, SeedableRng};
 
-const LIMIT: u64 = 300 << 10;
+/// Large enough that the gap a commit keeps between metadata copies
+/// (64 KiB) is a small part of it.
+const LIMIT: u64 = 1200 << 10;
 
 fn settings(diskspace: u64) -> Settings {
     Settings {
@@ -166,7 +168,9 @@ fn a_refused_append_does_not_stop_smaller_ones() {
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
     assert_eq!(f.size_limit(), None, "DISKSPACE=0 means no limit");
     assert_eq!(f.headroom(), None);
-    let limit = disk_len(&path) + 8000;
+    // Room for 8,000 bytes of rays beyond the gap a commit keeps between
+    // metadata copies.
+    let limit = disk_len(&path) + 8000 + holodeck_server::storage::format::COPY_GAP;
     f.set_size_limit(Some(limit));
     assert_eq!(f.size_limit(), Some(limit));
     let key = BeamKey::new(0, 5);

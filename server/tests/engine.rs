@@ -450,8 +450,12 @@ fn closing_compacts_holes_and_reserves_away_and_keeps_every_ray() {
     assert!(check.is_clean(), "{check:?}");
     let after = HoloFile::open(&path, &OpenOptions::read_only()).unwrap().summary();
     assert_eq!(after.rays(), open.rays());
-    // Packed to within 1% of free space (plus one leftover hole's rounding).
-    assert!(after.free_bytes * 100 <= after.file_bytes + 200, "{after:?}");
+    // Packed to within 1% of free space (plus one leftover hole's rounding),
+    // but for the gap kept between the metadata's two copies.
+    assert!(
+        after.free_bytes.saturating_sub(format::COPY_GAP) * 100 <= after.file_bytes + 200,
+        "{after:?}"
+    );
     let header = format::data_start(settings().to_text().len() as u32);
     assert_eq!(
         after.file_bytes,
@@ -490,7 +494,10 @@ fn compacting_in_small_windows_packs_the_same_and_a_read_only_file_refuses() {
     drop(f);
     assert_contents(&path, &expected);
     let after = HoloFile::open(&path, &OpenOptions::read_only()).unwrap().summary();
-    assert!(after.free_bytes * 100 <= after.file_bytes + 200, "{after:?}");
+    assert!(
+        after.free_bytes.saturating_sub(format::COPY_GAP) * 100 <= after.file_bytes + 200,
+        "{after:?}"
+    );
     let mut ro = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
     assert!(matches!(ro.compact(), Err(StorageError::ReadOnly { .. })));
 }
@@ -519,14 +526,24 @@ fn optimize_collates_beams_and_removes_fragments() {
     assert_contents(&path, &expected);
     let f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
     let after = f.summary();
-    assert_eq!((after.free_bytes, after.fragments), (0, 0));
-    assert!(r.bytes_after < r.bytes_before);
+    // No free space but the gap between the metadata's two copies: together
+    // with one copy of the directories and root, COPY_GAP.
+    assert_eq!(
+        after.free_bytes,
+        format::COPY_GAP.saturating_sub(after.metadata_bytes / 2)
+    );
+    assert!(after.fragments <= 1, "{after:?}");
+    // Smaller but for that gap (this file is small beside 64 KiB).
+    assert!(r.bytes_after - after.free_bytes < r.bytes_before);
     // Nothing but the two header copies, rays and two copies of one compact
     // directory per section (one chunk each here): one byte per empty beam,
     // six per filled one, 20 bytes of framing and the first run's absolute
     // offset per block; and two copies of the root (20 + 44 per chunk + 4).
     let header = format::data_start(settings().to_text().len() as u32);
-    assert_eq!(after.file_bytes, header + after.ray_bytes + after.metadata_bytes);
+    assert_eq!(
+        after.file_bytes,
+        header + after.ray_bytes + after.metadata_bytes + after.free_bytes
+    );
     let (beams, filled): (u64, u64) = after
         .sections
         .iter()
@@ -644,7 +661,8 @@ fn random_damage_never_panics_and_never_yields_unwritten_rays() {
     // Damage lands in rays, free space and metadata alike: every outcome occurs.
     assert!(opened >= 100, "only {opened} of 300 damaged files opened");
     assert!(flagged >= 100, "only {flagged} of 300 damaged files were flagged");
-    assert!(clean > 0 && unreadable > 0, "clean {clean}, unreadable {unreadable}");
+    // Metadata copies 64 KiB apart make a file that cannot be opened rare.
+    assert!(clean > 0, "clean {clean}, unreadable {unreadable}");
 }
 
 #[test]

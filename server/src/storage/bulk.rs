@@ -205,8 +205,9 @@ impl SequentialWriter {
         let dirs = std::mem::take(&mut self.dirs);
         let chunks = chunks_of(&self.sections);
         let mut refs = Vec::with_capacity(chunks.len());
-        // Both copies of every block follow the runs, one after the other: a
-        // collated file keeps its metadata together at the end.
+        // Both copies of every block, each set followed by its root, follow
+        // the runs: a collated file keeps its metadata at the end, its two
+        // copies at least COPY_GAP apart.
         let blocks: Vec<Vec<u8>> = chunks
             .iter()
             .map(|c| {
@@ -215,11 +216,24 @@ impl SequentialWriter {
             })
             .collect();
         let mut offsets = vec![[0u64; COPIES]; chunks.len()];
+        let mut roots = [0u64; COPIES];
+        let root_len = format::root_len(chunks.len());
+        let blocks_len: u64 = blocks.iter().map(|b| b.len() as u64).sum();
         for copy in 0..COPIES {
+            if copy > 0 {
+                // The second copies lie at least COPY_GAP past the first: the
+                // stretch between is free space.
+                let gap = format::COPY_GAP.saturating_sub(blocks_len + root_len);
+                self.write(&vec![0u8; gap as usize])?;
+            }
             for (at, bytes) in offsets.iter_mut().zip(&blocks) {
                 at[copy] = self.pos;
                 self.write(bytes)?;
             }
+            // The root's copy follows its blocks' copies; it is written in
+            // place once every block's offsets are known.
+            roots[copy] = self.pos;
+            self.write(&vec![0u8; root_len as usize])?;
         }
         for ((c, bytes), copies) in chunks.iter().zip(&blocks).zip(offsets) {
             let d = &dirs[c.section as usize][c.first as usize..(c.first + c.beams) as usize];
@@ -233,11 +247,7 @@ impl SequentialWriter {
             });
         }
         let root_bytes = format::encode_root(1, &refs);
-        let mut roots = [0u64; COPIES];
-        for r in roots.iter_mut() {
-            *r = self.pos;
-            self.write(&root_bytes)?;
-        }
+        debug_assert_eq!(root_bytes.len() as u64, root_len);
         let writer = self.out.take().ok_or_else(|| StorageError::Io {
             path: self.tmp.clone(),
             op: "writing",
@@ -248,6 +258,9 @@ impl SequentialWriter {
             op: "writing",
             source: e.into_error(),
         })?;
+        for at in roots {
+            io::write_at(&file, &self.tmp, at, &root_bytes)?;
+        }
         let slot = Slot {
             generation: 1,
             roots,

@@ -163,6 +163,57 @@ impl Extents {
         }
     }
 
+    /// Room for `len` bytes ending at or before `limit` that lies at least
+    /// `gap` bytes from `avoid` on either side: the lowest such place in a
+    /// hole, else at the end (leaving the gap free). Where the second copy
+    /// of a piece of metadata goes, so that no damaged stretch of the disk
+    /// shorter than `gap` takes both copies. `None` (nothing changed) when it
+    /// does not fit below the limit.
+    pub fn allocate_apart(&mut self, len: u64, limit: u64, avoid: Extent, gap: u64) -> Option<u64> {
+        let near_lo = avoid.offset.saturating_sub(gap);
+        let near_hi = avoid.end().saturating_add(gap);
+        // The first start in [lo, hi) of room for len bytes clear of the zone.
+        let place = |lo: u64, hi: u64| -> Option<u64> {
+            let end = |at: u64| at.checked_add(len);
+            if end(lo).is_some_and(|e| e <= hi && e <= near_lo && e <= limit) {
+                return Some(lo);
+            }
+            let at = lo.max(near_hi);
+            end(at).filter(|&e| e <= hi && e <= limit).map(|_| at)
+        };
+        let found = self
+            .free
+            .iter()
+            .find_map(|(&off, &hole)| place(off, off + hole).map(|at| (off, hole, at)));
+        if let Some((off, hole, at)) = found {
+            self.remove(off, hole);
+            if at > off {
+                self.insert_free_raw(Extent {
+                    offset: off,
+                    len: at - off,
+                });
+            }
+            if off + hole > at + len {
+                self.insert_free_raw(Extent {
+                    offset: at + len,
+                    len: off + hole - at - len,
+                });
+            }
+            return Some(at);
+        }
+        let at = place(self.end, u64::MAX)?;
+        if at > self.end {
+            let skipped = Extent {
+                offset: self.end,
+                len: at - self.end,
+            };
+            self.end = at;
+            self.insert_free_raw(skipped);
+        }
+        self.end = at + len;
+        Some(at)
+    }
+
     /// Takes the first `len` bytes of the free hole of `hole` bytes at `off`.
     fn take_from_hole(&mut self, off: u64, hole: u64, len: u64) -> u64 {
         self.remove(off, hole);

@@ -437,7 +437,8 @@ impl HoloFile {
             free = self.store.slack_bytes(),
             "compacting"
         );
-        let target = before / 100;
+        // What cannot be packed: the gap kept between metadata copies.
+        let target = before / 100 + super::format::COPY_GAP;
         let moved = self.store.compact(target, COMPACT_WINDOW, |step, free| {
             tracing::debug!(step, free, "compacting");
         })?;
@@ -522,12 +523,15 @@ impl HoloFile {
     }
 
     /// Flushes and closes, reporting any error (dropping flushes too, but can
-    /// only log). A file whose free space and growth reserves pass
-    /// 1/[`COMPACT_SHARE`] of it is compacted first (see [`HoloFile::compact`]).
+    /// only log). A file whose free space and growth reserves (less the gap
+    /// kept between metadata copies) pass 1/[`COMPACT_SHARE`] of it is
+    /// compacted first (see [`HoloFile::compact`]).
     pub fn close(mut self) -> Result<()> {
         if self.store.writable {
             self.flush()?;
-            if self.store.slack_bytes() > self.store.data_end() / COMPACT_SHARE {
+            // The gap kept between metadata copies is not waste.
+            let waste = self.store.slack_bytes().saturating_sub(super::format::COPY_GAP);
+            if waste > self.store.data_end() / COMPACT_SHARE {
                 self.compact()?;
             }
         }

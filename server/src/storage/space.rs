@@ -13,8 +13,10 @@
 //!   never make the bound smaller than what they took.
 //! * `metadata` adds, for every directory chunk touched since the last flush,
 //!   the longest directory block its commit can write, and once the root; each
-//!   twice, since every block and root is stored in two copies. There is no
-//!   alignment padding in the data area.
+//!   twice, since every block and root is stored in two copies; and once
+//!   [`format::COPY_GAP`], the free stretch the commit may open at the end to
+//!   keep second copies that far from the first. There is no other padding
+//!   in the data area.
 //!
 //! Freed space is never subtracted, so the bound only falls at a flush, where
 //! it becomes exact again.
@@ -77,7 +79,7 @@ impl SpaceBound {
             metadata: 0,
             touched: vec![false; beams.len()],
             filled,
-            root: COPIES as u64 * format::root_len(beams.len()),
+            root: COPIES as u64 * format::root_len(beams.len()) + format::COPY_GAP,
             beams,
         };
         for (s, t) in touched.into_iter().enumerate() {
@@ -153,7 +155,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn charges_count_each_directory_and_the_root_once_per_copy() {
+    fn charges_count_each_directory_and_the_root_once_per_copy_and_the_gap_once() {
         let limit = 300 << 10;
         // The expectations come from the format's own sizes: a directory
         // block of 100 beams with one filled is 20 bytes of framing, one byte
@@ -168,10 +170,12 @@ mod tests {
         let mut b = SpaceBound::new(limit, 1000, 0, vec![100, 10], vec![0, 0], vec![false, false]);
         assert_eq!(b.bound(), 1000);
         assert!(!b.has_pending());
+        // With the root comes, once, the gap kept between first and second copies.
+        let gap = format::COPY_GAP;
         let first = Charge::new(0, true, 50);
-        assert_eq!(b.with(first), 1000 + 50 + 2 * (dir0 + root));
+        assert_eq!(b.with(first), 1000 + 50 + 2 * (dir0 + root) + gap);
         b.charge(first);
-        assert_eq!(b.bound(), 1000 + 50 + 2 * (dir0 + root));
+        assert_eq!(b.bound(), 1000 + 50 + 2 * (dir0 + root) + gap);
         // Another beam of the same chunk: its directory entry only, twice.
         assert_eq!(b.with(Charge::new(0, true, 0)), b.bound() + 2 * per);
         // The other chunk: its whole directory twice, no second root.
@@ -180,6 +184,6 @@ mod tests {
         assert_eq!(b.bound(), 2000);
         assert!(!b.has_pending());
         // Filled beams are remembered across flushes.
-        assert_eq!(b.with(Charge::new(0, false, 0)), 2000 + 2 * (dir0 + root));
+        assert_eq!(b.with(Charge::new(0, false, 0)), 2000 + 2 * (dir0 + root) + gap);
     }
 }

@@ -877,7 +877,8 @@ impl Store {
     }
 
     /// Allocates two copies of `len` bytes: the first where it fits best, the
-    /// second as low in the file as it fits. Both are pushed to `claimed`.
+    /// second as low in the file as it fits at least [`format::COPY_GAP`]
+    /// from the first. Both are pushed to `claimed`.
     fn allocate_copies(&mut self, len: u64, claimed: &mut Vec<Extent>) -> Result<[Extent; COPIES]> {
         let first = match self.placement {
             Placement::End => Some(self.extents.allocate_at_end(len)),
@@ -889,13 +890,18 @@ impl Store {
             len,
         };
         claimed.push(first);
+        // At least COPY_GAP from the first: no damaged stretch of the disk
+        // shorter than that takes both copies.
         let second = match self.placement {
-            Placement::End => Some(self.extents.allocate_at_end(len)),
-            _ => self.extents.allocate_low_below(len, self.limit),
+            Placement::End => self.extents.allocate_apart(len, u64::MAX, first, format::COPY_GAP),
+            _ => self.extents.allocate_apart(len, self.limit, first, format::COPY_GAP),
         };
         let second = match second {
             Some(offset) => Extent { offset, len },
-            None => return Err(self.no_space(self.extents.end().saturating_add(len))),
+            None => {
+                let at = self.extents.end().max(first.end().saturating_add(format::COPY_GAP));
+                return Err(self.no_space(at.saturating_add(len)));
+            }
         };
         claimed.push(second);
         Ok([first, second])
@@ -1023,7 +1029,8 @@ mod tests {
             })
             .sum();
         let root_len = 2 * format::root_len(store.chunks.len());
-        // First no room for the directories, then room for them but not the root.
+        // First no room for the directories, then room for them but not the
+        // root (nor the gap between copies).
         for limit in [end + dir_len - 1, end + dir_len + root_len - 1] {
             store.set_limit(Some(limit));
             let e = store.commit().unwrap_err();
@@ -1038,11 +1045,12 @@ mod tests {
             assert!(std::fs::metadata(&path).unwrap().len() <= limit);
             assert_committed(&path, generation, beams, 3);
         }
-        // With exactly enough room the commit goes through.
-        store.set_limit(Some(end + dir_len + root_len));
+        // With room for both copies and the gap kept between them, the commit goes through.
+        let room = end + dir_len + root_len + 2 * format::COPY_GAP;
+        store.set_limit(Some(room));
         store.commit().unwrap();
         assert_eq!(store.generation, generation + 1);
-        assert!(std::fs::metadata(&path).unwrap().len() <= end + dir_len + root_len);
+        assert!(std::fs::metadata(&path).unwrap().len() <= room);
         drop(store);
         assert_committed(&path, generation + 1, beams, 5);
     }

@@ -46,6 +46,9 @@ pub const OLDEST_READ: u32 = 1;
 pub const MAX_TEXT_LEN: u32 = 1 << 24;
 /// How many copies of each piece of metadata a file holds.
 pub const COPIES: usize = 2;
+/// Least distance between the two copies of a directory block or root:
+/// a damaged stretch of the disk shorter than this never takes both.
+pub const COPY_GAP: u64 = 64 << 10;
 /// Most beams one directory block describes.
 pub const DIR_CHUNK_BEAMS: u32 = 8192;
 /// Largest generation accepted: far beyond any real count of commits, and far
