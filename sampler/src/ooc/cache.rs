@@ -172,44 +172,42 @@ impl Cache {
             .is_some_and(|s| !s.load(Ordering::Acquire, &guard).is_null())
     }
 
-    /// Reads and checks a block that holds no treelet (textures, their
-    /// coordinates): its decompressed bytes.
-    pub fn read_raw(&self, id: u32) -> Result<Vec<u8>, OocError> {
-        let e = self.entry(id).ok_or(OocError::Block {
+    /// The stored (compressed) bytes of block `id` and its index entry,
+    /// their checksum verified.
+    fn checked_packed(&self, id: u32) -> Result<(&[u8], IndexEntry), OocError> {
+        let e = *self.entry(id).ok_or(OocError::Block {
             block: id,
             message: "no such block".into(),
         })?;
-        let bad = |message: String| OocError::Block { block: id, message };
         let start = e.offset as usize;
-        let packed = self
-            .mmap
-            .get(start..start + e.packed as usize)
-            .ok_or_else(|| bad("lies past the end of the file".into()))?;
-        if crc32c::crc32c(packed) != e.crc {
-            return Err(OocError::Checksum(format!("block {id}")));
-        }
-        self.codec
-            .decompress(packed, e.len as usize)
-            .map_err(|c| bad(c.to_string()))
-    }
-
-    /// Reads, checks and decodes a block from the file (no caching).
-    pub fn read(&self, id: u32) -> Result<Block, OocError> {
-        let e = self.entry(id).ok_or(OocError::Block {
+        let packed = self.mmap.get(start..start + e.packed as usize).ok_or(OocError::Block {
             block: id,
-            message: "no such block".into(),
+            message: "lies past the end of the file".into(),
         })?;
-        let bad = |message: String| OocError::Block { block: id, message };
-        let start = e.offset as usize;
-        let packed = self
-            .mmap
-            .get(start..start + e.packed as usize)
-            .ok_or_else(|| bad("lies past the end of the file".into()))?;
         self.read_bytes.fetch_add(u64::from(e.packed), Ordering::Relaxed);
         self.loaded_bytes.fetch_add(u64::from(e.len), Ordering::Relaxed);
         if crc32c::crc32c(packed) != e.crc {
             return Err(OocError::Checksum(format!("block {id}")));
         }
+        Ok((packed, e))
+    }
+
+    /// Reads and checks a block that holds no treelet (textures, their
+    /// coordinates): its decompressed bytes.
+    pub fn read_raw(&self, id: u32) -> Result<Vec<u8>, OocError> {
+        let (packed, e) = self.checked_packed(id)?;
+        self.codec
+            .decompress(packed, e.len as usize)
+            .map_err(|c| OocError::Block {
+                block: id,
+                message: c.to_string(),
+            })
+    }
+
+    /// Reads, checks and decodes a block from the file (no caching).
+    pub fn read(&self, id: u32) -> Result<Block, OocError> {
+        let (packed, e) = self.checked_packed(id)?;
+        let bad = |message: String| OocError::Block { block: id, message };
         thread_local! {
             /// Each thread's decompression buffer, reused from block to block.
             static RAW: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };

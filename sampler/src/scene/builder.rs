@@ -171,16 +171,7 @@ impl SceneBuilder {
             message: "more than 4 billion vertices".to_string(),
         })?;
         let _ = count;
-        if uvs.is_some() || !self.scene.uvs.is_empty() {
-            self.scene.uvs.resize(base, Vec2::ZERO);
-            match uvs {
-                Some(uvs) => self
-                    .scene
-                    .uvs
-                    .extend(uvs.iter().map(|uv| if uv.is_finite() { *uv } else { Vec2::ZERO })),
-                None => self.scene.uvs.resize(base + positions.len(), Vec2::ZERO),
-            }
-        }
+        self.extend_uvs(base, positions.len(), uvs.map(|u| u.iter().copied()));
         if transform == Mat4::IDENTITY {
             // Bit-exact: a written-out scene reads back with the same content hash.
             self.scene.positions.extend_from_slice(positions);
@@ -347,16 +338,7 @@ impl SceneBuilder {
             triangles.par_iter_mut().for_each(|t| t.v = t.v.map(|i| i + offset));
         }
         let kept = triangles.len() as u64;
-        if uvs.is_some() || !self.scene.uvs.is_empty() {
-            self.scene.uvs.resize(base, Vec2::ZERO);
-            match uvs {
-                Some(uvs) => self
-                    .scene
-                    .uvs
-                    .extend(uvs.into_iter().map(|uv| if uv.is_finite() { uv } else { Vec2::ZERO })),
-                None => self.scene.uvs.resize(base + positions.len(), Vec2::ZERO),
-            }
-        }
+        self.extend_uvs(base, positions.len(), uvs.map(Vec::into_iter));
         if self.scene.positions.is_empty() {
             self.scene.positions = positions;
         } else {
@@ -373,6 +355,23 @@ impl SceneBuilder {
         stats.non_finite += non_finite;
         stats.triangles += kept;
         Ok(())
+    }
+
+    /// Gives the `n` vertices from `base` on the texture coordinates `uvs`
+    /// (non-finite ones read as 0), or zeros where the scene has some and
+    /// the mesh none.
+    fn extend_uvs(&mut self, base: usize, n: usize, uvs: Option<impl Iterator<Item = Vec2>>) {
+        if uvs.is_none() && self.scene.uvs.is_empty() {
+            return;
+        }
+        self.scene.uvs.resize(base, Vec2::ZERO);
+        match uvs {
+            Some(uvs) => self
+                .scene
+                .uvs
+                .extend(uvs.map(|uv| if uv.is_finite() { uv } else { Vec2::ZERO })),
+            None => self.scene.uvs.resize(base + n, Vec2::ZERO),
+        }
     }
 
     /// Refuses meshes that would take the scene past [`MAX_TRIANGLES`].
