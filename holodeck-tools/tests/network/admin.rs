@@ -156,11 +156,17 @@ fn viewers_may_not_quit_kill_restart_clobber_or_pause() {
     let (mut viewer, welcome) = Client::connect(&addr, Role::Display, "v");
     assert_eq!(welcome.access, Access::Viewer);
     let mut lowered = Client::read_only_display(&addr, token);
+    // Adopt empties the file (its rays belong to the old scene): admins only.
+    let adopt = Control::Adopt {
+        scene: "blake3:0000".into(),
+        keep: false,
+    };
     let all = [
         Control::Quit,
         Control::KillSamplers,
         Control::Restart,
         Control::Clobber,
+        adopt.clone(),
         Control::Pause,
         Control::Resume,
     ];
@@ -247,6 +253,13 @@ fn writers_pause_and_resume_but_only_admins_clobber_and_viewers_cannot_sample() 
         w.command(Control::KillSamplers),
         refusal(&Control::KillSamplers, "writer")
     );
+    let adopt = Control::Adopt {
+        scene: "blake3:0000".into(),
+        keep: false,
+    };
+    for c in [Control::Restart, Control::Quit, adopt] {
+        assert_eq!(w.command(c.clone()), refusal(&c, "writer"), "{c:?}");
+    }
     let kept = w.stored(&all);
     assert!(
         kept >= before && before > 1_000,
