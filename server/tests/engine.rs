@@ -863,3 +863,30 @@ fn a_damaged_beam_loses_its_old_rays_and_writing_goes_on() {
         "nothing damaged is left"
     );
 }
+
+#[test]
+fn rays_appended_in_place_to_a_damaged_beam_are_not_lost_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = new_file(dir.path());
+    let victim = BeamKey::new(0, 5);
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    f.append(victim, &rays(victim, 0, 8)).unwrap();
+    f.close().unwrap();
+    let offset = HoloFile::open(&path, &OpenOptions::read_only())
+        .unwrap()
+        .directory(0)
+        .unwrap()[5]
+        .offset;
+    flip_byte(&path, offset + 3);
+    // Two rays: little enough to grow the run where it lies.
+    let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
+    let fresh = rays(victim, 8, 2);
+    f.append(victim, &fresh).unwrap();
+    f.flush().unwrap();
+    assert_eq!(f.io_stats().damaged_rays, 8);
+    f.close().unwrap();
+    let mut f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+    assert_eq!(f.read_beam(victim).unwrap(), fresh, "the new rays stand alone");
+    drop(f);
+    assert!(storage::check(&path, |_, _| {}).unwrap().is_clean());
+}

@@ -97,6 +97,9 @@ pub struct Store {
     /// Records each beam's run has room for (its count plus an in-memory growth
     /// reserve). No commit refers to the reserve, so reopening frees it.
     capacity: Vec<Vec<u32>>,
+    /// Beams whose run was read and verified (or written) since opening: a
+    /// beam's first append in a session checks what it appends to.
+    verified: Vec<Vec<bool>>,
     chunks: Vec<Chunk>,
     /// Index of each section's first chunk.
     chunk_start: Vec<usize>,
@@ -259,6 +262,7 @@ impl Store {
             file,
             writable,
             capacity: sv.dirs.iter().map(|d| d.iter().map(|e| e.count).collect()).collect(),
+            verified: sv.dirs.iter().map(|d| vec![false; d.len()]).collect(),
             dirs: sv.dirs,
             chunks,
             chunk_start,
@@ -514,6 +518,41 @@ impl Store {
         Ok(buf)
     }
 
+    /// Checks the committed run of beam `key` before the session's first
+    /// append to it: a run that fails its checksum loses its rays (reported
+    /// and counted), the beam starts again empty, and writing goes on; the
+    /// appended rays then stand alone instead of joining damaged ones.
+    fn verify_before_append(&mut self, key: BeamKey) -> Result<()> {
+        let (s, b) = (key.section as usize, key.beam as usize);
+        let e = self.dirs[s][b];
+        // A committed run is never the target of a pending write: read it as
+        // the disk holds it, without flushing the write batch.
+        let mut buf = vec![0u8; e.extent().len as usize];
+        io::read_exact_at(&self.file, &self.path, e.offset, &mut buf)?;
+        if crc32c::crc32c(&buf) == e.crc {
+            self.verified[s][b] = true;
+            return Ok(());
+        }
+        tracing::warn!(
+            path = %self.path.display(),
+            "beam {} of section {} (bytes {}..{}) fails its checksum: its {} damaged rays are dropped and writing goes on",
+            key.beam,
+            key.section,
+            e.offset,
+            e.extent().end(),
+            e.count
+        );
+        self.stats.damaged_beams += 1;
+        self.stats.damaged_rays += u64::from(e.count);
+        self.release_run(s, b);
+        self.dirs[s][b] = BeamEntry::default();
+        self.capacity[s][b] = 0;
+        self.verified[s][b] = true;
+        let c = self.chunk_of(key);
+        self.chunk_dirty[c] = true;
+        Ok(())
+    }
+
     /// Writes rays appended to a beam: into its run's reserve, or by growing the
     /// run in place if the bytes after it are free, else by moving the whole
     /// beam to a new run with room to grow. `on_disk` supplies the beam's
@@ -524,6 +563,10 @@ impl Store {
             return Ok(());
         }
         let (s, b) = (key.section as usize, key.beam as usize);
+        let in_memory = on_disk.is_some_and(|r| r.len() == self.dirs[s][b].count as usize);
+        if self.dirs[s][b].count > 0 && !self.verified[s][b] && !in_memory {
+            self.verify_before_append(key)?;
+        }
         let tail_bytes = RayRecord::slice_as_bytes(tail);
         let old = self.dirs[s][b];
         let cap = u64::from(self.capacity[s][b]);
@@ -604,6 +647,7 @@ impl Store {
             BeamEntry { offset, count, crc }
         };
         self.dirs[s][b] = new;
+        self.verified[s][b] = true;
         let c = self.chunk_of(key);
         self.chunk_dirty[c] = true;
         self.stats.rays_written += tail.len() as u64;
@@ -667,6 +711,8 @@ impl Store {
         self.fresh.insert(to);
         self.dirs[s][b] = BeamEntry { offset: to, ..old };
         self.capacity[s][b] = old.count;
+        // Read and checked on the way: and its new place may still be in the write batch.
+        self.verified[s][b] = true;
         let c = self.chunk_of(BeamKey::new(s as u32, b as u32));
         self.chunk_dirty[c] = true;
         self.stats.relocations += 1;
