@@ -101,6 +101,23 @@ enum Command {
     Admin(cmd::admin::Args),
 }
 
+/// The verbosity this process was given (`-v` count, `-q`), for the
+/// `holodeck` processes it starts: they log as it does.
+static VERBOSITY: std::sync::OnceLock<(u8, bool)> = std::sync::OnceLock::new();
+
+/// The arguments that give a child `holodeck` this process's verbosity.
+pub(crate) fn verbosity_args() -> Vec<&'static str> {
+    match VERBOSITY.get().copied().unwrap_or((0, false)) {
+        (_, true) => vec!["-q"],
+        (n, false) => vec!["-v"; usize::from(n.min(4))],
+    }
+}
+
+/// Whether `-q` asked for errors only (messages printed directly obey it too).
+pub(crate) fn quiet() -> bool {
+    VERBOSITY.get().is_some_and(|v| v.1)
+}
+
 fn init_logging(verbose: u8, quiet: bool) {
     let level = match (quiet, verbose) {
         (true, _) => "error",
@@ -184,6 +201,7 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let cli = Cli::parse();
+    let _ = VERBOSITY.set((cli.verbose, cli.quiet));
     init_logging(cli.verbose, cli.quiet);
     if cli.exit_with_parent {
         parent::exit_with_parent();

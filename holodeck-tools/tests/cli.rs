@@ -541,3 +541,27 @@ fn pictures_make_their_folders_and_a_view_that_sees_nothing_says_so() {
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).contains("give the view in --view"), "{}", text(&o));
 }
+
+#[test]
+fn quiet_reaches_runs_children() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = holodeck(&[
+        "-q",
+        "run",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--time",
+        "2s",
+        "--bounces",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("access token"), "-q silences the children too: {err}");
+    assert!(
+        text(&o).contains("rays added"),
+        "the summary is still printed: {}",
+        text(&o)
+    );
+}

@@ -86,6 +86,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.window {
         let hdk = a.output.join("demo.hdk");
         let status = Command::new(std::env::current_exe().context("finding the holodeck executable")?)
+            .args(crate::verbosity_args())
             .args(["run", crate::demo::SCENE])
             .arg(&hdk)
             .args([

@@ -100,8 +100,11 @@ pub struct Args {
 
 fn me() -> Result<Command> {
     let mut cmd = Command::new(std::env::current_exe().context("finding the holodeck executable")?);
-    // The child watches its standard input: when this process ends, it stops too.
-    cmd.arg("--exit-with-parent").stdin(Stdio::piped());
+    // The child watches its standard input: when this process ends, it stops
+    // too; and it logs as this process does (-q, -v).
+    cmd.arg("--exit-with-parent")
+        .args(crate::verbosity_args())
+        .stdin(Stdio::piped());
     Ok(cmd)
 }
 

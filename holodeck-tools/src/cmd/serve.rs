@@ -130,7 +130,9 @@ fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Re
     let path = token_path(file, level);
     if !fresh {
         if let Some(t) = kept_token(&path) {
-            eprintln!("{level} access token kept from {}", path.display());
+            if !crate::quiet() {
+                eprintln!("{level} access token kept from {}", path.display());
+            }
             return Ok(t);
         }
     }
@@ -138,7 +140,9 @@ fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Re
         .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
         .collect();
     write_token(&path, &t)?;
-    eprintln!("{level} access token written to {}", path.display());
+    if !crate::quiet() {
+        eprintln!("{level} access token written to {}", path.display());
+    }
     Ok(t)
 }
 
