@@ -190,7 +190,31 @@ fn loose_view_option(args: &[String]) -> Option<&str> {
     })
 }
 
+/// Gives this process (and those it starts) a private runtime directory
+/// where the environment names none (a headless machine, a container): the
+/// graphics stack's window-system probes otherwise print "XDG_RUNTIME_DIR
+/// is invalid or not set" twice on every GPU use. The directory is
+/// `$TMPDIR/holodeck-runtime-UID`, owned by this user and private (0700); a
+/// path that is anything else is left alone.
+fn runtime_dir_where_missing() {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|v| !v.is_empty()) {
+        return;
+    }
+    // SAFETY: getuid cannot fail and has no memory effects.
+    let uid = unsafe { libc::getuid() };
+    let dir = std::env::temp_dir().join(format!("holodeck-runtime-{uid}"));
+    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+    let ours = std::fs::symlink_metadata(&dir)
+        .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
+    if ours {
+        // Still one thread: nothing else reads the environment meanwhile.
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    }
+}
+
 fn main() -> ExitCode {
+    runtime_dir_where_missing();
     quiet_on_closed_stdout();
     let args: Vec<String> = std::env::args().collect();
     if let Some(option) = loose_view_option(&args) {

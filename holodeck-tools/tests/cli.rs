@@ -565,3 +565,23 @@ fn quiet_reaches_runs_children() {
         text(&o)
     );
 }
+
+#[test]
+fn a_gpu_driver_without_a_runtime_directory_prints_no_complaint() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    assert!(holodeck(&["create", f, "--section", ROOM, "--grid", "0.5"])
+        .status
+        .success());
+    fill(&file, 4, 3);
+    let out = dir.path().join("mesh.png");
+    let o = common::process::run(
+        std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))
+            .args(["pict", f, "--driver", "mesh", "-x", "32", "-y", "24", "-o"])
+            .arg(&out)
+            .env_remove("XDG_RUNTIME_DIR"),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("XDG_RUNTIME_DIR"), "{}", text(&o));
+}
