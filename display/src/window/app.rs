@@ -287,7 +287,8 @@ impl App {
         }
         let view = self.walk.view().clone();
         let next = if held.motion == Motion::Turn {
-            navigate::turn_toward(&view, at)
+            // As fast as the cursor is far from the center: one step's share.
+            navigate::turn_partly(&view, at, 1.0 / STEP_RATE)
         } else {
             // The point under the cursor, found again only when the cursor
             // moved (it stays under the cursor as the view moves).

@@ -101,6 +101,19 @@ pub fn turn_toward(view: &View, at: ImagePoint) -> Option<View> {
     valid(v)
 }
 
+/// Turns the view `fraction` of the way toward image point `at` (the eye
+/// stays): held on the middle button at [`super::app::STEP_RATE`] steps a
+/// second with a fraction of one step's time, the view turns toward the
+/// cursor as fast as the cursor is far from the center (24 degrees off:
+/// 24 degrees a second), and stops turning when the cursor is centered.
+pub fn turn_partly(view: &View, at: ImagePoint, fraction: f64) -> Option<View> {
+    let (_, dir) = view.ray(at.x, at.y)?;
+    let f = fraction.clamp(0.0, 1.0);
+    let mut v = view.clone();
+    v.direction = (view.direction * (1.0 - f) + dir.normalize() * f).normalize();
+    valid(v)
+}
+
 /// The view that frames the rectangle between image points `a` and `b`:
 /// its center becomes the view's center and the rectangle's larger side
 /// (for the frame's `aspect`, width over height) fills the frame. Only
@@ -220,6 +233,29 @@ mod tests {
         assert!(w.position.x > v.position.x);
         let free = step(&v, below, Step::Forward, false).unwrap();
         assert!(free.position.z < v.position.z);
+    }
+
+    #[test]
+    fn holding_the_turn_moves_a_little_each_step_not_the_whole_angle() {
+        let v = View::parse("-vtv -vp 0 0 1 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45").unwrap();
+        // A point 24 degrees to the right of the center.
+        let x = 0.5 + (24f64.to_radians().tan() / (30f64.to_radians().tan() * 2.0));
+        let at = ImagePoint { x, y: 0.5 };
+        let step = turn_partly(&v, at, 1.0 / 30.0).unwrap();
+        let turned = v.direction.angle_between(step.direction).to_degrees();
+        assert!(
+            (turned - 0.8).abs() < 0.05,
+            "one step of 1/30 s turns 0.8 degrees: {turned}"
+        );
+        // A second of steps turns about the offset, never a full spin.
+        let mut w = v.clone();
+        for _ in 0..30 {
+            w = turn_partly(&w, at, 1.0 / 30.0).unwrap();
+        }
+        let total = v.direction.angle_between(w.direction).to_degrees();
+        assert!((20.0..=26.0).contains(&total), "{total}");
+        let centered = turn_partly(&v, ImagePoint { x: 0.5, y: 0.5 }, 1.0 / 30.0).unwrap();
+        assert!(v.direction.angle_between(centered.direction) < 1e-12);
     }
 
     #[test]
