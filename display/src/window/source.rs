@@ -107,7 +107,11 @@ impl Source for ServerSource {
         self.session
             .take_notices()
             .into_iter()
-            .map(|r| format!("{}: {}", command_name(&r.control), r.outcome))
+            // "pause done", "clobber was refused: ..." (the outcome reads on from the command's name).
+            .map(|r| match r.outcome {
+                holodeck_protocol::wire::ControlOutcome::Done => format!("{} done", command_name(&r.control)),
+                ref other => format!("{} {other}", command_name(&r.control)),
+            })
             .collect()
     }
 
