@@ -18,8 +18,8 @@ const W: u32 = 320;
 const H: u32 = 240;
 
 /// Rows of the status line at the bottom of the window (left out of
-/// picture comparisons).
-const STATUS_ROWS: usize = holodeck_display::window::overlay::STATUS_HEIGHT as usize;
+/// picture comparisons): at this width it wraps onto up to four lines.
+const STATUS_ROWS: usize = 4 * holodeck_display::window::overlay::STATUS_HEIGHT as usize;
 
 /// The end of a motion: its steps and the point it moved about (none when
 /// the button was let go before a step).

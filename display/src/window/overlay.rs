@@ -79,9 +79,13 @@ impl Canvas<'_> {
         }
     }
 
-    /// The status line: a dark band along the bottom with `text` in it.
+    /// The status line: a dark band along the bottom with `text` in it,
+    /// wrapped at spaces onto as many lines of [`STATUS_HEIGHT`] as a narrow
+    /// window needs (nothing is cut off).
     pub fn status(&mut self, text: &str) {
-        let top = self.height.saturating_sub(STATUS_HEIGHT);
+        let lines = wrap(text, ((self.width.saturating_sub(8)) / 8).max(1) as usize);
+        let band = STATUS_HEIGHT * lines.len().max(1) as u32;
+        let top = self.height.saturating_sub(band);
         for y in top..self.height {
             let row = (y as usize * self.width as usize) * 4;
             for px in self.rgba[row..row + self.width as usize * 4].chunks_exact_mut(4) {
@@ -90,7 +94,10 @@ impl Canvas<'_> {
                 px[2] /= 4;
             }
         }
-        self.text(4, i64::from(top) + 2, text, [230, 230, 230]);
+        for (k, line) in lines.iter().enumerate() {
+            let y = i64::from(top) + 2 + i64::from(STATUS_HEIGHT) * k as i64;
+            self.text(4, y, line, [230, 230, 230]);
+        }
     }
 
     /// The sections' box and wall grids as `view` sees them.
@@ -158,6 +165,34 @@ fn clip(a: [f64; 2], b: [f64; 2], w: f64, h: f64) -> Option<([f64; 2], [f64; 2])
     Some(([a[0] + dx * t0, a[1] + dy * t0], [a[0] + dx * t1, a[1] + dy * t1]))
 }
 
+/// `text` broken at spaces into lines of at most `width` characters (a
+/// word longer than that is cut into pieces).
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    let mut line = String::new();
+    for word in text.split(' ').filter(|w| !w.is_empty()) {
+        let mut word: Vec<char> = word.chars().collect();
+        while word.len() > width {
+            if !line.is_empty() {
+                lines.push(std::mem::take(&mut line));
+            }
+            lines.push(word.drain(..width).collect());
+        }
+        let word: String = word.into_iter().collect();
+        if !line.is_empty() && line.chars().count() + 1 + word.chars().count() > width {
+            lines.push(std::mem::take(&mut line));
+        }
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(&word);
+    }
+    if !line.is_empty() || lines.is_empty() {
+        lines.push(line);
+    }
+    lines
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -186,6 +221,29 @@ mod tests {
         }
         let lit_count = (0..w * h).filter(|i| lit(&rgba, w, i % w, i / w)).count();
         assert_eq!(lit_count as u32, w + h - 1);
+    }
+
+    #[test]
+    fn a_long_status_wraps_onto_more_lines_instead_of_being_cut() {
+        assert_eq!(wrap("a bb ccc", 4), vec!["a bb", "ccc"]);
+        assert_eq!(wrap("abcdefghij", 4), vec!["abcd", "efgh", "ij"]);
+        assert_eq!(wrap("", 4), vec![""]);
+        let status = "12.3 K samples/s  1.2 M received  1.1 M shown  server 4.5 M rays 120 K/s  2 samplers";
+        let lines = wrap(status, (512 - 8) / 8);
+        assert_eq!(lines.join(" "), status.split_whitespace().collect::<Vec<_>>().join(" "));
+        assert!(lines.len() >= 2 && lines.iter().all(|l| l.len() <= 63), "{lines:?}");
+        // Two lines (11 characters fit in 96 pixels) darken two bands' height.
+        let (w, h) = (96u32, 40u32);
+        let mut rgba = vec![200u8; (w * h * 4) as usize];
+        let mut c = Canvas {
+            rgba: &mut rgba,
+            width: w,
+            height: h,
+        };
+        c.status("abcd efgh ijkl");
+        let darkened = |y: u32| rgba[((y * w) * 4) as usize] == 50;
+        assert!(darkened(h - 1) && darkened(h - 2 * STATUS_HEIGHT));
+        assert!(!darkened(h - 2 * STATUS_HEIGHT - 1));
     }
 
     #[test]
