@@ -510,15 +510,20 @@ fn run_without_a_window_needs_time_and_time_bounds_a_headless_display() {
     );
 }
 
-#[test]
-fn pictures_make_their_folders_and_a_view_that_sees_nothing_says_so() {
+/// A holodeck file of the room's section with a few rays, in a new folder.
+fn filled_room() -> (tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let f = file.to_str().unwrap();
-    assert!(holodeck(&["create", f, "--section", ROOM, "--grid", "0.5"])
-        .status
-        .success());
+    let o = holodeck(&["create", file.to_str().unwrap(), "--section", ROOM, "--grid", "0.5"]);
+    assert!(o.status.success(), "{}", text(&o));
     fill(&file, 4, 3);
+    (dir, file)
+}
+
+#[test]
+fn pictures_make_their_folders_and_a_view_that_sees_nothing_says_so() {
+    let (dir, file) = filled_room();
+    let f = file.to_str().unwrap();
     let out = dir.path().join("frames/far/away.png");
     let o = holodeck(&[
         "pict",
@@ -568,13 +573,8 @@ fn quiet_reaches_runs_children() {
 
 #[test]
 fn a_gpu_driver_without_a_runtime_directory_prints_no_complaint() {
-    let dir = tempfile::tempdir().unwrap();
-    let file = dir.path().join("room.hdk");
+    let (dir, file) = filled_room();
     let f = file.to_str().unwrap();
-    assert!(holodeck(&["create", f, "--section", ROOM, "--grid", "0.5"])
-        .status
-        .success());
-    fill(&file, 4, 3);
     let out = dir.path().join("mesh.png");
     let o = common::process::run(
         std::process::Command::new(env!("CARGO_BIN_EXE_holodeck"))

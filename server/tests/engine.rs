@@ -823,6 +823,16 @@ fn format_1_files_are_read_refused_for_writing_and_converted_by_optimize() {
     assert!(storage::check(&path, |_, _| {}).unwrap().is_clean());
 }
 
+/// Flips a byte `at` bytes into the run of beam `key` of the file at `path`.
+fn damage_run(path: &Path, key: BeamKey, at: u64) {
+    let offset = HoloFile::open(path, &OpenOptions::read_only())
+        .unwrap()
+        .directory(key.section)
+        .unwrap()[key.beam as usize]
+        .offset;
+    flip_byte(path, offset + at);
+}
+
 #[test]
 fn a_damaged_beam_loses_its_old_rays_and_writing_goes_on() {
     let dir = tempfile::tempdir().unwrap();
@@ -836,12 +846,7 @@ fn a_damaged_beam_loses_its_old_rays_and_writing_goes_on() {
     }
     f.close().unwrap();
     let victim = BeamKey::new(0, 77);
-    let offset = HoloFile::open(&path, &OpenOptions::read_only())
-        .unwrap()
-        .directory(0)
-        .unwrap()[77]
-        .offset;
-    flip_byte(&path, offset + 13);
+    damage_run(&path, victim, 13);
     // A writer adds rays to the damaged beam (beyond its run: it must move,
     // reading the old rays) and to others: the flush succeeds.
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
@@ -872,12 +877,7 @@ fn rays_appended_in_place_to_a_damaged_beam_are_not_lost_with_it() {
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
     f.append(victim, &rays(victim, 0, 8)).unwrap();
     f.close().unwrap();
-    let offset = HoloFile::open(&path, &OpenOptions::read_only())
-        .unwrap()
-        .directory(0)
-        .unwrap()[5]
-        .offset;
-    flip_byte(&path, offset + 3);
+    damage_run(&path, victim, 3);
     // Two rays: little enough to grow the run where it lies.
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
     let fresh = rays(victim, 8, 2);
