@@ -178,7 +178,18 @@ impl Tracer {
     /// shading faces it) and the radiance its emission texture adds;
     /// `None` where the material has no textures. `length` is how far the
     /// path has come, for the footprint.
+    #[inline]
     pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<Textured> {
+        if !self.textured_any {
+            return None;
+        }
+        self.textured_slow(hit, n, length)
+    }
+
+    /// [`Tracer::textured`] where some material has textures: out of line,
+    /// so that untextured scenes shade as before.
+    #[inline(never)]
+    fn textured_slow(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<Textured> {
         let material = hit.material?;
         let maps = self.scene.maps_of(material)?;
         if hit.tri == u32::MAX {
@@ -222,7 +233,11 @@ impl Tracer {
 
     /// The radiance a light sample brings: its light's, or where the light
     /// glows through an emission texture, what the texture says there.
+    #[inline]
     pub(super) fn light_radiance(&self, ls: &LightSample) -> Vec3 {
+        if !self.textured_any {
+            return ls.radiance;
+        }
         let Some(t) = self.scene.triangles.get(ls.tri as usize) else {
             return ls.radiance;
         };

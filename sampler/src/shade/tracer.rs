@@ -103,6 +103,8 @@ pub struct Tracer {
     pub(super) has_panes: bool,
     /// Whether any material has an alpha mask (rays then look through its holes).
     pub(super) cutouts: bool,
+    /// Whether any material has textures: shading looks them up only then.
+    pub(super) textured_any: bool,
     /// Estimator settings.
     pub options: TraceOptions,
     non_finite: AtomicU64,
@@ -246,6 +248,7 @@ impl Tracer {
             .any(|m| matches!(m, Material::Glass { thin: true, .. }));
         // A scene file keeps its texture coordinates; in core they are in the scene.
         let cutouts = (ooc.is_some() || !scene.uvs.is_empty()) && scene.maps.iter().any(|m| m.cuts());
+        let textured_any = scene.maps.iter().any(|m| !m.is_empty());
         let in_core_bytes = match (&bvh, &ooc) {
             (_, Some(_)) => 0,
             (Some(b), None) => b.stats().bytes,
@@ -263,6 +266,7 @@ impl Tracer {
             sky,
             has_panes,
             cutouts,
+            textured_any,
             options,
             non_finite: AtomicU64::new(0),
             first_hits: TwoWays::new(4096, 1 << 20),
