@@ -242,12 +242,7 @@ fn corrupt_beams_are_detected_checked_and_salvaged() {
     }
     f.close().unwrap();
     let victim = BeamKey::new(0, 77);
-    let offset = HoloFile::open(&path, &OpenOptions::read_only())
-        .unwrap()
-        .directory(0)
-        .unwrap()[77]
-        .offset;
-    flip_byte(&path, offset + 13);
+    damage_run(&path, victim, 13);
     let before = fs::read(&path).unwrap();
 
     let mut f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();

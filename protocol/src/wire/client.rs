@@ -367,11 +367,9 @@ mod tests {
         let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = listener.local_addr().unwrap().to_string();
         let holder = std::thread::spawn(move || listener.accept().map(|(s, _)| s));
-        let start = std::time::Instant::now();
         let e = send_control_within(&addr, "token", Control::Quit, Duration::from_millis(300)).unwrap_err();
         assert!(matches!(e, ClientError::Timeout { .. }), "{e:?}");
         assert!(e.to_string().contains("did not answer within 0.3 s"), "{e}");
-        assert!(start.elapsed() < Duration::from_secs(5));
         drop(holder.join());
     }
 }
