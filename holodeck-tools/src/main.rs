@@ -11,6 +11,7 @@ mod demo;
 #[cfg(feature = "embree")]
 mod embree;
 mod fill;
+mod generated;
 mod human;
 mod parent;
 mod progress;
@@ -18,7 +19,7 @@ mod truth;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
 #[derive(Parser)]
-#[command(name = "holodeck", version, about, long_about = None, after_help = EXAMPLES)]
+#[command(name = "holodeck", version, about = ABOUT, long_about = None, after_help = EXAMPLES)]
 struct Cli {
     /// More log output (-v info, -vv debug, -vvv trace).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
@@ -33,9 +34,16 @@ struct Cli {
     command: Command,
 }
 
+/// What `holodeck --help` says the program is.
+const ABOUT: &str = "Holodeck: interactive walkthroughs of globally illuminated scenes from a persistent, \
+crash-safe ray cache. Fill a holodeck file with path-traced rays (in one process, or from sampler \
+workers on any number of hosts), walk through it in a window as it fills, draw pictures from it \
+without a server, and create, check, optimize, copy and benchmark its files.";
+
 const EXAMPLES: &str = "\
 Examples:
   holodeck demo
+  holodeck run builtin:room room.hdk -n 2 --driver quadtree          # a walkthrough window, until q
   holodeck create room.hdk --section 'interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5' --grid 0.25
   holodeck create room.hdk --control room.toml
   holodeck info room.hdk
@@ -89,11 +97,11 @@ enum Command {
     Run(cmd::run::Args),
     /// Serve a holodeck file to samplers and displays over TCP or a Unix socket.
     Serve(cmd::serve::Args),
-    /// Compare a picture with a reference (RMSE, PSNR, SSIM).
+    /// Compare a picture with a reference: FLIP, SSIM, relative errors, the light kept.
     Compare(cmd::compare::Args),
     /// Draw pictures straight from a holodeck file (like rhpict).
     Pict(cmd::pict::Args),
-    /// A display client: views from a server, drawn headless into files.
+    /// A display client on a server: a window to walk through, or with --headless frames of --views.
     View(cmd::view::Args),
     /// Trace packets for a holodeck server (a sampler worker; any host).
     Sample(cmd::sample::Args),

@@ -482,7 +482,7 @@ fn run_without_a_window_needs_time_and_time_bounds_a_headless_display() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
     let f = file.to_str().unwrap();
-    let o = holodeck(&["run", "builtin:room", f, "--headless", "-o", "quadtree"]);
+    let o = holodeck(&["run", "builtin:room", f, "--headless", "--driver", "quadtree"]);
     assert!(!o.status.success() && text(&o).contains("give --time"), "{}", text(&o));
     let frames = dir.path().join("frames");
     let o = holodeck(&[
@@ -500,6 +500,8 @@ fn run_without_a_window_needs_time_and_time_bounds_a_headless_display() {
         frames.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", text(&o));
+    // The old spelling of the driver still works, and says what it is now.
+    assert!(text(&o).contains("it is --driver quadtree now"), "{}", text(&o));
     // The run's own account of how long it filled: TIME and the display's
     // two seconds of grace, not the walk of every view at its own pace.
     let out = text(&o);
@@ -586,4 +588,19 @@ fn a_gpu_driver_without_a_runtime_directory_prints_no_complaint() {
     );
     assert!(o.status.success(), "{}", text(&o));
     assert!(!text(&o).contains("XDG_RUNTIME_DIR"), "{}", text(&o));
+}
+
+#[test]
+fn a_coarse_picture_says_how_to_fill_for_the_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let f = file.to_str().unwrap();
+    let o = holodeck(&["fill", "builtin:room", f, "--rays", "20K", "--bounces", "1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let png = dir.path().join("room.png");
+    let o = holodeck(&["pict", f, "-x", "64", "-y", "48", "-o", png.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = text(&o);
+    assert!(out.contains("is coarse: the view sees 0."), "{out}");
+    assert!(out.contains("--views VIEWS"), "{out}");
 }

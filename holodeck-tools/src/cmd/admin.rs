@@ -70,9 +70,9 @@ enum Command {
 /// The server's report, in one line.
 fn describe(p: &Progress) -> String {
     format!(
-        "{} rays ({:.0} rays/s), {} of {} beams hold rays, file {}; {} samplers and {} displays connected{}",
+        "{} rays ({} rays/s), {} of {} beams hold rays, file {}; {} samplers and {} displays connected{}",
         count(p.rays),
-        p.rays_per_second,
+        count(p.rays_per_second.max(0.0).round() as u64),
         count(p.beams_filled),
         count(p.beams),
         bytes(p.file_bytes),

@@ -114,7 +114,7 @@ pub struct FrameArgs {
     /// Display driver: quadtree (CPU), splat (plain points, the baseline), voronoi (GPU
     /// cones) or mesh (GPU spherical Delaunay mesh). The GPU drivers run on Mesa's software
     /// Vulkan where there is no GPU.
-    #[arg(long, default_value = "quadtree")]
+    #[arg(long, default_value = "quadtree", value_parser = clap::builder::PossibleValuesParser::new(holodeck_display::DRIVERS))]
     pub driver: String,
     /// Scene whose geometry the voronoi driver culls samples by and stops cones at
     /// (a scene file or builtin:NAME; the scene the holodeck was filled from).

@@ -57,12 +57,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    let bar = crate::progress::bytes_bar("verifying");
+    let bar = crate::progress::Progress::counting("verifying", crate::progress::Unit::Bytes, Some(0));
     let report = storage::check(&a.file, |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
+        bar.set_total(total);
+        bar.set(done);
     });
-    bar.finish_and_clear();
+    bar.finish();
     let report = match report {
         Ok(r) => r,
         Err(e) if is_damage(&e) => {

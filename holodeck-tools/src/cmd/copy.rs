@@ -31,12 +31,12 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let bar = crate::progress::rays_bar("copying");
+    let bar = crate::progress::Progress::counting("copying", crate::progress::Unit::Rays, Some(0));
     let r = storage::copy(&a.src, &a.dst, |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
+        bar.set_total(total);
+        bar.set(done);
     });
-    bar.finish_and_clear();
+    bar.finish();
     let r = r.with_context(|| format!("copying {} into {}", a.src.display(), a.dst.display()))?;
     println!(
         "{} -> {}{}: {} rays read, {} stored ({} section(s) merged beam for beam, {} resampled), {} valid in no section",

@@ -38,7 +38,8 @@ goes on filling while you walk.
 Examples:
   holodeck demo
   holodeck demo -o /tmp/demo --rays 8M --views 40 --reference-spp 1024
-  holodeck demo --window")]
+  holodeck demo --window
+  holodeck demo --markdown docs/results     # what docs/RESULTS.md quotes")]
 pub struct Args {
     /// Where to write.
     #[arg(short, long, default_value = "demo-out")]
@@ -67,6 +68,49 @@ pub struct Args {
     /// Then open the walkthrough window on the holodeck (needs a screen).
     #[arg(long)]
     window: bool,
+    /// Also write the summary, its charts and two comparison sheets into DIR
+    /// (DIR/demo.md headed by this command, the commit and the date), and refresh
+    /// the blocks quoting it in the Markdown files of DIR's parent
+    /// (docs/RESULTS.md quotes docs/results/demo.md).
+    #[arg(long, value_name = "DIR")]
+    markdown: Option<PathBuf>,
+}
+
+/// Copies the charts and two comparison sheets (a quarter and three
+/// quarters along the walk) into `dir` and writes `dir/demo.md`: the summary
+/// with them.
+fn publish(a: &Args, dir: &std::path::Path, summary: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let views = a.views as usize;
+    let mut sheets: Vec<usize> = vec![(views / 4).max(1), (3 * views / 4).max(1)];
+    sheets.dedup();
+    let mut pictures = vec![
+        (
+            "chart-error-vs-paths-and-time.png".to_string(),
+            "The first view: FLIP against paths and against time, per driver, against direct renders with the same paths".to_string(),
+        ),
+        (
+            "chart-walkthrough.png".to_string(),
+            "The walk: each view's FLIP and clamped error against each method's time so far".to_string(),
+        ),
+    ];
+    for v in sheets {
+        pictures.push((
+            format!("compare-view{v:02}.png"),
+            format!("View {v} of {views}: the reference, the holodeck's drivers, and direct renders in the same time, raw and cleaned by OIDN, each with its FLIP"),
+        ));
+    }
+    let mut body = summary.to_string();
+    body.push('\n');
+    for (file, caption) in &pictures {
+        let from = a.output.join(file);
+        std::fs::copy(&from, dir.join(file))
+            .with_context(|| format!("copying {} into {}", from.display(), dir.display()))?;
+        body += &format!("\n![{caption}](@/{file})\n");
+    }
+    let (file, docs) = crate::generated::publish(dir, "demo", &crate::generated::command_line(), &body)?;
+    eprintln!("wrote {}{}", file.display(), super::bench::all::refreshed(&docs));
+    Ok(())
 }
 
 /// Runs the command.
@@ -83,6 +127,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     let summary = demo.run()?;
     print!("{summary}");
+    if let Some(dir) = &a.markdown {
+        publish(&a, dir, &summary)?;
+    }
     if a.window {
         let hdk = a.output.join("demo.hdk");
         let status = Command::new(std::env::current_exe().context("finding the holodeck executable")?)
@@ -92,7 +139,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             .args([
                 "--triangles",
                 &a.triangles.to_string(),
-                "-o",
+                "--driver",
                 "quadtree",
                 "--vdistance",
                 "--views",

@@ -45,12 +45,12 @@ struct RadianceArgs {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let Format::Radiance(a) = a.format;
-    let bar = crate::progress::rays_bar("exporting");
+    let bar = crate::progress::Progress::counting("exporting", crate::progress::Unit::Rays, Some(0));
     let r = radiance::export(&a.file, &a.output, Layout::LP64, |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
+        bar.set_total(total);
+        bar.set(done);
     });
-    bar.finish_and_clear();
+    bar.finish();
     let r = r.with_context(|| format!("exporting {}", a.file.display()))?;
     println!(
         "{} -> {}: {} section(s), {} beams holding {} rays, {} in {:.2} s",

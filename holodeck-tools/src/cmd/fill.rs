@@ -15,6 +15,7 @@ use holodeck_server::{HoloFile, OpenOptions, StorageError};
 use super::args::MAX_TRIANGLES;
 use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::{bytes, count, count_in};
+use crate::progress::{Progress, Unit};
 
 /// Arguments of `holodeck fill`.
 #[derive(clap::Args)]
@@ -175,7 +176,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ..TraceOptions::default()
     };
     let tracer = scene.tracer(options);
-    let bar = indicatif::ProgressBar::new(a.rays.unwrap_or(0));
+    // Filling toward a ray count shows the rays; filling for a time shows the time.
+    let bar = match (a.rays, time) {
+        (None, Some(limit)) => Progress::timed("filling", Some(Unit::Rays), limit),
+        (rays, _) => Progress::counting("filling", Unit::Rays, rays),
+    };
     let fill_options = FillOptions {
         rays: a.rays,
         time,
@@ -187,19 +192,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
             None => None,
         },
     };
-    let report = fill(&tracer, &mut file, &fill_options, &|n| bar.set_position(n))
+    let report = fill(&tracer, &mut file, &fill_options, &|n| bar.set(n))
         .with_context(|| format!("filling {}", a.file.display()))?;
-    bar.finish_and_clear();
+    bar.finish();
     let non_finite = tracer.non_finite_count();
     // Closing compacts the file: its size is what it is after that.
     file.close()?;
     let summary = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     println!(
-        "{}: {} rays in {:.1} s ({:.0} rays/s, {:.1}% of the time storing); {} of {} beams hold rays ({:.1}%); file {} ({:.2} bytes/ray)",
+        "{}: {} rays in {:.1} s ({} rays/s, {:.1}% of the time storing); {} of {} beams hold rays ({:.1}%); file {} ({:.2} bytes/ray)",
         a.file.display(),
         count(report.rays),
         report.secs,
-        report.rays as f64 / report.secs.max(1e-9),
+        count((report.rays as f64 / report.secs.max(1e-9)).round() as u64),
         100.0 * report.store_secs / report.secs.max(1e-9),
         count(report.beams_filled),
         count(report.beams),

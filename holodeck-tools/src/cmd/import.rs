@@ -58,12 +58,12 @@ fn parse_kind(s: &str) -> Result<SectionKind, String> {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let Format::Radiance(a) = a.format;
-    let bar = crate::progress::rays_bar("importing");
+    let bar = crate::progress::Progress::counting("importing", crate::progress::Unit::Rays, Some(0));
     let r = radiance::import(&a.file, &a.output, &ImportOptions { kind: a.kind }, |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
+        bar.set_total(total);
+        bar.set(done);
     });
-    bar.finish_and_clear();
+    bar.finish();
     let r = r.with_context(|| format!("importing {}", a.file.display()))?;
     let order = match r.layout.order {
         ByteOrder::Little => "little-endian",

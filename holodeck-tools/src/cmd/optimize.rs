@@ -25,13 +25,13 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let bar = crate::progress::bytes_bar("optimizing");
+    let bar = crate::progress::Progress::counting("optimizing", crate::progress::Unit::Bytes, Some(0));
     let start = Instant::now();
     let r = storage::optimize(&a.file, |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
+        bar.set_total(total);
+        bar.set(done);
     });
-    bar.finish_and_clear();
+    bar.finish();
     let r = r?;
     println!(
         "{}: {} rays, {} -> {} in {:.2} s",

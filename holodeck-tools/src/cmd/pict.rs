@@ -236,6 +236,9 @@ fn numbered(pattern: &Path, n: usize) -> Result<PathBuf> {
     )))
 }
 
+/// Rays per pixel below which a picture is blocky, and `pict` says how to get more.
+const COARSE: f64 = 1.0;
+
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     a.frame.check()?;
@@ -283,6 +286,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             eprintln!(
                 "holodeck pict: warning: {} is black: the view sees no rays of {} (is the eye inside an \
                  interior section, or outside looking at an exterior one? `holodeck info` lists the sections)",
+                out.display(),
+                a.file.display()
+            );
+        }
+        let per_pixel = s.samples as f64 / (f64::from(a.frame.width) * f64::from(a.frame.height));
+        if s.samples > 0 && per_pixel < COARSE {
+            eprintln!(
+                "holodeck pict: note: {} is coarse: the view sees {per_pixel:.2} rays per pixel of {}. A fill by \
+                 volume spreads its rays over every beam of the section; fill for the views you want \
+                 (`holodeck fill SCENE FILE --views VIEWS --rays N`) or watch them fill with a display \
+                 (`holodeck run SCENE FILE --driver quadtree`)",
                 out.display(),
                 a.file.display()
             );

@@ -209,12 +209,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         tracer.tree().stats(),
         tracer.bvh().map(|b| b.stats())
     );
-    let bar = indicatif::ProgressBar::new(u64::from(a.height));
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("rendering [{bar:30}] {pos}/{len} rows ({eta})")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
+    let bar = crate::progress::Progress::counting("rendering", crate::progress::Unit::Rows, Some(u64::from(a.height)));
     let options = RenderOptions {
         width: a.width,
         height: a.height,
@@ -222,9 +217,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
         seed: a.seed,
     };
     let start = Instant::now();
-    let picture = render::render(&tracer, &view, &options, &|done, _| bar.set_position(done as u64))
+    let picture = render::render(&tracer, &view, &options, &|done, _| bar.set(done as u64))
         .context("-x/--width, -y/--height or --spp")?;
-    bar.finish_and_clear();
+    bar.finish();
     if let Some(e) = tracer.scene_file().and_then(|f| f.cache().error()) {
         bail!("{}: {e}", a.scene);
     }

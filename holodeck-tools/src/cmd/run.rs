@@ -14,6 +14,7 @@ use holodeck_server::{HoloFile, OpenOptions};
 
 use super::args::{frame_size, MAX_WORKERS, SIDE};
 use crate::human::count;
+use crate::progress::Progress;
 
 /// Arguments of `holodeck run`.
 #[derive(clap::Args)]
@@ -26,7 +27,7 @@ run within 20 s. The
 children stop with `run` however it ends (even killed), the server flushing its file.
 If the server, a sampler or the display dies by a signal or fails, `run` says which and
 how, stops the rest, and exits with status 1. With
--o DRIVER, a display (`holodeck view`) opens a window on the session where there is a screen
+--driver DRIVER, a display (`holodeck view`) opens a window on the session where there is a screen
 (DISPLAY or WAYLAND_DISPLAY set): walk through the holodeck as the samplers fill it, with
 the samplers tracing what the window looks at first; closing it (q) ends the run. With
 --headless, or without a screen, the display instead walks --views, sharing --time among
@@ -35,8 +36,10 @@ For workers on other hosts, start `holodeck serve` and `holodeck sample` yoursel
 
 Examples:
   holodeck run builtin:room room.hdk -n 2 --time 30s
-  holodeck run builtin:room room.hdk -n 2 --time 1h -o mesh              # a window
-  holodeck run builtin:room room.hdk -n 2 --time 20s -o quadtree --headless --views walk.vf --frames out
+  holodeck run builtin:room room.hdk -n 2 --driver mesh                  # a window, until q
+  holodeck run builtin:room room.hdk -n 2 --driver quadtree --listen 127.0.0.1:7777
+  holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.viewer.token   # a second window
+  holodeck run builtin:room room.hdk -n 2 --time 20s --driver quadtree --headless --views walk.vf --frames out
   holodeck run scenes/room.toml room.hdk -n 16 --time 2h")]
 pub struct Args {
     /// Scene file, or builtin:NAME.
@@ -50,10 +53,14 @@ pub struct Args {
     /// window may leave it out: it lasts until the window is closed (q).
     #[arg(long)]
     time: Option<String>,
-    /// Display: none (a batch fill), or a driver (quadtree, splat) for a headless
-    /// display that walks --views, drawing frames into --frames.
-    #[arg(short = 'o', long, default_value = "none")]
-    output: String,
+    /// Display: none (a batch fill), or a driver (quadtree, splat, voronoi,
+    /// mesh) for a window, or with --headless a display that walks --views,
+    /// drawing frames into --frames.
+    #[arg(long, value_parser = driver_names(), default_value = "none")]
+    driver: String,
+    /// The driver, as older versions spelled it (`-o DRIVER`); use --driver.
+    #[arg(short = 'o', long = "output", hide = true, value_parser = driver_names(), conflicts_with = "driver")]
+    old_driver: Option<String>,
     /// Draw frames into --frames instead of opening a window.
     #[arg(long)]
     headless: bool,
@@ -62,9 +69,13 @@ pub struct Args {
     /// the first section.
     #[arg(long)]
     views: Option<PathBuf>,
-    /// Directory for the display's frames.
+    /// Directory for the display's frames (created if missing).
     #[arg(long, default_value = "frames")]
     frames: PathBuf,
+    /// Where the server listens (HOST:PORT), so that other displays can join
+    /// with `holodeck view --connect`; default: a free port on this machine only.
+    #[arg(long, default_value = "127.0.0.1:0")]
+    listen: String,
     /// Frame width.
     #[arg(short = 'x', long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(SIDE))]
     width: u32,
@@ -96,6 +107,11 @@ pub struct Args {
     /// For a .hds scene file: decompressed blocks each sampler keeps in memory (K, M, G; default: all).
     #[arg(long, value_parser = holodeck_server::settings::parse_size)]
     scene_memory: Option<u64>,
+}
+
+/// The names `--driver` takes: none, or a display driver.
+fn driver_names() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(std::iter::once("none").chain(holodeck_display::DRIVERS.iter().copied()))
 }
 
 fn me() -> Result<Command> {
@@ -229,14 +245,14 @@ pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     frame_size(a.width, a.height)?;
-    let driver = match a.output.as_str() {
-        "none" => None,
-        d if holodeck_display::DRIVERS.contains(&d) => Some(d.to_string()),
-        d => bail!(
-            "unknown display driver {d:?} (known: none, {})",
-            holodeck_display::DRIVERS.join(", ")
-        ),
+    let chosen = match &a.old_driver {
+        Some(d) => {
+            eprintln!("holodeck run: -o {d} names the display driver as older versions did; it is --driver {d} now");
+            d.as_str()
+        }
+        None => a.driver.as_str(),
     };
+    let driver = (chosen != "none").then(|| chosen.to_string());
     let screen = ["DISPLAY", "WAYLAND_DISPLAY"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
@@ -285,7 +301,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_string();
     let mut server = me()?;
     server
-        .args(["serve", &file, "--listen", "127.0.0.1:0"])
+        .args(["serve", &file, "--listen", &a.listen])
         .args(a.accept_loss.then_some("--accept-loss"))
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit());
@@ -348,7 +364,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         format!("for {time:?}")
     };
     println!(
-        "filling {} with {} local samplers {how_long} (server {addr})",
+        "filling {} with {} local samplers {how_long} (server {addr}; another display joins with \
+         `holodeck view --connect {addr} --token-file {file}.viewer.token`)",
         a.file.display(),
         workers.len()
     );
@@ -383,7 +400,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
                     .max(1);
                 let wait = format!("{}s", time.as_secs_f64() / count as f64);
                 cmd.arg("--headless")
-                    .arg("-o")
+                    .arg("--frames")
                     .arg(&a.frames)
                     .args(["--wait", &wait, "--steps", "2"]);
             }
@@ -392,11 +409,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         None => None,
     };
     let mut failures: Vec<String> = Vec::new();
-    let bar = if time == Duration::MAX {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(time.as_secs().max(1))
-    };
+    // A window shows its own progress; a run bounded by TIME shows the time.
+    let bar = (time != Duration::MAX).then(|| Progress::timed("running", None, time));
     let mut server_stopped = false;
     stop_on_signals();
     while start.elapsed() < time {
@@ -426,15 +440,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 w.done = true;
                 if !status.success() {
                     let failure = format!("{} {}", w.name, how(status));
-                    bar.suspend(|| eprintln!("holodeck run: {failure}"));
+                    match &bar {
+                        Some(bar) => bar.suspend(|| eprintln!("holodeck run: {failure}")),
+                        None => eprintln!("holodeck run: {failure}"),
+                    }
                     failures.push(failure);
                 }
             }
         }
         std::thread::sleep(Duration::from_millis(200));
-        bar.set_position(start.elapsed().as_secs());
+        if let Some(bar) = &bar {
+            bar.tick();
+        }
     }
-    bar.finish_and_clear();
+    if let Some(bar) = &bar {
+        bar.finish();
+    }
     if let Some(v) = viewer.as_mut().filter(|v| !v.done) {
         if windowed || stop_signal().is_some() {
             // TIME is up (or the run was stopped) with the display still at work: close it.
@@ -492,10 +513,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let after = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     let added = after.rays().saturating_sub(before);
     println!(
-        "{}: {} rays added in {secs:.1} s ({:.0} rays/s); {} rays, {} of {} beams hold rays",
+        "{}: {} rays added in {secs:.1} s ({} rays/s); {} rays, {} of {} beams hold rays",
         a.file.display(),
         count(added),
-        added as f64 / secs.max(1e-9),
+        count((added as f64 / secs.max(1e-9)).round() as u64),
         count(after.rays()),
         count(after.sections.iter().map(|s| u64::from(s.1)).sum()),
         count(after.sections.iter().map(|s| u64::from(s.0)).sum())

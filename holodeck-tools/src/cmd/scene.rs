@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use holodeck_sampler::scene::gen::mandelbulb::{DEFAULT_RESOLUTION, MAX_RESOLUTION, MAX_STREAM_RESOLUTION};
@@ -12,6 +12,7 @@ use holodeck_sampler::{Material, Scene, Sky};
 
 use super::args::MAX_TRIANGLES;
 use crate::human::{count, count_in};
+use crate::progress::{Progress, Unit};
 
 /// Arguments of `holodeck scene`.
 #[derive(clap::Args)]
@@ -207,11 +208,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
 }
 
-fn spinner(message: String) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new_spinner();
-    bar.set_message(message);
-    bar.enable_steady_tick(Duration::from_millis(120));
-    bar
+fn spinner(message: String) -> Progress {
+    Progress::waiting(&message)
 }
 
 fn generate(a: GenArgs) -> Result<ExitCode> {
@@ -236,14 +234,14 @@ fn generate(a: GenArgs) -> Result<ExitCode> {
         .map_err(flat)
         .with_context(|| format!("generating scene {:?}", a.name))?;
     let generated = start.elapsed();
-    bar.set_message(format!("writing {}", a.output.display()));
+    bar.set_label(&format!("writing {}", a.output.display()));
     if let Some(dir) = a.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let ply = write_scene(&scene, &a.output)
         .map_err(flat)
         .context("writing the scene")?;
-    bar.finish_and_clear();
+    bar.finish();
     tracing::info!(
         "generated in {:.2} s, written in {:.2} s",
         generated.as_secs_f64(),
@@ -286,7 +284,7 @@ fn build(a: BuildArgs) -> Result<ExitCode> {
         } else {
             load_scene(std::path::Path::new(&a.scene)).map_err(flat)?
         };
-        bar.finish_and_clear();
+        bar.finish();
         Box::new(SceneSource::new(scene))
     };
     if let Some(dir) = a.output.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -299,22 +297,20 @@ fn build(a: BuildArgs) -> Result<ExitCode> {
             .unwrap_or(64 << 10)
             .clamp(4 << 10, 16 << 20),
     };
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg:>12} [{bar:30}] {human_pos}/{human_len} triangles ({eta})")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
+    let bar = Progress::counting("scanning", Unit::Triangles, None);
     let progress = |phase: &str, done: u64, total: u64| {
-        if bar.message() != phase {
-            bar.set_message(phase.to_string());
-        }
-        bar.set_length(total.max(done));
-        bar.set_position(done);
+        // Writing counts blocks; the other phases count triangles. Scanning
+        // is the pass that finds the total.
+        let unit = if phase == "writing" {
+            Unit::Blocks
+        } else {
+            Unit::Triangles
+        };
+        bar.phase(phase, unit, done, (total > 0).then_some(total));
     };
     let r = build_scene_file(source.as_ref(), &a.output, &settings, &progress)
         .with_context(|| format!("building {}", a.output.display()))?;
-    bar.finish_and_clear();
+    bar.finish();
     println!(
         "wrote {}: {} triangles ({} references) in {} chunks, {} blocks in {} levels; {} decompressed, {} compressed ({:.1}%, {}), file {}; {:.1} s ({:.1} s partitioning, {:.1} s building)",
         a.output.display(),
@@ -339,19 +335,14 @@ fn recode(a: RecodeArgs) -> Result<ExitCode> {
     if !holodeck_sampler::ooc::is_scene_file(&a.output) {
         anyhow::bail!("{}: a scene file's name ends in .hds", a.output.display());
     }
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("recoding [{bar:30}] {human_pos}/{human_len} blocks ({eta})")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
+    let bar = Progress::counting("recoding", Unit::Blocks, Some(0));
     let progress = |done: u64, total: u64| {
-        bar.set_length(total);
-        bar.set_position(done);
+        bar.set_total(total);
+        bar.set(done);
     };
     let r = holodeck_sampler::ooc::recode(&a.input, &a.output, a.codec, &progress)
         .with_context(|| format!("recoding {} into {}", a.input.display(), a.output.display()))?;
-    bar.finish_and_clear();
+    bar.finish();
     let pct = |b: u64| 100.0 * b as f64 / r.decompressed_bytes.max(1) as f64;
     println!(
         "wrote {}: {} blocks, {} decompressed; {} compressed ({:.1}%, {}) where {} had {} ({:.1}%); file {}; {:.1} s",
@@ -409,7 +400,7 @@ fn info(a: InfoArgs) -> Result<ExitCode> {
     }
     let bar = spinner(format!("loading {}", a.file.display()));
     let scene = load_scene(&a.file).map_err(flat).context("loading the scene")?;
-    bar.finish_and_clear();
+    bar.finish();
     print!("{}", describe(&scene));
     Ok(ExitCode::SUCCESS)
 }

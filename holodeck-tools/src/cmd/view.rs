@@ -35,31 +35,34 @@ the stored samples are in, then keeps drawing as traced samples arrive for --wai
 frames. While a view stays, the samples it asks for per pixel double each time most of them
 have arrived (up to --max-density), so the picture keeps converging. Moving to the next view
 keeps every pixel's estimate (reprojected), and the server sends only rays not sent before.
-Frames go to DIR as view0001_00.png, view0001_01.png, ... (or .hdr with --format hdr).
+Frames go to --frames DIR as view0001_00.png, view0001_01.png, ... (or .hdr with --format hdr).
 Against a server with no samplers this replays the holodeck file.
 
 Examples:
   holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token --driver mesh
   printf 'where\\nquit\\n' | holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.viewer.token -i
   holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.token --headless \\
-      --views walk.vf -o frames --wait 5s --steps 5
+      --views walk.vf --frames frames --wait 5s --steps 5
   holodeck view --connect unix:/tmp/room.sock --token-file room.hdk.token --headless \\
-      --views walk.vf -o frames --format hdr --read-only")]
+      --views walk.vf --frames frames --format hdr --read-only")]
 pub struct Args {
     /// The server: HOST:PORT or unix:PATH.
     #[arg(long)]
     connect: String,
     #[command(flatten)]
     token: super::args::TokenArgs,
-    /// Run without a window: walk --views and write frames into -o.
-    #[arg(long, requires_all = ["views", "output"])]
+    /// Run without a window: walk --views and write frames into --frames.
+    #[arg(long, requires = "views")]
     headless: bool,
     /// A file of views, one per line (in a window: the first is where it starts).
     #[arg(long)]
     views: Option<PathBuf>,
-    /// Directory for the frames (headless).
-    #[arg(short, long)]
-    output: Option<PathBuf>,
+    /// Directory for the frames (headless; created if missing).
+    #[arg(long, value_name = "DIR")]
+    frames: Option<PathBuf>,
+    /// The frames' directory, as older versions spelled it (`-o DIR`); use --frames.
+    #[arg(short = 'o', long = "output", hide = true, conflicts_with = "frames")]
+    old_frames: Option<PathBuf>,
     #[command(flatten)]
     window: super::window::WindowArgs,
     #[command(flatten)]
@@ -102,8 +105,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if !a.headless {
         return windowed(a);
     }
-    let (Some(views_path), Some(output)) = (a.views.clone(), a.output.clone()) else {
-        bail!("--headless needs --views and -o");
+    if let Some(d) = &a.old_frames {
+        eprintln!(
+            "holodeck view: -o {} names the frames' directory as older versions did; it is --frames {0} now",
+            d.display()
+        );
+    }
+    let (Some(views_path), Some(output)) = (a.views.clone(), a.frames.clone().or(a.old_frames.clone())) else {
+        bail!("--headless needs --views and --frames");
     };
     if a.format != "png" && a.format != "hdr" {
         bail!("--format must be png or hdr, not {:?}", a.format);

@@ -141,7 +141,11 @@ impl Demo {
         let tracer = input.tracer(TraceOptions::default());
 
         // References first: every picture below is measured against them.
-        let bar = crate::progress::count_bar("rendering the reference views", views.len() as u64);
+        let bar = crate::progress::Progress::counting(
+            "rendering the reference views",
+            crate::progress::Unit::Views,
+            Some(views.len() as u64),
+        );
         let mut truths = Vec::with_capacity(views.len());
         for (i, v) in views.iter().enumerate() {
             let seed = 0x005e_ed0f_7e57 + 2 * i as u64;
@@ -149,7 +153,7 @@ impl Demo {
             truths.push(Truth::new(&tracer, v, halves)?);
             bar.inc(1);
         }
-        bar.finish_and_clear();
+        bar.finish();
         let reference_secs = start.elapsed().as_secs_f64();
 
         let kinds = methods::methods();
@@ -157,7 +161,11 @@ impl Demo {
 
         // Every view, every holodeck method.
         let mut columns: Vec<Column> = kinds.iter().map(|&k| Column::new(k)).collect();
-        let bar = crate::progress::count_bar("drawing every view from the holodeck", views.len() as u64);
+        let bar = crate::progress::Progress::counting(
+            "drawing every view from the holodeck",
+            crate::progress::Unit::Views,
+            Some(views.len() as u64),
+        );
         for (i, (view, truth)) in views.iter().zip(&truths).enumerate() {
             for driver in DRIVERS {
                 let mine: Vec<usize> = (0..kinds.len())
@@ -182,7 +190,7 @@ impl Demo {
             }
             bar.inc(1);
         }
-        bar.finish_and_clear();
+        bar.finish();
         file.close()?;
         for c in &mut columns {
             c.shots.resize_with(views.len(), || None);
@@ -196,7 +204,11 @@ impl Demo {
             .context("the default method is measured")?;
         let holodeck_secs = filled.secs + columns[default].secs();
         let share = holodeck_secs / views.len() as f64;
-        let bar = crate::progress::count_bar("rendering each view directly in the same time", views.len() as u64);
+        let bar = crate::progress::Progress::counting(
+            "rendering each view directly in the same time",
+            crate::progress::Unit::Views,
+            Some(views.len() as u64),
+        );
         let mut overhead = 0.0;
         for (i, (view, truth)) in views.iter().zip(&truths).enumerate() {
             for (k, kind) in kinds.iter().enumerate() {
@@ -224,7 +236,7 @@ impl Demo {
             }
             bar.inc(1);
         }
-        bar.finish_and_clear();
+        bar.finish();
 
         // Frames and sheets.
         for (i, truth) in truths.iter().enumerate() {
@@ -281,8 +293,11 @@ impl Demo {
             views: Some(ViewFill::new(file.sections(), views, eye_radius)),
         };
         let stages = [self.rays / 16, self.rays / 4, self.rays];
-        let bar = crate::progress::rays_bar("filling the holodeck for the walk");
-        bar.set_length(self.rays);
+        let bar = crate::progress::Progress::counting(
+            "filling the holodeck for the walk",
+            crate::progress::Unit::Rays,
+            Some(self.rays),
+        );
         let (mut secs, mut filled) = (0.0, 0u64);
         let charted: Vec<Kind> = kinds
             .iter()
@@ -305,7 +320,7 @@ impl Demo {
             o.rays = Some(stage.saturating_sub(filled).max(1));
             o.seed = self.seed + k as u64;
             let base = filled;
-            let report = fill(tracer, file, &o, &|n| bar.set_position(base + n))?;
+            let report = fill(tracer, file, &o, &|n| bar.set(base + n))?;
             filled += report.rays;
             secs += report.secs;
             for driver in DRIVERS {
@@ -327,7 +342,7 @@ impl Demo {
                 }
             }
         }
-        bar.finish_and_clear();
+        bar.finish();
         // Direct renders of the first view with the paths of each stage, on
         // their own and cleaned by OIDN.
         let mut direct = Vec::new();

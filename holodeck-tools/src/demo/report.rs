@@ -157,6 +157,22 @@ pub struct Run<'a> {
     pub total_secs: f64,
 }
 
+/// What the summary's measures and names mean, printed above its table.
+const MEASURES: &str = "What the columns mean. FLIP: NVIDIA's perceptual difference of the pictures as \
+shown (0 is identical, lower is better); HDR-FLIP: the same over the reference's range of exposures. \
+SSIM: structural similarity (1 is identical). Relative RMSE: the root of the mean, over pixels, of the \
+squared difference divided by the reference's squared value (plus 0.01); a few bright pixels can \
+dominate it, so the clamped columns first clamp every value at 2. Same time: a direct render of \
+each view given the holodeck's time (its fill and its frames) divided among the views; \
+direct + oidn is that render cleaned by Intel Open Image Denoise, what a user would otherwise do.\n\n";
+
+/// How to read the charts the demo writes, printed under its table.
+const CHARTS: &str = "\nThe charts: chart-error-vs-paths-and-time shows the first view alone. A direct \
+render spends every path on that view while the holodeck's rays serve every view of the walk, so \
+on one view the direct render catches up as paths grow and wins from some count on; the \
+holodeck's gain is that the next views cost only their frames (chart-walkthrough, each view's \
+error against the time spent so far).\n";
+
 fn cell(x: f64, digits: usize) -> String {
     if x.is_nan() {
         String::new()
@@ -172,16 +188,17 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
     let d = r.demo;
     let n = r.truths.len();
     let mut s = format!(
-        "holodeck demo: {} rays traced into {} in {:.1} s ({:.0} rays/s), {n} views of {}x{} along a walk through the room and out, references at {} spp in two halves ({:.1} s)\n\n",
+        "holodeck demo: {} rays traced into {} in {:.1} s ({} rays/s), {n} views of {}x{} along a walk through the room and out, references at {} spp in two halves ({:.1} s)\n\n",
         count(r.filled.rays),
         r.hdk.display(),
         r.filled.secs,
-        r.filled.rays as f64 / r.filled.secs.max(1e-9),
+        count((r.filled.rays as f64 / r.filled.secs.max(1e-9)).round() as u64),
         d.width,
         d.height,
         d.reference_spp,
         r.reference_secs
     );
+    s += MEASURES;
     s += "Means over the views. Seconds: the holodeck's fill and every frame of the method; a direct render's every view, each given the holodeck's time (fill and quadtree + atrous frames) over the views. Light kept: the method's luminance over the reference's in the darkest quarter, the middle half and the brightest quarter of the reference's pixels, and in the silhouette band; peak: the brightest spot kept.\n\n";
     s += "| method | rays or paths | seconds | FLIP | HDR-FLIP | SSIM | clamped rel. RMSE | clamped rel. MSE | rel. RMSE | rel. MSE | dark | middle | bright | band | peak |\n";
     s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -286,6 +303,7 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
             s += "The direct render cleaned by OIDN is missing: this build has no Open Image Denoise (build with --features oidn, see the README).\n";
         }
     }
+    s += CHARTS;
     s += &format!(
         "\nThe walk: the holodeck's quadtree + atrous pictures after {:.1} s (fill and every frame). Frames in {}, comparison sheets, charts and summary.json in {}; {:.0} s in all.\n",
         r.holodeck_secs,

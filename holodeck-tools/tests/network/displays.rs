@@ -168,7 +168,7 @@ fn a_display_only_server_replays_the_file_to_a_headless_view() {
         "--read-only",
         "--views",
         views.to_str().unwrap(),
-        "-o",
+        "--frames",
         frames_dir,
         "-x",
         "64",
@@ -276,7 +276,7 @@ fn still_views_keep_converging_while_samplers_work() {
                 .args(["view", "--connect", &addr, "--token", "t", "--headless"])
                 .arg("--views")
                 .arg(&views)
-                .arg("-o")
+                .arg("--frames")
                 .arg(&frames)
                 .args([
                     "-x", "32", "-y", "24", "--wait", "10m", "--steps", "600", "--format", "hdr",

@@ -185,7 +185,7 @@ pub struct ControlReply {
 pub struct Progress {
     /// Rays stored in the file.
     pub rays: u64,
-    /// Rays stored per second lately.
+    /// Rays stored per second over the last five seconds.
     pub rays_per_second: f64,
     /// File size in bytes.
     pub file_bytes: u64,

@@ -26,6 +26,22 @@ pub enum ConnectionError {
     Stalled(String),
 }
 
+impl ConnectionError {
+    /// True when the peer went away (closed or reset the connection, as a
+    /// display does when its window closes) rather than misbehaved.
+    pub fn is_gone(&self) -> bool {
+        use std::io::ErrorKind::*;
+        match self {
+            ConnectionError::Io(e) => matches!(
+                e.kind(),
+                ConnectionReset | ConnectionAborted | BrokenPipe | UnexpectedEof
+            ),
+            ConnectionError::Truncated => true,
+            ConnectionError::Frame(_) | ConnectionError::Stalled(_) => false,
+        }
+    }
+}
+
 /// A framed connection: a reader and a writer half, which a task may also
 /// drive separately (see [`Connection::split`]).
 pub struct Connection {

@@ -4,12 +4,14 @@
 //! own thread so disk I/O never blocks the executor; [`config`] is how the
 //! operator set the server up; `state` is what every connection task shares
 //! (and the control commands that change it); [`service`] checks each peer's
-//! handshake and hands it to the sampler or display loop.
+//! handshake and hands it to the sampler or display loop; [`rate`] smooths the
+//! rays-per-second reports.
 
 pub mod config;
 pub mod connection;
 mod display;
 pub mod listener;
+pub mod rate;
 mod sampler;
 pub mod service;
 mod state;

@@ -97,18 +97,17 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         })
     };
     // Displays get the first report as they connect, and a new one each second.
-    let first = shared.progress_now(None).await;
+    let mut rate = super::rate::RateWindow::default();
+    let first = shared.progress_now(&mut rate).await;
     shared.progress.send_replace(first);
     let reports = {
         let shared = Arc::clone(&shared);
         tokio::spawn(async move {
             let mut tick = tokio::time::interval(PROGRESS_EVERY);
             tick.tick().await;
-            let mut last = (first.rays, std::time::Instant::now());
             loop {
                 tick.tick().await;
-                let p = shared.progress_now(Some(last)).await;
-                last = (p.rays, std::time::Instant::now());
+                let p = shared.progress_now(&mut rate).await;
                 shared.progress.send_replace(p);
             }
         })
@@ -159,8 +158,11 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
             Some((stream, peer)) = peers.recv() => {
                 let shared = Arc::clone(&shared);
                 tasks.spawn(async move {
-                    if let Err(e) = handle(stream, &shared).await {
-                        tracing::warn!("{peer}: {e}");
+                    match handle(stream, &shared).await {
+                        Ok(()) => {}
+                        // A peer that leaves without saying goodbye (a closed window) is no fault.
+                        Err(e) if e.is_gone() => tracing::info!("{peer} went away: {e}"),
+                        Err(e) => tracing::warn!("{peer}: {e}"),
                     }
                 });
             }

@@ -96,20 +96,12 @@ impl Shared {
         self.displays.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// A report of the file and the connections now; `last` (the previous
-    /// report and when it was made) gives the rate.
-    pub async fn progress_now(&self, last: Option<(u64, std::time::Instant)>) -> Progress {
+    /// A report of the file and the connections now; `rate` (the reports
+    /// before) gives the rays' rate over the last few seconds.
+    pub async fn progress_now(&self, rate: &mut super::rate::RateWindow) -> Progress {
         let summary = self.store.summary().await;
         let rays = summary.as_ref().map_or(0, |s| s.rays());
-        let now = std::time::Instant::now();
-        let rays_per_second = last.map_or(0.0, |(r, t)| {
-            let secs = now.duration_since(t).as_secs_f64();
-            if secs > 0.0 {
-                rays.saturating_sub(r) as f64 / secs
-            } else {
-                0.0
-            }
-        });
+        let rays_per_second = rate.push(rays, std::time::Instant::now());
         let (beams_filled, beams) = summary.as_ref().map_or((0, 0), |s| {
             s.sections
                 .iter()

@@ -25,11 +25,17 @@ bench that fails is reported and the others still run (the exit status is then 1
 Examples:
   holodeck bench all
   holodeck bench all --json before.json
+  holodeck bench all --markdown docs/results
   holodeck bench all --only tracer --only storage --repeats 5")]
 pub struct Args {
     /// Write the figures as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Write the table as DIR/bench-all.md, headed by this command, the commit and the
+    /// date, and refresh the blocks quoting it in the Markdown files of DIR's parent
+    /// (docs/RESULTS.md quotes docs/results/bench-all.md).
+    #[arg(long, value_name = "DIR")]
+    markdown: Option<PathBuf>,
     /// Repeats of each figure.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(2..=50))]
     repeats: u32,
@@ -61,17 +67,14 @@ pub const BENCHES: [(&str, Bench); 6] = [
     ("accuracy", super::accuracy::fast),
 ];
 
-/// The CPU's name as the system gives it.
-fn cpu() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|s| s.trim().to_string())
-        })
-        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+/// ", refreshing A, B" for the documents quoting a generated file.
+pub fn refreshed(docs: &[PathBuf]) -> String {
+    if docs.is_empty() {
+        String::new()
+    } else {
+        let names: Vec<String> = docs.iter().map(|d| d.display().to_string()).collect();
+        format!(", refreshing {}", names.join(", "))
+    }
 }
 
 /// Runs the command.
@@ -112,14 +115,19 @@ pub fn run(a: &Args) -> Result<ExitCode> {
             }
         }
     }
-    print!("{}", table(&figures));
+    let mut text = table(&figures);
     if !failed.is_empty() {
-        println!("\nFailed: {}.", failed.join(", "));
+        text += &format!("\nFailed: {}.\n", failed.join(", "));
+    }
+    print!("{text}");
+    if let Some(dir) = &a.markdown {
+        let (file, docs) = crate::generated::publish(dir, "bench-all", &crate::generated::command_line(), &text)?;
+        eprintln!("wrote {}{}", file.display(), refreshed(&docs));
     }
     let report = Report {
         format: FORMAT,
         version: env!("CARGO_PKG_VERSION").into(),
-        cpu: cpu(),
+        cpu: crate::generated::cpu(),
         threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
         started,
         figures,

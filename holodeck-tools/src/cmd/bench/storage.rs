@@ -108,7 +108,7 @@ fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<(f64, 
     let beams = f.sections()[0].beam_count();
     let mut rng = StdRng::seed_from_u64(seed);
     let packet: Vec<RayRecord> = (0..4096).map(|_| random_ray(&mut rng)).collect();
-    let bar = indicatif::ProgressBar::new(rays);
+    let bar = crate::progress::Progress::counting("appending", crate::progress::Unit::Rays, Some(rays));
     let start = Instant::now();
     let mut done = 0u64;
     while done < rays {
@@ -117,13 +117,13 @@ fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<(f64, 
         f.append(BeamKey::new(0, rng.gen_range(0..beams)), &packet[at..at + n])?;
         done += n as u64;
         if done % (1 << 20) < 21 {
-            bar.set_position(done);
+            bar.set(done);
         }
     }
     f.flush()?;
     let appended = start.elapsed().as_secs_f64();
     f.close()?;
-    bar.finish_and_clear();
+    bar.finish();
     Ok((appended, start.elapsed().as_secs_f64() - appended))
 }
 
@@ -518,8 +518,8 @@ pub fn run(a: &Args) -> Result<ExitCode> {
             count(a.reference_rays)
         ),
         rate(a.reference_rays, ref_fill),
-        String::new(),
-        f64::NAN,
+        raw_text.clone(),
+        a.reference_rays as f64 / ref_fill / raw,
     );
     row(
         &format!("reference fill: optimize {} (cold)", bytes(before.file_bytes)),
