@@ -105,7 +105,7 @@ fn run_rate(dir: &Path, workers: usize, seconds: f64) -> Result<f64> {
         .split(" rays/s")
         .next()
         .and_then(|s| s.rsplit('(').next())
-        .and_then(|s| s.trim().parse::<f64>().ok())
+        .and_then(|s| s.trim().replace(',', "").parse::<f64>().ok())
         .with_context(|| format!("no rate in {text:?}"))?;
     let _ = std::fs::remove_file(&file);
     for level in ["", ".writer", ".viewer"] {
