@@ -5,6 +5,26 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+/// Prints a line saying what a command did (a summary, a file written) to
+/// standard output, unless `-q` asked for errors only. What a command was
+/// asked to show (`info`, `check`, `compare`, tables) is printed as usual.
+macro_rules! summary {
+    ($($arg:tt)*) => {
+        if !$crate::quiet() {
+            println!($($arg)*);
+        }
+    };
+}
+
+/// A note or warning on standard error, unless `-q` asked for errors only.
+macro_rules! note {
+    ($($arg:tt)*) => {
+        if !$crate::quiet() {
+            eprintln!($($arg)*);
+        }
+    };
+}
+
 mod chart;
 mod cmd;
 mod demo;

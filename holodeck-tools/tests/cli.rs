@@ -568,11 +568,49 @@ fn quiet_reaches_runs_children() {
     assert!(o.status.success(), "{}", text(&o));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!err.contains("access token"), "-q silences the children too: {err}");
-    assert!(
-        text(&o).contains("rays added"),
-        "the summary is still printed: {}",
-        text(&o)
-    );
+    assert_eq!(text(&o), "", "-q: errors only, the run's summary left out too");
+    assert!(file.is_file());
+    // The same for the commands' own summaries.
+    let png = dir.path().join("q.png");
+    let rad = dir.path().join("rholo.hdk");
+    for args in [
+        vec![
+            "-q",
+            "render",
+            "builtin:room",
+            "-x",
+            "16",
+            "-y",
+            "12",
+            "--spp",
+            "1",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        vec![
+            "-q",
+            "export",
+            "radiance",
+            file.to_str().unwrap(),
+            "-o",
+            rad.to_str().unwrap(),
+        ],
+        vec![
+            "-q",
+            "pict",
+            file.to_str().unwrap(),
+            "-x",
+            "16",
+            "-y",
+            "12",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+    ] {
+        let o = holodeck(&args);
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+        assert_eq!(text(&o), "", "{args:?} printed more than errors");
+    }
 }
 
 #[test]
@@ -603,4 +641,72 @@ fn a_coarse_picture_says_how_to_fill_for_the_view() {
     let out = text(&o);
     assert!(out.contains("is coarse: the view sees 0."), "{out}");
     assert!(out.contains("--views VIEWS"), "{out}");
+}
+
+#[test]
+fn progress_is_not_drawn_off_a_terminal() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let png = dir.path().join("room.png");
+    for args in [
+        vec![
+            "fill",
+            "builtin:room",
+            file.to_str().unwrap(),
+            "--rays",
+            "50K",
+            "--bounces",
+            "1",
+        ],
+        vec![
+            "render",
+            "builtin:room",
+            "-x",
+            "32",
+            "-y",
+            "24",
+            "--spp",
+            "2",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+    ] {
+        let o = holodeck(&args);
+        assert!(o.status.success(), "{}", text(&o));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !err.contains('\r') && !err.contains('\u{1b}') && !err.contains("[="),
+            "{args:?} drew progress into a pipe: {err:?}"
+        );
+    }
+}
+
+#[test]
+fn old_spellings_of_frames_and_driver_say_what_they_are_now() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = dir.path().join("v.vf");
+    std::fs::write(&views, "-vp 1 1 1\n").unwrap();
+    let frames = dir.path().join("frames");
+    // Nothing listens on port 1: the note comes before the connection fails.
+    let o = holodeck(&[
+        "view",
+        "--connect",
+        "127.0.0.1:1",
+        "--token",
+        "t",
+        "--headless",
+        "--views",
+        views.to_str().unwrap(),
+        "-o",
+        frames.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("it is --frames"), "{}", text(&o));
+    let o = holodeck(&["run", "builtin:room", "x.hdk", "--driver", "crayon", "--time", "1s"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o).contains("[possible values: none, quadtree, splat, voronoi, mesh]"),
+        "{}",
+        text(&o)
+    );
 }

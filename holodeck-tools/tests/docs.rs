@@ -76,9 +76,12 @@ fn files_named(cell: &str) -> Vec<String> {
     let mut rest = cell;
     while let Some(at) = rest.find("docs/") {
         let tail = &rest[at..];
-        let end = tail.find(".md").map(|e| e + 3);
-        if let Some(end) = end {
-            out.push(tail[..end].to_string());
+        let len = tail
+            .find(|c: char| !(c.is_ascii_alphanumeric() || "/._-".contains(c)))
+            .unwrap_or(tail.len());
+        let path = tail[..len].trim_end_matches('.');
+        if path.ends_with(".md") {
+            out.push(path.to_string());
         }
         rest = &tail[5..];
     }

@@ -38,7 +38,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     });
     bar.finish();
     let r = r.with_context(|| format!("copying {} into {}", a.src.display(), a.dst.display()))?;
-    println!(
+    summary!(
         "{} -> {}{}: {} rays read, {} stored ({} section(s) merged beam for beam, {} resampled), {} valid in no section",
         a.src.display(),
         a.dst.display(),

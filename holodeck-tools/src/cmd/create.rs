@@ -90,7 +90,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     HoloFile::create(&a.file, &settings)?;
     let beams: u64 = settings.sections.iter().map(|s| u64::from(s.beam_count())).sum();
-    println!(
+    summary!(
         "created {} with {} section(s), {} beams",
         a.file.display(),
         settings.sections.len(),

@@ -52,7 +52,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     });
     bar.finish();
     let r = r.with_context(|| format!("exporting {}", a.file.display()))?;
-    println!(
+    summary!(
         "{} -> {}: {} section(s), {} beams holding {} rays, {} in {:.2} s",
         a.file.display(),
         a.output.display(),
@@ -63,7 +63,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         r.seconds
     );
     if r.converted > 0 {
-        println!("  {} depth codes converted to Radiance's coding", count(r.converted));
+        summary!("  {} depth codes converted to Radiance's coding", count(r.converted));
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -199,7 +199,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     // Closing compacts the file: its size is what it is after that.
     file.close()?;
     let summary = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
-    println!(
+    summary!(
         "{}: {} rays in {:.1} s ({} rays/s, {:.1}% of the time storing); {} of {} beams hold rays ({:.1}%); file {} ({:.2} bytes/ray)",
         a.file.display(),
         count(report.rays),
@@ -213,7 +213,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         summary.bytes_per_ray()
     );
     if non_finite > 0 {
-        println!("warning: {non_finite} non-finite estimates were replaced by black");
+        summary!("warning: {non_finite} non-finite estimates were replaced by black");
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -69,7 +69,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         ByteOrder::Little => "little-endian",
         ByteOrder::Big => "big-endian",
     };
-    println!(
+    summary!(
         "{} -> {}: {} section(s), {} beams holding {} rays ({order}, {}-byte offsets) in {:.2} s ({}/s)",
         a.file.display(),
         a.output.display(),
@@ -81,10 +81,10 @@ pub fn run(a: Args) -> Result<ExitCode> {
         count((r.rays as f64 / r.seconds.max(1e-9)) as u64)
     );
     for line in &r.unused {
-        println!("  not carried over: {line}");
+        summary!("  not carried over: {line}");
     }
     for note in &r.notes {
-        println!("  note: {note}");
+        summary!("  note: {note}");
     }
     Ok(ExitCode::SUCCESS)
 }

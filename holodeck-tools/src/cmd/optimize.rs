@@ -33,7 +33,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     });
     bar.finish();
     let r = r?;
-    println!(
+    summary!(
         "{}: {} rays, {} -> {} in {:.2} s",
         a.file.display(),
         count(r.rays),

@@ -283,7 +283,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         output::save(&picture, &hist, mode, &out, Some(&view))?;
         if s.samples == 0 {
-            eprintln!(
+            note!(
                 "holodeck pict: warning: {} is black: the view sees no rays of {} (is the eye inside an \
                  interior section, or outside looking at an exterior one? `holodeck info` lists the sections)",
                 out.display(),
@@ -292,7 +292,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         let per_pixel = s.samples as f64 / (f64::from(a.frame.width) * f64::from(a.frame.height));
         if s.samples > 0 && per_pixel < COARSE {
-            eprintln!(
+            note!(
                 "holodeck pict: note: {} is coarse: the view sees {per_pixel:.2} rays per pixel of {}. A fill by \
                  volume spreads its rays over every beam of the section; fill for the views you want \
                  (`holodeck fill SCENE FILE --views VIEWS --rays N`) or watch them fill with a display \
@@ -306,7 +306,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             Denoiser::Off => String::new(),
             d => format!(" (denoised: {})", d.name()),
         };
-        println!(
+        summary!(
             "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms{denoised}; {} pixel estimates, {} rays behind a nearer surface",
             out.display(),
             count(s.samples),

@@ -252,7 +252,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     write_picture(&picture, &a.output, a.exposure, &view)?;
     let samples = u64::from(a.width) * u64::from(a.height) * u64::from(a.spp);
-    println!(
+    summary!(
         "{}: {} x {} at {} spp in {secs:.2} s ({:.2} M samples/s, {} threads); {} triangles, tree {build:.2} s",
         a.output.display(),
         a.width,
@@ -263,7 +263,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         count(triangles)
     );
     if let Some(r) = tracer.assembled() {
-        println!(
+        summary!(
             "scene file: assembled in memory ({} blocks, {} MB, {:.2} s); --out-of-core to trace it through the block cache",
             count(u64::from(r.blocks)),
             r.bytes >> 20,
@@ -273,7 +273,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let Some(f) = tracer.scene_file() {
         // What this view needed of the scene file: its working set, when the cache held it all.
         let st = f.cache().stats();
-        println!(
+        summary!(
             "scene file: {} of {} blocks loaded ({} MB read, {} MB decompressed), {} MB resident of a {} MB cache, {} evicted",
             count(st.loads),
             count(u64::from(f.header().blocks)),
@@ -285,7 +285,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         );
     }
     if tracer.non_finite_count() > 0 {
-        println!(
+        summary!(
             "warning: {} non-finite estimates were replaced by black",
             tracer.non_finite_count()
         );

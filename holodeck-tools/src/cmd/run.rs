@@ -363,7 +363,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     } else {
         format!("for {time:?}")
     };
-    println!(
+    summary!(
         "filling {} with {} local samplers {how_long} (server {addr}; another display joins with \
          `holodeck view --connect {addr} --token-file {file}.viewer.token`)",
         a.file.display(),
@@ -512,7 +512,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     let after = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     let added = after.rays().saturating_sub(before);
-    println!(
+    summary!(
         "{}: {} rays added in {secs:.1} s ({} rays/s); {} rays, {} of {} beams hold rays",
         a.file.display(),
         count(added),

@@ -141,6 +141,6 @@ pub fn run(a: Args) -> Result<ExitCode> {
             None => bail!("a worker thread failed; see the message above"),
         }
     }
-    println!("traced {} rays for {}", count(rays), a.connect);
+    summary!("traced {} rays for {}", count(rays), a.connect);
     Ok(ExitCode::SUCCESS)
 }

@@ -247,7 +247,7 @@ fn generate(a: GenArgs) -> Result<ExitCode> {
         generated.as_secs_f64(),
         (start.elapsed() - generated).as_secs_f64()
     );
-    println!(
+    summary!(
         "wrote {} and {}: {} triangles, {} materials, {} section(s)",
         a.output.display(),
         ply.display(),
@@ -255,7 +255,7 @@ fn generate(a: GenArgs) -> Result<ExitCode> {
         scene.materials.len(),
         scene.sections.len()
     );
-    println!("content hash {}", content_hash(&scene));
+    summary!("content hash {}", content_hash(&scene));
     Ok(ExitCode::SUCCESS)
 }
 
@@ -311,7 +311,7 @@ fn build(a: BuildArgs) -> Result<ExitCode> {
     let r = build_scene_file(source.as_ref(), &a.output, &settings, &progress)
         .with_context(|| format!("building {}", a.output.display()))?;
     bar.finish();
-    println!(
+    summary!(
         "wrote {}: {} triangles ({} references) in {} chunks, {} blocks in {} levels; {} decompressed, {} compressed ({:.1}%, {}), file {}; {:.1} s ({:.1} s partitioning, {:.1} s building)",
         a.output.display(),
         count(r.triangles),
@@ -344,7 +344,7 @@ fn recode(a: RecodeArgs) -> Result<ExitCode> {
         .with_context(|| format!("recoding {} into {}", a.input.display(), a.output.display()))?;
     bar.finish();
     let pct = |b: u64| 100.0 * b as f64 / r.decompressed_bytes.max(1) as f64;
-    println!(
+    summary!(
         "wrote {}: {} blocks, {} decompressed; {} compressed ({:.1}%, {}) where {} had {} ({:.1}%); file {}; {:.1} s",
         a.output.display(),
         count(u64::from(r.blocks)),

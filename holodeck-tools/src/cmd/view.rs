@@ -140,7 +140,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let path = output.join(name);
         let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
         output::save(&picture, hist, mode, &path, Some(view))?;
-        println!(
+        summary!(
             "{}: {} new samples in {:.0} ms ({} in all, {} pixel estimates), drawn in {:.1} ms",
             path.display(),
             count(new),

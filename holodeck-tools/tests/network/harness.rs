@@ -426,7 +426,8 @@ pub fn collect_until(
 /// stored rays, and asks the server to quit. `run` is left to finish.
 pub fn run_stores_then_quit(run: &Proc, file: &Path, rays: u64, what: &str) {
     let addr = run.wait_line("the address of run's server", &mut 0, |l| {
-        l.split_once("(server ")?.1.strip_suffix(')').map(str::to_string)
+        let rest = l.split_once("(server ")?.1;
+        rest.split([';', ')']).next().map(str::to_string)
     });
     let token = std::fs::read_to_string(format!("{}.token", file.display()))
         .unwrap()

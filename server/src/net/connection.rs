@@ -155,3 +155,23 @@ impl FrameWriter {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::{Error, ErrorKind};
+
+    #[test]
+    fn a_peer_that_leaves_is_told_from_one_that_misbehaves() {
+        for kind in [
+            ErrorKind::ConnectionReset,
+            ErrorKind::BrokenPipe,
+            ErrorKind::UnexpectedEof,
+        ] {
+            assert!(ConnectionError::Io(Error::from(kind)).is_gone(), "{kind:?}");
+        }
+        assert!(ConnectionError::Truncated.is_gone());
+        assert!(!ConnectionError::Io(Error::from(ErrorKind::PermissionDenied)).is_gone());
+        assert!(!ConnectionError::Stalled("held work".into()).is_gone());
+    }
+}
