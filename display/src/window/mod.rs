@@ -36,3 +36,17 @@ pub enum WindowError {
     #[error(transparent)]
     Image(#[from] crate::image_io::ImageError),
 }
+
+impl WindowError {
+    /// True when the window closed because its server ended the session
+    /// (it quit, was stopped, or its TIME was up): the end of a session,
+    /// not a fault of the window.
+    pub fn server_ended(&self) -> bool {
+        matches!(
+            self,
+            WindowError::Walk(WalkError::Source(SourceError::Client(
+                crate::client::ClientError::Closed
+            )))
+        )
+    }
+}

@@ -68,7 +68,13 @@ pub fn open(
         script: args.script,
         title: format!("({})", frame.driver),
     };
-    window::run(walk, options).context("the walkthrough window")
+    match window::run(walk, options) {
+        Err(e) if e.server_ended() => {
+            note!("holodeck: the server ended the session; the window closed");
+            Ok(())
+        }
+        r => r.context("the walkthrough window"),
+    }
 }
 
 /// Samples straight from a holodeck file: a request reads the stored rays

@@ -80,8 +80,14 @@ fn standard_input_commands_drive_a_window_on_a_server() {
     viewer.say("quit");
     assert!(viewer.wait().success(), "{}", viewer.text());
 
-    window.say("quit");
-    assert!(window.wait().success(), "{}", window.text());
+    // The server quitting ends the session: the window closes by itself,
+    // says why, and exits as a session's end, not a failure.
     quit(&addr, "secret");
+    assert!(window.wait().success(), "{}", window.text());
+    assert!(
+        window.text().contains("the server ended the session"),
+        "{}",
+        window.text()
+    );
     assert!(rays_at_close(&server) > 0, "the viewer's clobber was refused");
 }
