@@ -193,10 +193,15 @@ impl Progress {
     /// the phase's own total.
     pub fn phase(&self, label: &str, unit: Unit, done: u64, total: Option<u64>) {
         if self.bar.message() != label {
-            self.bar.set_message(label.to_string());
+            // Style, counts and label change together: no line is drawn
+            // with the new label and the last phase's counts.
             self.bar.set_style(count_style(unit, total.is_some()));
             // The rate and the time left start over with the phase.
             self.bar.reset();
+            self.bar.set_length(total.unwrap_or(0).max(done));
+            self.bar.set_position(done);
+            self.bar.set_message(label.to_string());
+            return;
         }
         if let Some(t) = total {
             self.bar.set_length(t.max(done));
