@@ -8,12 +8,40 @@
 //! results folder, so the quote is always the file.
 
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::SystemTime;
 
 use anyhow::{Context, Result};
 
 /// The commit this program was built from (`unknown` outside a git checkout).
 pub const COMMIT: &str = env!("HOLODECK_COMMIT");
+
+/// What `out!` printed since [`record`], while recording.
+static RECORDED: Mutex<Option<String>> = Mutex::new(None);
+
+/// From now on, the lines `out!` prints are also kept, for [`recorded`].
+pub fn record() {
+    *RECORDED.lock().unwrap_or_else(|p| p.into_inner()) = Some(String::new());
+}
+
+/// The lines `out!` printed since [`record`]; recording stops.
+pub fn recorded() -> String {
+    RECORDED
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .take()
+        .unwrap_or_default()
+}
+
+/// Prints a line of a command's results to standard output, and keeps it
+/// while recording (see the `out!` macro).
+pub fn out_line(line: &str) {
+    println!("{line}");
+    if let Some(text) = RECORDED.lock().unwrap_or_else(|p| p.into_inner()).as_mut() {
+        text.push_str(line);
+        text.push('\n');
+    }
+}
 
 /// The CPU's name as the system gives it.
 pub fn cpu() -> String {
@@ -52,6 +80,58 @@ pub fn header(command: &str, at: SystemTime) -> String {
         date.trim_end_matches('Z').replacen('T', " ", 1),
         machine()
     )
+}
+
+/// `--markdown DIR` of a command whose printed tables a results document
+/// quotes.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct MarkdownArgs {
+    /// Also write what this prints (its tables) as DIR/NAME.md, headed by this command,
+    /// the commit and the date, with its charts copied beside it, and refresh the blocks
+    /// quoting it in the Markdown files of DIR's parent (docs/RESULTS.md quotes docs/results/).
+    #[arg(long, value_name = "DIR")]
+    pub markdown: Option<PathBuf>,
+}
+
+impl MarkdownArgs {
+    /// Starts keeping what the command prints, when a document is asked for.
+    pub fn start(&self) {
+        if self.markdown.is_some() {
+            record();
+        }
+    }
+
+    /// Writes the document `NAME.md`: what was printed since [`MarkdownArgs::start`],
+    /// then each chart (a PNG the command wrote, and its caption), copied beside it.
+    pub fn finish(&self, name: &str, charts: &[(PathBuf, String)]) -> Result<()> {
+        let Some(dir) = &self.markdown else {
+            return Ok(());
+        };
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let mut body = recorded();
+        for (png, caption) in charts {
+            let file = png
+                .file_name()
+                .context("a chart's file name")?
+                .to_string_lossy()
+                .into_owned();
+            std::fs::copy(png, dir.join(&file))
+                .with_context(|| format!("copying {} into {}", png.display(), dir.display()))?;
+            body += &format!("\n![{caption}](@/{file})\n");
+        }
+        let (file, docs) = publish(dir, name, &command_line(), &body)?;
+        let names: Vec<String> = docs.iter().map(|d| d.display().to_string()).collect();
+        eprintln!(
+            "wrote {}{}",
+            file.display(),
+            if names.is_empty() {
+                String::new()
+            } else {
+                format!(", refreshing {}", names.join(", "))
+            }
+        );
+        Ok(())
+    }
 }
 
 /// The lines that open and close a quote of `name` (e.g. `results/demo.md`).
@@ -152,6 +232,16 @@ mod tests {
             splice(open, "results/demo.md", "x").unwrap_err(),
             "line 2: <!-- begin results/demo.md --> has no <!-- end results/demo.md -->"
         );
+    }
+
+    #[test]
+    fn recorded_lines_are_what_was_printed() {
+        record();
+        out_line("| a | b |");
+        out_line("");
+        assert_eq!(recorded(), "| a | b |\n\n");
+        out_line("not kept");
+        assert_eq!(recorded(), "");
     }
 
     #[test]

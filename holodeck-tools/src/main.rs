@@ -25,6 +25,18 @@ macro_rules! note {
     };
 }
 
+/// Prints a line of a command's results (a table row, its heading) to
+/// standard output; with `--markdown` the command also keeps it for the
+/// document it generates (see `generated::record`).
+macro_rules! out {
+    () => {
+        $crate::generated::out_line("")
+    };
+    ($($arg:tt)*) => {
+        $crate::generated::out_line(&format!($($arg)*))
+    };
+}
+
 mod chart;
 mod cmd;
 mod demo;

@@ -97,11 +97,14 @@ pub struct Args {
     pub estimator: crate::cmd::args::EstimatorArgs,
     #[command(flatten)]
     pub files: super::Files,
+    #[command(flatten)]
+    pub markdown: crate::generated::MarkdownArgs,
 }
 
 /// Runs `holodeck bench accuracy`.
 pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
     crate::cmd::args::frame_size(a.width, a.height)?;
+    a.markdown.start();
     AccuracyBench {
         scene: a.scene.clone(),
         view: View::parse(&a.view).context("--view")?,
@@ -125,6 +128,7 @@ pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
         keep: a.files.keep,
     }
     .run()?;
+    a.markdown.finish("accuracy", &[])?;
     Ok(std::process::ExitCode::SUCCESS)
 }
 
@@ -283,7 +287,7 @@ impl AccuracyBench {
     /// Part 1: one view, every method against paths traced.
     fn one_view(&self, tracer: &Tracer) -> Result<()> {
         let truth = self.truth(tracer, &self.view, "the view")?;
-        println!(
+        out!(
             "\nOne view ({}x{}, {}) against a {}-spp reference (its own clamped relative RMSE {:.4}), mean of {} \
              run(s). Holodeck: `fill --views` then `pict` (fill), raw and denoised, and a display session that \
              asks for rays where its pixels need them (session); direct renders with the same paths, raw and \
@@ -327,21 +331,21 @@ impl AccuracyBench {
                 m[4].add(truth.measure(&p)?, secs);
                 keep(&p, "session")?;
             }
-            println!(
+            out!(
                 "\n{} paths (direct: {} in whole samples per pixel):\n",
                 count(paths),
                 count(traced)
             );
-            println!("{MEASURES}");
+            out!("{MEASURES}");
             for (means, name) in m
                 .iter()
                 .zip(["direct", "direct + oidn", "fill", "fill + atrous", "session"])
             {
                 if means.runs.is_empty() {
                     let why = oidn_missing.as_deref().unwrap_or("not run");
-                    println!("| {name} | not here: {} |||||||||||", why.lines().next().unwrap_or(why));
+                    out!("| {name} | not here: {} |||||||||||", why.lines().next().unwrap_or(why));
                 } else {
-                    println!("{}", means.row(name));
+                    out!("{}", means.row(name));
                 }
             }
         }
@@ -352,17 +356,15 @@ impl AccuracyBench {
     /// and the default denoiser) and by the raw quadtree, on every scene of
     /// `light_scenes` at its own view, against converged references.
     fn light_kept(&self) -> Result<()> {
-        println!(
+        out!(
             "\nLight kept: each scene's view filled with {} rays and drawn by the quadtree (raw, and with the \
              default denoiser), against a {}-spp reference of two halves (its regions chosen on one half and \
              measured against the other); a direct render with the same paths beside them:\n",
             count(self.light_rays),
             self.reference_spp
         );
-        println!(
-            "| scene | method | FLIP | clamped rel. RMSE | dark | middle | bright | band | peak | reference noise |"
-        );
-        println!("|---|---|---|---|---|---|---|---|---|---|");
+        out!("| scene | method | FLIP | clamped rel. RMSE | dark | middle | bright | band | peak | reference noise |");
+        out!("|---|---|---|---|---|---|---|---|---|---|");
         for name in &self.light_scenes {
             let scene = if name.contains(':') {
                 name.clone()
@@ -382,7 +384,7 @@ impl AccuracyBench {
             ] {
                 let m = truth.measure(p)?;
                 let l = m.light;
-                println!(
+                out!(
                     "| {scene} | {method} | {:.4} | {:.4} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {noise:.4} |",
                     m.flip,
                     m.clamped_relative_rmse,
@@ -412,20 +414,20 @@ impl AccuracyBench {
             .enumerate()
             .map(|(i, v)| self.truth(tracer, v, &format!("walk view {}", i + 1)))
             .collect::<Result<_>>()?;
-        println!(
+        out!(
             "\nWalkthrough of {} views (10 cm and 1.5 degrees a step), time until each is within relative RMSE {}:\n",
             views.len(),
             self.target
         );
-        println!("| view | direct: paths | direct: s | holodeck: new rays | holodeck: s | error direct / holodeck |");
-        println!("|---|---|---|---|---|---|");
+        out!("| view | direct: paths | direct: s | holodeck: new rays | holodeck: s | error direct / holodeck |");
+        out!("|---|---|---|---|---|---|");
         let (mut direct, mut holodeck) = (0.0, 0.0);
         for run in 0..self.repeats.max(1) {
             let (d, h) = self.walk_once(tracer, &views, &truths, u64::from(run), run == 0)?;
             direct += d;
             holodeck += h;
         }
-        println!(
+        out!(
             "\nAll runs: direct {direct:.2} s, holodeck {holodeck:.2} s: the holodeck {:.2}x faster.",
             direct / holodeck.max(1e-9)
         );
@@ -515,7 +517,7 @@ impl AccuracyBench {
                 h_secs += start.elapsed().as_secs_f64();
             }
             if rows {
-                println!(
+                out!(
                     "| {} | {} | {:.2} | {} | {:.2} | {:.3} / {:.3} |",
                     i + 1,
                     count(d_paths),
@@ -531,7 +533,7 @@ impl AccuracyBench {
             direct_paths += d_paths;
             holo_rays += rays;
         }
-        println!(
+        out!(
             "| all (run {}) | {} | {:.2} | {} | {:.2} | holodeck {:.2}x faster |",
             run + 1,
             count(direct_paths),

@@ -105,7 +105,7 @@ const REPEATS: usize = 5;
 /// `dir`; writes charts of the results into `charts` if given.
 pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&Path>) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    println!(
+    out!(
         "holodeck bench scene-file: landscape of {} triangles, {pixels} x {pixels} rays, one tracing thread",
         count(triangles)
     );
@@ -121,12 +121,10 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     let tree = KdTree::build(&scene, &Default::default());
     let in_core_build = t0.elapsed().as_secs_f64();
     let tree_bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + tree.stats().bytes;
-    println!();
-    println!(
-        "| build | memory budget | chunks | time (2 cores) | decompressed | file | ratio | decompression (1 core) |"
-    );
-    println!("|---|---|---|---|---|---|---|---|");
-    println!(
+    out!();
+    out!("| build | memory budget | chunks | time (2 cores) | decompressed | file | ratio | decompression (1 core) |");
+    out!("|---|---|---|---|---|---|---|---|");
+    out!(
         "| in-core kd-tree | all | 1 | {in_core_build:.2} s | {} (tree and mesh) | — | — | — |",
         bytes(tree_bytes as u64)
     );
@@ -146,7 +144,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             file.cache().read(id)?;
         }
         let speed = r.decompressed_bytes as f64 / t.elapsed().as_secs_f64() / 1e6;
-        println!(
+        out!(
             "| {} | {} (a quarter of the scene) | {} | {:.2} s | {} ({:.1} B/tri) | {} | {:.1}% | {speed:.0} MB/s |",
             codec.name(),
             bytes(memory),
@@ -168,9 +166,9 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     let view = View::parse(VIEW)?;
     let prim = primary(&view, pixels as usize);
     let bounce = bounces(&tree, &scene, &prim);
-    println!();
-    println!("| rays | in core (baseline, median) | budget | cold | warm (median of {REPEATS}) | warm / in core (median of pairs) | hits differing |");
-    println!("|---|---|---|---|---|---|---|");
+    out!();
+    out!("| rays | in core (baseline, median) | budget | cold | warm (median of {REPEATS}) | warm / in core (median of pairs) | hits differing |");
+    out!("|---|---|---|---|---|---|---|");
     let mut budget_series = Vec::new();
     // The file assembled in memory, as samplers do when every block fits.
     let (mesh, assembled, report) = OocScene::open(&path, None, 0)?.in_core()?;
@@ -211,7 +209,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             }
             let (base, warm, ratio) = (median(&base), median(&warm), median(&ratio));
             let st = file.cache().stats();
-            println!(
+            out!(
                 "| {label}, {} | {:.2} M/s | {:.0}% ({}; {} resident) | {:.2} M/s | {:.2} M/s | {:.2} | {} |",
                 count(rays.len() as u64),
                 base / 1e6,
@@ -250,17 +248,17 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         });
     }
 
-    println!();
-    println!(
+    out!();
+    out!(
         "Assembled in memory (every block read and linked into the in-core tree in {:.2} s, {} nodes):",
         report.seconds,
         count(report.nodes as u64)
     );
-    println!();
-    println!("| rays | assembled / in core (median of {REPEATS} pairs) | hits differing |");
-    println!("|---|---|---|");
+    out!();
+    out!("| rays | assembled / in core (median of {REPEATS} pairs) | hits differing |");
+    out!("|---|---|---|");
     for row in &assembled_rows {
-        println!("{row}");
+        out!("{row}");
     }
     drop((mesh, assembled));
 
@@ -305,15 +303,15 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             .count() as f64
             / prim.len() as f64
     };
-    println!();
-    println!("| pixels of error | frame ({w} x {h}, 4 spp, 1 bounce, 2 threads) | frame / LOD off | relative RMSE against LOD off | primary rays ending at a voxel |");
-    println!("|---|---|---|---|---|");
-    println!("| off | {exact_time:.3} s | 1.00 | 0 | 0% |");
+    out!();
+    out!("| pixels of error | frame ({w} x {h}, 4 spp, 1 bounce, 2 threads) | frame / LOD off | relative RMSE against LOD off | primary rays ending at a voxel |");
+    out!("|---|---|---|---|---|");
+    out!("| off | {exact_time:.3} s | 1.00 | 0 | 0% |");
     let (mut time_curve, mut error_curve, mut voxel_curve) = (Vec::new(), Vec::new(), Vec::new());
     for poe in [0.5, 1.0, 2.0, 4.0, 8.0] {
         let (p, t, _) = frame(poe)?;
         let (error, voxels) = (relative_rmse(&p, &exact)?, voxel_hits(poe));
-        println!(
+        out!(
             "| {poe} | {t:.3} s | {:.2} | {error:.4} | {:.1}% |",
             t / exact_time,
             100.0 * voxels
@@ -362,7 +360,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for (stem, panels) in [("ooc-budget", std::slice::from_ref(&budget)), ("ooc-lod", &lod[..])] {
             let [svg, png] = crate::chart::write(&dir.join(stem), panels)?;
-            println!("wrote {} and {}", svg.display(), png.display());
+            eprintln!("wrote {} and {}", svg.display(), png.display());
         }
     }
     if !keep {

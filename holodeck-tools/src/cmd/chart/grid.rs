@@ -55,6 +55,8 @@ pub struct Args {
     /// Samples per pixel of the reference.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub reference_spp: u32,
+    #[command(flatten)]
+    pub markdown: crate::generated::MarkdownArgs,
 }
 
 /// One grid's measurement.
@@ -144,16 +146,17 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
 pub fn run(a: &Args) -> Result<()> {
     std::fs::create_dir_all(&a.output).with_context(|| format!("creating {}", a.output.display()))?;
     let points = measure(a, &a.output)?;
-    println!(
+    a.markdown.start();
+    out!(
         "Grid resolution against recall and error, {} rays per holodeck, {} x {}, quadtree:\n",
         count(a.rays),
         a.width,
         a.height
     );
-    println!("| beams | grid | beams the view asks for | recall (M samples/s) | FLIP | clamped rel. RMSE | relative RMSE | darkest quarter's light | fill (rays/s) |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    out!("| beams | grid | beams the view asks for | recall (M samples/s) | FLIP | clamped rel. RMSE | relative RMSE | darkest quarter's light | fill (rays/s) |");
+    out!("|---|---|---|---|---|---|---|---|---|");
     for p in &points {
-        println!(
+        out!(
             "| {} | {}x{}x{} | {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.3} | {:.0} |",
             count(p.beams),
             p.grid[0],
@@ -194,6 +197,7 @@ pub fn run(a: &Args) -> Result<()> {
             },
         ],
     )?;
-    println!("\nwrote {} and {}", svg.display(), png.display());
-    Ok(())
+    eprintln!("wrote {} and {}", svg.display(), png.display());
+    a.markdown
+        .finish("grid", &[(png, "Recall speed and FLIP against beam count".to_string())])
 }

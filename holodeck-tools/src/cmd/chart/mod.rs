@@ -91,6 +91,8 @@ struct SceneFileArgs {
     pixels: u32,
     #[command(flatten)]
     files: super::bench::Files,
+    #[command(flatten)]
+    markdown: crate::generated::MarkdownArgs,
 }
 
 fn demo(a: &DemoArgs, views: u32) -> Result<ExitCode> {
@@ -110,7 +112,21 @@ fn demo(a: &DemoArgs, views: u32) -> Result<ExitCode> {
 }
 
 fn scene_file(a: &SceneFileArgs) -> Result<ExitCode> {
+    a.markdown.start();
     super::bench::scene_file::run(a.triangles, a.pixels, &a.files.dir, a.files.keep, Some(&a.output))?;
+    a.markdown.finish(
+        "memory",
+        &[
+            (
+                a.output.join("ooc-budget.png"),
+                "Rays/s out of core against in core by cache budget".to_string(),
+            ),
+            (
+                a.output.join("ooc-lod.png"),
+                "LOD: frame time and error against pixels of error".to_string(),
+            ),
+        ],
+    )?;
     Ok(ExitCode::SUCCESS)
 }
 
