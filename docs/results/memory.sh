@@ -37,7 +37,7 @@ for cache in 16M 64M 256M 1G; do
   sleep 1
   start=$(date +%s.%N)
   drawn=$("$H" view --connect 127.0.0.1:7417 --token t --headless --read-only --views "$views" \
-      -o "$W/frames" -x 256 -y 192 --stride 2 | awk '{gsub(",", "", $2); s += $2} END {print s}')
+      --frames "$W/frames" -x 256 -y 192 --stride 2 | awk '{gsub(",", "", $2); s += $2} END {print s}')
   secs=$(echo "$(date +%s.%N) - $start" | bc)
   echo "| $cache | $(hwm $pid) | $drawn | ${secs} s |"
   kill -TERM $pid
