@@ -710,3 +710,25 @@ fn old_spellings_of_frames_and_driver_say_what_they_are_now() {
         text(&o)
     );
 }
+
+#[test]
+fn a_run_stopped_by_diskspace_says_so_and_keeps_to_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = holodeck(&[
+        "run",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--time",
+        "10m",
+        "--diskspace",
+        "6M",
+        "--bounces",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("before --time: its DISKSPACE"), "{}", text(&o));
+    assert!(std::fs::metadata(&file).unwrap().len() <= 6 << 20);
+    let o = holodeck(&["check", file.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+}

@@ -187,3 +187,31 @@ fn resampled_rays_keep_their_hits_to_within_the_new_grids_precision() {
         assert!(found, "{key:?} {want:?} has no match in the finer grid");
     }
 }
+
+#[test]
+fn a_copy_stopped_by_diskspace_commits_what_it_stored_and_a_larger_limit_adds_the_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let settings = two_sections([12, 10, 8], [6, 6, 6], 1 << 20);
+    let (a, b) = (dir.path().join("a.hdk"), dir.path().join("b.hdk"));
+    let from_a = fill(&a, &settings, 100, 1);
+    let total: u64 = from_a.values().map(|r| r.len() as u64).sum();
+    HoloFile::create(&b, &settings).unwrap();
+    let empty = std::fs::metadata(&b).unwrap().len();
+    let limit = empty + 200_000;
+    let options = storage::CopyOptions { diskspace: Some(limit) };
+    let r = storage::copy_with(&a, &b, &options, |_, _| {}).unwrap();
+    let why = r.stopped.clone().expect("the limit stops the copy");
+    assert!(why.contains("DISKSPACE limit of"), "{why}");
+    assert!(r.rays_written > 0 && r.rays_written < total, "{r:?} of {total}");
+    // What it says it stored is committed, and the file kept to the limit.
+    assert!(std::fs::metadata(&b).unwrap().len() <= limit);
+    let stored: u64 = contents(&b).1.values().map(|r| r.len() as u64).sum();
+    assert_eq!(stored, r.rays_written);
+    assert!(storage::check(&b, |_, _| {}).unwrap().is_clean());
+    // No limit: everything comes in (beams copied before get their rays twice).
+    let options = storage::CopyOptions { diskspace: Some(0) };
+    let again = storage::copy_with(&a, &b, &options, |_, _| {}).unwrap();
+    assert_eq!((again.stopped, again.rays_written), (None, total));
+    let stored: u64 = contents(&b).1.values().map(|r| r.len() as u64).sum();
+    assert_eq!(stored, r.rays_written + total);
+}

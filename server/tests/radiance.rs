@@ -384,6 +384,59 @@ fn cut_and_damaged_files_are_refused_naming_what_is_wrong() {
 }
 
 #[test]
+fn overlapping_or_cut_beams_are_refused_and_salvaged_with_loss_accepted() {
+    let bytes = hand_file(false, 8, 16, &hand_sections());
+    let whole = RadianceFile::parse(&bytes[..]).unwrap();
+    let header_len = whole.header.len as usize;
+    let dir_at = header_len + 4 + 8 + 104;
+    // Beam 1 (its one ray) pointed into beam 5's four: a flipped position.
+    let (one, _) = whole.sections[0].beams[0];
+    let (five, p5) = whole.sections[0].beams[4];
+    assert_eq!((one, five), (1, 4));
+    let mut flipped = bytes.clone();
+    let at = dir_at + 8;
+    flipped[at..at + 8].copy_from_slice(&(p5 + 10).to_le_bytes());
+    let e = parse_error(&flipped);
+    assert!(
+        e.contains("overlap") && e.contains("section 0 beam 1 ") && e.contains("section 0 beam 5 "),
+        "{e}"
+    );
+    // With loss accepted both beams of the overlap are left out (which one
+    // is right cannot be told), and nothing else.
+    let salvaged = RadianceFile::parse_salvaging(&flipped[..], true).unwrap();
+    assert_eq!(salvaged.lost_rays, 5, "{:?}", salvaged.lost);
+    assert_eq!(salvaged.lost.len(), 2, "{:?}", salvaged.lost);
+    assert_eq!(salvaged.rays(), whole.rays() - 5);
+    // Cut by one byte: only the beam whose rays end the file is lost.
+    let cut = &bytes[..bytes.len() - 1];
+    assert!(parse_error(cut).contains("cut off"));
+    let salvaged = RadianceFile::parse_salvaging(cut, true).unwrap();
+    assert_eq!(salvaged.lost.len(), 1, "{:?}", salvaged.lost);
+    assert!(salvaged.lost[0].contains("cut off"), "{:?}", salvaged.lost);
+    assert!(salvaged.lost_rays > 0);
+    assert_eq!(salvaged.rays() + salvaged.lost_rays, whole.rays());
+    // The import keeps every other ray exactly.
+    let dir = tempfile::tempdir().unwrap();
+    let (src, cut_src) = (dir.path().join("whole.rad.hdk"), dir.path().join("cut.rad.hdk"));
+    std::fs::write(&src, &bytes).unwrap();
+    std::fs::write(&cut_src, cut).unwrap();
+    let (a, b) = (dir.path().join("whole.hdk"), dir.path().join("cut.hdk"));
+    radiance::import(&src, &a, &ImportOptions::default(), |_, _| {}).unwrap();
+    assert!(radiance::import(&cut_src, &b, &ImportOptions::default(), |_, _| {}).is_err());
+    let options = ImportOptions {
+        accept_loss: true,
+        ..ImportOptions::default()
+    };
+    let report = radiance::import(&cut_src, &b, &options, |_, _| {}).unwrap();
+    assert_eq!(report.rays, whole.rays() - report.lost_rays);
+    let (all, kept) = (imported(&a).1, imported(&b).1);
+    assert_eq!(kept.len(), all.len() - 1, "one beam lost");
+    for (key, rays) in &kept {
+        assert_eq!(&all[key], rays, "{key:?}");
+    }
+}
+
+#[test]
 fn an_import_keeps_radiance_depth_codes_when_new_rays_are_added() {
     let dir = tempfile::tempdir().unwrap();
     let src = dir.path().join("hand.rad.hdk");
@@ -394,6 +447,7 @@ fn an_import_keeps_radiance_depth_codes_when_new_rays_are_added() {
         &dest,
         &ImportOptions {
             kind: Some(SectionKind::Exterior),
+            accept_loss: false,
         },
         |_, _| {},
     )

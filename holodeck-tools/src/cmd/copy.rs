@@ -21,18 +21,24 @@ dropped. Without DST, a copy with SRC's settings is made.
 Examples:
   holodeck copy day1.hdk all.hdk        merge a night's fill into the main file
   holodeck create fine.hdk --section 'interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5 beams=400000'
-  holodeck copy coarse.hdk fine.hdk     resample into a finer grid")]
+  holodeck copy coarse.hdk fine.hdk     resample into a finer grid
+  holodeck copy big.hdk small.hdk --diskspace 0   ignore small.hdk's DISKSPACE limit")]
 pub struct Args {
     /// The holodeck to read.
     src: PathBuf,
     /// The holodeck to add the rays to (created with SRC's settings if missing).
     dst: PathBuf,
+    /// DST's size limit for this copy, replacing its DISKSPACE setting (e.g. 2G; 0 for
+    /// none). A copy that reaches the limit stops, keeping every ray stored so far.
+    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    diskspace: Option<u64>,
 }
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let bar = crate::progress::Progress::counting("copying", crate::progress::Unit::Rays, Some(0));
-    let r = storage::copy(&a.src, &a.dst, |done, total| {
+    let options = storage::CopyOptions { diskspace: a.diskspace };
+    let r = storage::copy_with(&a.src, &a.dst, &options, |done, total| {
         bar.set_total(total);
         bar.set(done);
     });
@@ -49,5 +55,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
         r.resampled_sections,
         count(r.rays_dropped)
     );
+    if let Some(why) = &r.stopped {
+        eprintln!(
+            "holodeck copy: stopped early: {why}. The {} rays stored are committed in {}; \
+             copy again with --diskspace SIZE (0 for no limit) to add the rest",
+            count(r.rays_written),
+            a.dst.display()
+        );
+        return Ok(ExitCode::from(1));
+    }
     Ok(ExitCode::SUCCESS)
 }

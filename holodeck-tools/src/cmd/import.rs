@@ -34,7 +34,8 @@ collated in beam order.
 
 Examples:
   holodeck import radiance office.hdk -o office-holo.hdk
-  holodeck import radiance object.hdk -o object-holo.hdk --kind exterior")]
+  holodeck import radiance object.hdk -o object-holo.hdk --kind exterior
+  holodeck import radiance cut.hdk -o salvaged.hdk --accept-loss   # a file cut short")]
 struct RadianceArgs {
     /// The Radiance holodeck.
     file: PathBuf,
@@ -45,6 +46,11 @@ struct RadianceArgs {
     /// Radiance does not record it; files this program exported do.
     #[arg(long, value_parser = parse_kind)]
     kind: Option<SectionKind>,
+    /// Import what can be read of a damaged file: beams whose rays lie past its end or
+    /// overlap other data, and sections whose records are cut off, are left out and
+    /// listed, instead of refusing the whole file.
+    #[arg(long)]
+    accept_loss: bool,
 }
 
 fn parse_kind(s: &str) -> Result<SectionKind, String> {
@@ -59,10 +65,18 @@ fn parse_kind(s: &str) -> Result<SectionKind, String> {
 pub fn run(a: Args) -> Result<ExitCode> {
     let Format::Radiance(a) = a.format;
     let bar = crate::progress::Progress::counting("importing", crate::progress::Unit::Rays, Some(0));
-    let r = radiance::import(&a.file, &a.output, &ImportOptions { kind: a.kind }, |done, total| {
-        bar.set_total(total);
-        bar.set(done);
-    });
+    let r = radiance::import(
+        &a.file,
+        &a.output,
+        &ImportOptions {
+            kind: a.kind,
+            accept_loss: a.accept_loss,
+        },
+        |done, total| {
+            bar.set_total(total);
+            bar.set(done);
+        },
+    );
     bar.finish();
     let r = r.with_context(|| format!("importing {}", a.file.display()))?;
     let order = match r.layout.order {
@@ -85,6 +99,15 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     for note in &r.notes {
         summary!("  note: {note}");
+    }
+    if !r.lost.is_empty() {
+        eprintln!(
+            "holodeck import: {} rays of the damaged file were left out (--accept-loss):",
+            count(r.lost_rays)
+        );
+        for line in &r.lost {
+            eprintln!("  lost: {line}");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -72,6 +72,10 @@ pub struct Args {
     /// Directory for the display's frames (created if missing).
     #[arg(long, default_value = "frames")]
     frames: PathBuf,
+    /// The file's size limit for this run, replacing its DISKSPACE setting (e.g. 2G; 0 for
+    /// none); the run stops when it is reached, keeping every ray stored.
+    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    diskspace: Option<u64>,
     /// Where the server listens (HOST:PORT), so that other displays can join
     /// with `holodeck view --connect`; default: a free port on this machine only.
     #[arg(long, default_value = "127.0.0.1:0")]
@@ -303,6 +307,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     server
         .args(["serve", &file, "--listen", &a.listen])
         .args(a.accept_loss.then_some("--accept-loss"))
+        .args(
+            a.diskspace
+                .iter()
+                .flat_map(|d| ["--diskspace".to_string(), d.to_string()]),
+        )
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit());
     let mut server = Child::spawn("server", server)?;
@@ -510,6 +519,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             failures.extend(failure);
         }
     }
+    let early = server_stopped && stop_signal().is_none() && time != Duration::MAX && secs + 1.0 < time.as_secs_f64();
     let after = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     let added = after.rays().saturating_sub(before);
     summary!(
@@ -521,6 +531,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
         count(after.sections.iter().map(|s| u64::from(s.1)).sum()),
         count(after.sections.iter().map(|s| u64::from(s.0)).sum())
     );
+    if early {
+        note!(
+            "holodeck run: the server stopped on its own after {secs:.1} s, before --time: its DISKSPACE \
+             limit or the file's TIME was reached (above). Every ray it stored is committed; give \
+             --diskspace SIZE (0 for none) to go on"
+        );
+    }
     if !failures.is_empty() {
         bail!("{}", failures.join("; "));
     }

@@ -57,7 +57,12 @@ impl Store {
                         if let Err(e) = file.append(key, &rays) {
                             // Log the first refusal only: every later packet meets the same wall.
                             if !refused.load(Ordering::SeqCst) {
-                                tracing::error!("storing rays of {key:?}: {e}");
+                                // A full DISKSPACE is the limit doing its job (the
+                                // service says so as it stops); anything else is an error.
+                                match &e {
+                                    StorageError::DiskSpace { .. } => tracing::info!("storing rays of {key:?}: {e}"),
+                                    _ => tracing::error!("storing rays of {key:?}: {e}"),
+                                }
                                 let why = match e {
                                     StorageError::DiskSpace { limit, .. } => {
                                         format!("DISKSPACE reached: the limit is {limit} bytes")

@@ -45,6 +45,12 @@ pub struct RadianceFile {
     pub sections: Vec<RadianceSection>,
     /// The file's length.
     pub len: u64,
+    /// With loss accepted: what was left out (a beam cut off by the file's
+    /// end, beams whose rays overlap, sections cut off), one line each, and
+    /// the rays the directories gave them.
+    pub lost: Vec<String>,
+    /// Rays of the beams left out (as their directories counted them).
+    pub lost_rays: u64,
 }
 
 fn read(src: &(impl Source + ?Sized), what: impl Fn() -> String, at: u64, n: u64) -> Result<Vec<u8>> {
@@ -68,9 +74,22 @@ fn read(src: &(impl Source + ?Sized), what: impl Fn() -> String, at: u64, n: u64
 
 impl RadianceFile {
     /// Reads and checks the structure: header, magic number, the section
-    /// chain and every directory entry. Reads no rays.
+    /// chain and every directory entry, and that no two beams' rays overlap
+    /// each other or the file's records. Reads no rays.
     pub fn parse(src: &(impl Source + ?Sized)) -> Result<RadianceFile> {
+        Self::parse_salvaging(src, false)
+    }
+
+    /// As [`RadianceFile::parse`]; with `accept_loss`, what cannot be read
+    /// is left out and listed in `lost` instead of refusing the file: a beam
+    /// whose rays lie past the file's end or at a negative position, both
+    /// beams of an overlap, and the sections after one whose record or
+    /// directory is cut off (the header, the magic number and the first
+    /// section's record must be whole).
+    pub fn parse_salvaging(src: &(impl Source + ?Sized), accept_loss: bool) -> Result<RadianceFile> {
         let len = src.len();
+        let mut lost = Vec::new();
+        let mut lost_rays = 0u64;
         let head = read(src, || "header".into(), 0, len.min(MAX_HEADER as u64))?;
         let header = header::parse(&head)?;
         let magic_at = header.len;
@@ -92,18 +111,30 @@ impl RadianceFile {
         let mut at = magic_at + 4;
         loop {
             let index = sections.len();
-            let record = read(src, || format!("section {index}'s record"), at, layout.record_bytes(0))?;
+            let record = match read(src, || format!("section {index}'s record"), at, layout.record_bytes(0)) {
+                Err(e) if accept_loss && index > 0 => {
+                    lost.push(format!("sections from {index} on: {e}"));
+                    break;
+                }
+                r => r?,
+            };
             let next = layout.offset(&record);
             let grid = layout.grid(&record[layout.pointer_bytes() as usize..]);
             let section = section_of(&grid).map_err(|source| RadianceError::Section { index, at, source })?;
             let n = u64::from(section.beam_count());
             let dir_at = at + layout.record_bytes(0);
-            let dir = read(
+            let dir = match read(
                 src,
                 || format!("section {index}'s directory of {n} beams"),
                 dir_at,
                 n * u64::from(layout.entry_bytes),
-            )?;
+            ) {
+                Err(e) if accept_loss && index > 0 => {
+                    lost.push(format!("sections from {index} on: {e}"));
+                    break;
+                }
+                r => r?,
+            };
             let mut beams = Vec::with_capacity(n as usize);
             for (k, e) in dir.chunks_exact(usize::from(layout.entry_bytes)).enumerate() {
                 let (count, position) = layout.entry(e);
@@ -114,21 +145,31 @@ impl RadianceFile {
                     continue;
                 }
                 let what = || format!("section {index} beam {} (Radiance's numbering)", k + 1);
-                let position = u64::try_from(position).map_err(|_| RadianceError::Invalid {
-                    what: what(),
-                    at: entry_at,
-                    detail: format!("{count} rays at the negative position {position}"),
-                })?;
-                let end = position.checked_add(u64::from(count) * RECORD).filter(|e| *e <= len);
-                if end.is_none() {
-                    return Err(RadianceError::Truncated {
-                        what: format!("{}'s {count} rays", what()),
-                        start: position,
-                        end: position.saturating_add(u64::from(count) * RECORD),
-                        len,
-                    });
+                let checked = match u64::try_from(position) {
+                    Err(_) => Err(RadianceError::Invalid {
+                        what: what(),
+                        at: entry_at,
+                        detail: format!("{count} rays at the negative position {position}"),
+                    }),
+                    Ok(position) => match position.checked_add(u64::from(count) * RECORD).filter(|e| *e <= len) {
+                        Some(_) => Ok(position),
+                        None => Err(RadianceError::Truncated {
+                            what: format!("{}'s {count} rays", what()),
+                            start: position,
+                            end: position.saturating_add(u64::from(count) * RECORD),
+                            len,
+                        }),
+                    },
+                };
+                match checked {
+                    Ok(position) => beams.push((count, position)),
+                    Err(e) if accept_loss => {
+                        lost.push(e.to_string());
+                        lost_rays += u64::from(count);
+                        beams.push((0, 0));
+                    }
+                    Err(e) => return Err(e),
                 }
-                beams.push((count, position));
             }
             let record_end = dir_at + n * u64::from(layout.entry_bytes);
             sections.push(RadianceSection {
@@ -149,12 +190,73 @@ impl RadianceFile {
                 }
             }
         }
-        Ok(RadianceFile {
+        let mut file = RadianceFile {
             header,
             layout,
             sections,
             len,
-        })
+            lost,
+            lost_rays,
+        };
+        file.check_overlaps(magic_at + 4, accept_loss)?;
+        Ok(file)
+    }
+
+    /// Refuses (or, with `accept_loss`, leaves out) beams whose rays overlap
+    /// another beam's rays, a section's record or directory, or the header:
+    /// a flipped position would otherwise import another beam's bytes as rays.
+    fn check_overlaps(&mut self, header_end: u64, accept_loss: bool) -> Result<()> {
+        // (start, end, owner): owner None is a record, Some((s, k)) a beam.
+        let mut extents: Vec<(u64, u64, Option<(usize, usize)>)> = vec![(0, header_end, None)];
+        for (s, section) in self.sections.iter().enumerate() {
+            let n = section.beams.len() as u64;
+            let end = section.at + self.layout.record_bytes(0) + n * u64::from(self.layout.entry_bytes);
+            extents.push((section.at, end, None));
+            for (k, &(count, position)) in section.beams.iter().enumerate() {
+                if count > 0 {
+                    extents.push((position, position + u64::from(count) * RECORD, Some((s, k))));
+                }
+            }
+        }
+        extents.sort_unstable();
+        let name = |o: Option<(usize, usize)>| match o {
+            Some((s, k)) => format!("section {s} beam {} (Radiance's numbering)", k + 1),
+            None => "a section's record and directory, or the header".to_string(),
+        };
+        let mut bad: Vec<(usize, usize)> = Vec::new();
+        // The extent reaching furthest so far, to catch overlaps with any earlier one.
+        let mut reach: Option<(u64, u64, Option<(usize, usize)>)> = None;
+        for &(start, end, owner) in &extents {
+            if let Some((r_start, r_end, r_owner)) = reach {
+                if start < r_end {
+                    if !accept_loss {
+                        return Err(RadianceError::Invalid {
+                            what: format!("{}'s rays at bytes {start}..{end}", name(owner)),
+                            at: start,
+                            detail: format!("they overlap {} at bytes {r_start}..{r_end}", name(r_owner)),
+                        });
+                    }
+                    bad.extend(owner);
+                    bad.extend(r_owner);
+                }
+            }
+            if reach.is_none_or(|r| end > r.1) {
+                reach = Some((start, end, owner));
+            }
+        }
+        bad.sort_unstable();
+        bad.dedup();
+        for (s, k) in bad {
+            let (count, position) = self.sections[s].beams[k];
+            self.lost.push(format!(
+                "{}'s {count} rays at bytes {position}..{} overlap other data",
+                name(Some((s, k))),
+                position + u64::from(count) * RECORD
+            ));
+            self.lost_rays += u64::from(count);
+            self.sections[s].beams[k] = (0, 0);
+        }
+        Ok(())
     }
 
     /// Rays in all sections.
@@ -201,6 +303,9 @@ pub struct ImportOptions {
     /// The kind of every section; without it, the kinds the file records
     /// (if this program wrote it), else interior.
     pub kind: Option<SectionKind>,
+    /// Import what can be read of a damaged file (see
+    /// [`RadianceFile::parse_salvaging`]), listing what was left out.
+    pub accept_loss: bool,
 }
 
 /// What an import did.
@@ -220,6 +325,10 @@ pub struct ImportReport {
     pub unused: Vec<String>,
     /// Anything else worth telling (a section count that disagrees with the `section=` lines).
     pub notes: Vec<String>,
+    /// With loss accepted: what was left out, one line each.
+    pub lost: Vec<String>,
+    /// Rays left out (as the damaged file's directories counted them).
+    pub lost_rays: u64,
 }
 
 /// The settings a Radiance file makes, with its sections.
@@ -262,7 +371,7 @@ pub fn import(
     };
     let file = std::fs::File::open(src).map_err(io("opening"))?;
     let source = FileSource::new(file).map_err(io("reading the length of"))?;
-    let radiance = RadianceFile::parse(&source)?;
+    let radiance = RadianceFile::parse_salvaging(&source, options.accept_loss)?;
     let (settings, vars) = settings_of(&radiance, options);
     let mut notes = Vec::new();
     if vars.section_lines != radiance.sections.len() {
@@ -308,5 +417,7 @@ pub fn import(
         seconds: start.elapsed().as_secs_f64(),
         unused: vars.unused,
         notes,
+        lost: radiance.lost.clone(),
+        lost_rays: radiance.lost_rays,
     })
 }

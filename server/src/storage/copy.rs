@@ -37,6 +37,17 @@ pub struct CopyReport {
     pub rays_written: u64,
     /// Resampled rays valid in no destination section.
     pub rays_dropped: u64,
+    /// Why the copy stopped before the end, with every ray stored so far
+    /// committed: the destination's DISKSPACE limit was reached.
+    pub stopped: Option<String>,
+}
+
+/// How to copy.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CopyOptions {
+    /// The destination's size limit for this copy, replacing its DISKSPACE
+    /// setting: `Some(0)` for none; `None` keeps the setting.
+    pub diskspace: Option<u64>,
 }
 
 /// Where, along a source ray, rays go into a destination section.
@@ -83,7 +94,20 @@ impl Resampler<'_> {
 /// created with `src`'s settings if it does not exist. `progress(rays_done,
 /// rays_total)` is called as beams are read. The destination is flushed at
 /// the end; a failure part way leaves it holding what was flushed before.
-pub fn copy(src: &Path, dest: &Path, mut progress: impl FnMut(u64, u64)) -> Result<CopyReport> {
+pub fn copy(src: &Path, dest: &Path, progress: impl FnMut(u64, u64)) -> Result<CopyReport> {
+    copy_with(src, dest, &CopyOptions::default(), progress)
+}
+
+/// [`copy`] with `options`. When the destination's DISKSPACE limit is
+/// reached, the copy stops, commits every ray stored so far and says so in
+/// [`CopyReport::stopped`]: a later copy with a larger limit adds the rest
+/// (merged beams take duplicates of what was copied before).
+pub fn copy_with(
+    src: &Path,
+    dest: &Path,
+    options: &CopyOptions,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<CopyReport> {
     let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
@@ -108,11 +132,14 @@ pub fn copy(src: &Path, dest: &Path, mut progress: impl FnMut(u64, u64)) -> Resu
             ..OpenOptions::default()
         },
     )?;
+    if let Some(limit) = options.diskspace {
+        to.set_size_limit((limit > 0).then_some(limit));
+    }
     let (src_settings, dest_settings) = (from.settings().clone(), to.settings().clone());
     let total = from.summary().rays();
     let mut done = 0u64;
     let mut placed = Vec::new();
-    for (s, section) in src_settings.sections.iter().enumerate() {
+    'sections: for (s, section) in src_settings.sections.iter().enumerate() {
         let twin = dest_settings
             .sections
             .iter()
@@ -155,22 +182,31 @@ pub fn copy(src: &Path, dest: &Path, mut progress: impl FnMut(u64, u64)) -> Resu
             for (key, rays) in batch {
                 report.rays_read += rays.len() as u64;
                 done += rays.len() as u64;
-                if let Some(d) = twin {
-                    to.append(BeamKey::new(d, key.beam), &rays)?;
-                    report.rays_written += rays.len() as u64;
-                    continue;
-                }
-                placed.clear();
-                for r in &rays {
-                    if !resampler.place(key.beam, r, &mut placed) {
-                        report.rays_dropped += 1;
+                let stored = if let Some(d) = twin {
+                    to.append(BeamKey::new(d, key.beam), &rays)
+                        .map(|()| report.rays_written += rays.len() as u64)
+                } else {
+                    placed.clear();
+                    for r in &rays {
+                        if !resampler.place(key.beam, r, &mut placed) {
+                            report.rays_dropped += 1;
+                        }
                     }
-                }
-                placed.sort_by_key(|(k, _)| *k);
-                for group in placed.chunk_by(|a, b| a.0 == b.0) {
-                    let recs: Vec<RayRecord> = group.iter().map(|(_, r)| *r).collect();
-                    to.append(group[0].0, &recs)?;
-                    report.rays_written += recs.len() as u64;
+                    placed.sort_by_key(|(k, _)| *k);
+                    placed.chunk_by(|a, b| a.0 == b.0).try_for_each(|group| {
+                        let recs: Vec<RayRecord> = group.iter().map(|(_, r)| *r).collect();
+                        to.append(group[0].0, &recs)?;
+                        report.rays_written += recs.len() as u64;
+                        Ok(())
+                    })
+                };
+                match stored {
+                    Ok(()) => {}
+                    Err(e @ StorageError::DiskSpace { .. }) => {
+                        report.stopped = Some(e.to_string());
+                        break 'sections;
+                    }
+                    Err(e) => return Err(e),
                 }
             }
             progress(done, total);

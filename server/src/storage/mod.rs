@@ -22,7 +22,7 @@ pub mod store;
 pub mod survey;
 
 pub use bulk::SequentialWriter;
-pub use copy::{copy, CopyReport};
+pub use copy::{copy, copy_with, CopyOptions, CopyReport};
 pub use error::{Result, StorageError};
 pub use holofile::{FileSummary, HoloFile, OpenOptions, ReadReport, DEFAULT_FLUSH_INTERVAL};
 pub use maintain::{check, optimize, repair, CheckReport, OptimizeReport, RepairReport};
