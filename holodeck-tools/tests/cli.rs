@@ -732,3 +732,34 @@ fn a_run_stopped_by_diskspace_says_so_and_keeps_to_the_limit() {
     let o = holodeck(&["check", file.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
 }
+
+#[test]
+fn a_file_that_records_no_scene_is_continued_with_the_scene_given() {
+    // As an imported Radiance holodeck: sections and rays, no scene.
+    let (_dir, file) = filled_room();
+    let f = file.to_str().unwrap();
+    assert!(
+        !text(&holodeck(&["info", f])).contains("SCENE="),
+        "{}",
+        text(&holodeck(&["info", f]))
+    );
+    let o = holodeck(&["run", "builtin:room", f, "--time", "3s", "--bounces", "1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let out = text(&o);
+    assert!(
+        out.contains("recorded no scene") && out.contains("12 rays are taken as traced in it"),
+        "{out}"
+    );
+    let added: u64 = out
+        .split(" rays added in ")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.replace(',', "").parse().ok())
+        .unwrap_or_else(|| panic!("no summary in {out}"));
+    assert!(added > 0, "{out}");
+    assert!(
+        text(&holodeck(&["info", f])).contains("SCENE=blake3:"),
+        "{}",
+        text(&holodeck(&["info", f]))
+    );
+}

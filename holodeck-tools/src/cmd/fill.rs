@@ -117,7 +117,21 @@ pub fn prepare(
         accept_loss,
         ..OpenOptions::default()
     };
-    let file = HoloFile::open(path, &options)?;
+    let mut file = HoloFile::open(path, &options)?;
+    if file.settings().scene.is_none() {
+        // A file that records no scene (imported from Radiance's rholo, or
+        // made by `create` without --scene): it is continued with this one.
+        file.set_scene(&hash, false)?;
+        let rays = file.summary().rays();
+        if rays > 0 {
+            note!(
+                "{} recorded no scene (an imported Radiance holodeck?): it now records {scene_spec} ({hash}), \
+                 and its {} rays are taken as traced in it",
+                path.display(),
+                crate::human::count(rays)
+            );
+        }
+    }
     if let SceneInput::InCore(s) = &scene {
         for cut in super::scene::section_cuts(s, &file.settings().sections) {
             tracing::warn!("{}: {cut}", path.display());

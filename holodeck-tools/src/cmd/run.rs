@@ -457,6 +457,14 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 }
             }
         }
+        if !workers.is_empty() && workers.iter().all(|w| w.done) && viewer.as_ref().is_none_or(|v| v.done || !windowed)
+        {
+            // Every sampler has ended: nothing would be traced for the rest of TIME.
+            if failures.is_empty() {
+                failures.push("every sampler ended before TIME".to_string());
+            }
+            break;
+        }
         std::thread::sleep(Duration::from_millis(200));
         if let Some(bar) = &bar {
             bar.tick();

@@ -303,7 +303,10 @@ fn check(hello: &Hello, shared: &Shared) -> Result<Access, Refusal> {
         match (shared.scene(), stopped) {
             (None, _) => {
                 return Err(Refusal::Final(
-                    "the holodeck file records no scene, so no sampler can prove it matches".into(),
+                    "the holodeck file records no scene (an imported Radiance holodeck?), so no sampler can \
+                     prove it matches: continue it with `holodeck run SCENE FILE` or `holodeck fill SCENE FILE`, \
+                     or `holodeck admin ... adopt SCENE --keep-rays` on this server"
+                        .into(),
                 ))
             }
             (Some(s), true) if s != hello.scene => {
