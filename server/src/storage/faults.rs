@@ -1,6 +1,10 @@
 //! Fault injection for tests of the storage path: writes or syncs of one
-//! file fail with EIO from a chosen call on, as a failing disk's would. Built
-//! only with the `fault-injection` feature, which no product build enables.
+//! file fail with EIO from a chosen call on, as a failing disk's would; and
+//! a recorder of every write, sync and length change of one file, in order,
+//! from which a test rebuilds what a power cut could leave on disk (the
+//! writes a sync has not yet made durable may land in any order, or not at
+//! all). Built only with the `fault-injection` feature, which no product
+//! build enables.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -22,6 +26,59 @@ struct Plan {
     left: u64,
     /// A call has failed.
     failed: bool,
+}
+
+/// One operation on a recorded file, as the engine issued it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Event {
+    /// `bytes` written at `offset`.
+    Write {
+        /// Where.
+        offset: u64,
+        /// What.
+        bytes: Vec<u8>,
+    },
+    /// The file's data made durable (`fdatasync`): every event before it is on disk.
+    Sync,
+    /// The file's length set (a trim after a commit).
+    SetLen(u64),
+}
+
+static RECORDING: AtomicBool = AtomicBool::new(false);
+static RECORD: Mutex<Option<(PathBuf, Vec<Event>)>> = Mutex::new(None);
+
+/// From now on, every write, sync and length change of the file at `path`
+/// is recorded, in order.
+pub fn record(path: &Path) {
+    if let Ok(mut r) = RECORD.lock() {
+        *r = Some((path.to_path_buf(), Vec::new()));
+        RECORDING.store(true, Ordering::SeqCst);
+    }
+}
+
+/// Events recorded so far (recording goes on).
+pub fn recorded_len() -> usize {
+    RECORD.lock().map_or(0, |r| r.as_ref().map_or(0, |(_, e)| e.len()))
+}
+
+/// Stops recording and returns what was recorded.
+pub fn recorded() -> Vec<Event> {
+    RECORDING.store(false, Ordering::SeqCst);
+    RECORD
+        .lock()
+        .map_or_else(|_| Vec::new(), |mut r| r.take().map(|(_, e)| e).unwrap_or_default())
+}
+
+/// Records `event` if `path` is the file being recorded.
+pub(super) fn note(path: &Path, event: impl FnOnce() -> Event) {
+    if !RECORDING.load(Ordering::Relaxed) {
+        return;
+    }
+    if let Ok(mut guard) = RECORD.lock() {
+        if let Some((_, events)) = guard.as_mut().filter(|(p, _)| p == path) {
+            events.push(event());
+        }
+    }
 }
 
 static ARMED: AtomicBool = AtomicBool::new(false);

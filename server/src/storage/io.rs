@@ -60,7 +60,21 @@ fn io_err<'a>(path: &'a Path, op: &'static str) -> impl FnOnce(std::io::Error) -
 pub fn write_at(file: &File, path: &Path, offset: u64, bytes: &[u8]) -> Result<()> {
     #[cfg(feature = "fault-injection")]
     super::faults::check(path, super::faults::Op::Write).map_err(io_err(path, "writing"))?;
-    file.write_all_at(bytes, offset).map_err(io_err(path, "writing"))
+    file.write_all_at(bytes, offset).map_err(io_err(path, "writing"))?;
+    #[cfg(feature = "fault-injection")]
+    super::faults::note(path, || super::faults::Event::Write {
+        offset,
+        bytes: bytes.to_vec(),
+    });
+    Ok(())
+}
+
+/// Sets the file's length (trimming space no commit refers to).
+pub fn set_len(file: &File, path: &Path, len: u64) -> Result<()> {
+    file.set_len(len).map_err(io_err(path, "trimming"))?;
+    #[cfg(feature = "fault-injection")]
+    super::faults::note(path, || super::faults::Event::SetLen(len));
+    Ok(())
 }
 
 /// Reads exactly `len` bytes at `offset` into `buf` (resized).
@@ -78,7 +92,10 @@ pub fn read_exact_at(file: &File, path: &Path, offset: u64, buf: &mut [u8]) -> R
 pub fn sync(file: &File, path: &Path) -> Result<()> {
     #[cfg(feature = "fault-injection")]
     super::faults::check(path, super::faults::Op::Sync).map_err(io_err(path, "syncing"))?;
-    file.sync_data().map_err(io_err(path, "syncing"))
+    file.sync_data().map_err(io_err(path, "syncing"))?;
+    #[cfg(feature = "fault-injection")]
+    super::faults::note(path, || super::faults::Event::Sync);
+    Ok(())
 }
 
 /// Length of the file.

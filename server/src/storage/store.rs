@@ -910,12 +910,7 @@ impl Store {
         self.stats.commits += 1;
         if self.file_len > self.extents.end() {
             // Space past the end is referenced by no commit: give it back.
-            let r = self.file.set_len(self.extents.end());
-            let r = r.map_err(|source| StorageError::Io {
-                path: self.path.clone(),
-                op: "trimming",
-                source,
-            });
+            let r = io::set_len(&self.file, &self.path, self.extents.end());
             self.poison_on_error(r)?;
             self.file_len = self.extents.end();
         }
