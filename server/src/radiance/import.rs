@@ -21,6 +21,11 @@ use crate::storage::bulk::SequentialWriter;
 
 const RECORD: u64 = RAY_RECORD_BYTES as u64;
 
+/// Bytes `start..end` of a Radiance file and what lies there: `None` a
+/// record (the header, a section's record and directory), `Some((s, k))`
+/// the rays of section `s`'s beam at index `k`.
+type Span = (u64, u64, Option<(usize, usize)>);
+
 /// One section of a Radiance holodeck.
 #[derive(Clone, Debug)]
 pub struct RadianceSection {
@@ -206,8 +211,7 @@ impl RadianceFile {
     /// another beam's rays, a section's record or directory, or the header:
     /// a flipped position would otherwise import another beam's bytes as rays.
     fn check_overlaps(&mut self, header_end: u64, accept_loss: bool) -> Result<()> {
-        // (start, end, owner): owner None is a record, Some((s, k)) a beam.
-        let mut extents: Vec<(u64, u64, Option<(usize, usize)>)> = vec![(0, header_end, None)];
+        let mut extents: Vec<Span> = vec![(0, header_end, None)];
         for (s, section) in self.sections.iter().enumerate() {
             let n = section.beams.len() as u64;
             let end = section.at + self.layout.record_bytes(0) + n * u64::from(self.layout.entry_bytes);
@@ -225,7 +229,7 @@ impl RadianceFile {
         };
         let mut bad: Vec<(usize, usize)> = Vec::new();
         // The extent reaching furthest so far, to catch overlaps with any earlier one.
-        let mut reach: Option<(u64, u64, Option<(usize, usize)>)> = None;
+        let mut reach: Option<Span> = None;
         for &(start, end, owner) in &extents {
             if let Some((r_start, r_end, r_owner)) = reach {
                 if start < r_end {
