@@ -459,9 +459,25 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         if !workers.is_empty() && workers.iter().all(|w| w.done) && viewer.as_ref().is_none_or(|v| v.done || !windowed)
         {
-            // Every sampler has ended: nothing would be traced for the rest of TIME.
-            if failures.is_empty() {
-                failures.push("every sampler ended before TIME".to_string());
+            // Every sampler has ended: nothing would be traced for the rest
+            // of TIME. Samplers end by themselves when their server quits:
+            // give it a moment to be seen doing so.
+            let grace = Instant::now() + Duration::from_secs(2);
+            let mut status = server.exited()?;
+            while status.is_none() && Instant::now() < grace {
+                std::thread::sleep(Duration::from_millis(50));
+                status = server.exited()?;
+            }
+            match status {
+                Some(status) => {
+                    server.done = true;
+                    server_stopped = true;
+                    if !status.success() {
+                        failures.push(format!("the server {}", how(status)));
+                    }
+                }
+                None if failures.is_empty() => failures.push("every sampler ended before TIME".to_string()),
+                None => {}
             }
             break;
         }
@@ -542,8 +558,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if early {
         note!(
             "holodeck run: the server stopped on its own after {secs:.1} s, before --time: its DISKSPACE \
-             limit or the file's TIME was reached (above). Every ray it stored is committed; give \
-             --diskspace SIZE (0 for none) to go on"
+             limit or the file's TIME was reached, or an admin told it to quit (above). Every ray it \
+             stored is committed; give --diskspace SIZE (0 for none) to go on past a full DISKSPACE"
         );
     }
     if !failures.is_empty() {
