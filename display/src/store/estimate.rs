@@ -701,6 +701,12 @@ mod tests {
                 prop_assert!(close(a.value(4.0, 0.0).0, all.value(4.0, 0.0).0, 1e-4));
                 prop_assert_eq!(a.depth_range(), all.depth_range());
                 prop_assert!((a.weight() - all.weight()).abs() <= 1e-4 * all.weight());
+                // The noise the denoiser and the requests read: the body's
+                // squared luminance (the variance term) merges too.
+                let (na, nall) = (a.noise(), all.noise());
+                prop_assert!((na.0 - nall.0).abs() <= 1e-4 * nall.0.max(1e-3), "{:?} {:?}", na, nall);
+                prop_assert!((na.2 - nall.2).abs() <= 1e-3 * nall.2.max(1e-3), "{:?} {:?}", na, nall);
+                prop_assert_eq!(na.3, nall.3);
             }
         }
 

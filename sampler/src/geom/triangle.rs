@@ -141,6 +141,30 @@ mod tests {
     }
 
     #[test]
+    fn an_edge_decided_by_rounding_is_decided_again_in_double() {
+        // Seen along the ray (+z from the origin), the edge b-c passes e²
+        // (e = 2^-23) beside the origin, outside the triangle; in single
+        // precision its two products round to the same value, so the edge
+        // function reads exactly 0, which would count the ray as on the edge.
+        let e = f32::EPSILON;
+        let a = Vec3::new(-5.0, 5.0, 1.0);
+        let b = Vec3::new(-(1.0 + e), -1.0, 1.0);
+        let c = Vec3::new(1.0 + 2.0 * e, 1.0 + e, 1.0);
+        assert_eq!(c.x * b.y - c.y * b.x, 0.0, "the products tie in single precision");
+        let exact = f64::from(c.x) * f64::from(b.y) - f64::from(c.y) * f64::from(b.x);
+        assert_eq!(exact, f64::from(e) * f64::from(e));
+        let r = RayPrep::new(Vec3::ZERO, Vec3::Z);
+        assert!(
+            intersect_triangle(&r, a, b, c, f32::INFINITY).is_none(),
+            "the origin lies outside edge b-c"
+        );
+        // The triangle across that edge takes the ray: nothing leaks.
+        let d = Vec3::new(5.0, -5.0, 1.0);
+        let h = intersect_triangle(&r, c, b, d, f32::INFINITY).expect("the neighbour across the edge");
+        assert!((h.t - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
     fn shared_edges_and_vertices_never_leak() {
         // A fan of triangles around a vertex: rays through the shared vertex
         // and along shared edges hit at least one of them.

@@ -737,3 +737,37 @@ fn a_textured_scene_file_keeps_its_textures_and_renders_as_the_scene_does() {
         rel(&untextured, &core)
     );
 }
+
+#[test]
+fn blocks_used_by_a_batch_in_flight_are_not_evicted_for_fetched_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, _) = build(&landscape(20_000), dir.path(), 1 << 20, Codec::Lz4);
+    let probe = OocScene::open(&path, None, 1).unwrap();
+    let blocks: Vec<(u32, usize)> = (0..probe.cache().blocks() as u32)
+        .filter_map(|id| probe.cache().read(id).ok().map(|b| (id, b.memory())))
+        .take(2)
+        .collect();
+    let [(a, size_a), (b, size_b)] = blocks[..] else {
+        panic!("the scene file has two treelet blocks")
+    };
+    drop(probe);
+    // Room for either block, never both.
+    let scene = OocScene::open(&path, Some(size_a + size_b - 1), 1).unwrap();
+    let cache = scene.cache();
+    let timeout = std::time::Duration::from_secs(60);
+    let batch = cache.begin_batch();
+    {
+        let guard = crossbeam_epoch::pin();
+        cache.load_now(a, &guard).unwrap();
+    }
+    // A fetched block may not push out one the batch in flight has used:
+    // it is turned away instead.
+    cache.request(&[b]);
+    assert!(!cache.wait_resident(&[b], timeout), "b was cached by evicting a");
+    assert!(cache.is_resident(a), "a block the batch used was evicted");
+    // Once the batch is done, the same request evicts it.
+    cache.end_batch(batch);
+    cache.request(&[b]);
+    assert!(cache.wait_resident(&[b], timeout));
+    assert!(!cache.is_resident(a));
+}
