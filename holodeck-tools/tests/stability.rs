@@ -118,6 +118,9 @@ fn an_eye_on_a_wall_or_a_grid_line_selects_beams_through_it() {
                 "in the corner: {} of {} view rays find no beam, beside it {}",
                 a.missed, a.rays, b.missed
             );
+            // As docs/STABILITY.md states: the rays that leave the box from
+            // the corner point miss (2,683 of 6,912), a hair inside none do.
+            assert_eq!((a.missed, a.rays, b.missed), (2683, 6912, 0));
         }
     }
     // In the corner, a line whose direction points out of the box meets the
@@ -283,7 +286,8 @@ fn one_cell_and_very_fine_grids() {
     assert!(errors.iter().all(|e| e.is_finite()), "{errors:?}");
     assert!(errors[1] < 0.3, "{errors:?}");
     assert!(errors[0] < 1.5 * errors[1], "{errors:?}");
-    assert!(errors[2] > errors[1], "{errors:?}");
+    // docs/STABILITY.md: the fine grid's picture has about three times the default's error.
+    assert!(errors[2] > 2.5 * errors[1], "{errors:?}");
     assert!(beams_read[0] <= 30 && beams_read[2] > beams_read[1], "{beams_read:?}");
 }
 
@@ -336,7 +340,12 @@ fn empty_beams_and_a_beam_of_one_ray() {
         seen.counts.len(),
         48 * 36
     );
-    assert!(lit > 48 * 36 / 2, "one ray a beam lights {lit} pixels");
+    // As docs/STABILITY.md states: 910 beams, every pixel lit.
+    assert_eq!(
+        (seen.counts.len(), lit),
+        (910, 48 * 36),
+        "one ray a beam lights {lit} pixels"
+    );
     assert!(
         one.pixels.iter().all(|p| p.is_finite() && p.max_element() <= 1.01),
         "no pixel brighter than its rays"
