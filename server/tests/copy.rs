@@ -131,6 +131,9 @@ fn resampled_rays_keep_their_hits_to_within_the_new_grids_precision() {
         &dest,
         &Settings {
             sections: vec![fine.clone(), inner.clone(), around],
+            // Sections that may hold geometry: a line counts only from where
+            // its ray began (an unobstructed destination is tested below).
+            obstructions: true,
             ..Settings::default()
         },
     )
@@ -139,7 +142,7 @@ fn resampled_rays_keep_their_hits_to_within_the_new_grids_precision() {
     assert_eq!((r.merged_sections, r.resampled_sections), (0, 1));
     // Every ray is valid in the finer grid; in the inner section when its line
     // crosses it; never in the section around the room, which its lines enter
-    // before the room, where nothing was traced.
+    // before the room, where nothing was traced and geometry may lie.
     let crossing = stored
         .iter()
         .filter(|(k, rec)| {
@@ -214,4 +217,53 @@ fn a_copy_stopped_by_diskspace_commits_what_it_stored_and_a_larger_limit_adds_th
     assert_eq!((again.stopped, again.rays_written), (None, total));
     let stored: u64 = contents(&b).1.values().map(|r| r.len() as u64).sum();
     assert_eq!(stored, r.rays_written + total);
+}
+
+#[test]
+fn rays_crossing_a_shared_wall_go_into_the_unobstructed_neighbour_as_rhcopy_keeps_them() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two rooms side by side, sharing the wall x = 2.
+    let a = section([0.0, 0.0, 0.0], [2.0, 3.0, 2.5], [4, 6, 5]);
+    let b = section([2.0, 0.0, 0.0], [2.0, 3.0, 2.5], [4, 6, 5]);
+    let settings = |s: &Section, obstructions: bool| Settings {
+        sections: vec![s.clone()],
+        obstructions,
+        ..Settings::default()
+    };
+    // Rays of `a` leaving through x = 0 after starting on the shared wall
+    // (traced toward -x): their lines crossed `b` before they began.
+    let src = dir.path().join("a.hdk");
+    HoloFile::create(&src, &settings(&a, false)).unwrap();
+    let mut f = HoloFile::open(&src, &OpenOptions::default()).unwrap();
+    let mut n = 0u64;
+    for i in 0..12 {
+        for j in 0..10 {
+            let (y, z) = (0.2 + 0.2 * f64::from(i), 0.2 + 0.2 * f64::from(j));
+            let dir = DVec3::new(-1.0, 0.03 * f64::from(i % 3), -0.02 * f64::from(j % 4)).normalize();
+            let origin = DVec3::new(2.0, y, z);
+            let hit = origin + dir * 5.0;
+            let (beam, rec) = a.encode_ray(origin, dir, [0.5, 0.25, 1.0], Some(hit)).unwrap();
+            f.append(BeamKey::new(0, beam), &[rec]).unwrap();
+            n += 1;
+        }
+    }
+    f.close().unwrap();
+    for (obstructions, kept) in [(false, n), (true, 0)] {
+        let dest = dir.path().join(format!("b-{obstructions}.hdk"));
+        HoloFile::create(&dest, &settings(&b, obstructions)).unwrap();
+        let r = storage::copy(&src, &dest, |_, _| {}).unwrap();
+        assert_eq!((r.rays_read, r.rays_written), (n, kept), "obstructions {obstructions}");
+        // Each kept ray's hit is where it was: its depth now counts from b's far wall.
+        let (_, rays) = contents(&dest);
+        for (key, recs) in &rays {
+            for rec in recs {
+                let d = b.decode_record(key.beam, rec).unwrap();
+                let Hit::Point(p) = d.hit else { panic!("a finite hit") };
+                assert!(
+                    p.x < 0.0 && (p.x - (2.0 - 5.0 * d.ray.direction.x.abs())).abs() < 0.3,
+                    "{p}"
+                );
+            }
+        }
+    }
 }

@@ -15,8 +15,10 @@ A section of DST equal to one of SRC (same corner, axes, grid, kind and depth co
 gets that section's rays beam for beam. Rays of other sections are resampled: each goes
 into every section of DST that its line enters no earlier than SRC's section and no later
 than its hit, where the ray holds what DST's samplers would trace (colors keep their
-bytes; cells and depth codes become DST's). Rays valid nowhere in DST are counted as
-dropped. Without DST, a copy with SRC's settings is made.
+bytes; cells and depth codes become DST's); where DST's sections hold no geometry
+(OBSTRUCTIONS false), also into one the ray started inside of and left before its hit
+(rays crossing a wall two sections share, as Radiance's rhcopy keeps them). Rays valid
+nowhere in DST are counted as dropped. Without DST, a copy with SRC's settings is made.
 
 Examples:
   holodeck copy day1.hdk all.hdk        merge a night's fill into the main file

@@ -9,8 +9,12 @@
 //! (a sampler starts it at the entry wall, or at the exit wall of a section
 //! declared free of geometry, which comes to the same). So it is valid in a
 //! destination section that the line enters no earlier than the source's
-//! entry wall and no later than the hit. Colors keep their bytes; cells,
-//! sub-cells and depth codes are the destination's.
+//! entry wall and no later than the hit; and, where the destination's
+//! sections hold no geometry (OBSTRUCTIONS false, as Radiance's rhcopy
+//! allows), also in one the line enters behind the ray's start, when the
+//! start lies inside it and the hit past its exit wall (rays crossing a wall
+//! two sections share). Colors keep their bytes; cells, sub-cells and depth
+//! codes are the destination's.
 
 use std::path::{Path, PathBuf};
 
@@ -54,6 +58,9 @@ pub struct CopyOptions {
 struct Resampler<'a> {
     source: &'a Section,
     targets: &'a [Section],
+    /// The destination's sections hold no geometry (OBSTRUCTIONS false):
+    /// a line may be taken back to where it enters one, behind the ray's start.
+    unobstructed: bool,
 }
 
 impl Resampler<'_> {
@@ -74,7 +81,19 @@ impl Resampler<'_> {
                 continue;
             };
             let slack = 1e-9 * target.diagonal().max(self.source.diagonal());
-            if at.t_entry < -slack || at.t_entry > hit + slack {
+            let valid = if at.t_entry >= -slack {
+                // Entered no earlier than the ray began, no later than its hit.
+                at.t_entry <= hit + slack
+            } else {
+                // The line enters the target behind the ray's start (across a
+                // wall the two sections share, say). Where the target holds
+                // no geometry and the ray starts inside it, nothing lies on
+                // that stretch: the ray is what the target's samplers would
+                // trace, provided it ends past the target's exit wall. So
+                // Radiance's rhcopy keeps it for unobstructed sections.
+                self.unobstructed && at.t_exit >= -slack && hit >= at.t_exit - slack
+            };
+            if !valid {
                 continue;
             }
             let depth = if hit.is_finite() {
@@ -152,6 +171,7 @@ pub fn copy_with(
         let resampler = Resampler {
             source: section,
             targets: &dest_settings.sections,
+            unobstructed: !dest_settings.obstructions,
         };
         let beams = section.beam_count();
         let mut first = 0u32;
