@@ -3,7 +3,8 @@
 //! failing (EIO, as a dying disk's would) at chosen points. The server must
 //! say so, keep serving what it has to the display (read-only), stop once the
 //! display leaves, and exit with an error; the file must still hold every ray
-//! of its last durable commit and check clean.
+//! of its last durable commit (as the server's own log of its flushes says)
+//! and check clean.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -24,6 +25,44 @@ use holodeck_server::storage::{self, HoloFile, OpenOptions};
 use holodeck_server::testing::pattern_rays;
 
 const TOKEN: &str = "fault-test-token";
+
+/// The log lines of this test process (the server runs in it).
+static LOG: std::sync::Mutex<String> = std::sync::Mutex::new(String::new());
+
+/// A writer into [`LOG`].
+struct Capture;
+
+impl std::io::Write for Capture {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        LOG.lock().unwrap().push_str(&String::from_utf8_lossy(buf));
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Keeps the server's debug log in [`LOG`] (once per process).
+fn capture_log() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        tracing_subscriber::fmt()
+            .with_max_level(tracing::Level::DEBUG)
+            .with_ansi(false)
+            .with_writer(|| Capture)
+            .init();
+    });
+}
+
+/// The most rays the server's log says a commit made durable.
+fn durable_in_log() -> u64 {
+    LOG.lock()
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.split(" rays durable").next()?.rsplit(' ').next()?.parse().ok())
+        .max()
+        .unwrap_or(0)
+}
 /// One generous deadline for everything awaited.
 const DEADLINE: Duration = Duration::from_secs(120);
 
@@ -66,6 +105,8 @@ fn read_back(display: &mut DisplaySession, filled: &HashMap<BeamKey, u64>) -> u6
 
 fn scenario(tracer: &Arc<Tracer>, settings: &Settings, hash: &str, op: Op, after: u64) {
     let what = format!("{op:?} failing after {after}");
+    capture_log();
+    LOG.lock().unwrap().clear();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("faulty.hdk");
     HoloFile::create(&path, settings).unwrap();
@@ -123,6 +164,17 @@ fn scenario(tracer: &Arc<Tracer>, settings: &Settings, hash: &str, op: Op, after
     .unwrap();
     assert_eq!(seen, filled.len());
     assert!(report.rays_ok >= 150 * 7);
+    // The last commit the server made durable is all there.
+    let durable = durable_in_log();
+    println!(
+        "{what}: the log says {durable} rays were made durable; the file holds {}",
+        report.rays_ok
+    );
+    assert!(
+        report.rays_ok >= durable,
+        "{what}: {} rays, {durable} durable",
+        report.rays_ok
+    );
 }
 
 #[test]

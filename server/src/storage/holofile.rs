@@ -468,6 +468,15 @@ impl HoloFile {
             }
         }
         self.store.commit()?;
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            // What a crash can no longer take away (tests read it).
+            tracing::debug!(
+                "{}: commit {} made {} rays durable",
+                self.store.path.display(),
+                self.store.info.generation,
+                self.summary().rays()
+            );
+        }
         self.last_flush = Instant::now();
         if let Some(space) = &mut self.space {
             space.flushed(self.store.data_end());
