@@ -34,7 +34,18 @@ pub enum ClientError {
     /// The server closed the connection.
     #[error("the server closed the connection")]
     Closed,
+    /// The server sent nothing for too long while an answer was due.
+    #[error("server {addr} sent nothing for {secs} s while a request's answer was due")]
+    Timeout {
+        /// The server.
+        addr: String,
+        /// How long it was silent.
+        secs: u64,
+    },
 }
+
+/// How long a request's answer may pause before the server counts as hung.
+pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// What one immediate transfer brought.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -64,6 +75,8 @@ pub struct DisplaySession {
     notices: Vec<ControlReply>,
     /// The server's latest report.
     progress: Option<Progress>,
+    /// How long a request's answer may pause ([`ANSWER_TIMEOUT`]).
+    timeout: Duration,
 }
 
 impl Drop for DisplaySession {
@@ -107,6 +120,7 @@ impl DisplaySession {
             decoder: SampleDecoder::new(welcome.sections),
             scratch: Vec::new(),
             received: HashMap::new(),
+            timeout: ANSWER_TIMEOUT,
             access: welcome.access,
             notices: Vec::new(),
             progress: None,
@@ -116,6 +130,12 @@ impl DisplaySession {
     /// The holodeck's sections.
     pub fn sections(&self) -> &[Section] {
         self.decoder.sections()
+    }
+
+    /// Sets how long a request's answer may pause before the call fails
+    /// with [`ClientError::Timeout`] (default [`ANSWER_TIMEOUT`]).
+    pub fn set_timeout(&mut self, timeout: Duration) {
+        self.timeout = timeout;
     }
 
     /// What the server lets this session do (its token, lowered to viewer
@@ -198,18 +218,24 @@ impl DisplaySession {
         }))?;
         let mut t = Transfer::default();
         loop {
-            let f = self.next(None)?;
-            if f.as_ref().is_some_and(|f| self.note(f)) {
+            // A hung server fails the call instead of holding it forever.
+            let Some(f) = self.next(Some(Instant::now() + self.timeout))? else {
+                return Err(ClientError::Timeout {
+                    addr: self.addr.clone(),
+                    secs: self.timeout.as_secs(),
+                });
+            };
+            if self.note(&f) {
                 continue;
             }
             match f {
-                Some(Frame::Beam { key, records }) => {
+                Frame::Beam { key, records } => {
                     t.beams += 1;
                     t.samples += records.len() as u64;
                     t.undecodable += self.take(key, &records, sink) as u64;
                 }
-                Some(Frame::Message(Message::Delivered { .. })) => break,
-                Some(Frame::Message(Message::Error { message })) => return Err(ClientError::Protocol(message)),
+                Frame::Message(Message::Delivered { .. }) => break,
+                Frame::Message(Message::Error { message }) => return Err(ClientError::Protocol(message)),
                 other => return Err(ClientError::Protocol(format!("expected beam data, got {other:?}"))),
             }
         }

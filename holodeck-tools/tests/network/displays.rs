@@ -516,3 +516,28 @@ fn a_greedy_display_does_not_starve_a_modest_one() {
         "a met request takes no more rays"
     );
 }
+
+/// A display's request to a server that stops answering (SIGSTOP) fails
+/// with a timeout naming the server, instead of waiting forever.
+#[test]
+fn a_request_to_a_hung_server_fails_with_a_timeout() {
+    use holodeck_display::client::{ClientError, DisplaySession};
+    use holodeck_display::request::BeamRequest;
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", "t");
+    let mut session = DisplaySession::connect(&addr, "t", true).unwrap();
+    session.set_timeout(std::time::Duration::from_secs(1));
+    let req = BeamRequest {
+        beams: (0..50).map(|b| (BeamKey::new(0, b), 1)).collect(),
+        eye: None,
+        seen: ViewBeams::default(),
+    };
+    // Answered while the server runs.
+    session.request(&req, true, &mut |_| {}).unwrap();
+    server.signal(libc::SIGSTOP);
+    let e = session.request(&req, true, &mut |_| {}).unwrap_err();
+    server.signal(libc::SIGCONT);
+    assert!(matches!(e, ClientError::Timeout { secs: 1, .. }), "{e}");
+    assert!(e.to_string().contains(&addr), "{e}");
+}
