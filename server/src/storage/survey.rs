@@ -609,14 +609,20 @@ fn plan_claims(
     problems: &mut Vec<String>,
 ) -> Vec<Extent> {
     let (mut past_end, mut past_end_rays) = (0u64, 0u64);
+    let (mut in_header, mut in_header_rays) = (0u64, 0u64);
     claims.retain(|(e, claim)| {
         let inside = e.offset >= data_start && e.end() <= file_len;
         if !inside {
             if let Claim::NewestBeam(s, b) | Claim::OlderBeam(s, b) = *claim {
                 let entry = &mut dirs[s as usize][b as usize];
                 if matches!(claim, Claim::NewestBeam(..)) {
-                    past_end += 1;
-                    past_end_rays += u64::from(entry.count);
+                    let (n, rays) = if e.end() > file_len {
+                        (&mut past_end, &mut past_end_rays)
+                    } else {
+                        (&mut in_header, &mut in_header_rays)
+                    };
+                    *n += 1;
+                    *rays += u64::from(entry.count);
                 }
                 *entry = BeamEntry::default();
             }
@@ -626,6 +632,11 @@ fn plan_claims(
     if past_end > 0 {
         problems.push(format!(
             "{past_end} beams ({past_end_rays} rays) lie past the end of the file at byte {file_len}: the file is truncated"
+        ));
+    }
+    if in_header > 0 {
+        problems.push(format!(
+            "{in_header} beams ({in_header_rays} rays) point into the header copies, before byte {data_start}"
         ));
     }
     claims.sort_by_key(|(e, c)| (e.offset, *c));
@@ -662,4 +673,63 @@ fn plan_claims(
         .filter(|(_, c)| matches!(c, Claim::NewestMeta | Claim::OlderMeta))
         .map(|(e, _)| e)
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn beam(offset: u64, count: u32) -> BeamEntry {
+        BeamEntry { offset, count, crc: 0 }
+    }
+
+    fn ext(offset: u64, len: u64) -> Extent {
+        Extent { offset, len }
+    }
+
+    #[test]
+    fn overlapping_claims_go_to_the_newest_metadata_then_beams_then_older() {
+        // Runs of 10 records (100 bytes) each; the data area starts at 1,000.
+        let mut dirs = vec![vec![
+            beam(1_050, 10), // 0: overlaps the newest commit's directory block
+            beam(2_000, 10), // 1: an older commit's run under the newest's beam 2
+            beam(2_050, 10), // 2
+            beam(3_000, 10), // 3: clear of everything
+            beam(9_950, 10), // 4: runs past the end of the file
+            beam(500, 10),   // 5: below the data area
+            beam(4_050, 10), // 6: an older run overlapping older metadata
+        ]];
+        let claims = vec![
+            (ext(1_000, 100), Claim::NewestMeta),
+            (dirs[0][0].extent(), Claim::NewestBeam(0, 0)),
+            (dirs[0][1].extent(), Claim::OlderBeam(0, 1)),
+            (dirs[0][2].extent(), Claim::NewestBeam(0, 2)),
+            (dirs[0][3].extent(), Claim::NewestBeam(0, 3)),
+            (dirs[0][4].extent(), Claim::NewestBeam(0, 4)),
+            (dirs[0][5].extent(), Claim::NewestBeam(0, 5)),
+            (ext(4_000, 100), Claim::OlderMeta),
+            (dirs[0][6].extent(), Claim::OlderBeam(0, 6)),
+        ];
+        let mut problems = Vec::new();
+        let meta = plan_claims(&mut dirs, claims, 1_000, 10_000, &mut problems);
+        // Metadata keeps its bytes, the newest first; older metadata beats older runs.
+        assert_eq!(meta, vec![ext(1_000, 100), ext(4_000, 100)]);
+        let counts: Vec<u32> = dirs[0].iter().map(|b| b.count).collect();
+        // Lost: 0 (under the newest metadata), 1 (an older run under a newest
+        // one), 4 (past the end), 5 (below the data area), 6 (under older metadata).
+        assert_eq!(counts, vec![0, 0, 10, 10, 0, 0, 0]);
+        assert_eq!(problems.len(), 3, "{problems:?}");
+        assert!(
+            problems[0].contains("1 beams (10 rays) lie past the end"),
+            "{problems:?}"
+        );
+        assert!(
+            problems[1].contains("1 beams (10 rays) point into the header copies"),
+            "{problems:?}"
+        );
+        assert!(
+            problems[2].contains("1 runs or blocks of the newest commit"),
+            "{problems:?}"
+        );
+    }
 }
