@@ -763,3 +763,26 @@ fn a_file_that_records_no_scene_is_continued_with_the_scene_given() {
         text(&holodeck(&["info", f]))
     );
 }
+
+#[test]
+fn zeroing_any_one_page_of_a_run_made_file_loses_at_most_its_beams() {
+    // Written by the server of `holodeck run` (and closed by it), kept small
+    // by DISKSPACE so that every page can be tried.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    let o = holodeck(&[
+        "run",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--time",
+        "10m",
+        "--diskspace",
+        "3M",
+        "--bounces",
+        "0",
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (pages, worst) = holodeck_server::testing::zero_every_page(&file);
+    eprintln!("run-made file: {pages} pages zeroed in turn, at most {worst} beams lost to one");
+    assert!(pages > 300, "{pages} pages");
+}

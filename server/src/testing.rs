@@ -155,3 +155,61 @@ pub fn metadata_map(path: &std::path::Path) -> Vec<MetaBlock> {
     }
     out
 }
+
+/// Zeroes every 4 KiB page of the (undamaged) file at `path` in turn: each
+/// time the file must open at its newest commit with no metadata damage and
+/// lose at most the beams whose records lay in that page, every other ray
+/// readable. Returns the pages tried and the most beams one page cost.
+/// Panics on the first page that costs more: for tests.
+pub fn zero_every_page(path: &std::path::Path) -> (usize, usize) {
+    use crate::storage;
+    const PAGE: usize = 4096;
+    let good = std::fs::read(path).expect("read the file");
+    let generation = storage::check(path, |_, _| {}).expect("check").generation;
+    // Where every beam's records lie, and how many it holds.
+    let f = crate::HoloFile::open(path, &crate::OpenOptions::read_only()).expect("open");
+    let mut runs: Vec<(BeamKey, u64, u64, u64)> = Vec::new();
+    for (s, section) in f.sections().iter().enumerate() {
+        let dir = f.directory(s as u32).expect("a directory");
+        for b in 0..section.beam_count() {
+            let e = dir[b as usize];
+            if e.count > 0 {
+                let start = e.offset;
+                runs.push((
+                    BeamKey::new(s as u32, b),
+                    start,
+                    start + u64::from(e.count) * 10,
+                    u64::from(e.count),
+                ));
+            }
+        }
+    }
+    drop(f);
+    let total: u64 = runs.iter().map(|r| r.3).sum();
+    let damaged = path.with_extension("zeroed.hdk");
+    let (mut pages, mut worst) = (0, 0);
+    for start in (0..good.len()).step_by(PAGE) {
+        let end = (start + PAGE).min(good.len());
+        let mut bytes = good.clone();
+        bytes[start..end].fill(0);
+        std::fs::write(&damaged, &bytes).expect("write the damaged copy");
+        let report = storage::check(&damaged, |_, _| {})
+            .unwrap_or_else(|e| panic!("page at {start}: the file no longer opens: {e}"));
+        assert_eq!(report.generation, generation, "page at {start}: {report:?}");
+        assert!(report.damage.is_none(), "page at {start}: {report:?}");
+        let mut lost = 0;
+        for k in &report.corrupt {
+            let run = runs.iter().find(|r| r.0 == *k).expect("a beam of the file");
+            assert!(
+                run.1 < end as u64 && run.2 > start as u64,
+                "page at {start}: beam {k:?} lost, but none of its records lay there"
+            );
+            lost += run.3;
+        }
+        assert_eq!(report.rays_ok, total - lost, "page at {start}");
+        pages += 1;
+        worst = worst.max(report.corrupt.len());
+    }
+    let _ = std::fs::remove_file(&damaged);
+    (pages, worst)
+}

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use holodeck_protocol::BeamKey;
 use holodeck_server::settings::Settings;
 use holodeck_server::storage::{self, HoloFile, OpenOptions, StorageError};
-use holodeck_server::testing::{assert_pattern_contents, metadata_map, pattern_rays, two_sections};
+use holodeck_server::testing::{assert_pattern_contents, metadata_map, pattern_rays, two_sections, zero_every_page};
 
 fn writable() -> OpenOptions {
     OpenOptions {
@@ -238,63 +238,19 @@ fn a_flip_near_the_end_of_a_filled_file_is_reported_and_costs_at_most_a_beam() {
     assert!(detected >= 20, "only {detected} of 30 flips landed in use");
 }
 
-/// Zeroes every 4 KiB page of the file at `path` in turn: each time the
-/// file opens at its newest commit and loses at most the beams whose records
-/// lay in that page. Returns the pages tried and the most beams one cost.
-fn zero_every_page(path: &Path, expected: &HashMap<BeamKey, u64>) -> (usize, usize) {
-    const PAGE: usize = 4096;
-    let good = fs::read(path).unwrap();
-    let generation = storage::check(path, |_, _| {}).unwrap().generation;
-    // Where every beam's records lie.
-    let f = HoloFile::open(path, &OpenOptions::read_only()).unwrap();
-    let runs: Vec<(BeamKey, u64, u64)> = expected
-        .keys()
-        .map(|k| {
-            let e = f.directory(k.section).unwrap()[k.beam as usize];
-            (*k, e.offset, e.offset + u64::from(e.count) * 10)
-        })
-        .collect();
-    drop(f);
-    let total: u64 = expected.values().sum();
-    let damaged = path.with_extension("zeroed.hdk");
-    let (mut pages, mut worst) = (0, 0);
-    for start in (0..good.len()).step_by(PAGE) {
-        let end = (start + PAGE).min(good.len());
-        let mut bytes = good.clone();
-        bytes[start..end].fill(0);
-        fs::write(&damaged, &bytes).unwrap();
-        let report = storage::check(&damaged, |_, _| {})
-            .unwrap_or_else(|e| panic!("page at {start}: the file no longer opens: {e}"));
-        assert_eq!(report.generation, generation, "page at {start}: {report:?}");
-        assert!(report.damage.is_none(), "page at {start}: {report:?}");
-        let in_page: Vec<BeamKey> = runs
-            .iter()
-            .filter(|(_, a, b)| *a < end as u64 && *b > start as u64)
-            .map(|r| r.0)
-            .collect();
-        for k in &report.corrupt {
-            assert!(
-                in_page.contains(k),
-                "page at {start}: beam {k:?} lost, but none of its records lay there"
-            );
-        }
-        let lost: u64 = report.corrupt.iter().map(|k| expected[k]).sum();
-        assert_eq!(report.rays_ok, total - lost, "page at {start}");
-        pages += 1;
-        worst = worst.max(report.corrupt.len());
-    }
-    (pages, worst)
-}
-
 #[test]
 fn zeroing_any_one_page_loses_at_most_the_beams_recorded_in_it() {
     let dir = tempfile::tempdir().unwrap();
     let (path, expected) = filled(dir.path(), &two_sections([4, 3, 2], [2, 2, 2], 1 << 20), 300, 7);
-    let (pages, worst) = zero_every_page(&path, &expected);
+    let (pages, worst) = zero_every_page(&path);
+    assert_eq!(
+        expected.values().sum::<u64>(),
+        storage::check(&path, |_, _| {}).unwrap().rays_ok
+    );
     eprintln!("filled file: {pages} pages zeroed in turn, at most {worst} beams lost to one");
     // An optimized file keeps its metadata at the end, its copies apart too.
     storage::optimize(&path, |_, _| {}).unwrap();
-    let (pages, worst) = zero_every_page(&path, &expected);
+    let (pages, worst) = zero_every_page(&path);
     eprintln!("optimized file: {pages} pages zeroed in turn, at most {worst} beams lost to one");
     assert!(pages > 16);
 }
