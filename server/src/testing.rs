@@ -92,8 +92,9 @@ pub struct MetaBlock {
 pub fn metadata_map(path: &std::path::Path) -> Vec<MetaBlock> {
     use crate::storage::format::{self, Extent};
     let bytes = std::fs::read(path).expect("read the file");
-    let text_len = format::decode_prefix(&bytes, 0).expect("prefix").text_len;
-    let text_at = format::text_offset(text_len, 0) as usize;
+    let prefix = format::decode_prefix(&bytes, 0).expect("prefix");
+    let text_len = prefix.text_len;
+    let text_at = format::text_offset(prefix, 0) as usize;
     let text = format::decode_text(&bytes[text_at..text_at + text_len as usize + 4], text_at as u64).expect("text");
     let settings = Settings::from_text(&text).expect("settings");
     let beams: Vec<u32> = settings.sections.iter().map(|s| s.beam_count()).collect();
@@ -107,10 +108,10 @@ pub fn metadata_map(path: &std::path::Path) -> Vec<MetaBlock> {
     };
     let mut newest: Option<format::Slot> = None;
     for copy in 0..2 {
-        let span = format::header_span(text_len) * copy as u64;
-        push(format!("prefix copy {}", copy + 1), span, format::PREFIX_LEN, None);
+        let base = format::header_stride(prefix) * copy as u64;
+        push(format!("prefix copy {}", copy + 1), base, format::PREFIX_LEN, None);
         for side in 0..2 {
-            let at = format::slot_offset(text_len, copy, side);
+            let at = format::slot_offset(prefix, copy, side);
             push(format!("slot {side} copy {}", copy + 1), at, format::SLOT_LEN, None);
             let slot = format::decode_slot(&bytes[at as usize..at as usize + 64], at).expect("slot");
             if let Some(s) = slot {
@@ -121,7 +122,7 @@ pub fn metadata_map(path: &std::path::Path) -> Vec<MetaBlock> {
         }
         push(
             format!("settings text copy {}", copy + 1),
-            format::text_offset(text_len, copy),
+            format::text_offset(prefix, copy),
             u64::from(text_len) + 4,
             None,
         );

@@ -254,3 +254,49 @@ fn zeroing_any_one_page_loses_at_most_the_beams_recorded_in_it() {
     eprintln!("optimized file: {pages} pages zeroed in turn, at most {worst} beams lost to one");
     assert!(pages > 16);
 }
+
+/// A file of format 2 (header copies side by side), as an earlier build
+/// wrote it: `data/format2.hdk.zst`, 300 rays of a fill of the room in a
+/// 3 x 3 x 3 section. It reads, takes new rays in its own layout, survives
+/// either header copy zeroed, and `optimize` turns it into format 3.
+#[test]
+fn a_format_2_file_is_read_written_and_optimized_into_format_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/format2.hdk.zst");
+    let bytes = zstd::decode_all(fs::File::open(data).unwrap()).unwrap();
+    assert_eq!(&bytes[8..12], &2u32.to_le_bytes(), "a format 2 file");
+    let path = dir.path().join("old.hdk");
+    fs::write(&path, &bytes).unwrap();
+    let report = storage::check(&path, |_, _| {}).unwrap();
+    assert!(report.is_clean(), "{report:?}");
+    assert_eq!(report.rays_ok, 300);
+    // New rays go in, the layout stays format 2.
+    let mut f = HoloFile::open(&path, &writable()).unwrap();
+    let key = BeamKey::new(0, 7);
+    f.append(key, &pattern_rays(key, 0, 20)).unwrap();
+    f.close().unwrap();
+    let after = fs::read(&path).unwrap();
+    assert_eq!(&after[8..12], &2u32.to_le_bytes());
+    assert_eq!(storage::check(&path, |_, _| {}).unwrap().rays_ok, 320);
+    // Either header copy may go: the other holds.
+    for block in metadata_map(&path).iter().filter(|m| m.what.starts_with("prefix copy")) {
+        let mut damaged = after.clone();
+        let at = block.extent.offset as usize;
+        damaged[at..at + 4096].fill(0);
+        let copy = dir.path().join("damaged.hdk");
+        fs::write(&copy, &damaged).unwrap();
+        let r = storage::check(&copy, |_, _| {}).unwrap();
+        assert_eq!(r.rays_ok, 320, "{}: {r:?}", block.what);
+    }
+    // Optimized, it is format 3: its header copies 64 KiB apart.
+    storage::optimize(&path, |_, _| {}).unwrap();
+    let new = fs::read(&path).unwrap();
+    assert_eq!(&new[8..12], &3u32.to_le_bytes());
+    let prefixes: Vec<u64> = metadata_map(&path)
+        .iter()
+        .filter(|m| m.what.starts_with("prefix copy"))
+        .map(|m| m.extent.offset)
+        .collect();
+    assert_eq!(prefixes, vec![0, 64 << 10]);
+    assert_eq!(storage::check(&path, |_, _| {}).unwrap().rays_ok, 320);
+}

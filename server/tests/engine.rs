@@ -141,6 +141,11 @@ fn text_len() -> u32 {
     settings().to_text().len() as u32
 }
 
+/// The prefix of a new file of [`settings`].
+fn prefix() -> format::Prefix {
+    format::Prefix::new(text_len())
+}
+
 #[test]
 fn a_torn_last_commit_falls_back_to_the_previous_one() {
     let dir = tempfile::tempdir().unwrap();
@@ -151,7 +156,7 @@ fn a_torn_last_commit_falls_back_to_the_previous_one() {
     f.flush().unwrap();
     // Copy 2 of the slot the next commit goes to, as it is before that commit.
     let side = 1 - f.open_info().slot;
-    let copy2 = format::slot_offset(text_len(), 1, side);
+    let copy2 = format::slot_offset(prefix(), 1, side);
     let old = fs::read(&path).unwrap()[copy2 as usize..copy2 as usize + 64].to_vec();
     f.append(b, &rays(b, 0, 6)).unwrap();
     f.flush().unwrap();
@@ -162,7 +167,7 @@ fn a_torn_last_commit_falls_back_to_the_previous_one() {
     let file = fs::OpenOptions::new().write(true).open(&path).unwrap();
     file.write_all_at(&old, copy2).unwrap();
     drop(file);
-    flip_byte(&path, format::slot_offset(text_len(), 0, side) + 20);
+    flip_byte(&path, format::slot_offset(prefix(), 0, side) + 20);
     let mut f = HoloFile::open(&path, &writable(1 << 20)).unwrap();
     let info = f.open_info();
     assert!(
@@ -204,14 +209,14 @@ fn a_damaged_slot_copy_is_not_taken_for_a_torn_commit() {
     expected.insert(a, 4);
     expected.insert(b, 6);
     // One copy of the newest slot damaged: its twin holds the commit, nothing is lost.
-    flip_byte(&path, format::slot_offset(text_len(), 0, side) + 20);
+    flip_byte(&path, format::slot_offset(prefix(), 0, side) + 20);
     let f = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
     assert!(f.open_info().skipped.is_empty(), "{:?}", f.open_info());
     assert_eq!(f.open_info().repaired.len(), 1, "{:?}", f.open_info());
     drop(f);
     assert_contents(&path, &expected);
     // Both copies damaged: the newest commit may be lost, so writing is refused.
-    flip_byte(&path, format::slot_offset(text_len(), 1, side) + 20);
+    flip_byte(&path, format::slot_offset(prefix(), 1, side) + 20);
     let e = HoloFile::open(&path, &writable(1 << 20)).err().unwrap();
     assert!(matches!(&e, StorageError::Damaged { .. }), "{e}");
     assert!(e.to_string().contains("both copies of commit slot"), "{e}");
@@ -300,12 +305,12 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     assert!(open(&good[..300]).contains("truncated"), "{}", open(&good[..300]));
     // A later format says so in both header copies; one copy saying so is damage.
     let mut future = good.clone();
-    future[8] = 3;
+    future[8] = 4;
     assert_eq!(open(&future), "", "copy 2 still reads");
-    future[format::header_span(text_len()) as usize + 8] = 3;
-    assert!(open(&future).contains("version 3 is newer"), "{}", open(&future));
+    future[format::header_stride(prefix()) as usize + 8] = 4;
+    assert!(open(&future).contains("version 4 is newer"), "{}", open(&future));
     // One copy of the settings text damaged: the other is read, and reported.
-    let text = format::text_offset(text_len(), 0) as usize + 5;
+    let text = format::text_offset(prefix(), 0) as usize + 5;
     let mut one = good.clone();
     one[text] ^= 1;
     assert_eq!(open(&one), "");
@@ -317,7 +322,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     );
     drop(f);
     let mut both = one.clone();
-    both[format::text_offset(text_len(), 1) as usize + 5] ^= 1;
+    both[format::text_offset(prefix(), 1) as usize + 5] ^= 1;
     assert!(open(&both).contains("settings text"), "{}", open(&both));
     // A writable open restores the damaged copy from the other.
     fs::write(&p, &one).unwrap();
@@ -341,7 +346,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
     // Zero every slot.
     let mut noslots = good.clone();
     for copy in 0..2 {
-        let at = format::slot_offset(text_len(), copy, 0) as usize;
+        let at = format::slot_offset(prefix(), copy, 0) as usize;
         noslots[at..at + 128].fill(0);
     }
     assert!(open(&noslots).contains("neither commit slot"));
@@ -352,7 +357,7 @@ fn damaged_files_give_errors_that_say_what_and_where() {
 fn point_a_beam_outside_the_file(path: &Path) {
     let f = fs::OpenOptions::new().read(true).write(true).open(path).unwrap();
     let len = f.metadata().unwrap().len();
-    let n = text_len();
+    let n = prefix();
     let read = |at: u64, len: u64| {
         let mut b = vec![0u8; len as usize];
         f.read_exact_at(&mut b, at).unwrap();
@@ -451,7 +456,7 @@ fn closing_compacts_holes_and_reserves_away_and_keeps_every_ray() {
         after.free_bytes.saturating_sub(format::COPY_GAP) * 100 <= after.file_bytes + 200,
         "{after:?}"
     );
-    let header = format::data_start(settings().to_text().len() as u32);
+    let header = format::data_start(prefix());
     assert_eq!(
         after.file_bytes,
         header + after.ray_bytes + after.metadata_bytes + after.free_bytes
@@ -534,7 +539,7 @@ fn optimize_collates_beams_and_removes_fragments() {
     // directory per section (one chunk each here): one byte per empty beam,
     // six per filled one, 20 bytes of framing and the first run's absolute
     // offset per block; and two copies of the root (20 + 44 per chunk + 4).
-    let header = format::data_start(settings().to_text().len() as u32);
+    let header = format::data_start(prefix());
     assert_eq!(
         after.file_bytes,
         header + after.ray_bytes + after.metadata_bytes + after.free_bytes

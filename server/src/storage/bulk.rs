@@ -140,15 +140,16 @@ impl SequentialWriter {
             replace,
             finished: false,
         };
-        let span = format::header_span(text_len);
-        for _ in 0..COPIES {
-            let start = w.pos;
-            w.write(&format::encode_prefix(text_len))?;
+        let prefix = format::Prefix::new(text_len);
+        for copy in 0..COPIES as u64 {
+            let start = copy * format::header_stride(prefix);
+            w.write(&vec![0u8; (start - w.pos) as usize])?;
+            w.write(&format::encode_prefix(prefix))?;
             w.write(&[0u8; 2 * format::SLOT_LEN as usize])?;
             w.write(&format::encode_text(&text))?;
-            w.write(&vec![0u8; (start + span - w.pos) as usize])?;
+            w.write(&vec![0u8; (start + format::header_span(text_len) - w.pos) as usize])?;
         }
-        debug_assert_eq!(w.pos, format::data_start(text_len));
+        debug_assert_eq!(w.pos, format::data_start(prefix));
         Ok(w)
     }
 
@@ -268,7 +269,7 @@ impl SequentialWriter {
             root_crc: crc32c::crc32c(&root_bytes),
         };
         for copy in 0..COPIES {
-            let at = format::slot_offset(self.text_len, copy, 0);
+            let at = format::slot_offset(format::Prefix::new(self.text_len), copy, 0);
             io::write_at(&file, &self.tmp, at, &format::encode_slot(&slot))?;
         }
         file.sync_all().map_err(|source| StorageError::Io {

@@ -122,6 +122,7 @@ pub(crate) fn survey_v1(file: &File, path: &Path, file_len: u64, text_len: u32) 
                 return Ok(Survey {
                     settings,
                     text_len,
+                    version: 1,
                     data_start,
                     file_len,
                     repaired: Vec::new(),

@@ -20,7 +20,7 @@ use holodeck_protocol::{BeamKey, RayRecord, Section};
 
 use super::error::{Result, StorageError};
 use super::extents::Extents;
-use super::format::{self, BeamEntry, ChunkRef, Extent, Slot, COPIES, DIR_CHUNK_BEAMS};
+use super::format::{self, BeamEntry, ChunkRef, Extent, Prefix, Slot, COPIES, DIR_CHUNK_BEAMS};
 use super::io::{self, WriteBatch};
 use super::survey::{self, CommitDamage};
 use crate::settings::Settings;
@@ -116,6 +116,8 @@ pub struct Store {
     /// Metadata a damaged commit was read from: kept until the next commit.
     stale: Vec<Extent>,
     text_len: u32,
+    /// The file's format version: where its header copies lie.
+    version: u32,
     generation: u64,
     next_side: usize,
     pub(crate) extents: Extents,
@@ -272,6 +274,7 @@ impl Store {
             root_dirty: repaired,
             stale,
             text_len: sv.text_len,
+            version: sv.version,
             generation: sv.generation,
             next_side: 1 - sv.side,
             extents,
@@ -305,6 +308,14 @@ impl Store {
         Ok((store, sv.settings))
     }
 
+    /// The file's prefix: its format version and settings text length.
+    fn prefix(&self) -> Prefix {
+        Prefix {
+            version: self.version,
+            text_len: self.text_len,
+        }
+    }
+
     /// Rewrites a damaged header copy (prefix and settings text) from the settings.
     fn restore_headers(&mut self, settings: &Settings, bad: [bool; COPIES]) -> Result<()> {
         if !bad.iter().any(|&b| b) {
@@ -315,13 +326,14 @@ impl Store {
             // The settings would not read back to the same text: leave the copies alone.
             return Ok(());
         }
+        let prefix = self.prefix();
         for (copy, _) in bad.iter().enumerate().filter(|(_, &b)| b) {
-            let base = copy as u64 * format::header_span(self.text_len);
-            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(self.text_len)).and_then(|()| {
+            let base = copy as u64 * format::header_stride(prefix);
+            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(prefix)).and_then(|()| {
                 io::write_at(
                     &self.file,
                     &self.path,
-                    format::text_offset(self.text_len, copy),
+                    format::text_offset(prefix, copy),
                     &format::encode_text(&text),
                 )
             });
@@ -357,13 +369,17 @@ impl Store {
             });
         };
         self.flush_writes()?;
+        let prefix = Prefix {
+            version: self.version,
+            text_len: len,
+        };
         for copy in [1, 0] {
-            let base = copy as u64 * span;
-            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(len)).and_then(|()| {
+            let base = copy as u64 * format::header_stride(prefix);
+            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(prefix)).and_then(|()| {
                 io::write_at(
                     &self.file,
                     &self.path,
-                    format::text_offset(len, copy),
+                    format::text_offset(prefix, copy),
                     &format::encode_text(&text),
                 )
             });
@@ -890,7 +906,7 @@ impl Store {
         // Copy 1 is synced before copy 2 is written, so a crash tears at most one.
         let bytes = format::encode_slot(&slot);
         for copy in 0..COPIES {
-            let at = format::slot_offset(self.text_len, copy, self.next_side);
+            let at = format::slot_offset(self.prefix(), copy, self.next_side);
             let r = io::write_at(&self.file, &self.path, at, &bytes);
             self.poison_on_error(r)?;
             self.sync()?;

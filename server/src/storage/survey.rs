@@ -25,7 +25,7 @@ use std::fs::File;
 use std::path::Path;
 
 use super::error::{Result, StorageError};
-use super::format::{self, BeamEntry, ChunkRef, Extent, FormatError, Slot, COPIES, HEADER_ALIGN, MAX_TEXT_LEN};
+use super::format::{self, BeamEntry, ChunkRef, Extent, FormatError, Prefix, Slot, COPIES, HEADER_ALIGN, MAX_TEXT_LEN};
 use super::io;
 use crate::settings::Settings;
 
@@ -80,6 +80,8 @@ impl CommitDamage {
 pub(crate) struct Survey {
     pub settings: Settings,
     pub text_len: u32,
+    /// The file's format version (its header layout follows it).
+    pub version: u32,
     pub data_start: u64,
     pub file_len: u64,
     /// Damaged copies whose twin verified: nothing is lost.
@@ -167,13 +169,13 @@ fn find_prefix(
         Err(e) => e,
     };
     // The first copy is damaged: look for the second one where it can be.
-    let last = format::header_span(MAX_TEXT_LEN).min(file_len);
+    let last = (format::header_span(MAX_TEXT_LEN).max(format::COPY_GAP) + format::PREFIX_LEN).min(file_len);
     let mut at = HEADER_ALIGN;
     let mut buf = Vec::new();
     while at + format::PREFIX_LEN <= last {
         io::read_at(file, path, at, format::PREFIX_LEN as usize, &mut buf)?;
         if let Ok(p) = format::decode_prefix(&buf, at) {
-            if p.version == format::FORMAT_VERSION && format::header_span(p.text_len) == at {
+            if p.version >= 2 && format::header_stride(p) == at {
                 bad[0] = true;
                 repaired.push(format!("header copy 1: {err}; copy 2 at byte {at} verifies"));
                 return Ok(p);
@@ -187,17 +189,20 @@ fn find_prefix(
 /// Reads both header copies: the settings and the text length.
 /// Reads both header copies of a file whose prefix gives `text_len`: the
 /// settings (from either copy of the text).
-fn read_header(file: &File, path: &Path, file_len: u64, text_len: u32, s: &mut Findings) -> Result<Settings> {
-    let span = format::header_span(text_len);
+fn read_header(file: &File, path: &Path, file_len: u64, prefix: Prefix, s: &mut Findings) -> Result<Settings> {
+    let text_len = prefix.text_len;
+    let second_at = format::header_stride(prefix);
     if !s.bad_header[0] {
-        let second = read_part(file, path, span, format::PREFIX_LEN, file_len, "file prefix")?;
-        let ok = second.and_then(|b| format::decode_prefix(&b, span)).map(|p| p.text_len);
+        let second = read_part(file, path, second_at, format::PREFIX_LEN, file_len, "file prefix")?;
+        let ok = second.and_then(|b| format::decode_prefix(&b, second_at));
         match ok {
-            Ok(n) if n == text_len => {}
-            Ok(n) => {
+            Ok(p) if p == prefix => {}
+            Ok(p) => {
                 s.bad_header[1] = true;
                 s.repaired.push(format!(
-                    "header copy 2 at byte {span} says the settings text is {n} bytes, copy 1 says {text_len}"
+                    "header copy 2 at byte {second_at} says format {} with a settings text of {} bytes, copy 1 says \
+                     format {} with {text_len}",
+                    p.version, p.text_len, prefix.version
                 ));
             }
             Err(e) => {
@@ -208,7 +213,7 @@ fn read_header(file: &File, path: &Path, file_len: u64, text_len: u32, s: &mut F
     }
     let copies: Vec<Extent> = (0..COPIES)
         .map(|copy| Extent {
-            offset: format::text_offset(text_len, copy),
+            offset: format::text_offset(prefix, copy),
             len: u64::from(text_len) + 4,
         })
         .collect();
@@ -223,7 +228,7 @@ fn read_header(file: &File, path: &Path, file_len: u64, text_len: u32, s: &mut F
             path,
             FormatError::Invalid {
                 what: "settings text".into(),
-                at: format::text_offset(text_len, 0),
+                at: format::text_offset(prefix, 0),
                 detail,
             },
         )
@@ -249,11 +254,11 @@ const SIDE: [&str; 2] = ["A", "B"];
 
 /// Reads the four slot copies and classifies them; returns the good slots,
 /// newest first, as (side, slot).
-fn read_slots(file: &File, path: &Path, text_len: u32, file_len: u64, s: &mut Findings) -> Result<Vec<(usize, Slot)>> {
+fn read_slots(file: &File, path: &Path, prefix: Prefix, file_len: u64, s: &mut Findings) -> Result<Vec<(usize, Slot)>> {
     let mut copies = [[SlotCopy::Empty, SlotCopy::Empty], [SlotCopy::Empty, SlotCopy::Empty]];
     for (copy, row) in copies.iter_mut().enumerate() {
         for (side, cell) in row.iter_mut().enumerate() {
-            let at = format::slot_offset(text_len, copy, side);
+            let at = format::slot_offset(prefix, copy, side);
             let what = format!("commit slot at byte {at}");
             *cell = match read_part(file, path, at, format::SLOT_LEN, file_len, &what)?
                 .and_then(|b| format::decode_slot(&b, at))
@@ -455,14 +460,14 @@ pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
     let file_len = io::file_len(file, path)?;
     let mut f = Findings::default();
     let prefix = find_prefix(file, path, file_len, &mut f.bad_header, &mut f.repaired)?;
-    if prefix.version < format::FORMAT_VERSION {
+    if prefix.version < 2 {
         return super::legacy::survey_v1(file, path, file_len, prefix.text_len);
     }
     let text_len = prefix.text_len;
-    let settings = read_header(file, path, file_len, text_len, &mut f)?;
-    let data_start = format::data_start(text_len);
+    let settings = read_header(file, path, file_len, prefix, &mut f)?;
+    let data_start = format::data_start(prefix);
     let beams: Vec<u32> = settings.sections.iter().map(|s| s.beam_count()).collect();
-    let slots = read_slots(file, path, text_len, file_len, &mut f)?;
+    let slots = read_slots(file, path, prefix, file_len, &mut f)?;
     let Some(&(side, newest)) = slots.first() else {
         let mut problems = std::mem::take(&mut f.problems);
         problems.extend(f.torn);
@@ -559,6 +564,7 @@ pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
     Ok(Survey {
         settings,
         text_len,
+        version: prefix.version,
         data_start,
         file_len,
         repaired: f.repaired,

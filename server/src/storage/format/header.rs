@@ -1,10 +1,11 @@
 //! The two header copies: prefix, commit slots and settings text, and where
 //! each lies. The copies are a whole number of [`HEADER_ALIGN`] pages apart,
-//! so a damaged disk sector never takes both.
+//! so a damaged disk sector never takes both; from format 3 on, at least
+//! [`COPY_GAP`](super::COPY_GAP) apart, as every other piece of metadata is.
 
 use super::{
-    check_trailing_crc, invalid, push_crc, Extent, FormatError, Reader, FORMAT_VERSION, MAX_GENERATION, MAX_TEXT_LEN,
-    OLDEST_READ,
+    check_trailing_crc, invalid, push_crc, Extent, FormatError, Reader, COPY_GAP, FORMAT_VERSION, MAX_GENERATION,
+    MAX_TEXT_LEN, OLDEST_READ,
 };
 
 /// First eight bytes of every holodeck file (and of its second header copy).
@@ -26,19 +27,31 @@ pub fn header_span(text_len: u32) -> u64 {
     (TEXT_IN_HEADER + u64::from(text_len) + 4).next_multiple_of(HEADER_ALIGN)
 }
 
+/// Where header copy 2 begins (copy 1 is at 0): right after copy 1 in
+/// format 2; in format 3 and later at least [`COPY_GAP`] from the start, so
+/// that a damaged stretch of the disk shorter than that never takes both.
+pub fn header_stride(p: Prefix) -> u64 {
+    let span = header_span(p.text_len);
+    if p.version >= 3 {
+        span.max(COPY_GAP).next_multiple_of(HEADER_ALIGN)
+    } else {
+        span
+    }
+}
+
 /// Offset of the first allocatable byte: past both header copies.
-pub fn data_start(text_len: u32) -> u64 {
-    2 * header_span(text_len)
+pub fn data_start(p: Prefix) -> u64 {
+    header_stride(p) + header_span(p.text_len)
 }
 
 /// Where header copy `copy` (0 or 1) keeps the settings text.
-pub fn text_offset(text_len: u32, copy: usize) -> u64 {
-    copy as u64 * header_span(text_len) + TEXT_IN_HEADER
+pub fn text_offset(p: Prefix, copy: usize) -> u64 {
+    copy as u64 * header_stride(p) + TEXT_IN_HEADER
 }
 
 /// Where header copy `copy` (0 or 1) keeps commit slot `side` (0: A, 1: B).
-pub fn slot_offset(text_len: u32, copy: usize, side: usize) -> u64 {
-    copy as u64 * header_span(text_len) + PREFIX_LEN + side as u64 * SLOT_LEN
+pub fn slot_offset(p: Prefix, copy: usize, side: usize) -> u64 {
+    copy as u64 * header_stride(p) + PREFIX_LEN + side as u64 * SLOT_LEN
 }
 
 /// What the prefix says.
@@ -50,12 +63,23 @@ pub struct Prefix {
     pub text_len: u32,
 }
 
-/// The fixed prefix: encodes the length of the settings text that follows the slots.
-pub fn encode_prefix(text_len: u32) -> [u8; PREFIX_LEN as usize] {
+impl Prefix {
+    /// The prefix of a new file: this code's format version.
+    pub fn new(text_len: u32) -> Prefix {
+        Prefix {
+            version: FORMAT_VERSION,
+            text_len,
+        }
+    }
+}
+
+/// The fixed prefix: the format version and the length of the settings
+/// text that follows the slots.
+pub fn encode_prefix(p: Prefix) -> [u8; PREFIX_LEN as usize] {
     let mut b = [0u8; PREFIX_LEN as usize];
     b[..8].copy_from_slice(&MAGIC);
-    b[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    b[12..16].copy_from_slice(&text_len.to_le_bytes());
+    b[8..12].copy_from_slice(&p.version.to_le_bytes());
+    b[12..16].copy_from_slice(&p.text_len.to_le_bytes());
     let crc = crc32c::crc32c(&b[..60]);
     b[60..].copy_from_slice(&crc.to_le_bytes());
     b
@@ -212,7 +236,7 @@ mod tests {
 
     #[test]
     fn prefix_round_trip_and_refusals() {
-        let p = encode_prefix(1234);
+        let p = encode_prefix(Prefix::new(1234));
         assert_eq!(
             decode_prefix(&p, 0).unwrap(),
             Prefix {
@@ -243,9 +267,23 @@ mod tests {
         assert_eq!(header_span(0), HEADER_ALIGN);
         assert_eq!(header_span(3900), HEADER_ALIGN);
         assert_eq!(header_span(3901), 2 * HEADER_ALIGN);
-        assert_eq!(slot_offset(100, 1, 1), HEADER_ALIGN + 128);
-        assert_eq!(text_offset(100, 1), HEADER_ALIGN + 192);
-        assert_eq!(data_start(100), 2 * HEADER_ALIGN);
+        // Format 2: the second copy right after the first.
+        let v2 = Prefix {
+            version: 2,
+            text_len: 100,
+        };
+        assert_eq!(slot_offset(v2, 1, 1), HEADER_ALIGN + 128);
+        assert_eq!(text_offset(v2, 1), HEADER_ALIGN + 192);
+        assert_eq!(data_start(v2), 2 * HEADER_ALIGN);
+        // Format 3: at least COPY_GAP apart, then as many pages as the text needs.
+        let v3 = Prefix::new(100);
+        assert_eq!(header_stride(v3), COPY_GAP);
+        assert_eq!(slot_offset(v3, 1, 1), COPY_GAP + 128);
+        assert_eq!(text_offset(v3, 1), COPY_GAP + 192);
+        assert_eq!(data_start(v3), COPY_GAP + HEADER_ALIGN);
+        let long = Prefix::new(100_000);
+        assert_eq!(header_stride(long), header_span(100_000));
+        assert!(header_stride(long) > COPY_GAP);
     }
 
     #[test]

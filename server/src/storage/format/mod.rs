@@ -32,14 +32,16 @@ pub mod v1;
 pub use directory::{decode_directory, directory_len_bound, encode_directory, max_directory_len, BeamEntry};
 pub use header::{
     data_start, decode_prefix, decode_slot, decode_text, encode_prefix, encode_slot, encode_text, header_span,
-    slot_offset, text_offset, Prefix, Slot, HEADER_ALIGN, MAGIC, PREFIX_LEN, SLOT_LEN, TEXT_IN_HEADER,
+    header_stride, slot_offset, text_offset, Prefix, Slot, HEADER_ALIGN, MAGIC, PREFIX_LEN, SLOT_LEN, TEXT_IN_HEADER,
 };
 pub use root::{decode_root, encode_root, root_len, ChunkRef};
 
 use holodeck_protocol::RAY_RECORD_BYTES;
 
-/// The format version this code writes and reads.
-pub const FORMAT_VERSION: u32 = 2;
+/// The format version this code writes and reads. Format 3 puts the second
+/// header copy at least [`COPY_GAP`] from the first; format 2 files (the
+/// copies side by side) are read and written in their own layout.
+pub const FORMAT_VERSION: u32 = 3;
 /// The oldest format version this code reads (read only: see [`v1`]).
 pub const OLDEST_READ: u32 = 1;
 /// Longest settings text accepted (sections are a line each; this is generous).
