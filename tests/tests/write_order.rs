@@ -4,9 +4,10 @@
 //! that record, every state a power cut could leave on disk is rebuilt: all
 //! that a completed sync made durable, plus, of the writes since (which the
 //! disk may persist in any order, or not at all), every prefix, every single
-//! write alone and every set with one write left out (as ALICE and
-//! CrashMonkey explore), and the state before any of them with each commit
-//! slot copy damaged in turn. Each state must open at a complete commit that
+//! write alone, every set with one write left out, each write torn in half
+//! after the ones before it, and all of them torn (as ALICE and CrashMonkey
+//! explore), and the state before any of them with each commit slot copy
+//! damaged in turn; no cut may tear more than one slot copy. Each state must open at a complete commit that
 //! is no older than the last one whose commit returned before the cut, and
 //! hold exactly that commit's rays, every one readable.
 
@@ -16,10 +17,22 @@ use std::path::Path;
 use holodeck_protocol::{BeamKey, RayRecord, Section, SectionKind};
 use holodeck_server::settings::Settings;
 use holodeck_server::storage::faults::{self, Event};
+use holodeck_server::storage::format;
 use holodeck_server::storage::{HoloFile, OpenOptions};
 use holodeck_server::testing::{all_keys, metadata_map, pattern_rays};
 
 type Rays = HashMap<BeamKey, Vec<RayRecord>>;
+
+/// `e` half done: a write cut after half its bytes (a sync is not a write).
+fn half(e: &Event) -> Event {
+    match e {
+        Event::Write { offset, bytes } => Event::Write {
+            offset: *offset,
+            bytes: bytes[..bytes.len() / 2].to_vec(),
+        },
+        other => other.clone(),
+    }
+}
 
 /// `image` with `events` applied in order.
 fn apply(image: &mut Vec<u8>, events: &[&Event]) {
@@ -126,18 +139,20 @@ fn every_state_a_power_cut_can_leave_opens_at_a_durable_commit_with_all_its_rays
         // Commits whose flush returned before the cut (at the end of this
         // epoch, before its sync completes) must have been made durable.
         let floor = commits.iter().rposition(|(_, at)| *at <= end).unwrap_or(0);
-        let mut variants: Vec<Vec<&Event>> = (0..=epoch.len()).map(|k| epoch[..k].to_vec()).collect();
+        let whole = |events: &[&Event]| -> Vec<Event> { events.iter().map(|e| (*e).clone()).collect() };
+        let mut variants: Vec<Vec<Event>> = (0..=epoch.len()).map(|k| whole(&epoch[..k])).collect();
         for j in 0..epoch.len() {
-            variants.push(vec![epoch[j]]);
-            variants.push(
-                epoch
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| *i != j)
-                    .map(|(_, e)| *e)
-                    .collect(),
-            );
+            variants.push(vec![epoch[j].clone()]);
+            let mut without = whole(&epoch[..j]);
+            without.extend(whole(&epoch[j + 1..]));
+            variants.push(without);
+            // Torn: the writes before it whole, it half written.
+            let mut torn = whole(&epoch[..j]);
+            torn.push(half(epoch[j]));
+            variants.push(torn);
         }
+        // Every write of the epoch torn at once.
+        variants.push(epoch.iter().map(|e| half(e)).collect());
         // The cut before any of the epoch's writes, with each slot copy damaged in turn.
         let damaged = slots.iter().map(|&(at, len)| {
             let mut image = before.clone();
@@ -145,18 +160,26 @@ fn every_state_a_power_cut_can_leave_opens_at_a_durable_commit_with_all_its_rays
             if image.len() >= at + len {
                 image[at..at + len].fill(0);
             }
-            image
+            (image, 0, true)
         });
         let images = variants.iter().map(|variant| {
             let mut image = before.clone();
             apply(&mut image, &durable);
-            apply(&mut image, variant);
-            image
+            apply(&mut image, &variant.iter().collect::<Vec<_>>());
+            (image, variant.len(), false)
         });
-        for (image, variant) in images
-            .zip(variants.iter().map(|v| v.len()))
-            .chain(damaged.map(|i| (i, 0)))
-        {
+        for (image, variant, damage) in images.chain(damaged) {
+            // STORAGE.md: "a crash can tear at most one slot copy".
+            let torn = slots
+                .iter()
+                .filter(|&&(at, len)| {
+                    image.len() >= at + len && format::decode_slot(&image[at..at + len], at as u64).is_err()
+                })
+                .count();
+            assert!(
+                damage || torn <= 1,
+                "a cut in the epoch ending at event {end} tore {torn} slot copies"
+            );
             std::fs::write(&crash, &image).unwrap();
             let got = contents(&crash).unwrap_or_else(|e| {
                 panic!("a cut in the epoch ending at event {end} ({variant} of its writes) leaves a file that cannot be read: {e}")
