@@ -711,22 +711,30 @@ fn old_spellings_of_frames_and_driver_say_what_they_are_now() {
     );
 }
 
+/// `holodeck run` of the room into `file` until its DISKSPACE of `size` is
+/// full (TIME is long enough never to end it first); fails unless it succeeds.
+fn run_until_full(file: &Path, size: &str, bounces: &str) -> std::process::Output {
+    let f = file.to_str().unwrap();
+    let o = holodeck(&[
+        "run",
+        "builtin:room",
+        f,
+        "--time",
+        "10m",
+        "--diskspace",
+        size,
+        "--bounces",
+        bounces,
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    o
+}
+
 #[test]
 fn a_run_stopped_by_diskspace_says_so_and_keeps_to_the_limit() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "run",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--time",
-        "10m",
-        "--diskspace",
-        "6M",
-        "--bounces",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    let o = run_until_full(&file, "6M", "1");
     assert!(text(&o).contains("before --time: its DISKSPACE"), "{}", text(&o));
     assert!(std::fs::metadata(&file).unwrap().len() <= 6 << 20);
     let o = holodeck(&["check", file.to_str().unwrap()]);
@@ -770,18 +778,7 @@ fn zeroing_any_one_page_of_a_run_made_file_loses_at_most_its_beams() {
     // by DISKSPACE so that every page can be tried.
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
-    let o = holodeck(&[
-        "run",
-        "builtin:room",
-        file.to_str().unwrap(),
-        "--time",
-        "10m",
-        "--diskspace",
-        "3M",
-        "--bounces",
-        "0",
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
+    run_until_full(&file, "3M", "0");
     let (pages, worst) = holodeck_server::testing::zero_every_page(&file);
     eprintln!("run-made file: {pages} pages zeroed in turn, at most {worst} beams lost to one");
     assert!(pages > 300, "{pages} pages");
