@@ -2,7 +2,10 @@
 # Model no more than a scene needs: the server's memory against its cache
 # setting and the file's size, a sampler's memory against the view's
 # working set and the scene's size, and the beams a fill computes against
-# those the views see. Writes its tables to standard output.
+# those the views see. Writes its tables to standard output; docs/RESULTS.md
+# quotes them as published by `holodeck bench publish`:
+#   docs/results/memory.sh | holodeck bench publish model \
+#       --command docs/results/memory.sh --markdown docs/results
 # Usage: docs/results/memory.sh [HOLODECK] [WORK DIR]
 set -euo pipefail
 H=${1:-target/release/holodeck}

@@ -10,6 +10,7 @@ pub mod compare;
 pub mod display;
 pub mod network;
 pub mod paths;
+pub mod publish;
 pub mod report;
 pub mod scene_file;
 pub mod share;
@@ -68,6 +69,8 @@ enum Bench {
     Accuracy(accuracy::Args),
     /// What textures cost: loading, building, memory and samples/s, textured against untextured.
     Textures(textures::Args),
+    /// Write tables a script measured (standard input) as a generated results document.
+    Publish(publish::Args),
     /// Internal: stream one file's beams (the child process of a memory measurement).
     #[command(hide = true)]
     Stream(storage::ChildArgs),
@@ -100,6 +103,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Bench::Share(a) => share::run_args(&a),
         Bench::Accuracy(a) => accuracy::run_args(&a),
         Bench::Textures(a) => textures::run_args(&a),
+        Bench::Publish(a) => publish::run(&a),
         Bench::Stream(a) => storage::run_stream(&a),
         Bench::Fill(a) => storage::run_fill(&a),
     }
