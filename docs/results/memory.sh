@@ -10,6 +10,8 @@
 set -euo pipefail
 H=${1:-target/release/holodeck}
 W=${2:-target/model-memory}
+# Every run measures files made by this build.
+rm -rf "$W"
 mkdir -p "$W"
 hwm() { awk '/VmHWM/ {print $2 / 1024 " MiB"}' "/proc/$1/status"; }
 
@@ -30,12 +32,12 @@ done
 
 # 1. Server: one file, three cache settings, the same headless walk.
 if [[ $parts == *1* ]]; then
-[ -f "$W/room.hdk" ] || "$H" fill builtin:room "$W/room.hdk" --rays 30M --bounces 0 -q
+"$H" fill builtin:room "$W/room.hdk" --rays 30M --bounces 0 -q
 echo "file: $(du -m "$W/room.hdk" | cut -f1) MiB, $(wc -l < "$views") views"
 echo "| cache | server peak RSS | samples sent and drawn | walk time |"
 echo "|---|---|---|---|"
 for cache in 16M 64M 256M 1G; do
-  "$H" serve "$W/room.hdk" --no-fill --cache "$cache" --listen 127.0.0.1:7417 --token t -q &
+  "$H" serve "$W/room.hdk" --no-fill --cache "$cache" --listen 127.0.0.1:7417 --token t -q > /dev/null &
   pid=$!
   sleep 1
   start=$(date +%s.%N)
@@ -50,7 +52,7 @@ fi
 
 # 2. Sampler: one scene file, views that need little and much of it.
 if [[ $parts == *2* ]]; then
-[ -f "$W/land.hds" ] || "$H" scene build builtin:landscape --triangles 10M -o "$W/land.hds" -q
+"$H" scene build builtin:landscape --triangles 10M -o "$W/land.hds" -q
 echo "scene file: $(du -m "$W/land.hds" | cut -f1) MiB"
 echo "| view | mode | peak RSS | render output |"
 echo "|---|---|---|---|"
