@@ -33,7 +33,7 @@ done
 # 1. Server: one file, three cache settings, the same headless walk.
 if [[ $parts == *1* ]]; then
 "$H" fill builtin:room "$W/room.hdk" --rays 30M --bounces 0 -q
-echo "file: $(du -m "$W/room.hdk" | cut -f1) MiB, $(wc -l < "$views") views"
+echo "file: $(( $(stat -c %s "$W/room.hdk") >> 20 )) MiB, $(wc -l < "$views") views"
 echo "| cache | server peak RSS | samples sent and drawn | walk time |"
 echo "|---|---|---|---|"
 for cache in 16M 64M 256M 1G; do
@@ -53,7 +53,7 @@ fi
 # 2. Sampler: one scene file, views that need little and much of it.
 if [[ $parts == *2* ]]; then
 "$H" scene build builtin:landscape --triangles 10M -o "$W/land.hds" -q
-echo "scene file: $(du -m "$W/land.hds" | cut -f1) MiB"
+echo "scene file: $(( $(stat -c %s "$W/land.hds") >> 20 )) MiB"
 echo "| view | mode | peak RSS | render output |"
 echo "|---|---|---|---|"
 for v in "forest|-vp 8 2 4 -vd 1 0 -0.12 -vh 90 -vv 60" "above the room|-vp -20 2 40 -vd 1 0 -0.45 -vh 70 -vv 50" "horizon|-vp 0 0 120 -vd 1 0.3 -0.08 -vh 90 -vv 60"; do
