@@ -104,34 +104,43 @@ impl MarkdownArgs {
     /// Writes the document `NAME.md`: what was printed since [`MarkdownArgs::start`],
     /// then each chart (a PNG the command wrote, and its caption), copied beside it.
     pub fn finish(&self, name: &str, charts: &[(PathBuf, String)]) -> Result<()> {
-        let Some(dir) = &self.markdown else {
-            return Ok(());
-        };
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let mut body = recorded();
-        for (png, caption) in charts {
-            let file = png
-                .file_name()
-                .context("a chart's file name")?
-                .to_string_lossy()
-                .into_owned();
-            std::fs::copy(png, dir.join(&file))
-                .with_context(|| format!("copying {} into {}", png.display(), dir.display()))?;
-            body += &format!("\n![{caption}](@/{file})\n");
+        match &self.markdown {
+            Some(dir) => publish_with_charts(dir, name, &command_line(), recorded(), charts),
+            None => Ok(()),
         }
-        let (file, docs) = publish(dir, name, &command_line(), &body)?;
-        let names: Vec<String> = docs.iter().map(|d| d.display().to_string()).collect();
-        eprintln!(
-            "wrote {}{}",
-            file.display(),
-            if names.is_empty() {
-                String::new()
-            } else {
-                format!(", refreshing {}", names.join(", "))
-            }
-        );
-        Ok(())
     }
+}
+
+/// [`publish`] of `body` followed by each chart (a PNG and its caption),
+/// copied into `dir` beside the document; says on stderr what it wrote and
+/// refreshed.
+pub fn publish_with_charts(
+    dir: &Path,
+    name: &str,
+    command: &str,
+    mut body: String,
+    charts: &[(PathBuf, String)],
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (png, caption) in charts {
+        let file = png
+            .file_name()
+            .context("a chart's file name")?
+            .to_string_lossy()
+            .into_owned();
+        std::fs::copy(png, dir.join(&file))
+            .with_context(|| format!("copying {} into {}", png.display(), dir.display()))?;
+        body += &format!("\n![{caption}](@/{file})\n");
+    }
+    let (file, docs) = publish(dir, name, command, &body)?;
+    let names: Vec<String> = docs.iter().map(|d| d.display().to_string()).collect();
+    let refreshing = if names.is_empty() {
+        String::new()
+    } else {
+        format!(", refreshing {}", names.join(", "))
+    };
+    eprintln!("wrote {}{refreshing}", file.display());
+    Ok(())
 }
 
 /// The lines that open and close a quote of `name` (e.g. `results/demo.md`).

@@ -80,7 +80,6 @@ pub struct Args {
 /// quarters along the walk) into `dir` and writes `dir/demo.md`: the summary
 /// with them.
 fn publish(a: &Args, dir: &std::path::Path, summary: &str) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let views = a.views as usize;
     let mut sheets: Vec<usize> = vec![(views / 4).max(1), (3 * views / 4).max(1)];
     sheets.dedup();
@@ -100,16 +99,17 @@ fn publish(a: &Args, dir: &std::path::Path, summary: &str) -> Result<()> {
             format!("View {v} of {views}: the reference, the holodeck's drivers, and direct renders in the same time, raw and cleaned by OIDN, each with its FLIP"),
         ));
     }
-    let mut body = summary.to_string();
-    body.push('\n');
-    for (file, caption) in &pictures {
-        let from = a.output.join(file);
-        std::fs::copy(&from, dir.join(file))
-            .with_context(|| format!("copying {} into {}", from.display(), dir.display()))?;
-        body += &format!("\n![{caption}](@/{file})\n");
-    }
-    let (file, docs) = crate::generated::publish(dir, "demo", &crate::generated::command_line(), &body)?;
-    eprintln!("wrote {}{}", file.display(), super::bench::all::refreshed(&docs));
+    let charts: Vec<(PathBuf, String)> = pictures
+        .into_iter()
+        .map(|(file, caption)| (a.output.join(file), caption))
+        .collect();
+    crate::generated::publish_with_charts(
+        dir,
+        "demo",
+        &crate::generated::command_line(),
+        format!("{summary}\n"),
+        &charts,
+    )?;
     Ok(())
 }
 

@@ -67,16 +67,6 @@ pub const BENCHES: [(&str, Bench); 6] = [
     ("accuracy", super::accuracy::fast),
 ];
 
-/// ", refreshing A, B" for the documents quoting a generated file.
-pub fn refreshed(docs: &[PathBuf]) -> String {
-    if docs.is_empty() {
-        String::new()
-    } else {
-        let names: Vec<String> = docs.iter().map(|d| d.display().to_string()).collect();
-        format!(", refreshing {}", names.join(", "))
-    }
-}
-
 /// Runs the command.
 pub fn run(a: &Args) -> Result<ExitCode> {
     for o in &a.only {
@@ -121,8 +111,7 @@ pub fn run(a: &Args) -> Result<ExitCode> {
     }
     print!("{text}");
     if let Some(dir) = &a.markdown {
-        let (file, docs) = crate::generated::publish(dir, "bench-all", &crate::generated::command_line(), &text)?;
-        eprintln!("wrote {}{}", file.display(), refreshed(&docs));
+        crate::generated::publish_with_charts(dir, "bench-all", &crate::generated::command_line(), text, &[])?;
     }
     let report = Report {
         format: FORMAT,

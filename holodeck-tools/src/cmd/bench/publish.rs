@@ -56,7 +56,6 @@ pub fn run(a: &Args) -> Result<ExitCode> {
     if text.trim().is_empty() {
         bail!("standard input is empty: nothing to publish");
     }
-    let (file, docs) = crate::generated::publish(&a.markdown, &a.name, &a.command, &text)?;
-    eprintln!("wrote {}{}", file.display(), super::all::refreshed(&docs));
+    crate::generated::publish_with_charts(&a.markdown, &a.name, &a.command, text, &[])?;
     Ok(ExitCode::SUCCESS)
 }
