@@ -460,9 +460,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         if !workers.is_empty() && workers.iter().all(|w| w.done) && viewer.as_ref().is_none_or(|v| v.done || !windowed)
         {
             // Every sampler has ended: nothing would be traced for the rest
-            // of TIME. Samplers end by themselves when their server quits:
-            // give it a moment to be seen doing so.
-            let grace = Instant::now() + Duration::from_secs(2);
+            // of TIME. Samplers end well by themselves when their server
+            // quits: wait for it to finish closing its file (as a quit
+            // would); after failed samplers, the server is asked to quit below.
+            let wait = if failures.is_empty() { 60 } else { 2 };
+            let grace = Instant::now() + Duration::from_secs(wait);
             let mut status = server.exited()?;
             while status.is_none() && Instant::now() < grace {
                 std::thread::sleep(Duration::from_millis(50));
@@ -476,7 +478,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
                         failures.push(format!("the server {}", how(status)));
                     }
                 }
-                None if failures.is_empty() => failures.push("every sampler ended before TIME".to_string()),
+                None if failures.is_empty() => {
+                    failures.push("every sampler ended before TIME, and the server did not stop".to_string())
+                }
                 None => {}
             }
             break;
