@@ -483,6 +483,14 @@ fn an_emission_texture_glows_where_it_is_bright_and_lights_the_room_as_it_says()
     };
     let textured = build(panel);
     let plain = build(halves);
+    // The textured room as a scene file, traced out of core: its lights
+    // are the header's emitters, the panel among them.
+    let hds = dir.path().join("glow.hds");
+    let source = holodeck_sampler::ooc::build::SceneSource::new(textured.scene().clone());
+    holodeck_sampler::ooc::build_scene_file(&source, &hds, &Default::default(), &|_, _, _| {}).unwrap();
+    let file = std::sync::Arc::new(holodeck_sampler::ooc::OocScene::open(&hds, None, 1).unwrap());
+    assert_eq!(file.header().emitters.len(), 2, "the panel's two triangles emit");
+    let from_file = Tracer::out_of_core(file, TraceOptions::default());
     // Seen from below: the white half glows at 2, the black half not at all.
     let white = radiance(&textured, Vec3::new(0.25, 0.5, 0.5), Vec3::Z, 4);
     let black = radiance(&textured, Vec3::new(0.75, 0.5, 0.5), Vec3::Z, 4);
@@ -495,6 +503,11 @@ fn an_emission_texture_glows_where_it_is_bright_and_lights_the_room_as_it_says()
         assert!(
             (a.x - b.x).abs() < 0.03 * b.x.max(0.01),
             "floor at x {x}: textured {a}, halves {b}"
+        );
+        let f = radiance(&from_file, at, dir, 20_000);
+        assert!(
+            (f.x - b.x).abs() < 0.03 * b.x.max(0.01),
+            "floor at x {x}: scene file {f}, halves {b}"
         );
     }
 }

@@ -20,6 +20,8 @@ pub struct LightSample {
     pub pdf_area: f32,
     /// The triangle it lies on.
     pub tri: u32,
+    /// That triangle's material.
+    pub material: u32,
     /// Its barycentric weights of the triangle's vertices 1 and 2.
     pub bary: (f32, f32),
 }
@@ -30,53 +32,66 @@ pub struct Lights {
     /// Triangle ids, ascending: a light hit finds its pdf by binary search,
     /// faster than hashing the id.
     tris: Vec<u32>,
-    /// Their vertices and emitted radiance.
-    shapes: Vec<([Vec3; 3], Vec3)>,
+    /// Their vertices, emitted radiance and material.
+    shapes: Vec<([Vec3; 3], Vec3, u32)>,
     cdf: Vec<f32>,
     /// Selection probability divided by area, in the order of `tris`.
     pdf: Vec<f32>,
+}
+
+/// Each material's emitted radiance (plus its emission texture's factor,
+/// where it glows through one) and the luminance to choose its triangles
+/// by (the texture's mean where it has one).
+pub fn emission_of(scene: &Scene) -> Vec<(Vec3, f32)> {
+    (0..scene.materials.len())
+        .map(|m| {
+            let le = Vec3::from_array(scene.materials[m].emission());
+            match scene
+                .maps_of(m as u32)
+                .and_then(|maps| maps.emissive_parts(&scene.textures))
+            {
+                Some((factor, mean)) => (le + factor, luminance(factor * mean).max(luminance(le))),
+                None => (le, luminance(le)),
+            }
+        })
+        .collect()
 }
 
 impl Lights {
     /// Collects the emitters of a scene: triangles whose material emits,
     /// or whose emission texture does (chosen by its mean).
     pub fn new(scene: &Scene) -> Lights {
-        let emission: Vec<(Vec3, f32)> = (0..scene.materials.len())
-            .map(|m| {
-                let le = Vec3::from_array(scene.materials[m].emission());
-                match scene
-                    .maps_of(m as u32)
-                    .and_then(|maps| maps.emissive_parts(&scene.textures))
-                {
-                    Some((factor, mean)) => (le + factor, luminance(factor * mean).max(luminance(le))),
-                    None => (le, luminance(le)),
-                }
-            })
-            .collect();
+        let emission = emission_of(scene);
         Lights::weighted(scene.triangles.iter().enumerate().filter_map(|(i, t)| {
             let (le, weight) = emission[t.material as usize];
-            (le.max_element() > 0.0).then(|| (i as u32, scene.vertices(i), le, weight))
+            (le.max_element() > 0.0).then(|| (i as u32, scene.vertices(i), t.material, le, weight))
         }))
     }
 
-    /// Lights from emissive triangles given as (id, vertices, emitted radiance).
-    pub fn from_emitters(emitters: impl Iterator<Item = (u32, [Vec3; 3], Vec3)>) -> Lights {
-        Lights::weighted(emitters.map(|(id, v, le)| (id, v, le, luminance(le))))
+    /// Lights from emissive triangles given as (id, vertices, material),
+    /// with the emission of the materials of `scene` (a scene file's
+    /// shell: materials, maps and textures, no triangles).
+    pub fn from_emitters(scene: &Scene, emitters: impl Iterator<Item = (u32, [Vec3; 3], u32)>) -> Lights {
+        let emission = emission_of(scene);
+        Lights::weighted(emitters.filter_map(|(id, v, m)| {
+            let (le, weight) = emission.get(m as usize).copied()?;
+            Some((id, v, m, le, weight))
+        }))
     }
 
-    /// Lights from emissive triangles given as (id, vertices, emitted
-    /// radiance, luminance to choose them by).
-    fn weighted(emitters: impl Iterator<Item = (u32, [Vec3; 3], Vec3, f32)>) -> Lights {
-        // (id, vertices and radiance, power, area)
+    /// Lights from emissive triangles given as (id, vertices, material,
+    /// emitted radiance, luminance to choose them by).
+    fn weighted(emitters: impl Iterator<Item = (u32, [Vec3; 3], u32, Vec3, f32)>) -> Lights {
+        // (id, vertices, radiance and material, power, area)
         let mut lights = Vec::new();
-        for (id, [a, b, c], le, weight) in emitters {
+        for (id, [a, b, c], m, le, weight) in emitters {
             if le.max_element() <= 0.0 {
                 continue;
             }
             let area = 0.5 * (b - a).cross(c - a).length();
             let w = area * weight.max(1e-6);
             if w.is_finite() && w > 0.0 {
-                lights.push((id, ([a, b, c], le), w, area));
+                lights.push((id, ([a, b, c], le, m), w, area));
             }
         }
         lights.sort_by_key(|l| l.0);
@@ -120,7 +135,7 @@ impl Lights {
             return None;
         }
         let k = self.cdf.partition_point(|&c| c <= u).min(self.tris.len() - 1);
-        let ([a, b, c], radiance) = self.shapes[k];
+        let ([a, b, c], radiance, material) = self.shapes[k];
         let (b1, b2) = uniform_triangle(uv);
         let point = a * (1.0 - b1 - b2) + b * b1 + c * b2;
         let normal = (b - a).cross(c - a).normalize();
@@ -130,6 +145,7 @@ impl Lights {
             radiance,
             pdf_area: self.pdf[k],
             tri: self.tris[k],
+            material,
             bary: (b1, b2),
         })
     }
@@ -157,7 +173,17 @@ mod tests {
             (7, tri(5.0, 2.0), Vec3::splat(1.0)),
             (19, tri(9.0, 1.0), Vec3::splat(4.0)),
         ];
-        let lights = Lights::from_emitters(emitters.into_iter());
+        let scene = Scene {
+            materials: vec![
+                crate::scene::Material::Emitter { radiance: [1.0; 3] },
+                crate::scene::Material::Emitter { radiance: [4.0; 3] },
+            ],
+            ..Scene::default()
+        };
+        let lights = Lights::from_emitters(
+            &scene,
+            emitters.iter().map(|&(id, v, le)| (id, v, u32::from(le.x > 2.0))),
+        );
         assert_eq!(lights.len(), 3);
         // Powers: area 0.5 x 1, 2 x 1, 0.5 x 4 (luminance of grey is itself).
         let want = [0.5 / 4.5, 2.0 / 4.5, 2.0 / 4.5];

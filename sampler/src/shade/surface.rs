@@ -238,17 +238,19 @@ impl Tracer {
         if !self.textured_any {
             return ls.radiance;
         }
-        let Some(t) = self.scene.triangles.get(ls.tri as usize) else {
+        let Some(maps) = self.scene.maps_of(ls.material).filter(|m| m.emissive.is_some()) else {
             return ls.radiance;
         };
-        match self.scene.maps_of(t.material).filter(|m| m.emissive.is_some()) {
-            Some(maps) if self.ooc.is_none() && !self.scene.uvs.is_empty() => {
-                let uv = self.uv_at(ls.tri, Vec2::new(ls.bary.0, ls.bary.1));
-                Vec3::from_array(self.scene.materials[t.material as usize].emission())
-                    + maps.emission_at(&self.scene.textures, uv, 0.0)
-            }
-            _ => ls.radiance,
+        if self.tri_uvs(ls.tri).is_none() {
+            return ls.radiance;
         }
+        let uv = self.uv_at(ls.tri, Vec2::new(ls.bary.0, ls.bary.1));
+        let base = self
+            .scene
+            .materials
+            .get(ls.material as usize)
+            .map_or([0.0; 3], Material::emission);
+        Vec3::from_array(base) + maps.emission_at(&self.scene.textures, uv, 0.0)
     }
 }
 

@@ -131,13 +131,17 @@ fn pane_transmittance(m: &Material, cos: f32) -> Option<Vec3> {
     }
 }
 
-/// The emitters a scene file's header lists, with their materials' emission.
-fn file_lights(ooc: &OocScene) -> Lights {
+/// The emitters a scene file's header lists, with their materials'
+/// emission (emission textures included) from `shell`, the file's scene
+/// without triangles.
+fn file_lights(ooc: &OocScene, shell: &Scene) -> Lights {
     let h = ooc.header();
-    Lights::from_emitters(h.emitters.iter().map(|e| {
-        let le = h.materials.get(e.material as usize).map_or([0.0; 3], |m| m.emission());
-        (e.id, e.vertices.map(Vec3::from), Vec3::from_array(le))
-    }))
+    Lights::from_emitters(
+        shell,
+        h.emitters
+            .iter()
+            .map(|e| (e.id, e.vertices.map(Vec3::from), e.material)),
+    )
 }
 
 /// How [`Tracer::trace_rays`] finds the first hits of its rays.
@@ -210,7 +214,7 @@ impl Tracer {
     /// come from its header, triangles from its blocks as rays need them.
     pub fn out_of_core(ooc: Arc<OocScene>, options: TraceOptions) -> Tracer {
         let scene = ooc.shell();
-        let lights = file_lights(&ooc);
+        let lights = file_lights(&ooc, &scene);
         let tree = KdTree::build(&Scene::default(), &BuildOptions::default());
         Tracer::with_geometry(scene, tree, Some(ooc), lights, options)
     }
@@ -220,7 +224,7 @@ impl Tracer {
     /// out-of-core walk finds; no LOD, since there are no voxels in core.
     pub fn in_core_from_file(ooc: &OocScene, options: TraceOptions) -> Result<Tracer, OocError> {
         let (scene, tree, report) = ooc.in_core()?;
-        let lights = file_lights(ooc);
+        let lights = file_lights(ooc, &scene);
         let mut t = Tracer::with_geometry(scene, tree, None, lights, options);
         t.assembled = Some(report);
         Ok(t)

@@ -350,10 +350,17 @@ fn build_in(
     let mut bounds = Aabb::EMPTY;
     let mut emitters = Vec::new();
     let mut hash = source.content_hash().is_none().then(StreamHash::default);
-    let emissive: Vec<bool> = meta
-        .materials
-        .iter()
-        .map(|m| m.emission().iter().any(|&e| e > 0.0))
+    // Emitters: materials that emit, or glow through an emission texture.
+    let emissive: Vec<bool> = (0..meta.materials.len())
+        .map(|m| {
+            meta.materials[m].emission().iter().any(|&e| e > 0.0)
+                || source.textured().is_some_and(|scene| {
+                    scene
+                        .maps_of(m as u32)
+                        .and_then(|maps| maps.emissive_parts(&scene.textures))
+                        .is_some()
+                })
+        })
         .collect();
     source.stream(&mut |batch| {
         for t in batch {

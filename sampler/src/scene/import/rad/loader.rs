@@ -200,7 +200,7 @@ impl Loader {
             .and_then(|f| f.parent())
             .map(Path::to_path_buf)
             .unwrap_or_default();
-        if self.modifiers.define(p, at, &dir, &mut self.report)? {
+        if self.modifiers.define(p, at, &dir, &frame.transform, &mut self.report)? {
             return Ok(());
         }
         let modifier = frame.modifier.as_deref().unwrap_or(&p.modifier);

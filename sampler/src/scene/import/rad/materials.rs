@@ -179,11 +179,15 @@ impl Modifiers {
 
     /// Defines `p` if it is a modifier (material, pattern, texture, mixture or
     /// alias) and returns true; false for anything else (surfaces, unknown types).
+    /// `dir` is the directory of the file that defines it, `placed` the
+    /// transform that places that file (its `!xform` commands): patterns
+    /// move with the file, as `xform` moves them in Radiance.
     pub(super) fn define(
         &mut self,
         p: &Primitive,
         at: &Location,
         dir: &std::path::Path,
+        placed: &glam::DMat4,
         report: &mut RadReport,
     ) -> Result<bool, RadError> {
         let kind = p.kind.as_str();
@@ -208,7 +212,7 @@ impl Modifiers {
             self.pictures.remove(&p.name);
             if let Some(sky) = sky_pattern(p, at)? {
                 self.skies.insert(p.name.clone(), sky);
-            } else if let Some(picture) = picture_pattern(p, at, dir)? {
+            } else if let Some(picture) = picture_pattern(p, at, dir, placed)? {
                 self.pictures.insert(p.name.clone(), picture);
             } else {
                 report.note(NoteKind::PatternIgnored, at, || p.what());
@@ -354,9 +358,14 @@ fn sky_pattern(p: &Primitive, at: &Location) -> Result<Option<SkyDistribution>, 
 
 /// The picture of a `colorpict` that maps its image with `picture.cal`
 /// (`red green blue` colour functions, `pic_u pic_v`, `tile_u tile_v` or
-/// `match_u match_v` coordinates, then an optional transform); `None` for
-/// any other pattern.
-fn picture_pattern(p: &Primitive, at: &Location, dir: &std::path::Path) -> Result<Option<Picture>, RadError> {
+/// `match_u match_v` coordinates, then an optional transform, applied
+/// within the file's own placement `placed`); `None` for any other pattern.
+fn picture_pattern(
+    p: &Primitive,
+    at: &Location,
+    dir: &std::path::Path,
+    placed: &glam::DMat4,
+) -> Result<Option<Picture>, RadError> {
     use crate::scene::texture::Wrap;
     if p.kind != "colorpict" || p.strings.len() < 7 {
         return Ok(None);
@@ -376,7 +385,7 @@ fn picture_pattern(p: &Primitive, at: &Location, dir: &std::path::Path) -> Resul
     Ok(Some(Picture {
         file: s[3].clone(),
         dir: dir.to_path_buf(),
-        inverse: transform.inverse(),
+        inverse: (*placed * transform).inverse(),
         wrap,
     }))
 }
