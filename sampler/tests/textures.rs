@@ -552,3 +552,67 @@ fn gltf_tangents_orient_the_normal_map_where_given() {
         "cos 60 / cos 0: {reversed} / {generated}"
     );
 }
+
+#[test]
+fn a_clear_coat_turns_a_rough_dielectric_into_polished_plastic_and_leaves_metal_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let white = png(&image::RgbaImage::from_pixel(2, 2, image::Rgba([255; 4])));
+    let load = |material: &str| {
+        let path = write(dir.path(), "c.gltf", &gltf_triangle(material, &[&white]));
+        let mut b = SceneBuilder::new();
+        holodeck_sampler::scene::import_file_with(&mut b, &path, Mat4::IDENTITY, &ImportOptions::default()).unwrap();
+        b.finish()
+    };
+    // A rough red dielectric (diffuse) under a polished coat: plastic with
+    // the coat's roughness, albedo kept.
+    let coated = load(
+        r#"{"name":"lacquer","pbrMetallicRoughness":{"baseColorFactor":[0.8,0.1,0.1,1],"metallicFactor":0,"roughnessFactor":1},
+            "extensions":{"KHR_materials_clearcoat":{"clearcoatFactor":1,"clearcoatRoughnessFactor":0.1,"clearcoatTexture":{"index":0}}}}"#,
+    );
+    assert_eq!(
+        coated.materials[0],
+        Material::Plastic {
+            albedo: [0.8, 0.1, 0.1],
+            roughness: 0.1,
+            ior: 1.5
+        }
+    );
+    assert!(
+        coated
+            .notes
+            .iter()
+            .any(|n| n.what.contains("clearcoatTexture is not used")),
+        "{:?}",
+        coated.notes
+    );
+    // The same without the coat is diffuse; a faint coat (0.2) rounds to none, noted.
+    let bare = load(
+        r#"{"name":"matte","pbrMetallicRoughness":{"baseColorFactor":[0.8,0.1,0.1,1],"metallicFactor":0,"roughnessFactor":1},
+            "extensions":{"KHR_materials_clearcoat":{"clearcoatFactor":0.2}}}"#,
+    );
+    assert!(
+        matches!(bare.materials[0], Material::Lambertian { .. }),
+        "{:?}",
+        bare.materials[0]
+    );
+    assert!(
+        bare.notes.iter().any(|n| n.what.contains("factor 0.2 rounded to 0")),
+        "{:?}",
+        bare.notes
+    );
+    // A coat over metal: the metal alone, noted.
+    let metal = load(
+        r#"{"name":"car","pbrMetallicRoughness":{"baseColorFactor":[0.9,0.9,0.9,1],"metallicFactor":1,"roughnessFactor":0.5},
+            "extensions":{"KHR_materials_clearcoat":{"clearcoatFactor":1}}}"#,
+    );
+    assert!(
+        matches!(metal.materials[0], Material::Metal { .. }),
+        "{:?}",
+        metal.materials[0]
+    );
+    assert!(
+        metal.notes.iter().any(|n| n.what.contains("over metal")),
+        "{:?}",
+        metal.notes
+    );
+}

@@ -21,7 +21,7 @@ pub const MAGIC: [u8; 8] = *b"HDSCENE\0";
 /// Last bytes of a complete scene file.
 pub const END_MAGIC: [u8; 8] = *b"HDSEND\0\0";
 /// The layout version this code reads and writes.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Preamble: magic, version, header length.
 pub const PREAMBLE: usize = 16;
 /// Trailer: index offset, block count, index CRC, reserved, end magic.

@@ -57,7 +57,10 @@ pub enum OocError {
     #[error("not a holodeck scene file (no HDSCENE magic)")]
     NotASceneFile,
     /// Written by another version of the layout.
-    #[error("scene file version {0}; this holodeck reads version {version}", version = format::VERSION)]
+    #[error(
+        "scene file version {0}; this holodeck reads version {version}: build it again from its scene with `holodeck scene build`",
+        version = format::VERSION
+    )]
     Version(u32),
     /// The file ends early.
     #[error("the file is truncated: {0} is missing or cut short")]

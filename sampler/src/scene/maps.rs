@@ -142,6 +142,9 @@ pub struct Pbr {
     pub transmission: f32,
     /// Index of refraction (`KHR_materials_ior`).
     pub ior: f32,
+    /// The roughness of a clear coat over a dielectric base, where
+    /// `KHR_materials_clearcoat` covers it (factor at least 0.5).
+    pub clearcoat: Option<f32>,
 }
 
 /// The textures of one material; all empty for an untextured one.
@@ -166,6 +169,8 @@ pub struct MaterialMaps {
     pub emissive: Option<TexRef>,
     /// The radiance an emission texture's white stands for.
     pub emission: [f32; 3],
+    /// Radiance function and data patterns, applied in order at every hit.
+    pub patterns: Vec<crate::scene::pattern::Pattern>,
 }
 
 impl Default for MaterialMaps {
@@ -179,6 +184,7 @@ impl Default for MaterialMaps {
             roughness: None,
             emissive: None,
             emission: [0.0; 3],
+            patterns: Vec::new(),
         }
     }
 }
@@ -224,6 +230,7 @@ impl MaterialMaps {
             && self.pbr.is_none()
             && self.roughness.is_none()
             && self.emissive.is_none()
+            && self.patterns.is_empty()
     }
 
     /// Whether rays may pass through parts of the surface.
@@ -272,7 +279,7 @@ impl MaterialMaps {
                 metallic *= mr.z;
             }
             let base = (Vec3::from_array(p.base) * tint).to_array();
-            return pbr_material(base, metallic, roughness, p.transmission, p.ior);
+            return pbr_material(base, metallic, roughness, p.transmission, p.ior, p.clearcoat);
         }
         let mul = |c: &[f32; 3]| unit((Vec3::from_array(*c) * tint).to_array());
         let rough = |r: f32| match &self.roughness {
@@ -355,11 +362,21 @@ fn unit(c: [f32; 3]) -> [f32; 3] {
 }
 
 /// Our model for glTF's metallic-roughness parameters at one point:
-/// mostly transmissive is glass; metallic at least 0.5 is metal; roughness
-/// below 0.9 is plastic (a dielectric coat over the base colour); else
-/// diffuse. What this approximates: metalness between 0 and 1 is rounded to
-/// one model, and the dielectric's specular level is glTF's fixed 4%.
-pub fn pbr_material(base: [f32; 3], metallic: f32, roughness: f32, transmission: f32, ior: f32) -> Material {
+/// mostly transmissive is glass; metallic at least 0.5 is metal; a
+/// dielectric under a clear coat (`clearcoat`, the coat's roughness) is
+/// plastic with the coat's roughness; roughness below 0.9 is plastic (a
+/// dielectric coat over the base colour); else diffuse. What this
+/// approximates: metalness between 0 and 1 is rounded to one model, the
+/// dielectric's specular level is glTF's fixed 4%, a clear coat replaces
+/// the base's own specular lobe, and a coat over metal is not modelled.
+pub fn pbr_material(
+    base: [f32; 3],
+    metallic: f32,
+    roughness: f32,
+    transmission: f32,
+    ior: f32,
+    clearcoat: Option<f32>,
+) -> Material {
     let finite01 = |v: f32, default: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { default };
     let color = unit(base);
     let (metallic, roughness) = (finite01(metallic, 1.0), finite01(roughness, 1.0));
@@ -373,6 +390,12 @@ pub fn pbr_material(base: [f32; 3], metallic: f32, roughness: f32, transmission:
     }
     if metallic >= 0.5 {
         Material::Metal { color, roughness }
+    } else if let Some(coat) = clearcoat {
+        Material::Plastic {
+            albedo: color,
+            roughness: finite01(coat, 0.0),
+            ior: 1.5,
+        }
     } else if roughness < 0.9 {
         Material::Plastic {
             albedo: color,

@@ -4,6 +4,7 @@
 //! content hash live here; nothing here traces rays.
 
 pub mod builder;
+pub mod calc;
 pub mod export;
 pub mod file;
 pub mod gen;
@@ -11,6 +12,7 @@ pub mod hash;
 pub mod import;
 pub mod maps;
 pub mod material;
+pub mod pattern;
 pub mod section;
 pub mod section_fit;
 pub mod sky_distribution;

@@ -247,7 +247,7 @@ impl Tracer {
         let proxy;
         let ng = hit.ng;
         p.length += hit.t;
-        let (textured, relief, glow) = match self.textured(&hit, ng, p.length) {
+        let (textured, relief, glow) = match self.textured(&hit, ng, p.length, p.ray.dir) {
             Some(t) => (Some(t.material), t.normal, t.emission),
             None => (None, None, Vec3::ZERO),
         };
@@ -394,7 +394,9 @@ impl Tracer {
                     };
                     shadows[0] = Some((
                         ray,
-                        e.f_cos * self.light_radiance(&ls) * (power_heuristic(pdf_light, e.pdf) / pdf_light),
+                        e.f_cos
+                            * self.light_radiance(&ls, wi_world, dist2.sqrt())
+                            * (power_heuristic(pdf_light, e.pdf) / pdf_light),
                     ));
                 }
             }

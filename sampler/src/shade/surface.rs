@@ -16,6 +16,7 @@ use super::path::SurfaceHit;
 use super::tracer::Tracer;
 use crate::accel::Hit;
 use crate::geom::{intersect_triangle, offset_origin, Ray, RayPrep};
+use crate::scene::pattern::{effect_of, PatternHit};
 use crate::scene::Material;
 
 /// Angle a ray's footprint widens by per unit of length: about a pixel of
@@ -173,30 +174,70 @@ impl Tracer {
         })
     }
 
-    /// The material at `hit` with its textures applied, the shading normal
-    /// its relief map gives (on the side of `n`, the geometric normal as
-    /// shading faces it) and the radiance its emission texture adds;
-    /// `None` where the material has no textures. `length` is how far the
-    /// path has come, for the footprint.
+    /// The material at `hit` with its textures and patterns applied, the
+    /// shading normal its relief map or `texfunc` gives (on the side of
+    /// `n`, the geometric normal as shading faces it) and the radiance its
+    /// emission texture adds; `None` where the material has none. `length`
+    /// is how far the path has come, for the footprint; `dir` the ray's
+    /// direction, for patterns.
     #[inline]
-    pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<Textured> {
+    pub(super) fn textured(&self, hit: &SurfaceHit, n: Vec3, length: f32, dir: Vec3) -> Option<Textured> {
         if !self.textured_any {
             return None;
         }
-        self.textured_slow(hit, n, length)
+        self.textured_slow(hit, n, length, dir)
     }
 
     /// [`Tracer::textured`] where some material has textures: out of line,
     /// so that untextured scenes shade as before.
     #[inline(never)]
-    fn textured_slow(&self, hit: &SurfaceHit, n: Vec3, length: f32) -> Option<Textured> {
+    fn textured_slow(&self, hit: &SurfaceHit, n: Vec3, length: f32, dir: Vec3) -> Option<Textured> {
         let material = hit.material?;
         let maps = self.scene.maps_of(material)?;
         if hit.tri == u32::MAX {
             return None;
         }
+        let mut t = match self.tri_uvs(hit.tri) {
+            Some(uvs) => self.mapped(hit, n, length, uvs, maps, material),
+            None => Textured {
+                material: self.scene.materials[material as usize].clone(),
+                normal: None,
+                emission: Vec3::ZERO,
+            },
+        };
+        if !maps.patterns.is_empty() {
+            let [pa, pb, pc] = hit.verts;
+            let point = pa * (1.0 - hit.bary.x - hit.bary.y) + pb * hit.bary.x + pc * hit.bary.y;
+            let at = PatternHit {
+                point,
+                normal: hit.ng,
+                dir: dir.normalize_or_zero(),
+                path: length,
+                length: hit.t,
+            };
+            let e = effect_of(&maps.patterns, &at);
+            t.material = tinted(&t.material, e.color);
+            t.emission *= e.color;
+            if e.bend != Vec3::ZERO {
+                let bent = (t.normal.unwrap_or(n) + e.bend).try_normalize();
+                t.normal = bent.or(t.normal);
+            }
+        }
+        Some(t)
+    }
+
+    /// The material, normal and emission the texture maps give at `hit`,
+    /// whose triangle has texture coordinates `uvs`.
+    fn mapped(
+        &self,
+        hit: &SurfaceHit,
+        n: Vec3,
+        length: f32,
+        [ta, tb, tc]: [Vec2; 3],
+        maps: &crate::scene::MaterialMaps,
+        material: u32,
+    ) -> Textured {
         let [pa, pb, pc] = hit.verts;
-        let [ta, tb, tc] = self.tri_uvs(hit.tri)?;
         let uv = ta * (1.0 - hit.bary.x - hit.bary.y) + tb * hit.bary.x + tc * hit.bary.y;
         let (e1, e2) = (pb - pa, pc - pa);
         let (d1, d2) = (tb - ta, tc - ta);
@@ -224,33 +265,83 @@ impl Tracer {
             let b = (e2 * d1.x - e1 * d2.x) / det;
             maps.normal_at(textures, uv, n, t, b)
         });
-        Some(Textured {
+        Textured {
             material: m,
             normal,
             emission,
-        })
+        }
     }
 
-    /// The radiance a light sample brings: its light's, or where the light
-    /// glows through an emission texture, what the texture says there.
+    /// The radiance a light sample brings toward a point `distance` away
+    /// along `dir` (unit, from the point toward the light): its light's,
+    /// or where the light glows through an emission texture, what the
+    /// texture says there, times what its patterns say for that ray.
     #[inline]
-    pub(super) fn light_radiance(&self, ls: &LightSample) -> Vec3 {
+    pub(super) fn light_radiance(&self, ls: &LightSample, dir: Vec3, distance: f32) -> Vec3 {
         if !self.textured_any {
             return ls.radiance;
         }
-        let Some(maps) = self.scene.maps_of(ls.material).filter(|m| m.emissive.is_some()) else {
+        let Some(maps) = self.scene.maps_of(ls.material) else {
             return ls.radiance;
         };
-        if self.tri_uvs(ls.tri).is_none() {
-            return ls.radiance;
+        let mut le = ls.radiance;
+        if maps.emissive.is_some() && self.tri_uvs(ls.tri).is_some() {
+            let uv = self.uv_at(ls.tri, Vec2::new(ls.bary.0, ls.bary.1));
+            let base = self
+                .scene
+                .materials
+                .get(ls.material as usize)
+                .map_or([0.0; 3], Material::emission);
+            le = Vec3::from_array(base) + maps.emission_at(&self.scene.textures, uv, 0.0);
         }
-        let uv = self.uv_at(ls.tri, Vec2::new(ls.bary.0, ls.bary.1));
-        let base = self
-            .scene
-            .materials
-            .get(ls.material as usize)
-            .map_or([0.0; 3], Material::emission);
-        Vec3::from_array(base) + maps.emission_at(&self.scene.textures, uv, 0.0)
+        if !maps.patterns.is_empty() {
+            let at = PatternHit {
+                point: ls.point,
+                normal: ls.normal,
+                dir,
+                path: distance,
+                length: distance,
+            };
+            le *= effect_of(&maps.patterns, &at).color;
+        }
+        le
+    }
+}
+
+/// `m` with its colour (a light's radiance) multiplied by `c`; reflectances
+/// stay within [0, 1].
+fn tinted(m: &Material, c: Vec3) -> Material {
+    if c == Vec3::ONE {
+        return m.clone();
+    }
+    let mul = |x: &[f32; 3]| {
+        (Vec3::from_array(*x) * c)
+            .to_array()
+            .map(|v| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 })
+    };
+    match m {
+        Material::Lambertian { albedo, emission } => Material::Lambertian {
+            albedo: mul(albedo),
+            emission: *emission,
+        },
+        Material::Plastic { albedo, roughness, ior } => Material::Plastic {
+            albedo: mul(albedo),
+            roughness: *roughness,
+            ior: *ior,
+        },
+        Material::Metal { color, roughness } => Material::Metal {
+            color: mul(color),
+            roughness: *roughness,
+        },
+        Material::Mirror { color } => Material::Mirror { color: mul(color) },
+        Material::Glass { ior, color, thin } => Material::Glass {
+            ior: *ior,
+            color: mul(color),
+            thin: *thin,
+        },
+        Material::Emitter { radiance } => Material::Emitter {
+            radiance: (Vec3::from_array(*radiance) * c).max(Vec3::ZERO).to_array(),
+        },
     }
 }
 

@@ -316,7 +316,7 @@ impl Tracer {
             let hit = self.nearest(&ray, 0.0, &mut fetch)?;
             let facing = if hit.ng.dot(ray.dir) > 0.0 { -hit.ng } else { hit.ng };
             let normal = *first_normal.get_or_insert(facing);
-            let textured = self.textured(&hit, hit.ng, hit.t).map(|t| t.material);
+            let textured = self.textured(&hit, hit.ng, hit.t, ray.dir).map(|t| t.material);
             let m = textured
                 .as_ref()
                 .or_else(|| hit.material.map(|i| &self.scene.materials[i as usize]));

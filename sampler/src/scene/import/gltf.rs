@@ -60,11 +60,12 @@ pub(super) fn import(
         tracing::warn!("{}: glTF has no scene; nothing imported", path.display());
         return Ok(());
     };
-    const READ: [&str; 4] = [
+    const READ: [&str; 5] = [
         "KHR_texture_transform",
         "KHR_materials_transmission",
         "KHR_materials_ior",
         "KHR_materials_emissive_strength",
+        "KHR_materials_clearcoat",
     ];
     for ext in document.extensions_used() {
         if !READ.contains(&ext) {

@@ -9,11 +9,14 @@
 //! bends the shading normal (tangents are generated from the texture
 //! coordinates); alpha modes MASK (with `alphaCutoff`) and BLEND (partial
 //! coverage) cut holes every ray passes; `KHR_materials_transmission`
-//! (factor), `_ior` and `_emissive_strength` are read. Emission glows only
+//! (factor), `_ior`, `_emissive_strength` and `_clearcoat` (factor and
+//! roughness: a dielectric under a coat becomes plastic with the coat's
+//! roughness) are read. Emission glows only
 //! through `emissiveTexture` (times its factor and strength) on a surface
 //! that keeps its model, or as an emitter where the factor alone glows.
 //! Dropped (noted): occlusion textures (the path tracer finds occlusion itself), transmission
-//! textures, texture coordinate sets other than 0, and other extensions.
+//! and clear-coat textures, a clear coat over metal, texture coordinate sets other
+//! than 0, and other extensions.
 
 use std::path::Path;
 
@@ -120,12 +123,20 @@ impl Source<'_> {
             .map_or([1.0; 3], |c| c.truncate().to_array());
         let mr_mean = mr.as_ref().and_then(mean);
         let (metallic, roughness) = (pbr.metallic_factor(), pbr.roughness_factor());
+        let clearcoat = self.clearcoat(b, m, name);
+        if clearcoat.is_some() && metallic * mr_mean.map_or(1.0, |c| c.z) >= 0.5 {
+            note(
+                b,
+                "KHR_materials_clearcoat over metal is not modelled; the metal shows alone".to_string(),
+            );
+        }
         let material = pbr_material(
             [base[0] * tint[0], base[1] * tint[1], base[2] * tint[2]],
             metallic * mr_mean.map_or(1.0, |c| c.z),
             roughness * mr_mean.map_or(1.0, |c| c.y),
             transmission,
             ior,
+            clearcoat,
         );
         if mr.is_some() {
             maps.pbr = Some(Pbr {
@@ -135,6 +146,7 @@ impl Source<'_> {
                 texture: mr,
                 transmission,
                 ior,
+                clearcoat,
             });
         } else if maps.base_color.is_some() || maps.emissive.is_some() {
             // The model is fixed by the factors; the texture tints it.
@@ -145,9 +157,49 @@ impl Source<'_> {
                 texture: None,
                 transmission,
                 ior,
+                clearcoat,
             });
         }
         (material, maps)
+    }
+
+    /// The roughness of `m`'s clear coat (`KHR_materials_clearcoat`) where
+    /// it covers the surface (factor at least 0.5); the coat's textures are
+    /// read as their factors (noted).
+    fn clearcoat(&self, b: &mut SceneBuilder, m: &gltf::Material, name: &str) -> Option<f32> {
+        let coat = m.extension_value("KHR_materials_clearcoat")?;
+        let number = |key: &str| {
+            coat.get(key)
+                .and_then(gltf::json::Value::as_f64)
+                .filter(|v| v.is_finite())
+                .map(|v| v.clamp(0.0, 1.0) as f32)
+        };
+        let file = self.path.display().to_string();
+        for key in [
+            "clearcoatTexture",
+            "clearcoatRoughnessTexture",
+            "clearcoatNormalTexture",
+        ] {
+            if coat.get(key).is_some() {
+                b.note(
+                    &file,
+                    Some(name),
+                    format!("KHR_materials_clearcoat: {key} is not used; the factors are"),
+                );
+            }
+        }
+        let factor = number("clearcoatFactor").unwrap_or(0.0);
+        if factor > 0.0 && factor < 1.0 {
+            b.note(
+                &file,
+                Some(name),
+                format!(
+                    "KHR_materials_clearcoat: factor {factor} rounded to {}",
+                    u8::from(factor >= 0.5)
+                ),
+            );
+        }
+        (factor >= 0.5).then(|| number("clearcoatRoughnessFactor").unwrap_or(0.0))
     }
 
     /// The texture a material's texture reference names, placed by its

@@ -25,21 +25,27 @@
 //! * `illum`: its alternate material, or invisible without one.
 //! * `plastic2`, `metal2`, `trans2`: as the isotropic ones, with the mean of
 //!   the two roughnesses.
-//! * `mist`: invisible. Patterns and textures: ignored (the material keeps
-//!   its base color), except the sky distributions of gensky
+//! * `mist`: invisible. Patterns: the sky distributions of gensky
 //!   (`brightfunc skybr skybright.cal`) and gendaylit (`brightfunc skybright
-//!   perezlum.cal`) on `glow` sources, which shape the sky, and `colorpict`
-//!   pictures mapped by `picture.cal`, which colour the material. Mixtures:
-//!   their foreground (background if `void`).
+//!   perezlum.cal`) on `glow` sources shape the sky; `colorpict` pictures
+//!   mapped by `picture.cal` colour the material; `colorfunc`, `brightfunc`,
+//!   `texfunc`, `brightdata` and `colordata` are evaluated at every hit
+//!   (see `functions.rs` and `crate::scene::pattern`), on lights too (an
+//!   IES distribution from ies2rad). Other patterns and textures, and
+//!   those whose files cannot be read, are ignored (noted, with why): the
+//!   material keeps its base color. Mixtures: their foreground (background
+//!   if `void`).
 //! * Other materials (`BRTDfunc`, `BSDF`, `plasfunc`, `antimatter`, ...):
 //!   refused where a surface uses them.
 
 use std::collections::HashMap;
 
 use super::error::{Location, RadError, RadErrorKind};
+use super::functions::{is_function_pattern, FunctionFiles};
 use super::parse::Primitive;
 use super::report::{NoteKind, RadReport};
 use crate::scene::material::Material;
+use crate::scene::pattern::Pattern;
 use crate::scene::sky_distribution::{CieSky, SkyDistribution};
 
 /// Radiance's index of refraction for `glass` without one.
@@ -133,6 +139,8 @@ pub(super) struct Slot {
     pub sky: Option<SkyDistribution>,
     /// The picture that colours it (a `colorpict` over `picture.cal`).
     pub picture: Option<Picture>,
+    /// The function and data patterns that modify it, outermost last.
+    pub patterns: Vec<Pattern>,
 }
 
 /// A `colorpict` pattern with `picture.cal`'s coordinates: the image
@@ -161,6 +169,11 @@ pub(super) struct Modifiers {
     skies: HashMap<String, SkyDistribution>,
     /// Picture patterns by name (`colorpict` over `picture.cal`).
     pictures: HashMap<String, Picture>,
+    /// Function and data patterns by name, each with the chain of
+    /// patterns that modify it.
+    patterns: HashMap<String, Vec<Pattern>>,
+    /// The function and data files read.
+    files: FunctionFiles,
     /// Every material definition, in file order.
     pub slots: Vec<Slot>,
 }
@@ -210,23 +223,44 @@ impl Modifiers {
         } else if PATTERNS.contains(&kind) {
             self.skies.remove(&p.name);
             self.pictures.remove(&p.name);
+            self.patterns.remove(&p.name);
             if let Some(sky) = sky_pattern(p, at)? {
                 self.skies.insert(p.name.clone(), sky);
             } else if let Some(picture) = picture_pattern(p, at, dir, placed)? {
                 self.pictures.insert(p.name.clone(), picture);
+            } else if is_function_pattern(kind) {
+                match self.files.pattern(p, dir, placed) {
+                    Ok(pattern) => {
+                        let mut chain = self.patterns.get(&p.modifier).cloned().unwrap_or_default();
+                        chain.push(pattern);
+                        self.patterns.insert(p.name.clone(), chain);
+                    }
+                    Err(why) => {
+                        tracing::warn!("{at}: {}: {why}; the pattern is ignored", p.what());
+                        report.note(NoteKind::PatternIgnored, at, || format!("{}: {why}", p.what()));
+                    }
+                }
             } else {
                 report.note(NoteKind::PatternIgnored, at, || p.what());
             }
-            match (self.lookup(&p.modifier, at)?, self.pictures.get(&p.name)) {
+            let pattern = self.patterns.get(&p.name).and_then(|c| c.last());
+            match (self.lookup(&p.modifier, at)?, self.pictures.get(&p.name), pattern) {
                 // A picture over a material (surface -> pattern -> material):
                 // surfaces that name the pattern show the material pictured.
-                (Resolved::Material(slot), Some(picture)) => {
+                (Resolved::Material(slot), Some(picture), _) => {
                     let mut pictured = self.slots[slot].clone();
                     pictured.picture = Some(picture.clone());
                     self.slots.push(pictured);
                     Resolved::Material(self.slots.len() - 1)
                 }
-                (resolved, _) => resolved,
+                // The same for a function or data pattern.
+                (Resolved::Material(slot), None, Some(pattern)) => {
+                    let mut patterned = self.slots[slot].clone();
+                    patterned.patterns.push(pattern.clone());
+                    self.slots.push(patterned);
+                    Resolved::Material(self.slots.len() - 1)
+                }
+                (resolved, ..) => resolved,
             }
         } else if MIXTURES.contains(&kind) {
             let [fore, back] = match &p.strings[..] {
@@ -269,6 +303,11 @@ impl Modifiers {
                 _ => None,
             };
             let picture = self.pictures.get(&p.modifier).cloned();
+            let patterns = match light {
+                // A sky's pattern shapes the sky; the glow itself is the sky.
+                LightKind::Glow if sky.is_some() => Vec::new(),
+                _ => self.patterns.get(&p.modifier).cloned().unwrap_or_default(),
+            };
             self.slots.push(Slot {
                 name: p.name.clone(),
                 material,
@@ -276,6 +315,7 @@ impl Modifiers {
                 at: at.clone(),
                 sky,
                 picture,
+                patterns,
             });
             Resolved::Material(self.slots.len() - 1)
         };

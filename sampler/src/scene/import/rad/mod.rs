@@ -21,6 +21,7 @@
 
 mod command;
 pub mod error;
+mod functions;
 mod lexer;
 mod loader;
 mod materials;
@@ -78,7 +79,8 @@ pub fn read_rad(
             Some(id) => id,
             None => {
                 let s = &loader.modifiers.slots[slot];
-                let maps = picture_maps(b, s, path);
+                let mut maps = picture_maps(b, s, path);
+                maps.patterns = s.patterns.clone();
                 let id = super::textured_material(b, options, &s.name, s.material.clone(), maps)?;
                 ids[slot] = Some(id);
                 id

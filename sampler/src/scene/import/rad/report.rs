@@ -61,7 +61,7 @@ impl NoteKind {
     /// One line saying what was done.
     pub fn summary(self) -> &'static str {
         match self {
-            NoteKind::PatternIgnored => "patterns and textures are ignored; materials keep their base color",
+            NoteKind::PatternIgnored => "patterns and textures not read are ignored; materials keep their base color",
             NoteKind::MixtureForeground => "mixtures are shown as their foreground material",
             NoteKind::IllumAlternate => "illum is shown as its alternate material",
             NoteKind::IllumInvisible => "illum without an alternate material is invisible; its surfaces are left out",

@@ -10,6 +10,7 @@ use crate::scene::{Material, Scene};
 
 mod commands;
 mod errors;
+mod functions;
 mod materials;
 mod pictures;
 mod render;
