@@ -183,7 +183,18 @@ grey polygon floor
     let mut b = SceneBuilder::new();
     let report = read_rad(&mut b, &path, Mat4::IDENTITY, &ImportOptions::default()).unwrap();
     assert_eq!(report.count(NoteKind::PatternIgnored), 0, "{report:?}");
-    let t = Tracer::new(b.finish(), TraceOptions::default());
+    let scene = b.finish();
+    // The same scene as a scene file, traced out of core: the light keeps its pattern.
+    let hds = dir.path().join("ies.hds");
+    let source = crate::ooc::build::SceneSource::new(scene.clone());
+    crate::ooc::build_scene_file(&source, &hds, &Default::default(), &|_, _, _| {}).unwrap();
+    let file = std::sync::Arc::new(crate::ooc::OocScene::open(&hds, None, 1).unwrap());
+    assert_eq!(file.shell().maps, scene.maps, "the patterns survive the file");
+    let from_file = Tracer::out_of_core(file, TraceOptions::default());
+    let t = Tracer::new(scene, TraceOptions::default());
+    let below = |t: &Tracer| radiance(t, Vec3::new(0.0, 0.0, 0.5), -Vec3::Z, 20_000).x;
+    let (core, out_of_core) = (below(&t), below(&from_file));
+    assert!((out_of_core - core).abs() < 0.03 * core, "{out_of_core} against {core}");
     // Floor radiance 0.5 E / pi, E = I(theta) cos(theta) / r^2 from the lamp 2 above.
     for (x, intensity) in [
         (0.0f32, 10.0f32),
