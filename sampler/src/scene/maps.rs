@@ -281,33 +281,16 @@ impl MaterialMaps {
             let base = (Vec3::from_array(p.base) * tint).to_array();
             return pbr_material(base, metallic, roughness, p.transmission, p.ior, p.clearcoat);
         }
-        let mul = |c: &[f32; 3]| unit((Vec3::from_array(*c) * tint).to_array());
-        let rough = |r: f32| match &self.roughness {
-            Some(t) => (r * t.sample(textures, uv, width).x).clamp(0.0, 1.0),
-            None => r,
-        };
-        match m {
-            Material::Lambertian { albedo, emission } => Material::Lambertian {
-                albedo: mul(albedo),
-                emission: *emission,
-            },
-            Material::Plastic { albedo, roughness, ior } => Material::Plastic {
-                albedo: mul(albedo),
-                roughness: rough(*roughness),
-                ior: *ior,
-            },
-            Material::Metal { color, roughness } => Material::Metal {
-                color: mul(color),
-                roughness: rough(*roughness),
-            },
-            Material::Mirror { color } => Material::Mirror { color: mul(color) },
-            Material::Glass { ior, color, thin } => Material::Glass {
-                ior: *ior,
-                color: mul(color),
-                thin: *thin,
-            },
-            Material::Emitter { radiance } => Material::Emitter { radiance: *radiance },
+        if matches!(m, Material::Emitter { .. }) {
+            return m.clone();
         }
+        let mut out = tinted(m, tint);
+        if let (Some(t), Material::Plastic { roughness, .. } | Material::Metal { roughness, .. }) =
+            (&self.roughness, &mut out)
+        {
+            *roughness = (*roughness * t.sample(textures, uv, width).x).clamp(0.0, 1.0);
+        }
+        out
     }
 
     /// The shading normal at `uv` from the relief map, given the unit
@@ -353,6 +336,42 @@ impl MaterialMaps {
         };
         let s = shading.try_normalize()?;
         s.is_finite().then_some(s)
+    }
+}
+
+/// `m` with its colour multiplied by `c` (a texture's or a pattern's):
+/// reflectances stay within [0, 1]; an emitter's radiance is multiplied
+/// as it is.
+pub fn tinted(m: &Material, c: Vec3) -> Material {
+    if c == Vec3::ONE {
+        return m.clone();
+    }
+    let mul = |x: &[f32; 3]| unit((Vec3::from_array(*x) * c).to_array());
+    match m {
+        Material::Lambertian { albedo, emission } => Material::Lambertian {
+            albedo: mul(albedo),
+            emission: *emission,
+        },
+        Material::Plastic { albedo, roughness, ior } => Material::Plastic {
+            albedo: mul(albedo),
+            roughness: *roughness,
+            ior: *ior,
+        },
+        Material::Metal { color, roughness } => Material::Metal {
+            color: mul(color),
+            roughness: *roughness,
+        },
+        Material::Mirror { color } => Material::Mirror { color: mul(color) },
+        Material::Glass { ior, color, thin } => Material::Glass {
+            ior: *ior,
+            color: mul(color),
+            thin: *thin,
+        },
+        Material::Emitter { radiance } => Material::Emitter {
+            radiance: (Vec3::from_array(*radiance) * c)
+                .to_array()
+                .map(|v| if v.is_finite() { v.max(0.0) } else { 0.0 }),
+        },
     }
 }
 

@@ -16,6 +16,7 @@ use super::path::SurfaceHit;
 use super::tracer::Tracer;
 use crate::accel::Hit;
 use crate::geom::{intersect_triangle, offset_origin, Ray, RayPrep};
+use crate::scene::maps::tinted;
 use crate::scene::pattern::{effect_of, PatternHit};
 use crate::scene::Material;
 
@@ -305,43 +306,6 @@ impl Tracer {
             le *= effect_of(&maps.patterns, &at).color;
         }
         le
-    }
-}
-
-/// `m` with its colour (a light's radiance) multiplied by `c`; reflectances
-/// stay within [0, 1].
-fn tinted(m: &Material, c: Vec3) -> Material {
-    if c == Vec3::ONE {
-        return m.clone();
-    }
-    let mul = |x: &[f32; 3]| {
-        (Vec3::from_array(*x) * c)
-            .to_array()
-            .map(|v| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 })
-    };
-    match m {
-        Material::Lambertian { albedo, emission } => Material::Lambertian {
-            albedo: mul(albedo),
-            emission: *emission,
-        },
-        Material::Plastic { albedo, roughness, ior } => Material::Plastic {
-            albedo: mul(albedo),
-            roughness: *roughness,
-            ior: *ior,
-        },
-        Material::Metal { color, roughness } => Material::Metal {
-            color: mul(color),
-            roughness: *roughness,
-        },
-        Material::Mirror { color } => Material::Mirror { color: mul(color) },
-        Material::Glass { ior, color, thin } => Material::Glass {
-            ior: *ior,
-            color: mul(color),
-            thin: *thin,
-        },
-        Material::Emitter { radiance } => Material::Emitter {
-            radiance: (Vec3::from_array(*radiance) * c).max(Vec3::ZERO).to_array(),
-        },
     }
 }
 

@@ -349,17 +349,7 @@ impl<'p> Eval<'p> {
                     None => self.fail(Fault::Arithmetic),
                 }
             }
-            Node::Call(f, args) => {
-                let f = *f;
-                let top = self.stack.len();
-                for &a in args {
-                    let v = self.argument(a, base, count);
-                    self.stack.push(v);
-                }
-                let v = self.invoke(f, top);
-                self.stack.truncate(top);
-                v
-            }
+            Node::Call(f, args) => self.call_on(*f, args, base, count),
             Node::CallParam(i, args) => {
                 let f = match (*i as usize) < count {
                     true => self.stack[base + *i as usize],
@@ -368,16 +358,22 @@ impl<'p> Eval<'p> {
                 let Value::Func(f) = f else {
                     return self.fail(Fault::Arithmetic);
                 };
-                let top = self.stack.len();
-                for &a in args {
-                    let v = self.argument(a, base, count);
-                    self.stack.push(v);
-                }
-                let v = self.invoke(f, top);
-                self.stack.truncate(top);
-                v
+                self.call_on(f, args, base, count)
             }
         }
+    }
+
+    /// Calls `f` on the values of the argument nodes `args`, evaluated in
+    /// the frame of `count` values at `base`.
+    fn call_on(&mut self, f: Callee, args: &[u32], base: usize, count: usize) -> f64 {
+        let top = self.stack.len();
+        for &a in args {
+            let v = self.argument(a, base, count);
+            self.stack.push(v);
+        }
+        let v = self.invoke(f, top);
+        self.stack.truncate(top);
+        v
     }
 
     /// An argument's value: a function where the caller names one.
