@@ -73,11 +73,13 @@ struct Px {
 
 /// One pixel's guide as the passes read it.
 #[derive(Clone, Copy, Debug)]
-struct Tap {
-    depth: f32,
+pub(super) struct Tap {
+    /// Distance to the surface (infinite for sky, NaN where unknown).
+    pub(super) depth: f32,
     /// Depth change per pixel along the surface (its slope on screen).
-    slope: f32,
-    normal: Vec3,
+    pub(super) slope: f32,
+    /// Unit normal (zero where unknown).
+    pub(super) normal: Vec3,
 }
 
 /// Filters `picture` (linear radiance) guided by `guide` (same size);
@@ -209,9 +211,10 @@ fn normal_weight(a: Vec3, b: Vec3, sigma: i32) -> f32 {
 }
 
 /// Depth, slope and normal of every pixel.
-fn taps(g: &Guide) -> Vec<Tap> {
+pub(super) fn taps(g: &Guide) -> Vec<Tap> {
     let (w, h) = (g.width, g.height);
     (0..w * h)
+        .into_par_iter()
         .map(|p| {
             let (c, r) = (p % w, p / w);
             let d = g.depth[p];
@@ -238,7 +241,7 @@ fn taps(g: &Guide) -> Vec<Tap> {
 /// or filled by the driver) set to the variance of the luminance around
 /// them over a 3 x 3 window: a pixel nobody measured counts as noisy as it
 /// looks.
-fn fill_variance(g: &Guide, color: &[Vec3]) -> Vec<f32> {
+pub(super) fn fill_variance(g: &Guide, color: &[Vec3]) -> Vec<f32> {
     let (w, h) = (g.width, g.height);
     let l: Vec<f32> = color.iter().map(|&c| luminance(c)).collect();
     let mean = box3(&l, w, h);

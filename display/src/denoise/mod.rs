@@ -3,7 +3,7 @@
 //! knows of each pixel (depth, normal, the spread of its rays).
 //!
 //! Two denoisers: the edge-avoiding à-trous filter steered by variance
-//! ([`atrous`], on the CPU everywhere), and Intel Open Image Denoise with
+//! ([`atrous`] on the CPU, [`gpu`] on a GPU or lavapipe), and Intel Open Image Denoise with
 //! the normals as its auxiliary feature ([`oidn`], with the `oidn` cargo
 //! feature). Every denoiser here must keep the light of every region of the
 //! picture: a denoised frame is measured by the light it keeps in the dark,
@@ -11,6 +11,7 @@
 
 pub mod atrous;
 pub mod driver;
+pub mod gpu;
 pub mod guide;
 #[cfg(feature = "oidn")]
 pub mod oidn;
@@ -26,14 +27,16 @@ pub use guide::Guide;
 pub enum Denoiser {
     /// None: the frame as reconstructed.
     Off,
-    /// The variance-guided à-trous filter.
+    /// The variance-guided à-trous filter, on the CPU.
     Atrous(AtrousOptions),
+    /// The same filter on the GPU (the CPU's where no device can run it).
+    AtrousGpu(AtrousOptions),
     /// Intel Open Image Denoise (with the `oidn` feature).
     Oidn,
 }
 
 /// The names [`Denoiser::parse`] knows.
-pub const DENOISERS: [&str; 3] = ["off", "atrous", "oidn"];
+pub const DENOISERS: [&str; 4] = ["off", "atrous", "atrous-gpu", "oidn"];
 
 /// Why a frame could not be denoised.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -55,6 +58,7 @@ impl Denoiser {
         match name {
             "off" => Ok(Denoiser::Off),
             "atrous" => Ok(Denoiser::Atrous(AtrousOptions::default())),
+            "atrous-gpu" => Ok(Denoiser::AtrousGpu(AtrousOptions::default())),
             "oidn" if cfg!(feature = "oidn") => Ok(Denoiser::Oidn),
             "oidn" => Err(DenoiseError::NoOidn),
             other => Err(DenoiseError::Unknown(other.to_string())),
@@ -66,6 +70,7 @@ impl Denoiser {
         match self {
             Denoiser::Off => "off",
             Denoiser::Atrous(_) => "atrous",
+            Denoiser::AtrousGpu(_) => "atrous-gpu",
             Denoiser::Oidn => "oidn",
         }
     }
@@ -75,6 +80,13 @@ impl Denoiser {
         match self {
             Denoiser::Off => Ok(picture.clone()),
             Denoiser::Atrous(o) => Ok(atrous(picture, guide, o)),
+            Denoiser::AtrousGpu(o) => match gpu::GpuAtrous::shared().and_then(|g| g.filter(picture, guide, o)) {
+                Ok(p) => Ok(p),
+                Err(e) => {
+                    tracing::debug!("the GPU filter cannot run ({e}); the CPU filters this frame");
+                    Ok(atrous(picture, guide, o))
+                }
+            },
             #[cfg(feature = "oidn")]
             Denoiser::Oidn => oidn::denoise_guided(picture, guide),
             #[cfg(not(feature = "oidn"))]

@@ -127,8 +127,9 @@ pub struct FrameArgs {
     #[arg(long, default_value = "camera")]
     pub tone: String,
     /// Denoiser run on every frame after reconstruction: atrous (edge-avoiding wavelets
-    /// steered by each pixel's noise, on the CPU), oidn (Intel Open Image Denoise; a build
-    /// with --features oidn) or off.
+    /// steered by each pixel's noise, on the CPU), atrous-gpu (the same filter on the GPU,
+    /// or on Mesa's software Vulkan where there is none; the CPU's where no device runs it),
+    /// oidn (Intel Open Image Denoise; a build with --features oidn) or off.
     #[arg(long, default_value = DEFAULT_DENOISER)]
     pub denoise: String,
     #[command(flatten)]

@@ -149,19 +149,39 @@ fn denoise_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
     if cfg!(feature = "oidn") {
         denoisers.push(Denoiser::Oidn);
     }
+    let cpu = Denoiser::Atrous(AtrousOptions::default()).apply(&picture, &guide)?;
+    let gpu = holodeck_display::denoise::gpu::GpuAtrous::shared();
+    if let Ok(g) = &gpu {
+        // Compiled and warmed before it is timed.
+        g.filter(&picture, &guide, &AtrousOptions::default())?;
+        denoisers.push(Denoiser::AtrousGpu(AtrousOptions::default()));
+    }
     for dn in denoisers {
         let mut best = f64::INFINITY;
+        let mut out = picture.clone();
         for _ in 0..3 {
             let start = Instant::now();
-            std::hint::black_box(dn.apply(&picture, &guide)?);
+            out = std::hint::black_box(dn.apply(&picture, &guide)?);
             best = best.min(start.elapsed().as_secs_f64() * 1e3);
         }
+        let on = match (&dn, &gpu) {
+            (Denoiser::AtrousGpu(_), Ok(g)) => {
+                // The GPU's frame against the CPU's: rounding apart, the same.
+                let worst = cpu
+                    .pixels
+                    .iter()
+                    .zip(&out.pixels)
+                    .map(|(a, b)| ((*a - *b).abs() / (a.abs() + glam::Vec3::splat(1e-3))).max_element())
+                    .fold(0.0f32, f32::max);
+                format!(
+                    "{} (largest relative difference from the CPU's frame {worst:.1e})",
+                    g.describe()
+                )
+            }
+            _ => format!("the CPU ({} threads)", rayon::current_num_threads()),
+        };
         row(
-            &format!(
-                "denoiser {}: a 1024x768 frame on the CPU ({} threads)",
-                dn.name(),
-                rayon::current_num_threads()
-            ),
+            &format!("denoiser {}: a 1024x768 frame on {on}", dn.name()),
             format!("{best:.1} ms"),
             format!("the quadtree frame {frame:.1} ms"),
             best / frame,
