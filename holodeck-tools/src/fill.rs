@@ -6,13 +6,13 @@ use std::time::{Duration, Instant};
 
 use std::collections::HashMap;
 
+use holodeck_file::HoloFile;
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
 use holodeck_sampler::beam::{trace_batch, FileRules};
 use holodeck_sampler::shade::wavefront::AUTO_MIN_PATHS;
 use holodeck_sampler::{Reorder, Tracer};
 use holodeck_server::schedule::BatchSchedule;
-use holodeck_server::HoloFile;
 
 /// Scenes whose in-core structure and mesh exceed this (a typical
 /// last-level cache) are filled in rounds large enough to sort.
@@ -237,7 +237,7 @@ mod tests {
     /// 15 cm off, which show a glossy surface as seen from there).
     #[test]
     fn views_that_share_beams_each_get_rays_near_their_own_eye() {
-        use holodeck_server::{OpenOptions, Settings};
+        use holodeck_file::{OpenOptions, Settings};
         let input = crate::cmd::scene_input::SceneInput::open("builtin:room", None, None).unwrap();
         let sections = input.sections().to_vec();
         let tracer = input.tracer(holodeck_sampler::TraceOptions {

@@ -348,7 +348,7 @@ mod tests {
     #[test]
     fn causes_already_in_a_message_are_said_once() {
         let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
-        let storage = holodeck_server::StorageError::Io {
+        let storage = holodeck_file::StorageError::Io {
             path: "room.hdk".into(),
             op: "opening",
             source: io,

@@ -2,8 +2,8 @@
 
 use std::path::Path;
 
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe};
-use holodeck_server::{HoloFile, OpenOptions};
 
 mod common;
 use common::{holodeck, text};
@@ -779,7 +779,7 @@ fn zeroing_any_one_page_of_a_run_made_file_loses_at_most_its_beams() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
     run_until_full(&file, "3M", "0");
-    let (pages, worst) = holodeck_server::testing::zero_every_page(&file);
+    let (pages, worst) = holodeck_file::testing::zero_every_page(&file);
     eprintln!("run-made file: {pages} pages zeroed in turn, at most {worst} beams lost to one");
     assert!(pages > 300, "{pages} pages");
 }

@@ -10,7 +10,7 @@ use std::process::{Command, Output};
 
 use common::process::{run, Proc};
 use common::text;
-use holodeck_server::testing::metadata_map;
+use holodeck_file::testing::metadata_map;
 
 /// A small filled holodeck of the built-in room.
 fn filled(dir: &Path) -> std::path::PathBuf {

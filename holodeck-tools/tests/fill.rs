@@ -4,8 +4,8 @@
 mod common;
 use common::holodeck;
 
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_sampler::scene::gen::{generate, GenParams};
-use holodeck_server::{HoloFile, OpenOptions};
 
 #[test]
 fn filled_rays_agree_with_the_scene() {
@@ -36,9 +36,9 @@ fn filled_rays_agree_with_the_scene() {
     let beams = u64::from(section_beams(&summary));
     let chunks = beams.div_ceil(8192);
     assert!(summary.fragments as u64 <= chunks + 2, "{summary:?}");
-    let root = holodeck_server::storage::format::root_len(chunks as usize);
+    let root = holodeck_file::storage::format::root_len(chunks as usize);
     let created = 2 * (beams + 20 * chunks + root);
-    let gap = holodeck_server::storage::format::COPY_GAP;
+    let gap = holodeck_file::storage::format::COPY_GAP;
     assert!(
         summary.free_bytes >= created && summary.free_bytes <= created + gap,
         "{summary:?}"
@@ -56,6 +56,6 @@ fn filled_rays_agree_with_the_scene() {
     assert!(err.contains("another scene"), "{err}");
 }
 
-fn section_beams(s: &holodeck_server::storage::FileSummary) -> u32 {
+fn section_beams(s: &holodeck_file::storage::FileSummary) -> u32 {
     s.sections.iter().map(|x| x.0).sum()
 }

@@ -7,7 +7,7 @@ mod common;
 use std::process::Command;
 
 use common::process::{wait_for, Proc, DEADLINE};
-use holodeck_server::{storage, HoloFile, OpenOptions};
+use holodeck_file::{storage, HoloFile, OpenOptions};
 
 /// Live processes (not zombies) in process group `group`, with their command lines.
 fn group_members(group: u32) -> Vec<(u32, String)> {

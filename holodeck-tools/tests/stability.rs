@@ -318,7 +318,7 @@ fn empty_beams_and_a_beam_of_one_ray() {
     let view = View::parse(ROOM_VIEW).unwrap();
     let seen = ViewBeams::select(std::slice::from_ref(&s), &view, 256, 192, 0);
     {
-        let mut f = holodeck_server::HoloFile::open(&file, &holodeck_server::OpenOptions::default()).unwrap();
+        let mut f = holodeck_file::HoloFile::open(&file, &holodeck_file::OpenOptions::default()).unwrap();
         for (k, _) in &seen.counts {
             let ray = s.beam_ray(k.beam, [128, 128], [128, 128]).unwrap();
             let record = RayRecord::new(
@@ -575,7 +575,7 @@ fn a_client_sending_random_bytes_is_dropped_and_the_rest_go_on() {
     holodeck_protocol::wire::client::send_control(&addr, "secret", holodeck_protocol::wire::Control::Resume).unwrap();
     holodeck_protocol::wire::client::send_control(&addr, "secret", holodeck_protocol::wire::Control::Quit).unwrap();
     assert!(server.wait().success(), "{}", server.text());
-    let f = holodeck_server::HoloFile::open(&file, &holodeck_server::OpenOptions::read_only()).unwrap();
+    let f = holodeck_file::HoloFile::open(&file, &holodeck_file::OpenOptions::read_only()).unwrap();
     assert_eq!(f.summary().rays(), 5_000, "nothing lost");
 }
 
@@ -627,7 +627,7 @@ fn sampler(addr: &str) -> Proc {
 
 /// The rays stored in a file no server holds.
 fn rays_in(file: &std::path::Path) -> u64 {
-    holodeck_server::HoloFile::open(file, &holodeck_server::OpenOptions::read_only())
+    holodeck_file::HoloFile::open(file, &holodeck_file::OpenOptions::read_only())
         .unwrap()
         .summary()
         .rays()
@@ -675,7 +675,7 @@ fn a_display_that_never_reads_holds_up_only_itself() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("room.hdk");
     fill_room(&file, "200K");
-    let scene = holodeck_server::HoloFile::open(&file, &holodeck_server::OpenOptions::read_only())
+    let scene = holodeck_file::HoloFile::open(&file, &holodeck_file::OpenOptions::read_only())
         .unwrap()
         .settings()
         .scene

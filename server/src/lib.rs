@@ -1,12 +1,7 @@
-//! The holodeck server: the storage engine that owns a holodeck file and the
-//! settings it records. Network service and scheduler build on these.
+//! The holodeck server: the network service (`net`) that samplers, displays
+//! and admins connect to, and the scheduler (`schedule`) that decides which
+//! beams samplers trace next, over a holodeck file owned by the storage
+//! engine of `holodeck_file`.
 
 pub mod net;
-pub mod radiance;
 pub mod schedule;
-pub mod settings;
-pub mod storage;
-pub mod testing;
-
-pub use settings::{ControlFile, Settings, SettingsError};
-pub use storage::{HoloFile, OpenOptions, StorageError};

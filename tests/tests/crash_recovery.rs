@@ -14,10 +14,10 @@ use std::path::Path;
 use std::process::Command;
 use std::sync::mpsc;
 
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::{self, HoloFile, OpenOptions};
+use holodeck_file::testing::{pattern_ray as ray, two_sections};
 use holodeck_protocol::{BeamKey, RayRecord};
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::{self, HoloFile, OpenOptions};
-use holodeck_server::testing::{pattern_ray as ray, two_sections};
 use rand::{Rng, SeedableRng};
 
 #[path = "../../holodeck-tools/tests/common/process.rs"]
@@ -32,7 +32,7 @@ const MODE_VAR: &str = "HOLODECK_CRASH_MODE";
 const REPORT_FD_VAR: &str = "HOLODECK_CRASH_REPORT_FD";
 
 fn settings() -> Settings {
-    two_sections([3, 2, 2], [1, 1, 2], holodeck_server::settings::DEFAULT_CACHE_BYTES)
+    two_sections([3, 2, 2], [1, 1, 2], holodeck_file::settings::DEFAULT_CACHE_BYTES)
 }
 
 /// What the writer reports, one line each, nothing else.

@@ -13,16 +13,16 @@ use std::time::{Duration, Instant};
 
 use holodeck_display::client::DisplaySession;
 use holodeck_display::request::BeamRequest;
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::faults::{self, Op};
+use holodeck_file::storage::{self, HoloFile, OpenOptions};
+use holodeck_file::testing::pattern_rays;
 use holodeck_protocol::{BeamKey, ViewBeams};
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::worker::run_worker;
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::net::{serve, Listener, ServerConfig};
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::faults::{self, Op};
-use holodeck_server::storage::{self, HoloFile, OpenOptions};
-use holodeck_server::testing::pattern_rays;
 
 const TOKEN: &str = "fault-test-token";
 

@@ -14,12 +14,12 @@
 use std::collections::HashMap;
 use std::path::Path;
 
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::faults::{self, Event};
+use holodeck_file::storage::format;
+use holodeck_file::storage::{HoloFile, OpenOptions};
+use holodeck_file::testing::{all_keys, metadata_map, pattern_rays};
 use holodeck_protocol::{BeamKey, RayRecord, Section, SectionKind};
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::faults::{self, Event};
-use holodeck_server::storage::format;
-use holodeck_server::storage::{HoloFile, OpenOptions};
-use holodeck_server::testing::{all_keys, metadata_map, pattern_rays};
 
 type Rays = HashMap<BeamKey, Vec<RayRecord>>;
 

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use holodeck_server::storage::{self, CheckReport, StorageError};
+use holodeck_file::storage::{self, CheckReport, StorageError};
 
 use crate::human::count;
 

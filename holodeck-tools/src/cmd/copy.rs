@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use holodeck_server::storage;
+use holodeck_file::storage;
 
 use crate::human::count;
 
@@ -32,7 +32,7 @@ pub struct Args {
     dst: PathBuf,
     /// DST's size limit for this copy, replacing its DISKSPACE setting (e.g. 2G; 0 for
     /// none). A copy that reaches the limit stops, keeping every ray stored so far.
-    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, value_parser = holodeck_file::settings::parse_size)]
     diskspace: Option<u64>,
 }
 

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
+use holodeck_file::settings::{parse_size, Settings};
+use holodeck_file::HoloFile;
 use holodeck_protocol::{SectionSpec, SectionTextError, MAX_BEAMS_PER_SECTION};
-use holodeck_server::settings::{parse_size, Settings};
-use holodeck_server::HoloFile;
 
 use crate::human::count_in;
 

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use holodeck_server::radiance::{self, Layout};
+use holodeck_file::radiance::{self, Layout};
 
 use crate::human::{bytes, count};
 

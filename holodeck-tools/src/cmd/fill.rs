@@ -9,8 +9,8 @@ use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::TraceOptions;
 
 use super::scene_input::SceneInput;
-use holodeck_server::settings::{parse_duration, Settings};
-use holodeck_server::{HoloFile, OpenOptions, StorageError};
+use holodeck_file::settings::{parse_duration, Settings};
+use holodeck_file::{HoloFile, OpenOptions, StorageError};
 
 use super::args::MAX_TRIANGLES;
 use crate::fill::{fill, FillOptions, ViewFill};
@@ -67,7 +67,7 @@ pub struct Args {
     #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = super::args::non_negative)]
     eye_radius: f64,
     /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
-    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, value_parser = holodeck_file::settings::parse_size)]
     scene_memory: Option<u64>,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use holodeck_server::{HoloFile, OpenOptions};
+use holodeck_file::{HoloFile, OpenOptions};
 
 /// Arguments of `holodeck grid`.
 #[derive(clap::Args)]

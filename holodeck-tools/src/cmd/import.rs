@@ -4,8 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use holodeck_file::radiance::{self, ByteOrder, ImportOptions};
 use holodeck_protocol::SectionKind;
-use holodeck_server::radiance::{self, ByteOrder, ImportOptions};
 
 use crate::human::count;
 

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use holodeck_server::{HoloFile, OpenOptions};
+use holodeck_file::{HoloFile, OpenOptions};
 
 use crate::human::{bytes, count};
 

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::Result;
-use holodeck_server::storage;
+use holodeck_file::storage;
 
 use crate::human::{bytes, count};
 

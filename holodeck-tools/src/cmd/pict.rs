@@ -11,8 +11,8 @@ use holodeck_display::denoise::Denoiser;
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
 use holodeck_display::{output, DriverStats, Sample, SampleDecoder, Viewport};
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{BeamKey, RayRecord, View};
-use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
 
 use super::args::DriverChoice;

@@ -72,7 +72,7 @@ pub struct Args {
     /// For a .hds scene file: decompressed blocks kept in memory (K, M, G;
     /// default: all of them). When they all fit (and memory allows, and LOD
     /// is off) the file is assembled into the in-core tree at the start.
-    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, value_parser = holodeck_file::settings::parse_size)]
     scene_memory: Option<u64>,
     /// For a .hds scene file: trace it out of core even when it would fit in
     /// memory (to see what a view needs of it: its working set).

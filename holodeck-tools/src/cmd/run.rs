@@ -8,9 +8,9 @@ use std::process::{Command, ExitCode, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use holodeck_file::settings::parse_duration;
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::{client, Control};
-use holodeck_server::settings::parse_duration;
-use holodeck_server::{HoloFile, OpenOptions};
 
 use super::args::{frame_size, MAX_WORKERS, SIDE};
 use crate::human::count;
@@ -74,7 +74,7 @@ pub struct Args {
     frames: PathBuf,
     /// The file's size limit for this run, replacing its DISKSPACE setting (e.g. 2G; 0 for
     /// none); the run stops when it is reached, keeping every ray stored.
-    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, value_parser = holodeck_file::settings::parse_size)]
     diskspace: Option<u64>,
     /// Where the server listens (HOST:PORT), so that other displays can join
     /// with `holodeck view --connect`; default: a free port on this machine only.
@@ -109,7 +109,7 @@ pub struct Args {
     #[arg(long, value_parser = crate::human::count_in(1, super::args::MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// For a .hds scene file: decompressed blocks each sampler keeps in memory (K, M, G; default: all).
-    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, value_parser = holodeck_file::settings::parse_size)]
     scene_memory: Option<u64>,
 }
 

@@ -5,9 +5,9 @@ use std::sync::{Arc, Mutex};
 use std::time::SystemTime;
 
 use anyhow::{bail, Context, Result};
+use holodeck_file::settings::parse_duration;
 use holodeck_sampler::worker::{run_worker_retrying, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
-use holodeck_server::settings::parse_duration;
 
 use super::args::{MAX_TRIANGLES, MAX_WORKERS};
 use super::scene_input::SceneInput;
@@ -54,7 +54,7 @@ pub struct Args {
     #[arg(long, value_parser = count_in(1, MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
-    #[arg(long, value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, value_parser = holodeck_file::settings::parse_size)]
     scene_memory: Option<u64>,
     /// After losing the server, keep trying to reconnect this long (e.g. 30s, 5m; 0s: give up at once).
     #[arg(long, default_value = "60s")]

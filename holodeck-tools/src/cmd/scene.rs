@@ -126,13 +126,13 @@ pub struct BuildArgs {
     #[arg(short, long, value_name = "HDS")]
     output: PathBuf,
     /// Memory the build may use (K, M, G suffixes).
-    #[arg(long, default_value = "2G", value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, default_value = "2G", value_parser = holodeck_file::settings::parse_size)]
     memory: u64,
     /// Block compression: lz4 (fast to decompress) or zstd (smaller).
     #[arg(long, default_value = "lz4")]
     codec: holodeck_sampler::ooc::Codec,
     /// Decompressed block size to aim at (K, M suffixes).
-    #[arg(long, default_value = "64K", value_parser = holodeck_server::settings::parse_size)]
+    #[arg(long, default_value = "64K", value_parser = holodeck_file::settings::parse_size)]
     block_size: u64,
     /// Triangles for builtin:landscape; suffixes K, M, G as powers of 1000.
     #[arg(long, value_parser = count_in(1, u64::from(u32::MAX)))]

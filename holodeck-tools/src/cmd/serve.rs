@@ -6,11 +6,11 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use holodeck_file::settings::{parse_duration, parse_size};
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tokens};
 use holodeck_server::schedule::Share;
-use holodeck_server::settings::{parse_duration, parse_size};
-use holodeck_server::{HoloFile, OpenOptions};
 use rand::Rng;
 
 /// Arguments of `holodeck serve`.

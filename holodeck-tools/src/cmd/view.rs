@@ -12,8 +12,8 @@ use holodeck_display::client::DisplaySession;
 use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use holodeck_display::tonemap::Histogram;
 use holodeck_display::{output, Sample, Viewport};
+use holodeck_file::settings::parse_duration;
 use holodeck_protocol::View;
-use holodeck_server::settings::parse_duration;
 
 use crate::human::count;
 

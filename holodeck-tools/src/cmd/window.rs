@@ -9,9 +9,9 @@ use anyhow::{Context, Result};
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::window::{self, Source, SourceError, WalkOptions, WindowOptions};
 use holodeck_display::{Sample, SampleDecoder, Viewport};
+use holodeck_file::HoloFile;
 use holodeck_protocol::wire::Control;
 use holodeck_protocol::{BeamKey, Section, View};
-use holodeck_server::HoloFile;
 
 use super::args::FrameArgs;
 

@@ -10,10 +10,10 @@ use anyhow::{Context, Result};
 use holodeck_display::compare::Metrics;
 use holodeck_display::denoise::{AtrousOptions, Denoiser};
 use holodeck_display::{EstimatorOptions, Viewport};
+use holodeck_file::HoloFile;
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, render_aovs, RenderOptions};
 use holodeck_sampler::Tracer;
-use holodeck_server::HoloFile;
 
 use crate::cmd::args::DriverChoice;
 use crate::truth::Truth;

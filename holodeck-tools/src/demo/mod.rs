@@ -278,7 +278,7 @@ impl Demo {
     fn fill(
         &self,
         tracer: &holodeck_sampler::Tracer,
-        file: &mut holodeck_server::HoloFile,
+        file: &mut holodeck_file::HoloFile,
         views: &[View],
         first: &Truth,
         kinds: &[Kind],

@@ -45,7 +45,7 @@ pub fn text(o: &Output) -> String {
 /// a ray that sees the light carries its exact radiance, and one that sees an
 /// unlit surface is black. Returns (rays checked, rays that saw the light).
 #[allow(dead_code)]
-pub fn check_rays_against_room(hdk: &mut holodeck_server::HoloFile) -> (u64, u64) {
+pub fn check_rays_against_room(hdk: &mut holodeck_file::HoloFile) -> (u64, u64) {
     use holodeck_protocol::BeamKey;
     use holodeck_sampler::geom::Ray;
     use holodeck_sampler::scene::gen::{generate, GenParams};

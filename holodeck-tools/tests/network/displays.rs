@@ -8,9 +8,9 @@ use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::{client, Control, ControlOutcome, EyePoint, Frame, Message, Role};
 use holodeck_protocol::{BeamKey, RayRecord, Section, View, ViewBeams};
-use holodeck_server::{HoloFile, OpenOptions};
 
 use crate::common::process::{wait_for, Proc, DEADLINE};
 use crate::common::{holodeck, text};

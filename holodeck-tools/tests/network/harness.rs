@@ -8,12 +8,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::client::{self, ClientError, ClientStream, Welcome};
 use holodeck_protocol::wire::{
     Control, ControlOutcome, ControlReply, Frame, FrameLink, Hello, Message, Progress, Role, PROTOCOL_VERSION,
 };
 use holodeck_protocol::{BeamKey, RayRecord};
-use holodeck_server::{HoloFile, OpenOptions};
 
 use crate::common::process::{wait_for, Proc, DEADLINE};
 
@@ -174,7 +174,7 @@ pub fn beams_of(file: &Path) -> u32 {
 
 /// The file passes a full check; returns the rays that verified.
 pub fn assert_clean(file: &Path) -> u64 {
-    let report = holodeck_server::storage::check(file, |_, _| {}).unwrap();
+    let report = holodeck_file::storage::check(file, |_, _| {}).unwrap();
     assert!(report.is_clean(), "corrupt beams: {:?}", report.corrupt);
     report.rays_ok
 }

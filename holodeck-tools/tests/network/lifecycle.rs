@@ -5,10 +5,10 @@
 use std::io::Write;
 use std::net::TcpStream;
 
+use holodeck_file::{HoloFile, OpenOptions, StorageError};
 use holodeck_protocol::wire::client::ClientError;
 use holodeck_protocol::wire::{Frame, Message, Role, PROTOCOL_VERSION};
 use holodeck_protocol::{BeamKey, Section};
-use holodeck_server::{HoloFile, OpenOptions, StorageError};
 
 use crate::common::process::Proc;
 use crate::common::{check_rays_against_room, holodeck, text};

@@ -2,9 +2,9 @@
 //! cache far smaller than the scene: every ray they store must be the exact
 //! in-core result, never one traced through a stand-in for missing data.
 
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_sampler::ooc::OocScene;
 use holodeck_sampler::scene::gen::{generate, GenParams};
-use holodeck_server::{HoloFile, OpenOptions};
 
 use crate::common::process::Proc;
 use crate::common::{check_rays_against_room, holodeck, text};

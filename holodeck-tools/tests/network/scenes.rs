@@ -4,12 +4,12 @@
 
 use std::path::{Path, PathBuf};
 
+use holodeck_file::settings::Settings;
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::Role;
 use holodeck_protocol::{BeamKey, Hit};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::scene::load_scene;
-use holodeck_server::settings::Settings;
-use holodeck_server::{HoloFile, OpenOptions};
 
 use crate::common::process::{wait_for, DEADLINE};
 use crate::common::text;

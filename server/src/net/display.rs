@@ -22,7 +22,7 @@ use holodeck_protocol::{BeamKey, RAY_RECORD_BYTES};
 
 use super::connection::{Connection, ConnectionError};
 use super::state::{DisplayLink, Shared};
-use crate::storage::StorageError;
+use holodeck_file::storage::StorageError;
 
 /// Beams read from the store per round trip to the storage thread: bounds the
 /// memory one request can pin.

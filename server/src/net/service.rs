@@ -28,7 +28,7 @@ use super::listener::Listener;
 use super::state::{Counted, Shared};
 use super::store::Store;
 use crate::schedule::Scheduler;
-use crate::storage::{HoloFile, StorageError};
+use holodeck_file::storage::{HoloFile, StorageError};
 
 /// Why the server stopped with an error.
 #[derive(Debug, thiserror::Error)]

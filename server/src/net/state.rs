@@ -15,7 +15,7 @@ use tokio::sync::{watch, Notify};
 use super::config::{Fill, ServerConfig};
 use super::store::Store;
 use crate::schedule::{BatchSchedule, Scheduler};
-use crate::storage::StorageError;
+use holodeck_file::storage::StorageError;
 
 /// A display's mailbox: beams with new rays, and a wake-up.
 #[derive(Default)]

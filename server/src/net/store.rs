@@ -9,7 +9,7 @@ use std::thread::JoinHandle;
 use holodeck_protocol::{BeamKey, RayRecord};
 use tokio::sync::{mpsc, oneshot};
 
-use crate::storage::{FileSummary, HoloFile, Result, StorageError};
+use holodeck_file::storage::{FileSummary, HoloFile, Result, StorageError};
 
 /// Beams read from the file: each key with its rays.
 pub type Beams = Vec<(BeamKey, Vec<RayRecord>)>;

@@ -28,11 +28,11 @@ use holodeck_display::denoise::{AtrousOptions, Denoiser};
 use holodeck_display::image_io::{read_picture, write_hdr};
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::{new_driver_with, Driver, EstimatorOptions, SampleDecoder, Viewport};
+use holodeck_file::HoloFile;
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamKey, Picture, View};
 use holodeck_sampler::render::{render, RenderOptions};
 use holodeck_sampler::{TraceOptions, Tracer};
-use holodeck_server::HoloFile;
 
 use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;

@@ -12,10 +12,10 @@ use std::time::Instant;
 use anyhow::Result;
 use glam::DVec3;
 use holodeck_display::{new_driver, Driver, Sample, Viewport};
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{BeamKey, View};
 use holodeck_sampler::shade::Rng;
 use holodeck_sampler::{TraceOptions, Tracer};
-use holodeck_server::{HoloFile, OpenOptions};
 use rayon::prelude::*;
 
 use super::row;

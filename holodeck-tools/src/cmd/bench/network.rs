@@ -14,13 +14,13 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
+use holodeck_file::settings::Settings;
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::client::{self, ClientStream};
 use holodeck_protocol::wire::{Control, Frame, FrameLink, Message, Role, SamplingMode};
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section};
 use holodeck_sampler::{TraceOptions, Tracer};
 use holodeck_server::schedule::BatchSchedule;
-use holodeck_server::settings::Settings;
-use holodeck_server::{HoloFile, OpenOptions};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 

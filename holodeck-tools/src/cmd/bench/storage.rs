@@ -11,10 +11,10 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use holodeck_file::settings::{parse_size, Settings};
+use holodeck_file::storage;
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe, Section, SectionKind, MAX_BEAMS_PER_SECTION};
-use holodeck_server::settings::{parse_size, Settings};
-use holodeck_server::storage;
-use holodeck_server::{HoloFile, OpenOptions};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};

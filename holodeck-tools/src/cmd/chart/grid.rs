@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use holodeck_display::EstimatorOptions;
+use holodeck_file::settings::Settings;
+use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{grid_for_beam_count, Section};
 use holodeck_sampler::{TraceOptions, Tracer};
-use holodeck_server::settings::Settings;
-use holodeck_server::{HoloFile, OpenOptions};
 
 use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::cmd::args::DriverChoice;

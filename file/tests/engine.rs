@@ -5,11 +5,11 @@ use std::fs;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::{self, format, HoloFile, OpenOptions, StorageError};
 use holodeck_protocol::{BeamKey, RayRecord};
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::{self, format, HoloFile, OpenOptions, StorageError};
 
-use holodeck_server::testing::{assert_pattern_contents as assert_contents, pattern_rays as rays, two_sections};
+use holodeck_file::testing::{assert_pattern_contents as assert_contents, pattern_rays as rays, two_sections};
 
 fn settings() -> Settings {
     two_sections([4, 3, 2], [2, 2, 2], 1 << 20)

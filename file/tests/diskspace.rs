@@ -6,12 +6,12 @@ use std::collections::HashMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use holodeck_protocol::BeamKey;
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::{HoloFile, OpenOptions, StorageError};
-use holodeck_server::testing::{
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::{HoloFile, OpenOptions, StorageError};
+use holodeck_file::testing::{
     all_keys, assert_pattern_contents as assert_contents, pattern_rays as rays, two_sections,
 };
+use holodeck_protocol::BeamKey;
 use rand::{Rng, SeedableRng};
 
 /// Large enough that the gap a commit keeps between metadata copies
@@ -170,7 +170,7 @@ fn a_refused_append_does_not_stop_smaller_ones() {
     assert_eq!(f.headroom(), None);
     // Room for 8,000 bytes of rays beyond the gap a commit keeps between
     // metadata copies.
-    let limit = disk_len(&path) + 8000 + holodeck_server::storage::format::COPY_GAP;
+    let limit = disk_len(&path) + 8000 + holodeck_file::storage::format::COPY_GAP;
     f.set_size_limit(Some(limit));
     assert_eq!(f.size_limit(), Some(limit));
     let key = BeamKey::new(0, 5);

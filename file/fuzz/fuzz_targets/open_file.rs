@@ -3,7 +3,7 @@
 #![no_main]
 
 use holodeck_protocol::BeamKey;
-use holodeck_server::storage::{self, HoloFile, OpenOptions};
+use holodeck_file::storage::{self, HoloFile, OpenOptions};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -4,7 +4,7 @@
 //! beam either reading keeps lies in the file.
 #![no_main]
 
-use holodeck_server::radiance::RadianceFile;
+use holodeck_file::radiance::RadianceFile;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

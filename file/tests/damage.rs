@@ -7,10 +7,10 @@ use std::collections::HashMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::{self, HoloFile, OpenOptions, StorageError};
+use holodeck_file::testing::{assert_pattern_contents, metadata_map, pattern_rays, two_sections, zero_every_page};
 use holodeck_protocol::BeamKey;
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::{self, HoloFile, OpenOptions, StorageError};
-use holodeck_server::testing::{assert_pattern_contents, metadata_map, pattern_rays, two_sections, zero_every_page};
 
 fn writable() -> OpenOptions {
     OpenOptions {

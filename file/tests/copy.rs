@@ -5,10 +5,10 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use glam::DVec3;
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::{self, HoloFile, OpenOptions};
+use holodeck_file::testing::{all_keys, pattern_rays, two_sections};
 use holodeck_protocol::{BeamKey, Hit, RayRecord, Section, SectionKind};
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::{self, HoloFile, OpenOptions};
-use holodeck_server::testing::{all_keys, pattern_rays, two_sections};
 use rand::{Rng, SeedableRng};
 
 fn contents(path: &Path) -> (Settings, HashMap<BeamKey, Vec<RayRecord>>) {

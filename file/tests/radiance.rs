@@ -7,11 +7,11 @@
 use std::collections::HashMap;
 use std::path::Path;
 
+use holodeck_file::radiance::{self, ImportOptions, Layout, RadianceFile};
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::{self, HoloFile, OpenOptions};
+use holodeck_file::testing::{pattern_rays, two_sections};
 use holodeck_protocol::{BeamKey, CellPair, DepthCoding, RayRecord, Rgbe, Section, SectionKind, Wall, WallCell};
-use holodeck_server::radiance::{self, ImportOptions, Layout, RadianceFile};
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::{self, HoloFile, OpenOptions};
-use holodeck_server::testing::{pattern_rays, two_sections};
 
 /// Radiance's beams of a grid in its own order, enumerated as holo.c
 /// documents it: lower entry wall first, by (walls, entry cell, exit cell),
@@ -175,7 +175,7 @@ fn hand_sections() -> Vec<HandSection> {
 fn imported(path: &Path) -> (Settings, HashMap<BeamKey, Vec<RayRecord>>) {
     let mut f = HoloFile::open(path, &OpenOptions::read_only()).unwrap();
     let mut rays = HashMap::new();
-    let keys = holodeck_server::testing::all_keys(&f);
+    let keys = holodeck_file::testing::all_keys(&f);
     f.read_beams(&keys, |k, r| {
         if !r.is_empty() {
             rays.insert(k, r.to_vec());

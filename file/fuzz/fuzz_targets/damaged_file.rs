@@ -10,8 +10,8 @@ use std::collections::HashMap;
 use std::sync::OnceLock;
 
 use holodeck_protocol::BeamKey;
-use holodeck_server::storage::{self, HoloFile, OpenOptions};
-use holodeck_server::testing::{pattern_rays, two_sections};
+use holodeck_file::storage::{self, HoloFile, OpenOptions};
+use holodeck_file::testing::{pattern_rays, two_sections};
 use libfuzzer_sys::fuzz_target;
 
 /// The undamaged file's bytes and what it holds.

@@ -1,8 +1,8 @@
 //! Every decoder of holodeck file parts, fed arbitrary bytes: none may panic.
 #![no_main]
 
-use holodeck_server::settings::Settings;
-use holodeck_server::storage::format;
+use holodeck_file::settings::Settings;
+use holodeck_file::storage::format;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
