@@ -28,6 +28,7 @@ pub mod store;
 pub(crate) mod testkit;
 pub mod tonemap;
 pub mod voronoi;
+#[cfg(feature = "window")]
 pub mod window;
 
 pub use driver::{Driver, DriverError, DriverStats, Viewport, MAX_VIEWPORT_PIXELS};
