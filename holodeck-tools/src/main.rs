@@ -40,8 +40,6 @@ macro_rules! out {
 mod chart;
 mod cmd;
 mod demo;
-#[cfg(feature = "embree")]
-mod embree;
 mod fill;
 mod generated;
 mod human;

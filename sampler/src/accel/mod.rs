@@ -1,11 +1,16 @@
-//! The acceleration structure: a SAH kd-tree over the scene's triangles with
-//! 8-byte nodes (Áfra 2012, Table 2), built with binned SAH and empty-space
-//! cutting, in parallel. Traversal finds the nearest hit or any hit.
+//! The ray casters, siblings behind one trait ([`RayCaster`]: nearest hit
+//! and any hit, single rays and packets): a SAH kd-tree over the scene's
+//! triangles with 8-byte nodes (Áfra 2012, Table 2), built with binned SAH
+//! and empty-space cutting, in parallel (this module's [`KdTree`]); a wide
+//! BVH (`bvh`, [`WideBvh`]); and, with the `embree` cargo feature, Intel
+//! Embree 3 (`embree`). The out-of-core scene file's walk is in `crate::ooc`.
 
 mod build;
 mod bvh;
 mod caster;
 mod coarse_grid;
+#[cfg(feature = "embree")]
+pub mod embree;
 mod leaf;
 mod node;
 mod packet;

@@ -218,7 +218,7 @@ fn builds(label: &str, scene: &Scene, kd: f64, embree: bool) -> Result<(Builds, 
     let embree_build = || -> Result<f64> {
         #[cfg(feature = "embree")]
         if embree {
-            let (e, t) = timed(|| crate::embree::Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v)));
+            let (e, t) = timed(|| holodeck_sampler::accel::embree::Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v)));
             drop(e?);
             return Ok(t);
         }
@@ -525,7 +525,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     if embree {
         // The same paths with every ray cast by Embree instead, taking
         // turns with ours, best of two each.
-        let e = crate::embree::Embree::new(&room.positions, room.triangles.iter().map(|t| t.v))?;
+        let e = holodeck_sampler::accel::embree::Embree::new(&room.positions, room.triangles.iter().map(|t| t.v))?;
         let ours = Tracer::new(room.clone(), one_bounce(true));
         let theirs = Tracer::new(room.clone(), one_bounce(true)).with_caster(std::sync::Arc::new(e));
         let mut best = [(0f64, 0u32, f64::NAN); 2];
@@ -770,7 +770,7 @@ fn side_by_side(
     bounce: &[Ray],
     bounce_hits: &[Option<RayHit>],
 ) -> Result<String> {
-    use crate::embree::Embree;
+    use holodeck_sampler::accel::embree::Embree;
     let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))?;
     // Each side best of three, the wide BVH's runs taking turns with
     // Embree's: a slow spell of a shared machine then falls on both.

@@ -11,8 +11,8 @@ use std::ffi::{c_char, c_int, c_uint, c_void};
 use std::ptr::{null, null_mut};
 
 use glam::Vec3;
-use holodeck_sampler::accel::{Hit, RayCaster};
-use holodeck_sampler::geom::Ray;
+use crate::accel::{Hit, RayCaster};
+use crate::geom::Ray;
 
 const RTC_GEOMETRY_TYPE_TRIANGLE: c_int = 0;
 const RTC_BUFFER_TYPE_INDEX: c_int = 0;
@@ -303,7 +303,7 @@ impl Embree {
 }
 
 /// Embree standing in for the path tracer's own hierarchy
-/// ([`Tracer::with_caster`](holodeck_sampler::Tracer::with_caster)): single
+/// ([`Tracer::with_caster`](crate::Tracer::with_caster)): single
 /// rays only, as the tracer casts them.
 impl RayCaster for Embree {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
@@ -349,8 +349,8 @@ impl Drop for Embree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use holodeck_sampler::scene::gen::{generate, GenParams};
-    use holodeck_sampler::{KdTree, Rng};
+    use crate::scene::gen::{generate, GenParams};
+    use crate::{KdTree, Rng};
 
     #[test]
     fn embree_finds_the_triangles_our_tree_finds() {
@@ -390,7 +390,7 @@ mod tests {
     /// for ties on shared edges.
     #[test]
     fn embree_casts_rays_as_the_tracer_needs() {
-        use holodeck_sampler::accel::WideBvh;
+        use crate::accel::WideBvh;
         let scene = generate("room", &GenParams::default()).unwrap();
         let bvh = WideBvh::build(&scene).unwrap();
         let e = Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v)).unwrap();
