@@ -7,6 +7,26 @@
 //! Drivers know no sockets and no files: the headless client and
 //! `holodeck pict` feed them. The GPU drivers ([`voronoi`], [`mesh`]) draw
 //! through [`gpu`], on a real GPU or on Mesa's software Vulkan.
+//!
+//! * `client` — the connection to a server: handshake, beam requests, samples.
+//! * `compare` — the yardstick: FLIP, SSIM, relative errors, light kept per region.
+//! * `denoise` — the denoisers after reconstruction: à-trous (CPU, GPU), OIDN (feature `oidn`).
+//! * `driver` — the `Driver` trait every image representation implements.
+//! * `geometry` — scene triangles for the Voronoi driver's depth pass, simplified to a budget.
+//! * `gpu` — the wgpu device, render targets and view uniforms the GPU drivers share.
+//! * `image_io` — Radiance `.hdr` and PNG pictures read and written.
+//! * `mesh` — the spherical Delaunay mesh driver (paper 2.4.5).
+//! * `output` — writing frames.
+//! * `project` — world points to pixels and back.
+//! * `quadtree` — the image-plane quadtree driver (paper 2.4.3).
+//! * `request` — a viewport's beam requests (paper 2.4.2).
+//! * `sample` — decoded rays with their world hit points.
+//! * `sphere` — the Delaunay triangulation on the view sphere.
+//! * `splat` — point splatting, the benchmark baseline.
+//! * `store` — the sample store: one running estimate per pixel, shared by every driver.
+//! * `tonemap` — radiance to display values.
+//! * `voronoi` — the Voronoi-cone driver (paper 2.4.4).
+//! * `window` — the interactive walkthrough window (feature `window`).
 
 pub mod client;
 pub mod compare;

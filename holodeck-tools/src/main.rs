@@ -1,5 +1,16 @@
-//! `holodeck`: the one command users learn. It parses arguments and calls into
-//! the libraries; no holodeck logic lives here.
+//! `holodeck`: the one command users learn. It parses arguments and calls
+//! into the libraries; it also holds what only the command uses so far: the
+//! in-process fill loop, reference pictures, the demo, benchmarks and charts.
+//!
+//! * `chart` — line charts as SVG and PNG.
+//! * `cmd` — one module per command (`cmd/bench`, `cmd/chart`: the benchmarks and charts).
+//! * `demo` — the demo's walk, its methods, sheets and report.
+//! * `fill` — a batch fill in one process: schedule, trace, store.
+//! * `generated` — generated result documents and the blocks that quote them.
+//! * `human` — numbers for people.
+//! * `parent` — living and dying with a parent process.
+//! * `progress` — progress on stderr, in one style.
+//! * `truth` — converged reference pictures in two halves, with their noise.
 
 use std::process::ExitCode;
 

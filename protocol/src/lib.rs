@@ -7,6 +7,16 @@
 //! sockets or clocks, so that the storage engine, the samplers and the displays
 //! all agree on the same bits. The one exception is [`wire::client`], the
 //! blocking client socket every peer connects with.
+//!
+//! * `beam` — beam indices and the wall cells they join.
+//! * `depth` — the 16-bit depth code.
+//! * `picture` — linear HDR pictures and their size limits.
+//! * `record` — the 10-byte ray record and its decoder.
+//! * `rgbe` — Ward's shared-exponent colour.
+//! * `section` — section geometry, its walls, grids and text form.
+//! * `select` — which beams a view sees, and how much.
+//! * `view` — Radiance views, parsed and written.
+//! * `wire` — messages, framing, links and the blocking client.
 
 pub mod beam;
 pub mod depth;
