@@ -25,6 +25,7 @@
 //! * `splat` — point splatting, the benchmark baseline.
 //! * `store` — the sample store: one running estimate per pixel, shared by every driver.
 //! * `tonemap` — radiance to display values.
+//! * `viewport` — a view and its frame size, checked; why a driver refuses one.
 //! * `voronoi` — the Voronoi-cone driver (paper 2.4.4).
 //! * `window` — the interactive walkthrough window (feature `window`).
 
@@ -47,6 +48,7 @@ pub mod store;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tonemap;
+pub mod viewport;
 pub mod voronoi;
 #[cfg(feature = "window")]
 pub mod window;

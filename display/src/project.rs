@@ -5,7 +5,7 @@
 use glam::DVec3;
 use holodeck_protocol::{ViewProjector, ViewRays, ViewType};
 
-use crate::driver::Viewport;
+use crate::viewport::Viewport;
 
 /// [`Viewport::pixel`] with the view's projector made once (the basis and
 /// the tangents are not recomputed per point); the same arithmetic, so the

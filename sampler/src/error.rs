@@ -2,9 +2,8 @@
 
 use std::path::PathBuf;
 
-use crate::scene::export::ExportError;
-use crate::scene::file::TransformError;
 use crate::scene::material::{MaterialError, SkyError};
+use glam::Vec3;
 use holodeck_protocol::SectionError;
 
 /// What went wrong building a scene, naming the file or mesh involved.
@@ -103,5 +102,35 @@ pub enum SceneError {
     },
     /// A Radiance scene file that cannot be read (the error names its file and line).
     #[error(transparent)]
-    Rad(Box<crate::scene::import::rad::RadError>),
+    Rad(Box<crate::scene::import::rad::error::RadError>),
+}
+
+/// Why a scene cannot be written as scene file text.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// A table has a value TOML cannot hold (a NaN, say).
+    #[error("{table} cannot be written as TOML: {source}")]
+    Toml {
+        /// Which table.
+        table: &'static str,
+        /// Why.
+        source: toml::ser::Error,
+    },
+}
+
+/// Why a `[[geometry]]` entry's transform is refused, naming the key.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum TransformError {
+    /// `scale` with a zero, NaN or infinite factor.
+    #[error("scale {0} must be finite and non-zero")]
+    Scale(Vec3),
+    /// `rotate` with a NaN or infinite angle.
+    #[error("rotate {0} must be finite")]
+    Rotate(Vec3),
+    /// `translate` with a NaN or infinite offset.
+    #[error("translate {0} must be finite")]
+    Translate(Vec3),
+    /// A `matrix` that is not a finite, invertible affine transform.
+    #[error("matrix {0}")]
+    Matrix(&'static str),
 }

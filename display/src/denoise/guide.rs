@@ -5,8 +5,8 @@
 
 use glam::DVec3;
 
-use crate::driver::Viewport;
 use crate::project::Projector;
+use crate::viewport::Viewport;
 
 /// Per-pixel guides of one frame, row-major, top row first.
 #[derive(Clone, Debug, Default, PartialEq)]

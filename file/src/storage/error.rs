@@ -7,7 +7,6 @@ use std::path::PathBuf;
 use holodeck_protocol::{BeamKey, SectionError};
 
 use super::format::FormatError;
-use super::survey::CommitDamage;
 use crate::settings::SettingsError;
 
 /// Anything that can go wrong reading or writing a holodeck file.
@@ -146,3 +145,50 @@ pub enum StorageError {
 
 /// Result type of the storage engine.
 pub type Result<T> = std::result::Result<T, StorageError>;
+
+/// How a commit's newest state was damaged, and what reading it loses.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CommitDamage {
+    /// The damaged commit: the newest one the file's slots hold.
+    pub generation: u64,
+    /// What is damaged, one line each.
+    pub problems: Vec<String>,
+    /// Rays that commit holds, when its root could still be read.
+    pub claimed_rays: Option<u64>,
+    /// Rays the planned directory holds (before their checksums are verified).
+    pub readable_rays: u64,
+    /// The older commit some chunks were taken from, if any.
+    pub fallback: Option<u64>,
+}
+
+impl CommitDamage {
+    /// Rays of the damaged commit that reading what verifies loses, if known.
+    pub fn rays_lost(&self) -> Option<u64> {
+        self.claimed_rays.map(|c| c.saturating_sub(self.readable_rays))
+    }
+
+    /// One paragraph for messages: which commit, what is damaged, what is lost.
+    pub fn describe(&self) -> String {
+        let mut s = format!("commit {} (the newest) is damaged:", self.generation);
+        for p in &self.problems {
+            s.push_str("\n  ");
+            s.push_str(p);
+        }
+        let from = match self.fallback {
+            Some(g) => format!(", taking lost directories from commit {g}"),
+            None => String::new(),
+        };
+        match self.rays_lost() {
+            Some(lost) => s.push_str(&format!(
+                "\nreading what can be read{from} keeps {} of its {} rays and loses {lost}",
+                self.readable_rays,
+                self.claimed_rays.unwrap_or(0)
+            )),
+            None => s.push_str(&format!(
+                "\nits ray count is unreadable; reading what can be read{from} keeps {} rays",
+                self.readable_rays
+            )),
+        }
+        s
+    }
+}

@@ -6,9 +6,9 @@
 use std::fs::File;
 use std::path::Path;
 
-use super::error::{Result, StorageError};
+use super::error::{CommitDamage, Result, StorageError};
 use super::format::{self, v1, BeamEntry, Extent, FormatError};
-use super::survey::{read_part, CommitDamage, Survey};
+use super::found::{read_part, Survey};
 use crate::settings::Settings;
 
 /// A format-1 commit read in full: its directories and every extent it uses.

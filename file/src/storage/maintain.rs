@@ -8,9 +8,9 @@ use std::path::Path;
 use holodeck_protocol::BeamKey;
 
 use super::bulk::SequentialWriter;
+use super::error::CommitDamage;
 use super::error::{Result, StorageError};
 use super::holofile::{HoloFile, OpenOptions};
-use super::survey::CommitDamage;
 
 /// Outcome of verifying a file.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

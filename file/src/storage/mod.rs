@@ -13,6 +13,7 @@ pub mod extents;
 #[cfg(feature = "fault-injection")]
 pub mod faults;
 pub mod format;
+mod found;
 pub mod holofile;
 mod io;
 mod legacy;
@@ -23,8 +24,8 @@ pub mod survey;
 
 pub use bulk::SequentialWriter;
 pub use copy::{copy, copy_with, CopyOptions, CopyReport};
+pub use error::CommitDamage;
 pub use error::{Result, StorageError};
 pub use holofile::{FileSummary, HoloFile, OpenOptions, ReadReport, DEFAULT_FLUSH_INTERVAL};
 pub use maintain::{check, optimize, repair, CheckReport, OptimizeReport, RepairReport};
 pub use store::{IoStats, OpenInfo};
-pub use survey::CommitDamage;

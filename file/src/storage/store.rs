@@ -18,11 +18,12 @@ use std::path::{Path, PathBuf};
 
 use holodeck_protocol::{BeamKey, RayRecord, Section};
 
+use super::error::CommitDamage;
 use super::error::{Result, StorageError};
 use super::extents::Extents;
 use super::format::{self, BeamEntry, ChunkRef, Extent, Prefix, Slot, COPIES, DIR_CHUNK_BEAMS};
 use super::io::{self, WriteBatch};
-use super::survey::{self, CommitDamage};
+use super::survey;
 use crate::settings::Settings;
 
 /// How the current state was found on open.

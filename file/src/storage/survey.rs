@@ -24,92 +24,11 @@
 use std::fs::File;
 use std::path::Path;
 
-use super::error::{Result, StorageError};
+use super::error::{CommitDamage, Result, StorageError};
 use super::format::{self, BeamEntry, ChunkRef, Extent, FormatError, Prefix, Slot, COPIES, HEADER_ALIGN, MAX_TEXT_LEN};
+use super::found::{read_part, Survey};
 use super::io;
 use crate::settings::Settings;
-
-/// How a commit's newest state was damaged, and what reading it loses.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct CommitDamage {
-    /// The damaged commit: the newest one the file's slots hold.
-    pub generation: u64,
-    /// What is damaged, one line each.
-    pub problems: Vec<String>,
-    /// Rays that commit holds, when its root could still be read.
-    pub claimed_rays: Option<u64>,
-    /// Rays the planned directory holds (before their checksums are verified).
-    pub readable_rays: u64,
-    /// The older commit some chunks were taken from, if any.
-    pub fallback: Option<u64>,
-}
-
-impl CommitDamage {
-    /// Rays of the damaged commit that reading what verifies loses, if known.
-    pub fn rays_lost(&self) -> Option<u64> {
-        self.claimed_rays.map(|c| c.saturating_sub(self.readable_rays))
-    }
-
-    /// One paragraph for messages: which commit, what is damaged, what is lost.
-    pub fn describe(&self) -> String {
-        let mut s = format!("commit {} (the newest) is damaged:", self.generation);
-        for p in &self.problems {
-            s.push_str("\n  ");
-            s.push_str(p);
-        }
-        let from = match self.fallback {
-            Some(g) => format!(", taking lost directories from commit {g}"),
-            None => String::new(),
-        };
-        match self.rays_lost() {
-            Some(lost) => s.push_str(&format!(
-                "\nreading what can be read{from} keeps {} of its {} rays and loses {lost}",
-                self.readable_rays,
-                self.claimed_rays.unwrap_or(0)
-            )),
-            None => s.push_str(&format!(
-                "\nits ray count is unreadable; reading what can be read{from} keeps {} rays",
-                self.readable_rays
-            )),
-        }
-        s
-    }
-}
-
-/// What a survey found.
-pub(crate) struct Survey {
-    pub settings: Settings,
-    pub text_len: u32,
-    /// The file's format version (its header layout follows it).
-    pub version: u32,
-    pub data_start: u64,
-    pub file_len: u64,
-    /// Damaged copies whose twin verified: nothing is lost.
-    pub repaired: Vec<String>,
-    /// Commits a crash interrupted between their two slot copies (nothing is lost).
-    pub torn: Vec<String>,
-    /// Header copies that failed (rewritable from the other).
-    pub bad_header: [bool; COPIES],
-    /// The newest commit, when it can be read in full; else why not.
-    pub damage: Option<CommitDamage>,
-    /// Generation of the newest commit the slots hold.
-    pub generation: u64,
-    /// The side (0: A, 1: B) its slot is on.
-    pub side: usize,
-    /// The directory to use, per section.
-    pub dirs: Vec<Vec<BeamEntry>>,
-    /// The newest commit's root and chunks, when it was read in full.
-    pub clean: Option<(Slot, Vec<ChunkRef>)>,
-    /// Metadata extents that must not be overwritten until the next commit
-    /// (every root and block copy the plan was read from).
-    pub metadata: Vec<Extent>,
-    /// Chunks (section, first beam) of the newest commit with a damaged copy.
-    pub weak_chunks: Vec<(u32, u32)>,
-    /// Slot sides whose two copies differ: the next commit to each rewrites them.
-    pub uneven_slots: [bool; 2],
-    /// The file is in an older format: it can be read, not written.
-    pub legacy: Option<u32>,
-}
 
 /// A slot copy as found.
 #[derive(Clone, Debug)]
@@ -124,28 +43,6 @@ fn format_err(path: &Path, source: FormatError) -> StorageError {
         path: path.to_path_buf(),
         source,
     }
-}
-
-/// Reads `len` bytes at `offset`, or says how the file ends before them.
-pub(super) fn read_part(
-    file: &File,
-    path: &Path,
-    offset: u64,
-    len: u64,
-    file_len: u64,
-    what: &str,
-) -> Result<std::result::Result<Vec<u8>, FormatError>> {
-    if offset.checked_add(len).is_none_or(|end| end > file_len) {
-        return Ok(Err(FormatError::Truncated {
-            what: what.into(),
-            start: offset,
-            end: offset.saturating_add(len),
-            have: file_len.saturating_sub(offset),
-        }));
-    }
-    let mut buf = Vec::new();
-    io::read_at(file, path, offset, len as usize, &mut buf)?;
-    Ok(Ok(buf))
 }
 
 /// Finds the settings-text length: from the first prefix, else from a second

@@ -158,7 +158,7 @@ impl FrameArgs {
 /// Loads a scene's triangles for a display, simplified to `budget`; thin
 /// glass and mirrors are left out (a display culls by what hides).
 pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
-    let scene = super::render::load(spec, None)?;
+    let scene = super::scene_input::load(spec, None)?;
     // Windows and mirrors hide nothing a holodeck shows through them: with
     // virtual distances their samples lie beyond them, and culling by them
     // would black out every window.

@@ -7,9 +7,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use holodeck_protocol::View;
 use holodeck_sampler::render::{self, RenderOptions};
-use holodeck_sampler::scene::file::load_scene;
-use holodeck_sampler::scene::gen::{generate, GenParams};
-use holodeck_sampler::{Scene, TraceOptions};
+use holodeck_sampler::TraceOptions;
 
 use super::args::{frame_size, MAX_TRIANGLES, SIDE};
 use super::scene_input::SceneInput;
@@ -136,18 +134,6 @@ pub fn lod_ratio(pixels: f64, view: &View, width: u32) -> f32 {
     let half = (view.horizontal.to_radians() / 2.0).tan().max(1e-6);
     let lambda = f64::from(width) / 2.0 / half;
     (r_max / lambda) as f32
-}
-
-/// Loads a scene file or generates a built-in one.
-pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene> {
-    if let Some(name) = spec.strip_prefix("builtin:") {
-        let params = GenParams {
-            triangles,
-            ..GenParams::default()
-        };
-        return generate(name, &params).with_context(|| format!("generating builtin:{name}"));
-    }
-    load_scene(Path::new(spec)).with_context(|| format!("loading scene {spec}"))
 }
 
 /// `picture` cleaned by Open Image Denoise with its albedo and normals.

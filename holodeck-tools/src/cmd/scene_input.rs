@@ -8,6 +8,8 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use holodeck_protocol::Section;
 use holodeck_sampler::ooc::{is_scene_file, OocScene};
+use holodeck_sampler::scene::file::load_scene;
+use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
 
@@ -39,7 +41,7 @@ impl SceneInput {
             );
             return Ok(SceneInput::File(Arc::new(ooc)));
         }
-        Ok(SceneInput::InCore(Box::new(super::render::load(spec, triangles)?)))
+        Ok(SceneInput::InCore(Box::new(load(spec, triangles)?)))
     }
 
     /// The scene's content hash.
@@ -101,4 +103,16 @@ impl SceneInput {
             }
         }
     }
+}
+
+/// Loads a scene file or generates a built-in one.
+pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene> {
+    if let Some(name) = spec.strip_prefix("builtin:") {
+        let params = GenParams {
+            triangles,
+            ..GenParams::default()
+        };
+        return generate(name, &params).with_context(|| format!("generating builtin:{name}"));
+    }
+    load_scene(Path::new(spec)).with_context(|| format!("loading scene {spec}"))
 }

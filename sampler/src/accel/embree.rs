@@ -10,9 +10,9 @@
 use std::ffi::{c_char, c_int, c_uint, c_void};
 use std::ptr::{null, null_mut};
 
-use glam::Vec3;
 use crate::accel::{Hit, RayCaster};
 use crate::geom::Ray;
+use glam::Vec3;
 
 const RTC_GEOMETRY_TYPE_TRIANGLE: c_int = 0;
 const RTC_BUFFER_TYPE_INDEX: c_int = 0;

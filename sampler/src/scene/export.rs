@@ -3,6 +3,7 @@
 //! loaded scene has the same content hash. The PLY carries a per-face
 //! `material_index` into the geometry entry's `materials` list.
 
+pub use crate::error::ExportError;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -43,19 +44,6 @@ pub fn write_scene(scene: &Scene, toml_path: &Path) -> Result<PathBuf, SceneErro
         source,
     })?;
     Ok(ply_path)
-}
-
-/// Why a scene cannot be written as scene file text.
-#[derive(Debug, thiserror::Error)]
-pub enum ExportError {
-    /// A table has a value TOML cannot hold (a NaN, say).
-    #[error("{table} cannot be written as TOML: {source}")]
-    Toml {
-        /// Which table.
-        table: &'static str,
-        /// Why.
-        source: toml::ser::Error,
-    },
 }
 
 /// The scene file text for `scene` with its mesh in the file `ply`.

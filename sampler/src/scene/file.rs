@@ -9,6 +9,7 @@
 //! brings (the distant sources of a Radiance file), else the first builtin's;
 //! the sections are the file's `[[section]]` tables, else the builtins'.
 
+pub use crate::error::TransformError;
 use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -126,23 +127,6 @@ pub enum Scale {
     Uniform(f32),
     /// One factor per axis.
     Axes([f32; 3]),
-}
-
-/// Why a `[[geometry]]` entry's transform is refused, naming the key.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-pub enum TransformError {
-    /// `scale` with a zero, NaN or infinite factor.
-    #[error("scale {0} must be finite and non-zero")]
-    Scale(Vec3),
-    /// `rotate` with a NaN or infinite angle.
-    #[error("rotate {0} must be finite")]
-    Rotate(Vec3),
-    /// `translate` with a NaN or infinite offset.
-    #[error("translate {0} must be finite")]
-    Translate(Vec3),
-    /// A `matrix` that is not a finite, invertible affine transform.
-    #[error("matrix {0}")]
-    Matrix(&'static str),
 }
 
 impl GeometryEntry {

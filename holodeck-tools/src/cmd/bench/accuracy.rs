@@ -372,7 +372,7 @@ impl AccuracyBench {
                 format!("builtin:{name}")
             };
             let view = View::parse(scene_view(&scene))?;
-            let tracer = Tracer::new(crate::cmd::render::load(&scene, None)?, TraceOptions::default());
+            let tracer = Tracer::new(crate::cmd::scene_input::load(&scene, None)?, TraceOptions::default());
             let truth = self.truth_of(&scene, &tracer, &view, &scene)?;
             let noise = truth.yardstick.noise().map_or(f64::NAN, |n| n.clamped_relative_rmse);
             let f = self.holodeck(&scene, &tracer, &view, self.light_rays, 1)?;
@@ -552,7 +552,7 @@ impl AccuracyBench {
     /// Runs both parts.
     pub fn run(&self) -> Result<()> {
         std::fs::create_dir_all(&self.dir).with_context(|| format!("creating {}", self.dir.display()))?;
-        let scene = crate::cmd::render::load(&self.scene, None)?;
+        let scene = crate::cmd::scene_input::load(&self.scene, None)?;
         let tracer = Tracer::new(scene, TraceOptions::default());
         if !self.paths.is_empty() {
             self.one_view(&tracer)?;
@@ -761,7 +761,7 @@ impl Walker {
 /// 250,000 rays for it drawn by the quadtree and the default denoiser,
 /// beside a direct render with the same paths, both measured by FLIP
 /// against a 256-spp reference kept in the folder.
-pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
     let bench = AccuracyBench {
         scene: "builtin:room".into(),
@@ -781,7 +781,7 @@ pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
         keep: false,
     };
     std::fs::create_dir_all(&bench.dir).with_context(|| format!("creating {}", bench.dir.display()))?;
-    let scene = crate::cmd::render::load(&bench.scene, None)?;
+    let scene = crate::cmd::scene_input::load(&bench.scene, None)?;
     let tracer = Tracer::new(scene, TraceOptions::default());
     let truth = bench.truth(&tracer, &bench.view, "the room's view")?;
     let (mut holodeck, mut direct, mut h_secs, mut d_secs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());

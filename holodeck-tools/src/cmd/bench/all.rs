@@ -3,6 +3,7 @@
 //! baseline measured in the same run, and the figures as JSON for
 //! `holodeck bench compare`.
 
+use super::fast::Fast;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Instant, SystemTime, UNIX_EPOCH};
@@ -44,14 +45,6 @@ pub struct Args {
     only: Vec<String>,
     #[command(flatten)]
     files: super::Files,
-}
-
-/// What every fast benchmark is given.
-pub struct Fast {
-    /// Where to write its files.
-    pub dir: PathBuf,
-    /// Repeats of each figure.
-    pub repeats: usize,
 }
 
 /// A fast benchmark.

@@ -245,7 +245,7 @@ fn gpu_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
 /// Runs the benchmark: `samples` driver samples at 1024 x 768, and a
 /// holodeck of `rays` rays filled for one view, recalled into 512 x 512.
 pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
-    let scene = crate::cmd::render::load("builtin:room", None)?;
+    let scene = crate::cmd::scene_input::load("builtin:room", None)?;
     let tracer = Tracer::new(
         scene,
         TraceOptions {
@@ -361,9 +361,9 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
 /// inserted into each driver and a frame drawn; the GPU drivers beside the
 /// quadtree on the same samples, the quadtree beside a pass that only reads
 /// the samples (memory speed).
-pub fn fast(_ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+pub fn fast(_ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
-    let scene = crate::cmd::render::load("builtin:room", None)?;
+    let scene = crate::cmd::scene_input::load("builtin:room", None)?;
     let tracer = Tracer::new(scene, Default::default());
     let view = View::parse(ROOM_VIEW)?;
     let viewport = Viewport::new(view.clone(), 512, 384)?;

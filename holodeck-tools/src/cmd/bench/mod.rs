@@ -8,6 +8,7 @@ pub mod accuracy;
 pub mod all;
 pub mod compare;
 pub mod display;
+pub mod fast;
 pub mod network;
 pub mod paths;
 pub mod publish;

@@ -60,7 +60,7 @@ pub(super) fn me() -> Result<Command> {
 /// The tracer alone on `threads` threads: batch-schedule beams of the room,
 /// trace them, store nothing. Rays per second.
 fn tracer_rate(threads: usize, seconds: f64) -> Result<f64> {
-    let scene = crate::cmd::render::load("builtin:room", None)?;
+    let scene = crate::cmd::scene_input::load("builtin:room", None)?;
     let sections = scene.sections.clone();
     let tracer = Tracer::new(scene, TraceOptions::default());
     let mut schedule = BatchSchedule::new(&sections, |_| 0)?;
@@ -385,7 +385,7 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
 /// The fast version for `bench all`: `holodeck run` (a server and two
 /// sampler processes over loopback) filling the room for three seconds,
 /// beside the tracer alone on as many threads for as long.
-pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
     std::fs::create_dir_all(&ctx.dir).with_context(|| format!("creating {}", ctx.dir.display()))?;
     let (mut served, mut alone) = (Vec::new(), Vec::new());

@@ -7,6 +7,8 @@ use std::time::Instant;
 
 use anyhow::Result;
 use holodeck_protocol::View;
+use holodeck_sampler::geom::{offset_origin, Ray};
+use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
 use holodeck_sampler::shade::wavefront::last_level_cache_bytes;
 use holodeck_sampler::{FirstHits, Reorder, Rng, Sample, Scene, TraceOptions, Tracer};
 
@@ -48,7 +50,7 @@ pub fn rows(label: &str, scene: &Scene, view: &View) -> Result<Vec<String>> {
                 .map(|(o, d)| (o.as_vec3(), d.as_vec3()))
         })
         .collect();
-    let scattered: Vec<(glam::Vec3, glam::Vec3)> = super::tracer::scattered_rays(scene, PATHS)
+    let scattered: Vec<(glam::Vec3, glam::Vec3)> = scattered_rays(scene, PATHS)
         .into_iter()
         .map(|r| (r.origin, r.dir))
         .collect();
@@ -77,4 +79,26 @@ pub fn heading() -> String {
         "Whole paths (eight bounces, light sampling) in batches of {PATHS}, one core, M paths/s best of two: each path to its end, and a segment at a time with each segment's rays sorted (the samplers' `--reorder`); this CPU's largest cache is {:.0} MiB:\n\n| scene (in-core structure and mesh) | paths | paths | each to its end | sorted by hit point (/ to its end) | sorted by origin | samples differing |\n|---|---|---|---|---|---|---|",
         last_level_cache_bytes() as f64 / f64::from(1 << 20)
     )
+}
+
+/// `n` diffuse bounce rays from points spread over the whole scene, on
+/// triangles drawn evenly by index (so by area on an even mesh), in random
+/// order: a batch from many beams whose views see all of the scene.
+pub(super) fn scattered_rays(scene: &Scene, n: usize) -> Vec<Ray> {
+    let mut rng = Rng::new(7, 0);
+    let tris = scene.triangles.len();
+    (0..if tris == 0 { 0 } else { n })
+        .map(|_| {
+            let tri = ((u64::from(rng.next_u32()) * tris as u64) >> 32) as usize;
+            let [a, b, c] = scene.vertices(tri);
+            let (mut u, mut v) = rng.f32x2();
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            let ng = (b - a).cross(c - a).normalize_or_zero();
+            let d = Frame::new(ng).to_world(cosine_hemisphere(rng.f32x2()));
+            Ray::new(offset_origin(a + u * (b - a) + v * (c - a), ng), d)
+        })
+        .filter(|r| r.dir.is_finite() && r.dir != glam::Vec3::ZERO)
+        .collect()
 }

@@ -374,7 +374,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
 /// into an LZ4 scene file, traced out of core with a cache of a tenth of it
 /// (warm) beside the in-core kd-tree on the same rays, 128 x 128 primary
 /// and diffuse bounce rays on one core.
-pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
     std::fs::create_dir_all(&ctx.dir).with_context(|| format!("creating {}", ctx.dir.display()))?;
     let scene = generate(

@@ -545,7 +545,7 @@ pub fn run(a: &Args) -> Result<ExitCode> {
 /// Radiance-sized section, every beam recalled in beam order from the OS
 /// cache, the file optimized; beside raw reads of the same file (from the OS
 /// cache: the engine's overhead, free of the disk), each repeat a new file.
-pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
     let cache = 64 << 20;
     let settings = reference_settings(cache)?;

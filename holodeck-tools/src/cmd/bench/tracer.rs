@@ -218,7 +218,9 @@ fn builds(label: &str, scene: &Scene, kd: f64, embree: bool) -> Result<(Builds, 
     let embree_build = || -> Result<f64> {
         #[cfg(feature = "embree")]
         if embree {
-            let (e, t) = timed(|| holodeck_sampler::accel::embree::Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v)));
+            let (e, t) = timed(|| {
+                holodeck_sampler::accel::embree::Embree::new(&scene.positions, scene.triangles.iter().map(|t| t.v))
+            });
             drop(e?);
             return Ok(t);
         }
@@ -604,34 +606,12 @@ fn reordering_row(label: &str, tree: &KdTree, bounce: &[Ray], hits: &[Option<Ray
 /// Rays in the table of rays spread over the whole scene.
 const SCATTERED: usize = 1_048_576;
 
-/// `n` diffuse bounce rays from points spread over the whole scene, on
-/// triangles drawn evenly by index (so by area on an even mesh), in random
-/// order: a batch from many beams whose views see all of the scene.
-pub(super) fn scattered_rays(scene: &Scene, n: usize) -> Vec<Ray> {
-    let mut rng = Rng::new(7, 0);
-    let tris = scene.triangles.len();
-    (0..if tris == 0 { 0 } else { n })
-        .map(|_| {
-            let tri = ((u64::from(rng.next_u32()) * tris as u64) >> 32) as usize;
-            let [a, b, c] = scene.vertices(tri);
-            let (mut u, mut v) = rng.f32x2();
-            if u + v > 1.0 {
-                (u, v) = (1.0 - u, 1.0 - v);
-            }
-            let ng = (b - a).cross(c - a).normalize_or_zero();
-            let d = Frame::new(ng).to_world(cosine_hemisphere(rng.f32x2()));
-            Ray::new(offset_origin(a + u * (b - a) + v * (c - a), ng), d)
-        })
-        .filter(|r| r.dir.is_finite() && r.dir != glam::Vec3::ZERO)
-        .collect()
-}
-
 /// A row of the table of rays spread over the whole scene: diffuse bounces
 /// from points on triangles drawn evenly by index (so by area on an even
 /// mesh), each structure's rate as given and reordered (best of three), and
 /// how many hits differ from those traced as given.
 fn scattered_row(label: &str, scene: &Scene, tree: &KdTree, bvh: &WideBvh) -> String {
-    let rays = scattered_rays(scene, SCATTERED);
+    let rays = super::paths::scattered_rays(scene, SCATTERED);
     let mut differ = 0;
     let mut cells = Vec::new();
     for intersect in [
@@ -852,7 +832,7 @@ fn side_by_side(
 /// rays beside the kd-tree's on the same rays, its packets beside its own
 /// single rays, and path tracing beside the primary ray rate (a path's cost
 /// in rays). Each repeat takes its turn with its baseline.
-pub fn fast(ctx: &super::all::Fast) -> Result<Vec<super::report::Figure>> {
+pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let mut out = Vec::new();

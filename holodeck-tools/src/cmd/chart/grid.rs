@@ -77,7 +77,7 @@ pub struct Point {
 
 /// Measures every target beam count of `a`, files under `dir`.
 pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
-    let scene = crate::cmd::render::load(&a.scene, None)?;
+    let scene = crate::cmd::scene_input::load(&a.scene, None)?;
     let Some(first) = scene.sections.first().cloned() else {
         anyhow::bail!("scene {} defines no holodeck section", a.scene);
     };
