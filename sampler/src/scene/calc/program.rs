@@ -402,8 +402,16 @@ impl<'p> Eval<'p> {
                 None => self.fail(Fault::Arithmetic),
             },
             Callee::Native(b) => {
-                let args: Vec<Value> = self.stack[top..].to_vec();
-                self.native(b, &args)
+                // Natives take few arguments: copied off the stack without
+                // allocating, as this runs at every hit.
+                let mut few = [Value::Num(0.0); 8];
+                if count <= few.len() {
+                    few[..count].copy_from_slice(&self.stack[top..]);
+                    self.native(b, &few[..count])
+                } else {
+                    let args: Vec<Value> = self.stack[top..].to_vec();
+                    self.native(b, &args)
+                }
             }
         };
         self.depth -= 1;
