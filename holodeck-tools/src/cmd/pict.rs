@@ -83,6 +83,8 @@ pub struct FrameStats {
     pub samples: u64,
     /// Reading, decoding and inserting.
     pub recall: Duration,
+    /// The stages of the recall.
+    pub stages: Recalled,
     /// Drawing the frame (and denoising it).
     pub render: Duration,
     /// The driver's counters.
@@ -111,13 +113,15 @@ pub fn draw(
             beams: recalled.beams,
             samples: recalled.samples,
             recall: recalled.secs,
+            stages: recalled,
             render,
             driver: d.stats(),
         },
     ))
 }
 
-/// What [`recall`] read.
+/// What [`recall`] read, and how long each stage took.
+#[derive(Clone, Copy, Debug)]
 pub struct Recalled {
     /// Beams the view selected.
     pub beams: usize,
@@ -125,6 +129,14 @@ pub struct Recalled {
     pub samples: u64,
     /// Reading, decoding and inserting.
     pub secs: Duration,
+    /// Of which reading the file (the rest of `secs` is decoding and
+    /// inserting, which run side by side).
+    pub read: Duration,
+    /// Decoding records into samples, on all cores.
+    pub decode: Duration,
+    /// Inserting samples into the driver (projecting and merging them
+    /// into pixel estimates).
+    pub insert: Duration,
 }
 
 /// A fresh driver for `viewport` holding every stored ray of the beams the
@@ -148,6 +160,7 @@ pub fn recall(
     let mut d = driver.make(viewport)?;
     let mut samples = 0u64;
     let start = Instant::now();
+    let (mut flushing, mut decoding, mut inserting) = (Duration::ZERO, Duration::ZERO, Duration::ZERO);
     // Beams are gathered into chunks and decoded in parallel; while the
     // driver inserts one chunk (on one thread), the next is decoded.
     let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * 2);
@@ -156,13 +169,23 @@ pub fn recall(
     let mut waiting: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
     let mut flush = |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>| {
         let d = &mut d;
+        let at = Instant::now();
         let insert = || {
+            let at = Instant::now();
             if !waiting.is_empty() {
                 d.add(&waiting);
             }
+            at.elapsed()
         };
-        let decode = || decode_chunk(&decoder, records, beams, &mut decoded);
-        rayon::join(insert, decode);
+        let decode = || {
+            let at = Instant::now();
+            decode_chunk(&decoder, records, beams, &mut decoded);
+            at.elapsed()
+        };
+        let (inserted, decoded_in) = rayon::join(insert, decode);
+        inserting += inserted;
+        decoding += decoded_in;
+        flushing += at.elapsed();
         samples += decoded.len() as u64;
         std::mem::swap(&mut waiting, &mut decoded);
         records.clear();
@@ -179,12 +202,16 @@ pub fn recall(
     flush(&mut records, &mut beams);
     // The last chunk decoded is still waiting.
     flush(&mut records, &mut beams);
+    let secs = start.elapsed();
     Ok((
         d,
         Recalled {
             beams: keys.len(),
             samples,
-            secs: start.elapsed(),
+            secs,
+            read: secs.saturating_sub(flushing),
+            decode: decoding,
+            insert: inserting,
         },
     ))
 }
@@ -302,6 +329,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
             );
         }
         let secs = s.recall.as_secs_f64();
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        tracing::info!(
+            "{}: read {:.1} ms, decode {:.1} ms and insert (project and merge) {:.1} ms side by side in {:.1} ms, frame {:.1} ms",
+            out.display(),
+            ms(s.stages.read),
+            ms(s.stages.decode),
+            ms(s.stages.insert),
+            ms(s.recall.saturating_sub(s.stages.read)),
+            ms(s.render)
+        );
         let denoised = match driver.denoise {
             Denoiser::Off => String::new(),
             d => format!(" (denoised: {})", d.name()),
