@@ -17,7 +17,8 @@ set -euo pipefail
 
 : "${HOLODECK_SERVER:?set HOLODECK_SERVER to host:port of holodeck serve}"
 SCENE=${HOLODECK_SCENE:-scenes/room.toml}
-TOKEN_FILE=${HOLODECK_TOKEN_FILE:-room.hdk.token}
+# Samplers need writer access only: the writer token, never the admin one.
+TOKEN_FILE=${HOLODECK_TOKEN_FILE:-room.hdk.writer.token}
 
 # One worker connection per CPU; each array task traces its own random sequence.
 exec holodeck sample "$SCENE" \
