@@ -1,11 +1,11 @@
 //! `holodeck`: the one command users learn. It parses arguments and calls
-//! into the libraries; it also holds what only the command uses so far: the
-//! in-process fill loop, reference pictures, the demo, benchmarks and charts.
+//! into the libraries (`holodeck`: scenes, fills, pictures from a file); it
+//! also holds what only the command uses so far: reference pictures, the
+//! demo, benchmarks and charts.
 //!
 //! * `chart` — line charts as SVG and PNG.
 //! * `cmd` — one module per command (`cmd/bench`, `cmd/chart`: the benchmarks and charts).
 //! * `demo` — the demo's walk, its methods, sheets and report.
-//! * `fill` — a batch fill in one process: schedule, trace, store.
 //! * `generated` — generated result documents and the blocks that quote them.
 //! * `human` — numbers for people.
 //! * `parent` — living and dying with a parent process.
@@ -51,7 +51,6 @@ macro_rules! out {
 mod chart;
 mod cmd;
 mod demo;
-mod fill;
 mod generated;
 mod human;
 mod parent;

@@ -69,6 +69,14 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The default settings of a file of these sections.
+    pub fn with_sections(sections: Vec<holodeck_protocol::Section>) -> Settings {
+        Settings {
+            sections,
+            ..Settings::default()
+        }
+    }
+
     /// Checks what parsing cannot: that there is a section and the scene identity
     /// and text will survive a round trip through the file header.
     pub fn validate(&self) -> Result<(), SettingsError> {

@@ -97,7 +97,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             keep_rays,
             triangles,
         } => {
-            let loaded = super::scene_input::SceneInput::open(&scene, triangles, Some(1 << 20))?;
+            let loaded = holodeck::SceneInput::open(&scene, triangles, Some(1 << 20))?;
             Control::Adopt {
                 scene: loaded.hash(),
                 keep: keep_rays,

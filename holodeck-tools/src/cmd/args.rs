@@ -6,9 +6,10 @@ use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use holodeck_display::denoise::{Denoised, Denoiser};
+pub use holodeck::DriverChoice;
+use holodeck_display::denoise::Denoiser;
 use holodeck_display::geometry::{Geometry, DEFAULT_BUDGET};
-use holodeck_display::{make_driver, Driver, DriverSetup, EstimatorOptions, Viewport};
+use holodeck_display::EstimatorOptions;
 use holodeck_protocol::{check_picture_size, MAX_PICTURE_SIDE};
 
 /// Pixels along one side of a picture (the whole picture is checked by
@@ -158,7 +159,7 @@ impl FrameArgs {
 /// Loads a scene's triangles for a display, simplified to `budget`; thin
 /// glass and mirrors are left out (a display culls by what hides).
 pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
-    let scene = super::scene_input::load(spec, None)?;
+    let scene = holodeck::load(spec, None)?;
     // Windows and mirrors hide nothing a holodeck shows through them: with
     // virtual distances their samples lie beyond them, and culling by them
     // would black out every window.
@@ -179,48 +180,6 @@ pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
         g.source_triangles
     );
     Ok(g)
-}
-
-/// A display driver as chosen on the command line: its name, how it
-/// combines rays and the scene geometry it may cull by.
-#[derive(Clone, Debug)]
-pub struct DriverChoice {
-    /// The driver's name.
-    pub name: String,
-    /// How pixels combine rays.
-    pub options: EstimatorOptions,
-    /// Simplified scene geometry, for the Voronoi driver.
-    pub geometry: Option<std::sync::Arc<Geometry>>,
-    /// What cleans its frames.
-    pub denoise: Denoiser,
-}
-
-impl DriverChoice {
-    /// The driver `name` with `options` and no geometry.
-    pub fn plain(name: &str, options: EstimatorOptions) -> DriverChoice {
-        DriverChoice {
-            name: name.to_string(),
-            options,
-            geometry: None,
-            denoise: Denoiser::Off,
-        }
-    }
-
-    /// Makes a fresh driver for `viewport`, its frames denoised as chosen.
-    pub fn make(&self, viewport: Viewport) -> Result<Box<dyn Driver>> {
-        let driver = make_driver(
-            &self.name,
-            viewport,
-            DriverSetup {
-                options: self.options,
-                geometry: self.geometry.as_deref(),
-            },
-        )?;
-        Ok(match self.denoise {
-            Denoiser::Off => driver,
-            d => Box::new(Denoised::new(driver, d)),
-        })
-    }
 }
 
 /// How a display combines the rays of a pixel (see docs/DISPLAY.md).

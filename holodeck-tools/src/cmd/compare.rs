@@ -11,7 +11,7 @@ use holodeck_display::tonemap::{ToneMap, ToneMode};
 use holodeck_sampler::render::silhouettes;
 use holodeck_sampler::TraceOptions;
 
-use super::scene_input::SceneInput;
+use holodeck::SceneInput;
 
 /// Arguments of `holodeck compare`.
 #[derive(clap::Args)]

@@ -8,14 +8,14 @@ use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::TraceOptions;
 
-use super::scene_input::SceneInput;
+use holodeck::SceneInput;
 use holodeck_file::settings::{parse_duration, Settings};
 use holodeck_file::{HoloFile, OpenOptions, StorageError};
 
 use super::args::MAX_TRIANGLES;
-use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::{bytes, count, count_in};
 use crate::progress::{Progress, Unit};
+use holodeck::fill::{fill, FillOptions, ViewFill};
 
 /// Arguments of `holodeck fill`.
 #[derive(clap::Args)]

@@ -21,7 +21,6 @@ pub mod render;
 pub mod run;
 pub mod sample;
 pub mod scene;
-pub mod scene_input;
 pub mod serve;
 pub mod view;
 pub mod view_arg;

@@ -10,8 +10,8 @@ use holodeck_sampler::render::{self, RenderOptions};
 use holodeck_sampler::TraceOptions;
 
 use super::args::{frame_size, MAX_TRIANGLES, SIDE};
-use super::scene_input::SceneInput;
 use crate::human::{count, count_in};
+use holodeck::SceneInput;
 
 /// A view from inside the built-in room toward its window.
 pub const ROOM_VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";

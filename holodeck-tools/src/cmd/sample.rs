@@ -10,8 +10,8 @@ use holodeck_sampler::worker::{run_worker_retrying, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
 
 use super::args::{MAX_TRIANGLES, MAX_WORKERS};
-use super::scene_input::SceneInput;
 use crate::human::{count, count_in};
+use holodeck::SceneInput;
 
 /// Arguments of `holodeck sample`.
 #[derive(clap::Args)]

@@ -521,7 +521,7 @@ fn propose_section(a: SectionArgs) -> Result<ExitCode> {
     if !(a.margin.is_finite() && a.margin >= 0.0) {
         anyhow::bail!("--margin {} must be a distance of at least 0", a.margin);
     }
-    let scene = super::scene_input::load(&a.scene, a.triangles)?;
+    let scene = holodeck::load(&a.scene, a.triangles)?;
     let (lo, hi) = scene.bounds();
     let extent = (hi - lo).max_element().max(1.0) as f64;
     let (kind, (lo, hi)) = match &a.eye {

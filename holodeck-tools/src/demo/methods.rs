@@ -168,7 +168,7 @@ pub fn draw_holodeck(
     seed: u64,
 ) -> Result<Vec<(usize, Shot)>> {
     let choice = DriverChoice::plain(driver, EstimatorOptions::default());
-    let (mut d, recalled) = crate::cmd::pict::recall(file, viewport, &choice, 2, seed)?;
+    let (mut d, recalled) = holodeck::recall(file, viewport, &choice, 2, seed)?;
     let start = Instant::now();
     let raw = d.render();
     let base = recalled.secs.as_secs_f64() + start.elapsed().as_secs_f64();

@@ -25,9 +25,9 @@ use holodeck_display::Viewport;
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::TraceOptions;
 
-use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
 use crate::truth::Truth;
+use holodeck::fill::{fill, FillOptions, ViewFill};
 pub use methods::DRIVERS;
 use methods::{Column, Kind, Shot};
 

@@ -34,9 +34,9 @@ use holodeck_protocol::{BeamKey, Picture, View};
 use holodeck_sampler::render::{render, RenderOptions};
 use holodeck_sampler::{TraceOptions, Tracer};
 
-use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
 use crate::truth::Truth;
+use holodeck::fill::{fill, FillOptions, ViewFill};
 use holodeck_sampler::beam::trace_batch;
 
 /// Arguments of `holodeck bench accuracy`.
@@ -237,7 +237,7 @@ impl AccuracyBench {
         };
         fill(tracer, &mut file, &o, &|_| {})?;
         let choice = crate::cmd::args::DriverChoice::plain("quadtree", self.estimator);
-        let (mut driver, _) = crate::cmd::pict::recall(&mut file, self.viewport(view)?, &choice, 2, seed)?;
+        let (mut driver, _) = holodeck::recall(&mut file, self.viewport(view)?, &choice, 2, seed)?;
         let raw = driver.render();
         let raw_secs = start.elapsed().as_secs_f64();
         let start = Instant::now();
@@ -372,7 +372,7 @@ impl AccuracyBench {
                 format!("builtin:{name}")
             };
             let view = View::parse(scene_view(&scene))?;
-            let tracer = Tracer::new(crate::cmd::scene_input::load(&scene, None)?, TraceOptions::default());
+            let tracer = Tracer::new(holodeck::load(&scene, None)?, TraceOptions::default());
             let truth = self.truth_of(&scene, &tracer, &view, &scene)?;
             let noise = truth.yardstick.noise().map_or(f64::NAN, |n| n.clamped_relative_rmse);
             let f = self.holodeck(&scene, &tracer, &view, self.light_rays, 1)?;
@@ -552,7 +552,7 @@ impl AccuracyBench {
     /// Runs both parts.
     pub fn run(&self) -> Result<()> {
         std::fs::create_dir_all(&self.dir).with_context(|| format!("creating {}", self.dir.display()))?;
-        let scene = crate::cmd::scene_input::load(&self.scene, None)?;
+        let scene = holodeck::load(&self.scene, None)?;
         let tracer = Tracer::new(scene, TraceOptions::default());
         if !self.paths.is_empty() {
             self.one_view(&tracer)?;
@@ -781,7 +781,7 @@ pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
         keep: false,
     };
     std::fs::create_dir_all(&bench.dir).with_context(|| format!("creating {}", bench.dir.display()))?;
-    let scene = crate::cmd::scene_input::load(&bench.scene, None)?;
+    let scene = holodeck::load(&bench.scene, None)?;
     let tracer = Tracer::new(scene, TraceOptions::default());
     let truth = bench.truth(&tracer, &bench.view, "the room's view")?;
     let (mut holodeck, mut direct, mut h_secs, mut d_secs) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());

@@ -20,8 +20,8 @@ use rayon::prelude::*;
 
 use super::row;
 use crate::cmd::render::ROOM_VIEW;
-use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
+use holodeck::fill::{fill, FillOptions, ViewFill};
 
 /// Most driver samples `bench display` traces and holds at once.
 const MAX_DISPLAY_SAMPLES: u64 = 100_000_000;
@@ -245,7 +245,7 @@ fn gpu_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
 /// Runs the benchmark: `samples` driver samples at 1024 x 768, and a
 /// holodeck of `rays` rays filled for one view, recalled into 512 x 512.
 pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
-    let scene = crate::cmd::scene_input::load("builtin:room", None)?;
+    let scene = holodeck::load("builtin:room", None)?;
     let tracer = Tracer::new(
         scene,
         TraceOptions {
@@ -363,7 +363,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
 /// the samples (memory speed).
 pub fn fast(_ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
-    let scene = crate::cmd::scene_input::load("builtin:room", None)?;
+    let scene = holodeck::load("builtin:room", None)?;
     let tracer = Tracer::new(scene, Default::default());
     let view = View::parse(ROOM_VIEW)?;
     let viewport = Viewport::new(view.clone(), 512, 384)?;

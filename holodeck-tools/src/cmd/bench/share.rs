@@ -159,7 +159,7 @@ fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize, keep: b
     if !o.status.success() {
         bail!("holodeck fill failed: {}", String::from_utf8_lossy(&o.stderr));
     }
-    let sections = crate::cmd::scene_input::load("builtin:room", None)?.sections;
+    let sections = holodeck::load("builtin:room", None)?.sections;
     let (greedy_want, modest_want) = requests(&sections)?;
     let (server, addr) = serve(&file, &["--no-fill", "--request-share", share])?;
     let mut server = Reap(Some(server));
@@ -251,7 +251,7 @@ fn run_once(dir: &Path, share: &str, with_greedy: bool, samplers: usize, keep: b
 /// Runs the benchmark with `samplers` tracing threads.
 pub fn run(dir: &Path, samplers: usize, keep: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    let sections = crate::cmd::scene_input::load("builtin:room", None)?.sections;
+    let sections = holodeck::load("builtin:room", None)?.sections;
     let (greedy, modest) = requests(&sections)?;
     println!(
         "greedy display: {} beams x {} rays ({} rays); modest display: {} beams x {} rays ({} rays); \

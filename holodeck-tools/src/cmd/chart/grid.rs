@@ -15,9 +15,9 @@ use holodeck_sampler::{TraceOptions, Tracer};
 
 use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::cmd::args::DriverChoice;
-use crate::fill::{fill, FillOptions, ViewFill};
 use crate::human::count;
 use crate::truth::Truth;
+use holodeck::fill::{fill, FillOptions, ViewFill};
 
 /// Arguments of `holodeck chart grid`.
 #[derive(clap::Args)]
@@ -77,7 +77,7 @@ pub struct Point {
 
 /// Measures every target beam count of `a`, files under `dir`.
 pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
-    let scene = crate::cmd::scene_input::load(&a.scene, None)?;
+    let scene = holodeck::load(&a.scene, None)?;
     let Some(first) = scene.sections.first().cloned() else {
         anyhow::bail!("scene {} defines no holodeck section", a.scene);
     };

@@ -5,13 +5,14 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
 use holodeck_protocol::Section;
 use holodeck_sampler::ooc::{is_scene_file, OocScene};
 use holodeck_sampler::scene::file::load_scene;
 use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::scene::hash::content_hash;
 use holodeck_sampler::{Scene, TraceOptions, Tracer};
+
+use crate::Error;
 
 /// Fetcher threads that load blocks of a scene file.
 pub const FETCHERS: usize = 2;
@@ -27,11 +28,14 @@ pub enum SceneInput {
 impl SceneInput {
     /// Loads `spec`: a `.hds` file opens with a cache of `memory` bytes (all of
     /// its blocks if not given); anything else loads into memory.
-    pub fn open(spec: &str, triangles: Option<u64>, memory: Option<u64>) -> Result<SceneInput> {
+    pub fn open(spec: &str, triangles: Option<u64>, memory: Option<u64>) -> Result<SceneInput, Error> {
         let path = Path::new(spec);
         if !spec.starts_with("builtin:") && is_scene_file(path) {
             let budget = memory.map(|m| usize::try_from(m).unwrap_or(usize::MAX));
-            let ooc = OocScene::open(path, budget, FETCHERS).with_context(|| format!("opening scene file {spec}"))?;
+            let ooc = OocScene::open(path, budget, FETCHERS).map_err(|source| Error::SceneFile {
+                spec: spec.to_string(),
+                source: Box::new(source),
+            })?;
             tracing::info!(
                 "{spec}: {} triangles in {} blocks ({} MB decompressed), cache {} MB",
                 ooc.header().triangles,
@@ -106,13 +110,19 @@ impl SceneInput {
 }
 
 /// Loads a scene file or generates a built-in one.
-pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene> {
+pub fn load(spec: &str, triangles: Option<u64>) -> Result<Scene, Error> {
     if let Some(name) = spec.strip_prefix("builtin:") {
         let params = GenParams {
             triangles,
             ..GenParams::default()
         };
-        return generate(name, &params).with_context(|| format!("generating builtin:{name}"));
+        return generate(name, &params).map_err(|source| Error::Generate {
+            name: name.to_string(),
+            source: Box::new(source),
+        });
     }
-    load_scene(Path::new(spec)).with_context(|| format!("loading scene {spec}"))
+    load_scene(Path::new(spec)).map_err(|source| Error::LoadScene {
+        spec: spec.to_string(),
+        source: Box::new(source),
+    })
 }

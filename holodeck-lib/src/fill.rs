@@ -40,6 +40,21 @@ pub struct FillOptions {
     pub views: Option<ViewFill>,
 }
 
+impl Default for FillOptions {
+    /// No limit (set one), packets of 4 rays per beam visit, batches of
+    /// 4096 beams, seed 0, every beam of the file: `holodeck fill`'s defaults.
+    fn default() -> FillOptions {
+        FillOptions {
+            rays: None,
+            time: None,
+            packet: 4,
+            batch: 4096,
+            seed: 0,
+            views: None,
+        }
+    }
+}
+
 /// A fill limited to what some views see.
 #[derive(Clone, Debug, Default)]
 pub struct ViewFill {
@@ -120,7 +135,7 @@ pub fn fill(
     file: &mut HoloFile,
     o: &FillOptions,
     progress: &dyn Fn(u64),
-) -> anyhow::Result<FillReport> {
+) -> Result<FillReport, crate::Error> {
     let sections = file.sections().to_vec();
     // The file's settings, not the tracer's options, decide how it is filled.
     let rules = FileRules {
@@ -238,7 +253,7 @@ mod tests {
     #[test]
     fn views_that_share_beams_each_get_rays_near_their_own_eye() {
         use holodeck_file::{OpenOptions, Settings};
-        let input = crate::cmd::scene_input::SceneInput::open("builtin:room", None, None).unwrap();
+        let input = crate::scene_input::SceneInput::open("builtin:room", None, None).unwrap();
         let sections = input.sections().to_vec();
         let tracer = input.tracer(holodeck_sampler::TraceOptions {
             max_bounces: 0,

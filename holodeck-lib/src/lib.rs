@@ -1,0 +1,59 @@
+//! The holodeck as a library: what the `holodeck` command does, for Rust
+//! programs. Load a scene from any supported input ([`SceneInput`]: scene
+//! files, models, Radiance scenes, `builtin:` generators, out-of-core `.hds`
+//! files), fill a holodeck file with its rays in this process ([`fill()`]),
+//! and draw pictures from a file with any display driver ([`recall()`]).
+//! `examples/fill_and_draw.rs` does all three in a page.
+//!
+//! * `fill` — a batch fill in one process: the schedule picks beams, the cores trace them, the file keeps the rays.
+//! * `recall` — pictures from a file: the beams a view sees, read, decoded and handed to a driver.
+//! * `scene_input` — what the commands that trace accept as a scene.
+
+pub mod fill;
+pub mod recall;
+pub mod scene_input;
+
+pub use fill::{fill, FillOptions, FillReport, ViewFill};
+pub use recall::{recall, DriverChoice, Recalled};
+pub use scene_input::{load, SceneInput};
+
+/// Why a library call failed.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// An out-of-core scene file could not be opened.
+    #[error("opening scene file {spec}")]
+    SceneFile {
+        /// The file as given.
+        spec: String,
+        /// Why.
+        #[source]
+        source: Box<holodeck_sampler::ooc::OocError>,
+    },
+    /// A built-in scene could not be generated.
+    #[error("generating builtin:{name}")]
+    Generate {
+        /// The generator's name.
+        name: String,
+        /// Why.
+        #[source]
+        source: Box<holodeck_sampler::SceneError>,
+    },
+    /// A scene could not be loaded.
+    #[error("loading scene {spec}")]
+    LoadScene {
+        /// The scene as given.
+        spec: String,
+        /// Why.
+        #[source]
+        source: Box<holodeck_sampler::SceneError>,
+    },
+    /// The holodeck file refused or failed.
+    #[error(transparent)]
+    Storage(#[from] holodeck_file::StorageError),
+    /// The file's sections cannot be scheduled.
+    #[error(transparent)]
+    Sections(#[from] holodeck_protocol::SectionError),
+    /// No driver could be made for the view.
+    #[error(transparent)]
+    Driver(#[from] holodeck_display::DriverError),
+}

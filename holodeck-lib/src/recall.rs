@@ -1,0 +1,193 @@
+//! Pictures from a holodeck file: the beams a view sees read from the
+//! file, decoded on all cores and handed to a display driver, which draws
+//! the frame; what `holodeck pict` and replay do, and Radiance's rhpict.
+
+use std::time::{Duration, Instant};
+
+use holodeck_display::denoise::{Denoised, Denoiser};
+use holodeck_display::geometry::Geometry;
+use holodeck_display::request::{BeamRequest, RequestOptions};
+use holodeck_display::{make_driver, Driver, DriverSetup, EstimatorOptions, Sample, SampleDecoder, Viewport};
+use holodeck_file::HoloFile;
+use holodeck_protocol::{BeamKey, RayRecord};
+use rayon::prelude::*;
+
+use crate::Error;
+
+/// Rays decoded together in parallel before the driver takes them.
+const CHUNK_RAYS: usize = 1 << 17;
+
+/// Fills decode slots before decoding overwrites them (not finite: a slot
+/// left unfilled is rejected by the driver).
+const PLACEHOLDER: Sample = Sample {
+    origin: glam::DVec3::NAN,
+    direction: glam::DVec3::X,
+    hit: None,
+    color: [0.0; 3],
+};
+
+/// A display driver as chosen: its name, how pixels combine rays, the
+/// geometry the Voronoi driver culls with, and the denoiser after it.
+#[derive(Clone, Debug)]
+pub struct DriverChoice {
+    /// The driver's name.
+    pub name: String,
+    /// How pixels combine rays.
+    pub options: EstimatorOptions,
+    /// Simplified scene geometry, for the Voronoi driver.
+    pub geometry: Option<std::sync::Arc<Geometry>>,
+    /// What cleans its frames.
+    pub denoise: Denoiser,
+}
+
+impl DriverChoice {
+    /// The driver `name` with `options` and no geometry.
+    pub fn plain(name: &str, options: EstimatorOptions) -> DriverChoice {
+        DriverChoice {
+            name: name.to_string(),
+            options,
+            geometry: None,
+            denoise: Denoiser::Off,
+        }
+    }
+
+    /// Makes a fresh driver for `viewport`, its frames denoised as chosen.
+    pub fn make(&self, viewport: Viewport) -> Result<Box<dyn Driver>, Error> {
+        let driver = make_driver(
+            &self.name,
+            viewport,
+            DriverSetup {
+                options: self.options,
+                geometry: self.geometry.as_deref(),
+            },
+        )?;
+        Ok(match self.denoise {
+            Denoiser::Off => driver,
+            d => Box::new(Denoised::new(driver, d)),
+        })
+    }
+}
+
+/// What [`recall`] read, and how long each stage took.
+#[derive(Clone, Copy, Debug)]
+pub struct Recalled {
+    /// Beams the view selected.
+    pub beams: usize,
+    /// Samples read and handed to the driver.
+    pub samples: u64,
+    /// Reading, decoding and inserting.
+    pub secs: Duration,
+    /// Of which reading the file (the rest of `secs` is decoding and
+    /// inserting, which run side by side).
+    pub read: Duration,
+    /// Decoding records into samples, on all cores.
+    pub decode: Duration,
+    /// Inserting samples into the driver (projecting and merging them
+    /// into pixel estimates).
+    pub insert: Duration,
+}
+
+/// A fresh driver for `viewport` holding every stored ray of the beams the
+/// view sees, ready to draw.
+pub fn recall(
+    file: &mut HoloFile,
+    viewport: Viewport,
+    driver: &DriverChoice,
+    stride: u32,
+    seed: u64,
+) -> Result<(Box<dyn holodeck_display::Driver>, Recalled), Error> {
+    let sections = file.sections().to_vec();
+    let options = RequestOptions {
+        stride,
+        ..RequestOptions::default()
+    };
+    let request = BeamRequest::for_viewport(&sections, &viewport, &options, seed);
+    let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+    keys.sort_unstable();
+    let decoder = SampleDecoder::new(sections);
+    let mut d = driver.make(viewport)?;
+    let mut samples = 0u64;
+    let start = Instant::now();
+    let (mut flushing, mut decoding, mut inserting) = (Duration::ZERO, Duration::ZERO, Duration::ZERO);
+    // Beams are gathered into chunks and decoded in parallel; while the
+    // driver inserts one chunk (on one thread), the next is decoded.
+    let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * 2);
+    let mut beams: Vec<(BeamKey, std::ops::Range<usize>)> = Vec::new();
+    let mut decoded: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
+    let mut waiting: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
+    let mut flush = |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>| {
+        let d = &mut d;
+        let at = Instant::now();
+        let insert = || {
+            let at = Instant::now();
+            if !waiting.is_empty() {
+                d.add(&waiting);
+            }
+            at.elapsed()
+        };
+        let decode = || {
+            let at = Instant::now();
+            decode_chunk(&decoder, records, beams, &mut decoded);
+            at.elapsed()
+        };
+        let (inserted, decoded_in) = rayon::join(insert, decode);
+        inserting += inserted;
+        decoding += decoded_in;
+        flushing += at.elapsed();
+        samples += decoded.len() as u64;
+        std::mem::swap(&mut waiting, &mut decoded);
+        records.clear();
+        beams.clear();
+    };
+    file.read_beams(&keys, |k, rays| {
+        let at = records.len();
+        records.extend_from_slice(rays);
+        beams.push((k, at..records.len()));
+        if records.len() >= CHUNK_RAYS {
+            flush(&mut records, &mut beams);
+        }
+    })?;
+    flush(&mut records, &mut beams);
+    // The last chunk decoded is still waiting.
+    flush(&mut records, &mut beams);
+    let secs = start.elapsed();
+    Ok((
+        d,
+        Recalled {
+            beams: keys.len(),
+            samples,
+            secs,
+            read: secs.saturating_sub(flushing),
+            decode: decoding,
+            insert: inserting,
+        },
+    ))
+}
+
+/// Decodes one chunk of beams into `out`, one slot per record, each beam
+/// into its own slice, in parallel.
+fn decode_chunk(
+    decoder: &SampleDecoder,
+    records: &[RayRecord],
+    beams: &[(BeamKey, std::ops::Range<usize>)],
+    out: &mut Vec<Sample>,
+) {
+    out.clear();
+    out.resize(records.len(), PLACEHOLDER);
+    let mut jobs = Vec::with_capacity(beams.len());
+    let mut rest = &mut out[..];
+    for (k, r) in beams {
+        let (mine, tail) = rest.split_at_mut(r.len());
+        jobs.push((*k, &records[r.clone()], mine));
+        rest = tail;
+    }
+    jobs.into_par_iter().for_each(|(k, recs, slots)| {
+        // Slots of a beam that cannot decode keep the NaN placeholder, which
+        // the driver rejects and counts.
+        if let Some(it) = decoder.samples(k.section, k.beam, recs) {
+            for (slot, s) in slots.iter_mut().zip(it) {
+                *slot = s;
+            }
+        }
+    });
+}
