@@ -2,16 +2,19 @@
 //! programs. Load a scene from any supported input ([`SceneInput`]: scene
 //! files, models, Radiance scenes, `builtin:` generators, out-of-core `.hds`
 //! files), fill a holodeck file with its rays in this process ([`fill()`]),
-//! and draw pictures from a file with any display driver ([`recall()`]).
+//! draw pictures from a file with any display driver ([`recall()`]), and
+//! measure them against converged references ([`truth::Truth`]).
 //! `examples/fill_and_draw.rs` does all three in a page.
 //!
 //! * `fill` — a batch fill in one process: the schedule picks beams, the cores trace them, the file keeps the rays.
 //! * `recall` — pictures from a file: the beams a view sees, read, decoded and handed to a driver.
 //! * `scene_input` — what the commands that trace accept as a scene.
+//! * `truth` — converged reference pictures in two halves that state their own noise, and direct renders.
 
 pub mod fill;
 pub mod recall;
 pub mod scene_input;
+pub mod truth;
 
 pub use fill::{fill, FillOptions, FillReport, ViewFill};
 pub use recall::{recall, DriverChoice, Recalled};
@@ -56,4 +59,13 @@ pub enum Error {
     /// No driver could be made for the view.
     #[error(transparent)]
     Driver(#[from] holodeck_display::DriverError),
+    /// A reference or direct render failed.
+    #[error(transparent)]
+    Render(#[from] holodeck_sampler::render::RenderError),
+    /// A picture cannot be measured against its reference.
+    #[error(transparent)]
+    Compare(#[from] holodeck_display::compare::CompareError),
+    /// A picture size is impossible.
+    #[error(transparent)]
+    PictureSize(#[from] holodeck_protocol::PictureSizeError),
 }

@@ -1,7 +1,7 @@
 //! `holodeck`: the one command users learn. It parses arguments and calls
-//! into the libraries (`holodeck`: scenes, fills, pictures from a file); it
-//! also holds what only the command uses so far: reference pictures, the
-//! demo, benchmarks and charts.
+//! into the libraries (`holodeck`: scenes, fills, pictures from a file,
+//! references); it also holds what only the command uses so far: the demo,
+//! benchmarks and charts.
 //!
 //! * `chart` — line charts as SVG and PNG.
 //! * `cmd` — one module per command (`cmd/bench`, `cmd/chart`: the benchmarks and charts).
@@ -10,7 +10,6 @@
 //! * `human` — numbers for people.
 //! * `parent` — living and dying with a parent process.
 //! * `progress` — progress on stderr, in one style.
-//! * `truth` — converged reference pictures in two halves, with their noise.
 
 use std::process::ExitCode;
 
@@ -55,7 +54,6 @@ mod generated;
 mod human;
 mod parent;
 mod progress;
-mod truth;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
 #[derive(Parser)]

@@ -85,8 +85,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
             let input = SceneInput::open(scene, None, None)?;
             let tracer = input.tracer(TraceOptions::default());
             let (w, h) = (yardstick.reference().width, yardstick.reference().height);
-            let edges = silhouettes(&tracer, &view, w as u32, h as u32, crate::truth::SILHOUETTE_RATIO)?;
-            yardstick.with_band(crate::truth::dilate(&edges, w, h))?
+            let edges = silhouettes(&tracer, &view, w as u32, h as u32, holodeck::truth::SILHOUETTE_RATIO)?;
+            yardstick.with_band(holodeck::truth::dilate(&edges, w, h))?
         }
         None => yardstick,
     };

@@ -16,7 +16,7 @@ use holodeck_sampler::render::{render, render_aovs, RenderOptions};
 use holodeck_sampler::Tracer;
 
 use crate::cmd::args::DriverChoice;
-use crate::truth::Truth;
+use holodeck::truth::Truth;
 
 /// The display drivers drawn, in the order of the sheets.
 pub const DRIVERS: [&str; 3] = ["quadtree", "voronoi", "mesh"];

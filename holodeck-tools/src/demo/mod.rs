@@ -26,8 +26,8 @@ use holodeck_protocol::{Picture, View};
 use holodeck_sampler::TraceOptions;
 
 use crate::human::count;
-use crate::truth::Truth;
 use holodeck::fill::{fill, FillOptions, ViewFill};
+use holodeck::truth::Truth;
 pub use methods::DRIVERS;
 use methods::{Column, Kind, Shot};
 
@@ -149,7 +149,7 @@ impl Demo {
         let mut truths = Vec::with_capacity(views.len());
         for (i, v) in views.iter().enumerate() {
             let seed = 0x005e_ed0f_7e57 + 2 * i as u64;
-            let halves = crate::truth::reference_halves(&tracer, v, self.size(), self.reference_spp, seed)?;
+            let halves = holodeck::truth::reference_halves(&tracer, v, self.size(), self.reference_spp, seed)?;
             truths.push(Truth::new(&tracer, v, halves)?);
             bar.inc(1);
         }
@@ -348,7 +348,7 @@ impl Demo {
         let mut direct = Vec::new();
         let mut cleaned = Vec::new();
         for (k, &stage) in stages.iter().enumerate() {
-            let (p, t, paths) = crate::truth::direct_render(tracer, &views[0], self.size(), stage, 77 + k as u64)?;
+            let (p, t, paths) = holodeck::truth::direct_render(tracer, &views[0], self.size(), stage, 77 + k as u64)?;
             direct.push((paths as f64, t, first.measure(&p)?.flip));
             let start = Instant::now();
             let o = holodeck_sampler::render::RenderOptions {

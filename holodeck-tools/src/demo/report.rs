@@ -11,7 +11,7 @@ use super::methods::{Column, Kind};
 use super::{sheet, Demo, Fill};
 use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::human::count;
-use crate::truth::Truth;
+use holodeck::truth::Truth;
 
 /// The methods a sheet shows after the reference: by name, and the label
 /// under each.

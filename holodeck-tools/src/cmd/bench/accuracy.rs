@@ -35,8 +35,8 @@ use holodeck_sampler::render::{render, RenderOptions};
 use holodeck_sampler::{TraceOptions, Tracer};
 
 use crate::human::count;
-use crate::truth::Truth;
 use holodeck::fill::{fill, FillOptions, ViewFill};
+use holodeck::truth::Truth;
 use holodeck_sampler::beam::trace_batch;
 
 /// Arguments of `holodeck bench accuracy`.
@@ -196,14 +196,15 @@ impl AccuracyBench {
                     paths[0].display()
                 );
                 let size = (self.width, self.height);
-                let halves = crate::truth::reference_halves(tracer, view, size, self.reference_spp, 0x005e_ed0f_7e57)?;
+                let halves =
+                    holodeck::truth::reference_halves(tracer, view, size, self.reference_spp, 0x005e_ed0f_7e57)?;
                 for (p, path) in [&halves.0, &halves.1].into_iter().zip(&paths) {
                     write_hdr(p, path).with_context(|| format!("writing {}", path.display()))?;
                 }
                 halves
             }
         };
-        Truth::new(tracer, view, halves)
+        Ok(Truth::new(tracer, view, halves)?)
     }
 
     fn viewport(&self, view: &View) -> Result<Viewport> {
@@ -212,7 +213,13 @@ impl AccuracyBench {
 
     /// A direct render of `paths` paths (rounded to whole samples per pixel).
     fn direct(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
-        crate::truth::direct_render(tracer, view, (self.width, self.height), paths, seed)
+        Ok(holodeck::truth::direct_render(
+            tracer,
+            view,
+            (self.width, self.height),
+            paths,
+            seed,
+        )?)
     }
 
     /// A fresh holodeck of `scene` filled with `paths` rays for `view`, then
@@ -402,7 +409,7 @@ impl AccuracyBench {
     /// The walk: `n` views from the single view's eye, 10 cm a step
     /// along its direction, turning 1.5 degrees a step.
     fn walk(&self, n: usize) -> Vec<View> {
-        crate::truth::walk(&self.view, n, 0.1, 1.5)
+        holodeck::truth::walk(&self.view, n, 0.1, 1.5)
     }
 
     /// Part 2: the walkthrough, time to the target error per view, over
@@ -635,7 +642,7 @@ const MEASURES: &str = "| method | FLIP | HDR-FLIP | SSIM | clamped rel. RMSE | 
 /// normals, and the seconds in all; an error without OIDN in the build.
 fn direct_oidn(tracer: &Tracer, view: &View, size: (u32, u32), paths: u64, seed: u64) -> Result<(Picture, f64)> {
     let start = Instant::now();
-    let (noisy, _, _) = crate::truth::direct_render(tracer, view, size, paths, seed)?;
+    let (noisy, _, _) = holodeck::truth::direct_render(tracer, view, size, paths, seed)?;
     let o = RenderOptions {
         width: size.0,
         height: size.1,

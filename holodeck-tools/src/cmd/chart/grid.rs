@@ -16,8 +16,8 @@ use holodeck_sampler::{TraceOptions, Tracer};
 use crate::chart::{Panel, Series, SeriesLabelPosition};
 use crate::cmd::args::DriverChoice;
 use crate::human::count;
-use crate::truth::Truth;
 use holodeck::fill::{fill, FillOptions, ViewFill};
+use holodeck::truth::Truth;
 
 /// Arguments of `holodeck chart grid`.
 #[derive(clap::Args)]
@@ -84,7 +84,7 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
     let hash = holodeck_sampler::scene::hash::content_hash(&scene);
     let view = crate::cmd::view_arg::parse(&a.view).context("--view")?;
     let tracer = Tracer::new(scene, TraceOptions::default());
-    let halves = crate::truth::reference_halves(&tracer, &view, (a.width, a.height), a.reference_spp, 0x5eed)?;
+    let halves = holodeck::truth::reference_halves(&tracer, &view, (a.width, a.height), a.reference_spp, 0x5eed)?;
     let truth = Truth::new(&tracer, &view, halves)?;
     let axes = first.axes().map(|v| v.to_array());
     let eye_radius = holodeck_display::request::RequestOptions::default().eye_radius;

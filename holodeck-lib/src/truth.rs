@@ -3,12 +3,16 @@
 //! holodeck picture and every direct render is measured against (see
 //! `holodeck_display::compare` for the measures).
 
-use anyhow::Result;
 use holodeck_display::compare::{Metrics, Yardstick};
 use holodeck_display::tonemap::{ToneMap, ToneMode};
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, silhouettes, RenderOptions};
 use holodeck_sampler::Tracer;
+
+use crate::Error;
+
+/// What the functions here return.
+type Result<T> = std::result::Result<T, Error>;
 
 /// Depth ratio (farthest to nearest first hit within a pixel) that makes a
 /// pixel a silhouette.
