@@ -8,11 +8,14 @@
 //!
 //! * `fill` — a batch fill in one process: the schedule picks beams, the cores trace them, the file keeps the rays.
 //! * `recall` — pictures from a file: the beams a view sees, read, decoded and handed to a driver.
+//! * `replay` — a file replayed into the walkthrough window (feature `window`).
 //! * `scene_input` — what the commands that trace accept as a scene.
 //! * `truth` — converged reference pictures in two halves that state their own noise, and direct renders.
 
 pub mod fill;
 pub mod recall;
+#[cfg(feature = "window")]
+pub mod replay;
 pub mod scene_input;
 pub mod truth;
 

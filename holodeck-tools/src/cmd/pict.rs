@@ -147,7 +147,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;
     if a.window {
         let view = views.into_iter().next().context("no view")?;
-        let source = super::window::FileSource::new(file, a.file.display().to_string());
+        let source = holodeck::replay::FileSource::new(file, a.file.display().to_string());
         let args = super::window::WindowArgs {
             script: a.script,
             stride: a.stride,

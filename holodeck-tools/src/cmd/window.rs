@@ -1,17 +1,12 @@
 //! What `holodeck view` and `holodeck pict --window` share to open the
-//! walkthrough window: the arguments, the first view, and the source of
-//! samples for a replay straight from a holodeck file (no server).
-
-use std::collections::HashMap;
-use std::time::Instant;
+//! walkthrough window: the arguments and the first view (a replay straight
+//! from a file takes its samples from `holodeck::replay::FileSource`).
 
 use anyhow::{Context, Result};
-use holodeck_display::request::{BeamRequest, RequestOptions};
-use holodeck_display::window::{self, Source, SourceError, WalkOptions, WindowOptions};
-use holodeck_display::{Sample, SampleDecoder, Viewport};
-use holodeck_file::HoloFile;
-use holodeck_protocol::wire::Control;
-use holodeck_protocol::{BeamKey, Section, View};
+use holodeck_display::request::RequestOptions;
+use holodeck_display::window::{self, Source, WalkOptions, WindowOptions};
+use holodeck_display::Viewport;
+use holodeck_protocol::{Section, View};
 
 use super::args::FrameArgs;
 
@@ -74,102 +69,5 @@ pub fn open(
             Ok(())
         }
         r => r.context("the walkthrough window"),
-    }
-}
-
-/// Samples straight from a holodeck file: a request reads the stored rays
-/// of its beams that were not handed out yet; nothing new ever arrives, and
-/// there is no server to command.
-pub struct FileSource {
-    file: HoloFile,
-    name: String,
-    decoder: SampleDecoder,
-    sent: HashMap<BeamKey, u64>,
-    scratch: Vec<Sample>,
-}
-
-impl FileSource {
-    /// Replays `file` (opened read-only), named `name` in the title.
-    pub fn new(file: HoloFile, name: String) -> FileSource {
-        let decoder = SampleDecoder::new(file.sections().to_vec());
-        FileSource {
-            file,
-            name,
-            decoder,
-            sent: HashMap::new(),
-            scratch: Vec::new(),
-        }
-    }
-}
-
-impl Source for FileSource {
-    fn sections(&self) -> &[Section] {
-        self.decoder.sections()
-    }
-
-    fn request(
-        &mut self,
-        request: &BeamRequest,
-        resend: bool,
-        sink: &mut dyn FnMut(&[Sample]),
-    ) -> Result<u64, SourceError> {
-        if resend {
-            self.sent.clear();
-        }
-        // Beams already sent in full are not read again (their lengths are
-        // in the file's directory, in memory).
-        let (file, sent) = (&self.file, &self.sent);
-        let mut keys: Vec<BeamKey> = request
-            .beams
-            .iter()
-            .map(|b| b.0)
-            .filter(|&k| {
-                file.beam_len(k)
-                    .map_or(true, |n| n > sent.get(&k).copied().unwrap_or(0))
-            })
-            .collect();
-        keys.sort_unstable();
-        let (decoder, sent, scratch) = (&self.decoder, &mut self.sent, &mut self.scratch);
-        let mut total = 0u64;
-        self.file
-            .read_beams(&keys, |k, rays| {
-                let had = sent.entry(k).or_default();
-                let from = (*had as usize).min(rays.len());
-                scratch.clear();
-                decoder.decode(k.section, k.beam, &rays[from..], scratch);
-                *had = rays.len() as u64;
-                total += scratch.len() as u64;
-                sink(scratch);
-            })
-            .map_err(|e| SourceError::File(format!("{}: {e}", self.name)))?;
-        Ok(total)
-    }
-
-    fn raise(&mut self, _request: &BeamRequest) -> Result<(), SourceError> {
-        Ok(())
-    }
-
-    fn poll(&mut self, _deadline: Instant, _sink: &mut dyn FnMut(&[Sample])) -> Result<u64, SourceError> {
-        Ok(0)
-    }
-
-    fn received(&self, key: BeamKey) -> u64 {
-        self.sent.get(&key).copied().unwrap_or(0)
-    }
-
-    fn control(&mut self, control: Control) -> Result<(), SourceError> {
-        Err(SourceError::NoServer(format!("{control:?}")))
-    }
-
-    fn status(&self) -> Option<holodeck_protocol::wire::Progress> {
-        None
-    }
-
-    fn notices(&mut self) -> Vec<String> {
-        Vec::new()
-    }
-
-    fn name(&self) -> String {
-        self.name.clone()
     }
 }
