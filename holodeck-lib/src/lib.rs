@@ -7,12 +7,14 @@
 //! `examples/fill_and_draw.rs` does all three in a page.
 //!
 //! * `fill` — a batch fill in one process: the schedule picks beams, the cores trace them, the file keeps the rays.
+//! * `prepare` — a scene and its file made ready to fill: created, adopted or refused.
 //! * `recall` — pictures from a file: the beams a view sees, read, decoded and handed to a driver.
 //! * `replay` — a file replayed into the walkthrough window (feature `window`).
 //! * `scene_input` — what the commands that trace accept as a scene.
 //! * `truth` — converged reference pictures in two halves that state their own noise, and direct renders.
 
 pub mod fill;
+pub mod prepare;
 pub mod recall;
 #[cfg(feature = "window")]
 pub mod replay;
@@ -20,6 +22,7 @@ pub mod scene_input;
 pub mod truth;
 
 pub use fill::{fill, FillOptions, FillReport, ViewFill};
+pub use prepare::{prepare, PrepareOptions, Prepared};
 pub use recall::{recall, DriverChoice, Recalled};
 pub use scene_input::{load, SceneInput};
 
@@ -52,6 +55,22 @@ pub enum Error {
         /// Why.
         #[source]
         source: Box<holodeck_sampler::SceneError>,
+    },
+    /// A new file needs sections, and the scene defines none.
+    #[error("scene {spec} defines no holodeck section; add [[section]] tables to it")]
+    NoSections {
+        /// The scene as given.
+        spec: String,
+    },
+    /// The file holds rays of another scene.
+    #[error("{} holds rays of another scene ({held}); this scene is {scene}. Use a new file.", path.display())]
+    OtherScene {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The scene it records.
+        held: String,
+        /// This scene.
+        scene: String,
     },
     /// The holodeck file refused or failed.
     #[error(transparent)]

@@ -7,7 +7,10 @@ use std::time::{Duration, Instant};
 use holodeck_display::denoise::{Denoised, Denoiser};
 use holodeck_display::geometry::Geometry;
 use holodeck_display::request::{BeamRequest, RequestOptions};
-use holodeck_display::{make_driver, Driver, DriverSetup, EstimatorOptions, Sample, SampleDecoder, Viewport};
+use holodeck_display::tonemap::Histogram;
+use holodeck_display::{
+    make_driver, Driver, DriverSetup, DriverStats, EstimatorOptions, Sample, SampleDecoder, Viewport,
+};
 use holodeck_file::HoloFile;
 use holodeck_protocol::{BeamKey, RayRecord};
 use rayon::prelude::*;
@@ -190,4 +193,49 @@ fn decode_chunk(
             }
         }
     });
+}
+
+/// What drawing one frame took.
+pub struct FrameStats {
+    /// Beams the view selected.
+    pub beams: usize,
+    /// Samples read and handed to the driver.
+    pub samples: u64,
+    /// Reading, decoding and inserting.
+    pub recall: Duration,
+    /// The stages of the recall.
+    pub stages: Recalled,
+    /// Drawing the frame (and denoising it).
+    pub render: Duration,
+    /// The driver's counters.
+    pub driver: DriverStats,
+}
+
+/// Draws `view` from `file` with a fresh driver; returns the frame, the
+/// histogram of the samples, and the statistics.
+pub fn draw(
+    file: &mut HoloFile,
+    viewport: Viewport,
+    driver: &DriverChoice,
+    stride: u32,
+    seed: u64,
+) -> Result<(holodeck_protocol::Picture, Histogram, FrameStats), Error> {
+    let (mut d, recalled) = recall(file, viewport, driver, stride, seed)?;
+    let start = Instant::now();
+    let picture = d.render();
+    let render = start.elapsed();
+    // Tone mapping follows what is on screen (as rhpict's does).
+    let hist = Histogram::from_picture(&picture);
+    Ok((
+        picture,
+        hist,
+        FrameStats {
+            beams: recalled.beams,
+            samples: recalled.samples,
+            recall: recalled.secs,
+            stages: recalled,
+            render,
+            driver: d.stats(),
+        },
+    ))
 }

@@ -9,6 +9,7 @@
 //! * `generated` — generated result documents and the blocks that quote them.
 //! * `human` — numbers for people.
 //! * `parent` — living and dying with a parent process.
+//! * `prepare` — a scene's file opened for filling, with what was found said.
 //! * `progress` — progress on stderr, in one style.
 
 use std::process::ExitCode;
@@ -53,6 +54,7 @@ mod demo;
 mod generated;
 mod human;
 mod parent;
+mod prepare;
 mod progress;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.

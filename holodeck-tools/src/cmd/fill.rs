@@ -8,9 +8,8 @@ use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::TraceOptions;
 
-use holodeck::SceneInput;
-use holodeck_file::settings::{parse_duration, Settings};
-use holodeck_file::{HoloFile, OpenOptions, StorageError};
+use holodeck_file::settings::parse_duration;
+use holodeck_file::{HoloFile, OpenOptions};
 
 use super::args::MAX_TRIANGLES;
 use crate::human::{bytes, count, count_in};
@@ -80,73 +79,6 @@ pub struct Args {
     vdistance: bool,
 }
 
-/// Loads a scene and opens its holodeck file for writing, creating the file
-/// from the scene's sections if it does not exist (recording virtual
-/// distances through windows and mirrors if `vdistance`); refuses a file
-/// made for another scene, and one whose newest commit is damaged unless
-/// `accept_loss`.
-/// Of two processes creating the same file at once, one creates it and the
-/// other opens it (or is told it is in use).
-pub fn prepare(
-    scene_spec: &str,
-    path: &Path,
-    triangles: Option<u64>,
-    scene_memory: Option<u64>,
-    accept_loss: bool,
-    vdistance: bool,
-) -> Result<(SceneInput, HoloFile)> {
-    let scene = SceneInput::open(scene_spec, triangles, scene_memory)?;
-    let hash = scene.hash();
-    if !path.exists() {
-        if scene.sections().is_empty() {
-            bail!("scene {scene_spec} defines no holodeck section; add [[section]] tables to it");
-        }
-        let settings = Settings {
-            sections: scene.sections().to_vec(),
-            scene: Some(hash.clone()),
-            vdistance,
-            ..Settings::default()
-        };
-        match HoloFile::create(path, &settings) {
-            // Another process created it first: open what it made.
-            Ok(()) | Err(StorageError::Exists { .. }) => {}
-            Err(e) => return Err(e.into()),
-        }
-    }
-    let options = OpenOptions {
-        accept_loss,
-        ..OpenOptions::default()
-    };
-    let mut file = HoloFile::open(path, &options)?;
-    if file.settings().scene.is_none() {
-        // A file that records no scene (imported from Radiance's rholo, or
-        // made by `create` without --scene): it is continued with this one.
-        file.set_scene(&hash, false)?;
-        let rays = file.summary().rays();
-        if rays > 0 {
-            note!(
-                "{} recorded no scene (an imported Radiance holodeck?): it now records {scene_spec} ({hash}), \
-                 and its {} rays are taken as traced in it",
-                path.display(),
-                crate::human::count(rays)
-            );
-        }
-    }
-    if let SceneInput::InCore(s) = &scene {
-        for cut in super::scene::section_cuts(s, &file.settings().sections) {
-            tracing::warn!("{}: {cut}", path.display());
-        }
-    }
-    match &file.settings().scene {
-        Some(h) if *h != hash => bail!(
-            "{} holds rays of another scene ({h}); this scene is {hash}. Use a new file.",
-            path.display()
-        ),
-        _ => {}
-    }
-    Ok((scene, file))
-}
-
 /// The views in the file at `path`, one per line.
 pub(crate) fn read_views(path: &Path) -> Result<Vec<View>> {
     let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -174,7 +106,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|t| parse_duration(t, 1.0))
         .transpose()
         .context("--time")?;
-    let (scene, mut file) = prepare(
+    let (scene, mut file) = crate::prepare::prepare(
         &a.scene,
         &a.file,
         a.triangles,

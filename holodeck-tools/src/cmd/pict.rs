@@ -4,18 +4,16 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use holodeck_display::denoise::Denoiser;
-use holodeck_display::tonemap::Histogram;
-use holodeck_display::{output, DriverStats, Viewport};
+use holodeck_display::{output, Viewport};
 use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::View;
 
-use super::args::DriverChoice;
 use crate::human::count;
-use holodeck::{recall, Recalled};
+use holodeck::recall::draw;
 
 /// Arguments of `holodeck pict`.
 #[derive(clap::Args)]
@@ -60,51 +58,6 @@ pub struct Args {
     /// Read window commands from standard input (see `holodeck view --help`).
     #[arg(short = 'i', long, requires = "window")]
     script: bool,
-}
-
-/// What drawing one frame took.
-pub struct FrameStats {
-    /// Beams the view selected.
-    pub beams: usize,
-    /// Samples read and handed to the driver.
-    pub samples: u64,
-    /// Reading, decoding and inserting.
-    pub recall: Duration,
-    /// The stages of the recall.
-    pub stages: Recalled,
-    /// Drawing the frame (and denoising it).
-    pub render: Duration,
-    /// The driver's counters.
-    pub driver: DriverStats,
-}
-
-/// Draws `view` from `file` with a fresh driver; returns the frame, the
-/// histogram of the samples, and the statistics.
-pub fn draw(
-    file: &mut HoloFile,
-    viewport: Viewport,
-    driver: &DriverChoice,
-    stride: u32,
-    seed: u64,
-) -> Result<(holodeck_protocol::Picture, Histogram, FrameStats)> {
-    let (mut d, recalled) = recall(file, viewport, driver, stride, seed)?;
-    let start = Instant::now();
-    let picture = d.render();
-    let render = start.elapsed();
-    // Tone mapping follows what is on screen (as rhpict's does).
-    let hist = Histogram::from_picture(&picture);
-    Ok((
-        picture,
-        hist,
-        FrameStats {
-            beams: recalled.beams,
-            samples: recalled.samples,
-            recall: recalled.secs,
-            stages: recalled,
-            render,
-            driver: d.stats(),
-        },
-    ))
 }
 
 /// The output name of frame `n`: `%d` or `%0Nd` replaced by the number.

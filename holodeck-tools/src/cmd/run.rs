@@ -271,7 +271,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
     let (before, default_view) = {
-        let (_, file) = super::fill::prepare(
+        let (_, file) = crate::prepare::prepare(
             &a.scene,
             &a.file,
             a.triangles,

@@ -453,7 +453,7 @@ fn describe(s: &Scene) -> String {
         );
     }
     line("sky", sky(&s.sky));
-    for cut in section_cuts(s, &s.sections) {
+    for cut in crate::prepare::section_cuts(s, &s.sections) {
         line("warning", cut);
     }
     for (k, sec) in s.sections.iter().enumerate() {
@@ -484,35 +484,6 @@ fn describe(s: &Scene) -> String {
         line("import note", note.to_string());
     }
     out
-}
-
-/// One line per section of `sections` that cuts geometry of `scene`: how
-/// many triangles, and where.
-pub fn section_cuts(scene: &Scene, sections: &[holodeck_protocol::Section]) -> Vec<String> {
-    use holodeck_sampler::scene::section_fit::cut;
-    sections
-        .iter()
-        .enumerate()
-        .filter_map(|(k, sec)| {
-            let c = cut(scene, sec)?;
-            let (lo, hi) = c.bounds;
-            let what = match sec.kind() {
-                holodeck_protocol::SectionKind::Interior => "reach into interior",
-                holodeck_protocol::SectionKind::Exterior => "cross the walls of exterior",
-            };
-            Some(format!(
-                "{} triangles {what} section {k}, between x {:.3} .. {:.3}, y {:.3} .. {:.3}, z {:.3} .. {:.3} m: \
-                 they draw as black wedges; `holodeck scene section` proposes a section that fits",
-                count(c.triangles),
-                lo.x,
-                hi.x,
-                lo.y,
-                hi.y,
-                lo.z,
-                hi.z
-            ))
-        })
-        .collect()
 }
 
 /// `holodeck scene section`: a section that fits the scene.

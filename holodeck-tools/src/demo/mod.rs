@@ -137,7 +137,7 @@ impl Demo {
         let hdk = self.out.join("demo.hdk");
         // Virtual distances: the walk looks out of the window, and what a
         // window shows must move with the eye as the view beyond it does.
-        let (input, mut file) = crate::cmd::fill::prepare(SCENE, &hdk, Some(self.triangles), None, false, true)?;
+        let (input, mut file) = crate::prepare::prepare(SCENE, &hdk, Some(self.triangles), None, false, true)?;
         let tracer = input.tracer(TraceOptions::default());
 
         // References first: every picture below is measured against them.

@@ -228,7 +228,7 @@ impl AccuracyBench {
     fn holodeck(&self, scene: &str, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<Filled> {
         let path = self.dir.join(format!("accuracy-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, mut file) = crate::cmd::fill::prepare(scene, &path, None, None, false, true)?;
+        let (_, mut file) = crate::prepare::prepare(scene, &path, None, None, false, true)?;
         let start = Instant::now();
         let o = FillOptions {
             rays: Some(paths),
@@ -269,7 +269,7 @@ impl AccuracyBench {
     fn session(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
         let path = self.dir.join(format!("accuracy-session-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false, true)?;
+        let (_, file) = crate::prepare::prepare(&self.scene, &path, None, None, false, true)?;
         let start = Instant::now();
         let mut walker = Walker::new(file, self.viewport(view)?, self.estimator)?;
         let (mut rays, mut density, mut step) = (0u64, 0.0f32, 0u64);
@@ -450,7 +450,7 @@ impl AccuracyBench {
         let max_steps = 64u32;
         let path = self.dir.join("accuracy-walk.hdk");
         let _ = std::fs::remove_file(&path);
-        let (_, file) = crate::cmd::fill::prepare(&self.scene, &path, None, None, false, true)?;
+        let (_, file) = crate::prepare::prepare(&self.scene, &path, None, None, false, true)?;
         let mut walker = Walker::new(file, self.viewport(&views[0])?, self.estimator)?;
         let (mut direct_total, mut holo_total) = (0.0, 0.0);
         let (mut direct_paths, mut holo_rays) = (0u64, 0u64);

@@ -292,7 +292,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("pict-bench.hdk");
     let _ = std::fs::remove_file(&path);
-    let (_, mut file) = crate::cmd::fill::prepare("builtin:room", &path, None, None, false, false)?;
+    let (_, mut file) = crate::prepare::prepare("builtin:room", &path, None, None, false, false)?;
     let seen = ViewFill::new(file.sections(), std::slice::from_ref(&view), 0.0);
     eprintln!("filling {} rays for one view...", count(rays));
     let o = FillOptions {
@@ -309,14 +309,14 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     for driver in ["quadtree", "splat"] {
         let mut file = HoloFile::open(&path, &OpenOptions::read_only())?;
         // Warm: the first call reads the file into the cache.
-        crate::cmd::pict::draw(
+        holodeck::recall::draw(
             &mut file,
             vp.clone(),
             &crate::cmd::args::DriverChoice::plain(driver, Default::default()),
             2,
             0,
         )?;
-        let (_, _, st) = crate::cmd::pict::draw(
+        let (_, _, st) = holodeck::recall::draw(
             &mut file,
             vp.clone(),
             &crate::cmd::args::DriverChoice::plain(driver, Default::default()),

@@ -113,12 +113,12 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
         let viewport = holodeck_display::Viewport::new(view.clone(), a.width, a.height)?;
         let choice = DriverChoice::plain("quadtree", EstimatorOptions::default());
         // The same picture each time; the recall rate is the best of three.
-        let (picture, _, stats) = crate::cmd::pict::draw(&mut file, viewport.clone(), &choice, 2, 1)?;
+        let (picture, _, stats) = holodeck::recall::draw(&mut file, viewport.clone(), &choice, 2, 1)?;
         let (error, requested) = (truth.measure(&picture)?, stats.beams);
-        let rate = |s: &crate::cmd::pict::FrameStats| s.samples as f64 / s.recall.as_secs_f64().max(1e-9);
+        let rate = |s: &holodeck::recall::FrameStats| s.samples as f64 / s.recall.as_secs_f64().max(1e-9);
         let mut recall = rate(&stats);
         for _ in 1..3 {
-            let (_, _, stats) = crate::cmd::pict::draw(&mut file, viewport.clone(), &choice, 2, 1)?;
+            let (_, _, stats) = holodeck::recall::draw(&mut file, viewport.clone(), &choice, 2, 1)?;
             recall = recall.max(rate(&stats));
         }
         file.close()?;
