@@ -170,32 +170,7 @@ impl GpuAtrous {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
             let (from, to) = (&ping[(pass % 2) as usize], &ping[((pass + 1) % 2) as usize]);
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("atrous pass"),
-                layout: &layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: uniform.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: from.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: to.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: normals.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: depths.as_entire_binding(),
-                    },
-                ],
-            });
+            let bind = self.pass_bindings(&layout, [&uniform, from, to, &normals, &depths]);
             let mut cpass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("atrous pass"),
                 timestamp_writes: None,
@@ -207,6 +182,40 @@ impl GpuAtrous {
         encoder.copy_buffer_to_buffer(&ping[(o.passes % 2) as usize], 0, &readback, 0, bytes);
         self.ctx.queue.submit([encoder.finish()]);
         let submitted = start.elapsed();
+        let pixels = self.read_back(&readback)?;
+        tracing::debug!(
+            "atrous on the GPU, {w} x {h}: guide {:.1} ms, buffers {:.1} ms, filter and read back {:.1} ms",
+            prepared.as_secs_f64() * 1e3,
+            (submitted - prepared).as_secs_f64() * 1e3,
+            (start.elapsed() - submitted).as_secs_f64() * 1e3
+        );
+        Ok(Picture {
+            width: w,
+            height: h,
+            pixels,
+        })
+    }
+    /// The bindings of one pass: its parameters, the buffer it reads, the
+    /// one it writes, the normals and the depths (in `atrous.wgsl`'s order).
+    fn pass_bindings(&self, layout: &wgpu::BindGroupLayout, buffers: [&wgpu::Buffer; 5]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry<'_>> = buffers
+            .iter()
+            .enumerate()
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("atrous pass"),
+            layout,
+            entries: &entries,
+        })
+    }
+
+    /// The filtered colours from the mapped read-back buffer (after the
+    /// work was submitted).
+    fn read_back(&self, readback: &wgpu::Buffer) -> Result<Vec<Vec3>, GpuError> {
         let slice = readback.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -224,17 +233,7 @@ impl GpuAtrous {
             floats.iter().map(|v| Vec3::new(v[0], v[1], v[2])).collect()
         };
         readback.unmap();
-        tracing::debug!(
-            "atrous on the GPU, {w} x {h}: guide {:.1} ms, buffers {:.1} ms, filter and read back {:.1} ms",
-            prepared.as_secs_f64() * 1e3,
-            (submitted - prepared).as_secs_f64() * 1e3,
-            (start.elapsed() - submitted).as_secs_f64() * 1e3
-        );
-        Ok(Picture {
-            width: w,
-            height: h,
-            pixels,
-        })
+        Ok(pixels)
     }
 }
 

@@ -427,6 +427,8 @@ impl<'p> Eval<'p> {
         v
     }
 
+    /// The value of native `b` on `args`: one match arm per native, each a
+    /// line or a few (a long function for that reason alone).
     fn native(&mut self, b: Builtin, args: &[Value]) -> f64 {
         use Builtin::*;
         let mut nums = [0.0f64; 4];
