@@ -90,38 +90,7 @@ impl GpuAtrous {
             )));
         }
         let start = std::time::Instant::now();
-        let color: Vec<Vec3> = picture
-            .pixels
-            .iter()
-            .map(|c| if c.is_finite() { c.max(Vec3::ZERO) } else { Vec3::ZERO })
-            .collect();
-        let variance = fill_variance(guide, &color);
-        let src: Vec<[f32; 4]> = color
-            .par_iter()
-            .zip(&variance)
-            .map(|(c, &v)| [c.x, c.y, c.z, v])
-            .collect();
-        let taps = taps(guide);
-        let normals: Vec<[f32; 4]> = taps
-            .par_iter()
-            .map(|t| {
-                let kind = if t.depth.is_nan() {
-                    0.0
-                } else if t.depth.is_finite() {
-                    1.0
-                } else {
-                    2.0
-                };
-                [t.normal.x, t.normal.y, t.normal.z, kind]
-            })
-            .collect();
-        let depths: Vec<[f32; 2]> = taps
-            .par_iter()
-            .map(|t| {
-                let d = if t.depth.is_finite() { t.depth } else { 0.0 };
-                [d, if t.slope.is_finite() { t.slope } else { 0.0 }]
-            })
-            .collect();
+        let (src, normals, depths) = guide_arrays(picture, guide);
         let prepared = start.elapsed();
         let device = &self.ctx.device;
         let storage = |label: &str, contents: &[u8], extra: wgpu::BufferUsages| {
@@ -235,6 +204,46 @@ impl GpuAtrous {
         readback.unmap();
         Ok(pixels)
     }
+}
+
+/// What the shader reads of each pixel: colour and filled-in variance,
+/// normal and depth kind (0 unknown, 1 finite, 2 sky), depth and slope;
+/// prepared as the CPU filter prepares them.
+#[allow(clippy::type_complexity)]
+fn guide_arrays(picture: &Picture, guide: &Guide) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[f32; 2]>) {
+    let color: Vec<Vec3> = picture
+        .pixels
+        .iter()
+        .map(|c| if c.is_finite() { c.max(Vec3::ZERO) } else { Vec3::ZERO })
+        .collect();
+    let variance = fill_variance(guide, &color);
+    let src: Vec<[f32; 4]> = color
+        .par_iter()
+        .zip(&variance)
+        .map(|(c, &v)| [c.x, c.y, c.z, v])
+        .collect();
+    let taps = taps(guide);
+    let normals: Vec<[f32; 4]> = taps
+        .par_iter()
+        .map(|t| {
+            let kind = if t.depth.is_nan() {
+                0.0
+            } else if t.depth.is_finite() {
+                1.0
+            } else {
+                2.0
+            };
+            [t.normal.x, t.normal.y, t.normal.z, kind]
+        })
+        .collect();
+    let depths: Vec<[f32; 2]> = taps
+        .par_iter()
+        .map(|t| {
+            let d = if t.depth.is_finite() { t.depth } else { 0.0 };
+            [d, if t.slope.is_finite() { t.slope } else { 0.0 }]
+        })
+        .collect();
+    (src, normals, depths)
 }
 
 #[cfg(test)]
