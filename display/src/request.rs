@@ -164,9 +164,7 @@ pub fn outstanding(request: &BeamRequest, have: &dyn Fn(BeamKey) -> u64) -> u64 
 
 /// Where new rays should pass: near the eye, in its frame.
 fn eye_point(sections: &[Section], viewport: &Viewport, o: &RequestOptions) -> Option<EyePoint> {
-    let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
-    let radius = o.eye_radius * smallest;
-    (radius.is_finite() && radius > 0.0).then(|| EyePoint {
+    holodeck_protocol::eye_radius(sections, o.eye_radius).map(|radius| EyePoint {
         position: viewport.view.position.to_array(),
         radius,
         frustum: viewport.view.frustum(),

@@ -71,12 +71,11 @@ impl ViewFill {
     /// of the smallest section diagonal) of the eyes that see their beam, or
     /// anywhere in it for 0.
     pub fn new(sections: &[Section], views: &[View], eye_radius: f64) -> ViewFill {
-        let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
-        let radius = eye_radius * smallest;
+        let radius = holodeck_protocol::eye_radius(sections, eye_radius);
         let mut fill = ViewFill::default();
         for (i, v) in views.iter().enumerate() {
             let counts = ViewBeams::select(sections, v, 256, 192, i as u64).counts;
-            if radius > 0.0 && radius.is_finite() {
+            if let Some(radius) = radius {
                 let near = SamplingMode::NearEye {
                     eye: v.position.to_array(),
                     radius,

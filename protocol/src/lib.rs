@@ -34,9 +34,9 @@ pub use picture::{check_size as check_picture_size, Picture, PictureSizeError, M
 pub use record::{BeamDecoder, DecodedRay, Hit, RayRecord, RAY_RECORD_BYTES};
 pub use rgbe::Rgbe;
 pub use section::{
-    beam_count_for_grid, grid_for_beam_count, grid_for_length, Section, SectionError, SectionField, SectionKind,
-    SectionSpec, SectionTextError, Wall, DEFAULT_BEAMS, MAX_AXIS_LENGTH, MAX_BEAMS_PER_SECTION, MAX_COORDINATE,
-    MAX_GRID, MIN_AXIS_LENGTH, MIN_CELL_FRACTION, MIN_VOLUME_RATIO,
+    beam_count_for_grid, eye_radius, grid_for_beam_count, grid_for_length, Section, SectionError, SectionField,
+    SectionKind, SectionSpec, SectionTextError, Wall, DEFAULT_BEAMS, MAX_AXIS_LENGTH, MAX_BEAMS_PER_SECTION,
+    MAX_COORDINATE, MAX_GRID, MIN_AXIS_LENGTH, MIN_CELL_FRACTION, MIN_VOLUME_RATIO,
 };
 pub use select::ViewBeams;
 pub use view::{Frustum, View, ViewError, ViewProjector, ViewRays, ViewType};

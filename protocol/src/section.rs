@@ -84,6 +84,16 @@ pub struct Section {
     depth_scale: f64,
 }
 
+/// How near an eye new rays of its beams pass: `fraction` of the smallest
+/// section diagonal of `sections` (the one rule displays' requests and
+/// in-process fills share); `None` for 0 (anywhere in the beam) or where
+/// that is not a finite, positive length.
+pub fn eye_radius(sections: &[Section], fraction: f64) -> Option<f64> {
+    let smallest = sections.iter().map(Section::diagonal).fold(f64::INFINITY, f64::min);
+    let radius = fraction * smallest;
+    (radius.is_finite() && radius > 0.0).then_some(radius)
+}
+
 /// The paper's beam count N = 2W²D² + 2W²H² + 2D²H² + 8W²DH + 8WD²H + 8WDH².
 pub fn beam_count_for_grid(grid: [u16; 3]) -> u64 {
     let [w, d, h] = grid.map(u64::from);
