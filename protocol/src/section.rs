@@ -415,6 +415,23 @@ mod tests {
     const BOX: [[f64; 3]; 3] = [[10.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 3.0]];
 
     #[test]
+    fn the_eye_radius_is_a_fraction_of_the_smallest_diagonal() {
+        let big = Section::new([0.0; 3], BOX, [2, 2, 2], SectionKind::Interior).unwrap();
+        let half = BOX.map(|a| a.map(|c| c / 2.0));
+        let small = Section::new([0.0; 3], half, [2, 2, 2], SectionKind::Interior).unwrap();
+        let d = (100.0f64 + 36.0 + 9.0).sqrt() / 2.0;
+        let r = eye_radius(&[big.clone(), small], 0.01).unwrap();
+        assert!((r - 0.01 * d).abs() < 1e-12, "{r}");
+        assert_eq!(
+            eye_radius(std::slice::from_ref(&big), 0.0),
+            None,
+            "0: anywhere in the beam"
+        );
+        assert_eq!(eye_radius(&[], 0.01), None, "no sections");
+        assert_eq!(eye_radius(&[big], f64::NAN), None);
+    }
+
+    #[test]
     fn beam_count_matches_the_formula_by_brute_force() {
         for grid in [[1, 1, 1], [2, 3, 4], [7, 1, 5], [12, 9, 4]] {
             let walls = Wall::ALL.map(|w| {
