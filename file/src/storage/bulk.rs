@@ -12,10 +12,10 @@ use std::path::{Path, PathBuf};
 
 use holodeck_protocol::{BeamKey, RayRecord};
 
+use super::disk::chunks_of;
 use super::error::{Result, StorageError};
 use super::format::{self, BeamEntry, ChunkRef, Slot, COPIES};
 use super::io;
-use super::store::chunks_of;
 use crate::settings::Settings;
 
 /// Builds a holodeck file sequentially.

@@ -11,10 +11,10 @@ use holodeck_protocol::{BeamKey, RayRecord, Section, SectionError, RAY_RECORD_BY
 
 use super::bulk::SequentialWriter;
 use super::cache::BeamCache;
+use super::disk::{Disk, IoStats, OpenInfo};
 use super::error::{Result, StorageError};
 use super::format::BeamEntry;
 use super::space::{Charge, SpaceBound};
-use super::store::{IoStats, OpenInfo, Store};
 use crate::settings::Settings;
 
 /// Runs closer than this are read in one request, gap included.
@@ -113,7 +113,7 @@ impl FileSummary {
 
 /// An open holodeck file.
 pub struct HoloFile {
-    store: Store,
+    store: Disk,
     settings: Settings,
     cache: BeamCache,
     flush_interval: Option<Duration>,
@@ -151,7 +151,7 @@ impl HoloFile {
     }
 
     fn open_with(path: &Path, options: &OpenOptions, exclusive: bool) -> Result<HoloFile> {
-        let (store, settings) = Store::open_locked(path, options.writable, exclusive, options.accept_loss)?;
+        let (store, settings) = Disk::open_locked(path, options.writable, exclusive, options.accept_loss)?;
         let budget = options.cache_bytes.unwrap_or(settings.cache_bytes);
         let limit = (options.writable && settings.diskspace_bytes > 0).then_some(settings.diskspace_bytes);
         let mut file = HoloFile {

@@ -8,7 +8,7 @@
 //!   further, when the bound was last exact (at open, and after every flush).
 //! * `writes` adds, for every stretch of appends to a beam between two of its
 //!   writes, the most that the one write ending it can move the end of the
-//!   allocated space ([`Store::write_growth_bound`](super::store::Store)).
+//!   allocated space ([`Disk::write_growth_bound`](super::disk::Disk)).
 //!   A written beam's amount stays counted until the next flush, so evictions
 //!   never make the bound smaller than what they took.
 //! * `metadata` adds, for every directory chunk touched since the last flush,

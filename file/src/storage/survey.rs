@@ -4,7 +4,7 @@
 //! from what verifies. It never writes.
 //!
 //! The rules that tell damage from a torn commit follow from how a commit is
-//! written (see [`store`](super::store)): its root and directory blocks are
+//! written (see [`disk`](super::disk)): its root and directory blocks are
 //! synced before either copy of its slot is written, copy 1 of the slot is
 //! written and synced before copy 2, and the commit counts only once both are.
 //! So:

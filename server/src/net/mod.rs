@@ -1,6 +1,6 @@
 //! The network service: a thin tokio layer over the storage engine and the
 //! scheduler. [`connection`] reads and writes whole frames; [`listener`]
-//! accepts TCP and Unix-socket peers; [`store`] owns the holodeck file on its
+//! accepts TCP and Unix-socket peers; [`file_thread`] owns the holodeck file on its
 //! own thread so disk I/O never blocks the executor; [`config`] is how the
 //! operator set the server up; `state` is what every connection task shares
 //! (and the control commands that change it); [`service`] checks each peer's
@@ -10,12 +10,12 @@
 pub mod config;
 pub mod connection;
 mod display;
+pub mod file_thread;
 pub mod listener;
 pub mod rate;
 mod sampler;
 pub mod service;
 mod state;
-pub mod store;
 
 pub use config::{Fill, ServerConfig, Tokens};
 pub use listener::Listener;

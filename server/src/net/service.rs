@@ -24,9 +24,9 @@ use tokio::sync::{mpsc, watch, Notify};
 
 use super::config::ServerConfig;
 use super::connection::{Connection, ConnectionError, Stream};
+use super::file_thread::FileThread;
 use super::listener::Listener;
 use super::state::{Counted, Shared};
-use super::store::Store;
 use crate::schedule::Scheduler;
 use holodeck_file::storage::{HoloFile, StorageError};
 
@@ -54,7 +54,7 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     let scene = file.settings().scene.clone();
     let obstructions = file.settings().obstructions;
     let vdistance = file.settings().vdistance;
-    let (store, thread) = Store::spawn(file);
+    let (store, thread) = FileThread::spawn(file);
     let (shutdown, mut stopped) = watch::channel(false);
     let shared = Arc::new(Shared {
         config,
@@ -222,7 +222,7 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
 
 /// Prints a progress line every `every`: rays stored, the rate since the last
 /// line, beams holding rays, the file size and its fragmentation.
-async fn report(store: Store, every: Duration) {
+async fn report(store: FileThread, every: Duration) {
     let mut tick = tokio::time::interval(every);
     tick.tick().await;
     let mut last: Option<(u64, std::time::Instant)> = None;

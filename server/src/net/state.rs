@@ -13,7 +13,7 @@ use holodeck_protocol::{BeamKey, Section};
 use tokio::sync::{watch, Notify};
 
 use super::config::{Fill, ServerConfig};
-use super::store::Store;
+use super::file_thread::FileThread;
 use crate::schedule::{BatchSchedule, Scheduler};
 use holodeck_file::storage::StorageError;
 
@@ -47,7 +47,7 @@ pub(super) struct Shared {
     pub scene: std::sync::Mutex<Option<String>>,
     pub sections: Vec<Section>,
     pub scheduler: std::sync::Mutex<Scheduler>,
-    pub store: Store,
+    pub store: FileThread,
     pub next_id: AtomicU64,
     /// Wakes samplers waiting for work (new requests, resume, restart).
     pub work: Notify,

@@ -30,7 +30,7 @@ const QUEUE: usize = 4096;
 
 /// A handle to the storage thread; cheap to clone.
 #[derive(Clone)]
-pub struct Store {
+pub struct FileThread {
     tx: mpsc::Sender<Request>,
     refusing: Arc<AtomicBool>,
     /// Why the file first refused rays.
@@ -42,9 +42,9 @@ pub struct StoreThread {
     handle: JoinHandle<Result<()>>,
 }
 
-impl Store {
+impl FileThread {
     /// Moves `file` onto a new thread.
-    pub fn spawn(mut file: HoloFile) -> (Store, StoreThread) {
+    pub fn spawn(mut file: HoloFile) -> (FileThread, StoreThread) {
         let (tx, mut rx) = mpsc::channel::<Request>(QUEUE);
         let refusing = Arc::new(AtomicBool::new(false));
         let refused = Arc::clone(&refusing);
@@ -141,7 +141,7 @@ impl Store {
             }
             file.close()
         });
-        (Store { tx, refusing, refusal }, StoreThread { handle })
+        (FileThread { tx, refusing, refusal }, StoreThread { handle })
     }
 
     fn gone() -> StorageError {
@@ -179,15 +179,18 @@ impl Store {
         self.tx
             .send(Request::Read(wanted, tx))
             .await
-            .map_err(|_| Store::gone())?;
-        rx.await.map_err(|_| Store::gone())?
+            .map_err(|_| FileThread::gone())?;
+        rx.await.map_err(|_| FileThread::gone())?
     }
 
     /// Deletes every ray in the file (durably).
     pub async fn clobber(&self) -> Result<()> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Clobber(tx)).await.map_err(|_| Store::gone())?;
-        rx.await.map_err(|_| Store::gone())?
+        self.tx
+            .send(Request::Clobber(tx))
+            .await
+            .map_err(|_| FileThread::gone())?;
+        rx.await.map_err(|_| FileThread::gone())?
     }
 
     /// Makes the file the holodeck of the scene with content hash `scene`,
@@ -198,15 +201,15 @@ impl Store {
         self.tx
             .send(Request::Adopt(scene, keep, tx))
             .await
-            .map_err(|_| Store::gone())?;
-        rx.await.map_err(|_| Store::gone())?
+            .map_err(|_| FileThread::gone())?;
+        rx.await.map_err(|_| FileThread::gone())?
     }
 
     /// Rays held by every beam, by section.
     pub async fn lens(&self) -> Result<Vec<Vec<u64>>> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Lens(tx)).await.map_err(|_| Store::gone())?;
-        rx.await.map_err(|_| Store::gone())
+        self.tx.send(Request::Lens(tx)).await.map_err(|_| FileThread::gone())?;
+        rx.await.map_err(|_| FileThread::gone())
     }
 
     /// Rays a beam holds.
@@ -229,14 +232,14 @@ impl Store {
     /// then holds, every one of which survives a crash from here on.
     pub async fn flush(&self) -> Result<u64> {
         let (tx, rx) = oneshot::channel();
-        self.tx.send(Request::Flush(tx)).await.map_err(|_| Store::gone())?;
-        rx.await.map_err(|_| Store::gone())?
+        self.tx.send(Request::Flush(tx)).await.map_err(|_| FileThread::gone())?;
+        rx.await.map_err(|_| FileThread::gone())?
     }
 }
 
 impl StoreThread {
-    /// Waits for the thread (after every [`Store`] handle is dropped) and reports how closing went.
+    /// Waits for the thread (after every [`FileThread`] handle is dropped) and reports how closing went.
     pub fn join(self) -> Result<()> {
-        self.handle.join().unwrap_or_else(|_| Err(Store::gone()))
+        self.handle.join().unwrap_or_else(|_| Err(FileThread::gone()))
     }
 }

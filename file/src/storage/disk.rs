@@ -90,7 +90,7 @@ pub(crate) fn chunks_of(sections: &[Section]) -> Vec<Chunk> {
 }
 
 /// The file and its in-memory directories.
-pub struct Store {
+pub struct Disk {
     pub(crate) path: PathBuf,
     pub(crate) file: File,
     pub(crate) writable: bool,
@@ -162,24 +162,24 @@ fn grow(count: u32) -> u32 {
     count.saturating_add(count / 4).max(count.saturating_add(4))
 }
 
-impl Store {
+impl Disk {
     /// Opens the file's newest commit. Returns the settings too. A writable
     /// open refuses a file whose newest commit is damaged, unless
     /// `accept_loss`: then what can be read is committed at once as the new
     /// state. A writable open also rewrites at once any damaged copy whose
     /// twin verified, so the file is whole again.
-    pub fn open(path: &Path, writable: bool, accept_loss: bool) -> Result<(Store, Settings)> {
+    pub fn open(path: &Path, writable: bool, accept_loss: bool) -> Result<(Disk, Settings)> {
         Self::open_locked(path, writable, writable, accept_loss)
     }
 
-    /// Like [`Store::open`], but `exclusive` takes the writer's lock even for
+    /// Like [`Disk::open`], but `exclusive` takes the writer's lock even for
     /// reading (for tools that replace the file when done).
     pub(crate) fn open_locked(
         path: &Path,
         writable: bool,
         exclusive: bool,
         accept_loss: bool,
-    ) -> Result<(Store, Settings)> {
+    ) -> Result<(Disk, Settings)> {
         let file = std::fs::OpenOptions::new()
             .read(true)
             .write(writable)
@@ -260,7 +260,7 @@ impl Store {
             .collect();
         let repaired = !sv.repaired.is_empty() || !sv.torn.is_empty() || sv.uneven_slots.iter().any(|&u| u);
         let newest_uneven = sv.uneven_slots[sv.side];
-        let mut store = Store {
+        let mut store = Disk {
             path: path.to_path_buf(),
             file,
             writable,
@@ -479,7 +479,7 @@ impl Store {
 
     /// Most bytes by which writing a beam's unwritten rays, so that it then
     /// holds `total` rays, can move the end of the allocated space (see
-    /// [`Store::write_tail`]): nothing if they fit the run's reserve; the exact
+    /// [`Disk::write_tail`]): nothing if they fit the run's reserve; the exact
     /// run for a beam with nothing on disk; else a moved run with room to grow,
     /// which is also more than growing in place can take. Valid until the
     /// beam is next written.
@@ -1031,10 +1031,10 @@ mod tests {
     use crate::testing::{pattern_rays, two_sections};
 
     /// A new file whose section 0 beams `0..beams` hold `n` rays each, committed.
-    fn committed_file(dir: &Path, beams: u32, n: u64) -> (PathBuf, Store) {
+    fn committed_file(dir: &Path, beams: u32, n: u64) -> (PathBuf, Disk) {
         let path = dir.join("t.hdk");
         HoloFile::create(&path, &two_sections([4, 3, 2], [2, 2, 2], 1 << 20)).unwrap();
-        let (mut store, _) = Store::open(&path, true, false).unwrap();
+        let (mut store, _) = Disk::open(&path, true, false).unwrap();
         for b in 0..beams {
             let key = BeamKey::new(0, b);
             store.write_tail(key, None, &pattern_rays(key, 0, n)).unwrap();
@@ -1058,7 +1058,7 @@ mod tests {
     }
 
     /// Uses up every free hole, so that any further allocation must extend the end.
-    fn fill_holes(store: &mut Store) {
+    fn fill_holes(store: &mut Disk) {
         let end = store.extents.end();
         while store.extents.allocate_below(1, end).is_some() {}
     }
