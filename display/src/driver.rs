@@ -5,6 +5,7 @@
 use holodeck_protocol::Picture;
 
 use crate::sample::Sample;
+use crate::store::SampleStore;
 pub use crate::viewport::{DriverError, Viewport, MAX_VIEWPORT_PIXELS};
 
 /// What a driver has seen and done. Every ray received is counted once, as
@@ -39,30 +40,52 @@ pub struct DriverStats {
 pub trait Driver: Send {
     /// A short name ("quadtree").
     fn name(&self) -> &'static str;
-    /// Adds samples; they appear in the next frame.
-    fn add(&mut self, samples: &[Sample]);
-    /// Changes the view (and frame size): samples are reprojected.
-    fn set_view(&mut self, viewport: Viewport);
-    /// The current viewport.
-    fn viewport(&self) -> &Viewport;
+    /// Its sample store, which the provided methods below delegate to.
+    fn store(&self) -> &dyn SampleStore;
+    /// The same, to change.
+    fn store_mut(&mut self) -> &mut dyn SampleStore;
     /// Draws the current frame, linear radiance, top row first.
     fn render(&mut self) -> Picture;
+    /// Adds samples; they appear in the next frame.
+    fn add(&mut self, samples: &[Sample]) {
+        self.store_mut().add(samples)
+    }
+    /// Changes the view (and frame size): samples are reprojected.
+    fn set_view(&mut self, viewport: Viewport) {
+        self.store_mut().set_view(viewport)
+    }
+    /// The current viewport.
+    fn viewport(&self) -> &Viewport {
+        self.store().viewport()
+    }
     /// Counters.
-    fn stats(&self) -> DriverStats;
+    fn stats(&self) -> DriverStats {
+        self.store().stats()
+    }
     /// Forgets every sample.
-    fn clear(&mut self);
+    fn clear(&mut self) {
+        self.store_mut().clear()
+    }
     /// Heap bytes held: bounded by the frame size, not by the rays received.
-    fn heap_bytes(&self) -> usize;
+    fn heap_bytes(&self) -> usize {
+        self.store().heap_bytes()
+    }
     /// The world point seen at pixel (`col`, `row`) (top row first), or
     /// `None` where the frame shows sky or nothing near that pixel.
-    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3>;
+    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
+        self.store().point_near(col, row, crate::store::POINT_REACH)
+    }
     /// How many more rays each pixel wants for `density` rays per pixel on
     /// average, spent where they reduce the error most (row-major, top row
     /// first); see [`crate::store::Store::needs`].
-    fn needs(&self, density: f32) -> Vec<f32>;
+    fn needs(&self, density: f32) -> Vec<f32> {
+        self.store().needs(density)
+    }
     /// What the denoiser needs besides the frame: each pixel's depth,
     /// normal and noise (see [`crate::denoise`]).
-    fn guide(&self) -> crate::denoise::Guide;
+    fn guide(&self) -> crate::denoise::Guide {
+        self.store().guide()
+    }
 }
 
 #[cfg(test)]

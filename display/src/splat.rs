@@ -10,9 +10,8 @@
 use glam::Vec3;
 use holodeck_protocol::Picture;
 
-use crate::driver::{Driver, DriverStats, Viewport};
-use crate::sample::Sample;
-use crate::store::{Entry, EstimatorOptions, PixelIndex, Spot, Store, POINT_REACH};
+use crate::driver::{Driver, Viewport};
+use crate::store::{Entry, EstimatorOptions, PixelIndex, Spot, Store};
 
 /// A pixel without an estimate.
 const EMPTY: u32 = u32::MAX;
@@ -109,16 +108,12 @@ impl Driver for SplatDriver {
         "splat"
     }
 
-    fn add(&mut self, samples: &[Sample]) {
-        self.store.add(samples);
+    fn store(&self) -> &dyn crate::store::SampleStore {
+        &self.store
     }
 
-    fn set_view(&mut self, viewport: Viewport) {
-        self.store.set_view(viewport);
-    }
-
-    fn viewport(&self) -> &Viewport {
-        self.store.viewport()
+    fn store_mut(&mut self) -> &mut dyn crate::store::SampleStore {
+        &mut self.store
     }
 
     fn render(&mut self) -> Picture {
@@ -151,30 +146,6 @@ impl Driver for SplatDriver {
             height: h,
             pixels,
         }
-    }
-
-    fn stats(&self) -> DriverStats {
-        self.store.stats()
-    }
-
-    fn clear(&mut self) {
-        self.store.clear();
-    }
-
-    fn needs(&self, density: f32) -> Vec<f32> {
-        self.store.needs(density)
-    }
-
-    fn guide(&self) -> crate::denoise::Guide {
-        self.store.guide()
-    }
-
-    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
-        self.store.point_near(col, row, POINT_REACH)
-    }
-
-    fn heap_bytes(&self) -> usize {
-        self.store.heap_bytes()
     }
 }
 

@@ -46,6 +46,17 @@ impl Driver for Denoised {
         self.inner.name()
     }
 
+    fn store(&self) -> &dyn crate::store::SampleStore {
+        self.inner.store()
+    }
+
+    /// The inner driver's store: changing it bypasses this wrapper's
+    /// bookkeeping, so `add`, `set_view` and `clear` here say what changed.
+    fn store_mut(&mut self) -> &mut dyn crate::store::SampleStore {
+        self.last = None;
+        self.inner.store_mut()
+    }
+
     fn add(&mut self, samples: &[Sample]) {
         if !samples.is_empty() {
             self.moving = false;

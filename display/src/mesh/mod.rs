@@ -23,14 +23,13 @@ use glam::{DVec3, Vec3};
 use holodeck_protocol::{Picture, ViewType};
 use rayon::prelude::*;
 
-use crate::driver::{Driver, DriverStats, Viewport};
+use crate::driver::{Driver, Viewport};
 use crate::gpu::target::{black, downsample, fill_holes};
 use crate::gpu::{GpuContext, ViewUniform};
 use crate::project::Projector;
-use crate::sample::Sample;
 use crate::sphere::{Insert, SphereMesh, VertexId};
 use crate::splat::Grid;
-use crate::store::{EstimatorOptions, PixelIndex, Store, NO_SLOT, POINT_REACH};
+use crate::store::{EstimatorOptions, PixelIndex, Store, NO_SLOT};
 use pipeline::MeshPipeline;
 
 /// Where escaped rays' vertices are put: this far from the canonical eye
@@ -331,8 +330,12 @@ impl Driver for MeshDriver {
         "mesh"
     }
 
-    fn add(&mut self, samples: &[Sample]) {
-        self.store.add(samples);
+    fn store(&self) -> &dyn crate::store::SampleStore {
+        &self.store
+    }
+
+    fn store_mut(&mut self) -> &mut dyn crate::store::SampleStore {
+        &mut self.store
     }
 
     fn set_view(&mut self, viewport: Viewport) {
@@ -348,10 +351,6 @@ impl Driver for MeshDriver {
                 _ => NO_SLOT,
             })
             .collect();
-    }
-
-    fn viewport(&self) -> &Viewport {
-        self.store.viewport()
     }
 
     fn render(&mut self) -> Picture {
@@ -385,10 +384,6 @@ impl Driver for MeshDriver {
         }
     }
 
-    fn stats(&self) -> DriverStats {
-        self.store.stats()
-    }
-
     fn clear(&mut self) {
         self.store.clear();
         self.canonical = None;
@@ -402,17 +397,5 @@ impl Driver for MeshDriver {
             + self.sphere.heap_bytes()
             + self.vertices.capacity() * std::mem::size_of::<MeshVertex>()
             + (self.slot_vertex.capacity() + self.indices.capacity()) * 4
-    }
-
-    fn needs(&self, density: f32) -> Vec<f32> {
-        self.store.needs(density)
-    }
-
-    fn guide(&self) -> crate::denoise::Guide {
-        self.store.guide()
-    }
-
-    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
-        self.store.point_near(col, row, POINT_REACH)
     }
 }

@@ -15,9 +15,8 @@ pub use tree::Tree;
 use glam::Vec3;
 use holodeck_protocol::Picture;
 
-use crate::driver::{Driver, DriverStats, Viewport};
-use crate::sample::Sample;
-use crate::store::{EstimatorOptions, Store, POINT_REACH};
+use crate::driver::{Driver, Viewport};
+use crate::store::{EstimatorOptions, Store};
 use tree::Node;
 
 /// The CPU quadtree display driver of the paper's section 2.4.3.
@@ -97,16 +96,12 @@ impl Driver for QuadtreeDriver {
         "quadtree"
     }
 
-    fn add(&mut self, samples: &[Sample]) {
-        self.store.add(samples);
+    fn store(&self) -> &dyn crate::store::SampleStore {
+        &self.store
     }
 
-    fn set_view(&mut self, viewport: Viewport) {
-        self.store.set_view(viewport);
-    }
-
-    fn viewport(&self) -> &Viewport {
-        self.store.viewport()
+    fn store_mut(&mut self) -> &mut dyn crate::store::SampleStore {
+        &mut self.store
     }
 
     fn render(&mut self) -> Picture {
@@ -197,26 +192,6 @@ impl Driver for QuadtreeDriver {
             height: h as usize,
             pixels,
         }
-    }
-
-    fn stats(&self) -> DriverStats {
-        self.store.stats()
-    }
-
-    fn clear(&mut self) {
-        self.store.clear();
-    }
-
-    fn needs(&self, density: f32) -> Vec<f32> {
-        self.store.needs(density)
-    }
-
-    fn guide(&self) -> crate::denoise::Guide {
-        self.store.guide()
-    }
-
-    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
-        self.store.point_near(col, row, POINT_REACH)
     }
 
     fn heap_bytes(&self) -> usize {

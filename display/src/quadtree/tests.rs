@@ -3,6 +3,7 @@ use crate::driver::{DriverError, MAX_VIEWPORT_PIXELS};
 use crate::splat::SplatDriver;
 use crate::store::{Fit, CACHE_DROP_DEGREES};
 use crate::testkit::*;
+use crate::{DriverStats, Sample};
 use glam::DVec3;
 use holodeck_protocol::{PictureSizeError, View};
 use proptest::prelude::*;

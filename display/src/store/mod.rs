@@ -94,6 +94,60 @@ struct Aggregate {
 /// a surface: a cursor between sparse samples still finds the one beside it.
 pub const POINT_REACH: u32 = 4;
 
+/// What a driver asks of its sample store, object-safe so that the
+/// [`Driver`](crate::Driver) trait's provided methods delegate to whichever
+/// store a driver holds (each [`Store`] is one).
+pub trait SampleStore: Send {
+    /// Adds rays ([`Store::add`]).
+    fn add(&mut self, samples: &[Sample]);
+    /// Changes the view ([`Store::set_view`]).
+    fn set_view(&mut self, viewport: Viewport);
+    /// The current viewport.
+    fn viewport(&self) -> &Viewport;
+    /// The counters.
+    fn stats(&self) -> DriverStats;
+    /// Forgets every ray.
+    fn clear(&mut self);
+    /// Heap bytes held.
+    fn heap_bytes(&self) -> usize;
+    /// The world point nearest pixel (`col`, `row`) within `reach` pixels.
+    fn point_near(&self, col: u32, row: u32, reach: u32) -> Option<DVec3>;
+    /// How many more rays each pixel wants ([`Store::needs`]).
+    fn needs(&self, density: f32) -> Vec<f32>;
+    /// The denoiser's guide ([`Store::guide`]).
+    fn guide(&self) -> crate::denoise::Guide;
+}
+
+impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
+    fn add(&mut self, samples: &[Sample]) {
+        Store::add(self, samples)
+    }
+    fn set_view(&mut self, viewport: Viewport) {
+        Store::set_view(self, viewport)
+    }
+    fn viewport(&self) -> &Viewport {
+        Store::viewport(self)
+    }
+    fn stats(&self) -> DriverStats {
+        Store::stats(self)
+    }
+    fn clear(&mut self) {
+        Store::clear(self)
+    }
+    fn heap_bytes(&self) -> usize {
+        Store::heap_bytes(self)
+    }
+    fn point_near(&self, col: u32, row: u32, reach: u32) -> Option<DVec3> {
+        Store::point_near(self, col, row, reach)
+    }
+    fn needs(&self, density: f32) -> Vec<f32> {
+        Store::needs(self, density)
+    }
+    fn guide(&self) -> crate::denoise::Guide {
+        Store::guide(self)
+    }
+}
+
 /// "No slot": in [`Store::moved_from`], an estimate that was not on the
 /// frame before the last view change.
 pub const NO_SLOT: u32 = u32::MAX;

@@ -20,13 +20,12 @@ use std::sync::Arc;
 
 use holodeck_protocol::Picture;
 
-use crate::driver::{Driver, DriverStats, Viewport};
+use crate::driver::{Driver, Viewport};
 use crate::geometry::Geometry;
 use crate::gpu::target::{black, downsample, fill_holes};
 use crate::gpu::GpuContext;
-use crate::sample::Sample;
 use crate::splat::Grid;
-use crate::store::{EstimatorOptions, Store, POINT_REACH};
+use crate::store::{EstimatorOptions, Store};
 use cones::Cone;
 use pipeline::{ConeFrame, ConePipeline};
 
@@ -86,16 +85,12 @@ impl Driver for VoronoiDriver {
         "voronoi"
     }
 
-    fn add(&mut self, samples: &[Sample]) {
-        self.store.add(samples);
+    fn store(&self) -> &dyn crate::store::SampleStore {
+        &self.store
     }
 
-    fn set_view(&mut self, viewport: Viewport) {
-        self.store.set_view(viewport);
-    }
-
-    fn viewport(&self) -> &Viewport {
-        self.store.viewport()
+    fn store_mut(&mut self) -> &mut dyn crate::store::SampleStore {
+        &mut self.store
     }
 
     fn render(&mut self) -> Picture {
@@ -143,27 +138,7 @@ impl Driver for VoronoiDriver {
         }
     }
 
-    fn stats(&self) -> DriverStats {
-        self.store.stats()
-    }
-
-    fn clear(&mut self) {
-        self.store.clear();
-    }
-
     fn heap_bytes(&self) -> usize {
         self.store.heap_bytes() + self.cones.capacity() * std::mem::size_of::<Cone>()
-    }
-
-    fn needs(&self, density: f32) -> Vec<f32> {
-        self.store.needs(density)
-    }
-
-    fn guide(&self) -> crate::denoise::Guide {
-        self.store.guide()
-    }
-
-    fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {
-        self.store.point_near(col, row, POINT_REACH)
     }
 }
