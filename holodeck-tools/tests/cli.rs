@@ -6,7 +6,7 @@ use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe};
 
 mod common;
-use common::{holodeck, text};
+use common::{fill_room, holodeck, text};
 
 const ROOM: &str = "interior origin=0,0,0 x=6,0,0 y=0,4,0 z=0,0,2.5";
 
@@ -828,4 +828,40 @@ fn a_scripts_tables_are_published_as_a_generated_document() {
         text(&o)
     );
     assert_eq!(std::fs::read_to_string(results.join("t.md")).unwrap(), written);
+}
+
+#[test]
+fn bench_replay_draws_the_walk_from_the_file_on_one_core_and_on_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("room.hdk");
+    fill_room(&file, "300K", "0");
+    let o = holodeck(&[
+        "bench",
+        "replay",
+        &file.to_string_lossy(),
+        "--views",
+        "3",
+        "-x",
+        "64",
+        "-y",
+        "36",
+    ]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    for driver in ["quadtree", "splat"] {
+        let samples = out
+            .lines()
+            .find(|l| l.starts_with(&format!("| {driver}: samples recalled")))
+            .and_then(|l| l.split('(').nth(1))
+            .and_then(|l| l.split(' ').next())
+            .map(|n| n.replace(',', "").parse::<u64>().unwrap())
+            .unwrap_or_else(|| panic!("no samples row for {driver}: {out}"));
+        assert!(samples > 0, "{driver} recalled nothing: {out}");
+        let fps = out
+            .lines()
+            .find(|l| l.starts_with(&format!("| {driver}: frames per second")))
+            .unwrap_or_else(|| panic!("no frame rate for {driver}: {out}"));
+        let cells: Vec<f64> = fps.split('|').filter_map(|c| c.trim().parse().ok()).collect();
+        assert!(cells.len() == 3 && cells[0] > 0.0 && cells[1] > 0.0, "{fps}");
+    }
 }

@@ -12,6 +12,7 @@ pub mod fast;
 pub mod network;
 pub mod paths;
 pub mod publish;
+pub mod replay;
 pub mod report;
 pub mod scene_file;
 pub mod share;
@@ -39,6 +40,7 @@ Examples:
   holodeck bench share
   holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0
   holodeck bench textures --repeats 5
+  holodeck bench replay room.hdk --views 20 -x 1280 -y 720
 
 `holodeck bench BENCH --help` lists each one's flags.")]
 pub struct Args {
@@ -70,6 +72,8 @@ enum Bench {
     Accuracy(accuracy::Args),
     /// What textures cost: loading, building, memory and samples/s, textured against untextured.
     Textures(textures::Args),
+    /// Display-only replay of a file: frames per second, view changes, samples/s, one core and all.
+    Replay(replay::Args),
     /// Write tables a script measured (standard input) as a generated results document.
     Publish(publish::Args),
     /// Internal: stream one file's beams (the child process of a memory measurement).
@@ -104,6 +108,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Bench::Share(a) => share::run_args(&a),
         Bench::Accuracy(a) => accuracy::run_args(&a),
         Bench::Textures(a) => textures::run_args(&a),
+        Bench::Replay(a) => replay::run_args(&a),
         Bench::Publish(a) => publish::run(&a),
         Bench::Stream(a) => storage::run_stream(&a),
         Bench::Fill(a) => storage::run_fill(&a),

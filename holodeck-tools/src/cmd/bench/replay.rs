@@ -1,0 +1,165 @@
+//! `holodeck bench replay`: display-only replay of a filled file, as on a
+//! low-end machine with no GPU. A walk of views (each a step further and a
+//! few degrees turned) is drawn from the file by each CPU driver, every
+//! view from a fresh driver (a view change to a complete picture from the
+//! file's cached beams), on one core and on all cores in the same run: the
+//! time to each complete picture, the frames per second of the walk, and
+//! the samples recalled per second, with the stages of the recall.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use holodeck::recall::draw;
+use holodeck::DriverChoice;
+use holodeck_display::Viewport;
+use holodeck_file::{HoloFile, OpenOptions};
+use holodeck_protocol::View;
+
+use super::row;
+use crate::human::count;
+
+/// Arguments of `holodeck bench replay`.
+#[derive(clap::Args)]
+#[command(after_help = "\
+Draws a walk of views from FILE with each CPU driver, one fresh driver per view, on one core and
+on all cores, and prints frames per second, the time to each complete picture and samples/s.
+The file's beams are read once before timing, so the figures are those of a cached file.
+
+Examples:
+  holodeck fill builtin:room room.hdk --views views.txt --rays 4M
+  holodeck bench replay room.hdk --views 20 -x 1280 -y 720
+  taskset -c 0 holodeck bench replay room.hdk      (one core for the whole process)")]
+pub struct Args {
+    /// The holodeck file to replay.
+    pub file: PathBuf,
+    /// The walk's first view (Radiance view options).
+    #[arg(long, default_value = crate::cmd::render::ROOM_VIEW, allow_hyphen_values = true)]
+    pub view: String,
+    /// Views in the walk.
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub views: u32,
+    /// Metres between views.
+    #[arg(long, default_value_t = 0.05)]
+    pub step: f64,
+    /// Degrees turned between views.
+    #[arg(long, default_value_t = 2.0)]
+    pub turn: f64,
+    /// Frame width.
+    #[arg(short = 'x', long, default_value_t = 1280)]
+    pub width: u32,
+    /// Frame height.
+    #[arg(short = 'y', long, default_value_t = 720)]
+    pub height: u32,
+}
+
+/// One walk's figures.
+struct Walk {
+    frames: u32,
+    /// Every view's recall and frame.
+    total: Duration,
+    /// The slowest view.
+    worst: Duration,
+    recall: Duration,
+    read: Duration,
+    decode: Duration,
+    insert: Duration,
+    frame: Duration,
+    samples: u64,
+}
+
+/// Draws every view of `views` from `file` with `driver`, on the current rayon pool.
+fn walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> Result<Walk> {
+    let choice = DriverChoice::plain(driver, Default::default());
+    let mut w = Walk {
+        frames: 0,
+        total: Duration::ZERO,
+        worst: Duration::ZERO,
+        recall: Duration::ZERO,
+        read: Duration::ZERO,
+        decode: Duration::ZERO,
+        insert: Duration::ZERO,
+        frame: Duration::ZERO,
+        samples: 0,
+    };
+    for (i, view) in views.iter().enumerate() {
+        let viewport = Viewport::new(view.clone(), size.0, size.1)?;
+        let start = Instant::now();
+        let (_, _, s) = draw(file, viewport, &choice, 2, i as u64)?;
+        let took = start.elapsed();
+        w.frames += 1;
+        w.total += took;
+        w.worst = w.worst.max(took);
+        w.recall += s.recall;
+        w.read += s.stages.read;
+        w.decode += s.stages.decode;
+        w.insert += s.stages.insert;
+        w.frame += s.render;
+        w.samples += s.samples;
+    }
+    Ok(w)
+}
+
+/// Runs `holodeck bench replay`.
+pub fn run_args(a: &Args) -> Result<ExitCode> {
+    let options = OpenOptions {
+        writable: false,
+        ..OpenOptions::default()
+    };
+    let mut file = HoloFile::open(&a.file, &options).with_context(|| format!("opening {}", a.file.display()))?;
+    let first = crate::cmd::view_arg::parse(&a.view).context("--view")?;
+    let views = holodeck::truth::walk(&first, a.views as usize, a.step, a.turn);
+    let size = (a.width, a.height);
+    // Every beam the walk sees read once, so the file's cache holds them.
+    walk(&mut file, &views, (64, 36), "splat")?;
+    let cores = rayon::current_num_threads();
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    println!(
+        "| measurement ({} views of {}x{}, a fresh driver each) | one core | all {cores} cores | ratio |",
+        a.views, a.width, a.height
+    );
+    println!("|---|---|---|---|");
+    for driver in ["quadtree", "splat"] {
+        let single = one.install(|| walk(&mut file, &views, size, driver))?;
+        let all = walk(&mut file, &views, size, driver)?;
+        let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
+        let fps = |w: &Walk| f64::from(w.frames) / w.total.as_secs_f64().max(1e-9);
+        let rate = |w: &Walk| w.samples as f64 / w.recall.as_secs_f64().max(1e-9);
+        row(
+            &format!("{driver}: frames per second along the walk"),
+            format!("{:.1}", fps(&single)),
+            format!("{:.1}", fps(&all)),
+            fps(&single) / fps(&all),
+        );
+        row(
+            &format!("{driver}: view change to a complete picture, mean (slowest)"),
+            format!("{} ({})", ms(single.total, single.frames), ms(single.worst, 1)),
+            format!("{} ({})", ms(all.total, all.frames), ms(all.worst, 1)),
+            single.total.as_secs_f64() / all.total.as_secs_f64().max(1e-9),
+        );
+        row(
+            &format!(
+                "{driver}: samples recalled into the picture per second ({} samples a view)",
+                count(single.samples / u64::from(single.frames.max(1)))
+            ),
+            format!("{}/s", count(rate(&single) as u64)),
+            format!("{}/s", count(rate(&all) as u64)),
+            rate(&single) / rate(&all),
+        );
+        for (stage, s, m) in [
+            ("read", single.read, all.read),
+            ("decode", single.decode, all.decode),
+            ("insert (project and merge)", single.insert, all.insert),
+            ("frame", single.frame, all.frame),
+        ] {
+            row(
+                &format!("{driver}: {stage}, per view"),
+                ms(s, single.frames),
+                ms(m, all.frames),
+                s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
