@@ -84,6 +84,18 @@ pub fn reference_halves(
     Ok((half(seed)?, half(seed.wrapping_add(1))?))
 }
 
+/// The samples per pixel a reference of `view` at `size` takes to render
+/// in about `secs` on this machine: a pass of two samples per pixel is
+/// timed and the rest scaled from it (even, so the two halves are equal;
+/// at least 2, at most 65,536).
+pub fn spp_for_time(tracer: &Tracer, view: &View, size: (u32, u32), secs: f64) -> Result<u32> {
+    let start = std::time::Instant::now();
+    reference(tracer, view, size, 2, 0x7173)?;
+    let per_pass = start.elapsed().as_secs_f64().max(1e-6) / 2.0;
+    let spp = (secs / per_pass).clamp(2.0, 65_536.0) as u32;
+    Ok(spp & !1)
+}
+
 /// A converged reference of `view`: `spp` samples per pixel at `size`,
 /// with the random sequence `seed`.
 pub fn reference(tracer: &Tracer, view: &View, size: (u32, u32), spp: u32, seed: u64) -> Result<Picture> {
@@ -166,5 +178,18 @@ mod tests {
         let d = dilate(&mask, 5, 4);
         let marked: Vec<usize> = (0..d.len()).filter(|&i| d[i]).collect();
         assert_eq!(marked, vec![0, 1, 5, 6, 7, 8, 9, 12, 13, 14, 17, 18, 19]);
+    }
+
+    /// A reference sized by time: the samples per pixel are even and at
+    /// least 2, and a time far longer than a pass buys many.
+    #[test]
+    fn a_reference_time_buys_even_samples_per_pixel() {
+        let scene = crate::load("builtin:room", None).unwrap();
+        let tracer = Tracer::new(scene, Default::default());
+        let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
+        assert_eq!(spp_for_time(&tracer, &view, (16, 12), 0.0).unwrap(), 2);
+        // A pass of 384 paths takes far less than a second anywhere.
+        let many = spp_for_time(&tracer, &view, (16, 12), 10.0).unwrap();
+        assert!(many.is_multiple_of(2) && many > 20, "{many}");
     }
 }

@@ -62,6 +62,10 @@ pub struct Args {
     /// Samples per pixel of the reference renders (two independent halves of half each).
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
     reference_spp: u32,
+    /// Instead of --reference-spp: the seconds all the references may take together
+    /// (the samples per pixel that fit are found by timing a pass of the first view).
+    #[arg(long, conflicts_with = "reference_spp", value_parser = crate::cmd::args::non_negative)]
+    reference_time: Option<f64>,
     /// Seed of the fill.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -115,7 +119,7 @@ fn publish(a: &Args, dir: &std::path::Path, summary: &str) -> Result<()> {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let demo = Demo {
+    let mut demo = Demo {
         out: a.output.clone(),
         triangles: a.triangles,
         rays: a.rays,
@@ -123,6 +127,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         width: a.width,
         height: a.height,
         reference_spp: a.reference_spp,
+        reference_time: a.reference_time,
         seed: a.seed,
     };
     let summary = demo.run()?;

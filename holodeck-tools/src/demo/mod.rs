@@ -48,6 +48,9 @@ pub struct Demo {
     pub height: u32,
     /// Samples per pixel of the reference renders (two halves of half each).
     pub reference_spp: u32,
+    /// Seconds all the references may take together, where given: it
+    /// sets `reference_spp` when the demo runs.
+    pub reference_time: Option<f64>,
     /// Seed of the fill.
     pub seed: u64,
 }
@@ -119,7 +122,7 @@ impl Demo {
     }
 
     /// Runs the demo; returns the summary it printed.
-    pub fn run(&self) -> Result<String> {
+    pub fn run(&mut self) -> Result<String> {
         let start = Instant::now();
         let frames = self.out.join("frames");
         self.clear_earlier_run(&frames)?;
@@ -146,6 +149,10 @@ impl Demo {
             crate::progress::Unit::Views,
             Some(views.len() as u64),
         );
+        if let (Some(secs), Some(first)) = (self.reference_time, views.first()) {
+            let each = secs / views.len() as f64;
+            self.reference_spp = holodeck::truth::spp_for_time(&tracer, first, self.size(), each)?;
+        }
         let mut truths = Vec::with_capacity(views.len());
         for (i, v) in views.iter().enumerate() {
             let seed = 0x005e_ed0f_7e57 + 2 * i as u64;

@@ -104,6 +104,7 @@ fn demo(a: &DemoArgs, views: u32) -> Result<ExitCode> {
         width: 192,
         height: 144,
         reference_spp: a.reference_spp,
+        reference_time: None,
         seed: 1,
     }
     .run()?;
