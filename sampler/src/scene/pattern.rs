@@ -58,6 +58,11 @@ pub struct Pattern {
     pub args: Vec<f64>,
     /// World coordinates to the pattern's.
     pub to_pattern: DMat4,
+    /// The pattern's coordinates to the world's (the inverse of `to_pattern`).
+    pub to_world: DMat4,
+    /// The factor by which `to_pattern` stretches lengths (the cube root
+    /// of its determinant; Radiance's `S`).
+    pub scale: f64,
 }
 
 /// Where a ray meets a patterned surface, in world coordinates.
@@ -95,11 +100,24 @@ impl Default for Effect {
 }
 
 impl Pattern {
+    /// A pattern whose coordinates `to_pattern` maps world points into.
+    pub fn new(name: String, kind: PatternKind, program: Program, args: Vec<f64>, to_pattern: DMat4) -> Pattern {
+        let scale = glam::DMat3::from_mat4(to_pattern).determinant().abs().cbrt();
+        Pattern {
+            name,
+            kind,
+            program,
+            args,
+            to_pattern,
+            to_world: to_pattern.inverse(),
+            scale: if scale > 0.0 && scale.is_finite() { scale } else { 1.0 },
+        }
+    }
+
     /// The ray variables at `hit` in this pattern's frame.
     pub fn vars(&self, hit: &PatternHit) -> RayVars {
         let m = &self.to_pattern;
-        let scale = glam::DMat3::from_mat4(*m).determinant().abs().cbrt();
-        let s = if scale > 0.0 && scale.is_finite() { scale } else { 1.0 };
+        let s = self.scale;
         let unit = |v: Vec3| m.transform_vector3(v.as_dvec3()) / s;
         let (d, n) = (unit(hit.dir), unit(hit.normal));
         let p = m.transform_point3(hit.point.as_dvec3());
@@ -140,9 +158,7 @@ impl Pattern {
                 PatternKind::Normal(xyz) => {
                     let pert = DVec3::new(e.value(xyz[0])?, e.value(xyz[1])?, e.value(xyz[2])?);
                     // Back to the world by the forward transform, without its scale.
-                    let forward = self.to_pattern.inverse();
-                    let s = glam::DMat3::from_mat4(self.to_pattern).determinant().abs().cbrt();
-                    let w = forward.transform_vector3(pert) * if s > 0.0 { s } else { 1.0 };
+                    let w = self.to_world.transform_vector3(pert) * self.scale;
                     if w.is_finite() {
                         effect.bend += w.as_vec3();
                     }

@@ -225,12 +225,30 @@ pub enum Fault {
     Budget,
 }
 
+thread_local! {
+    /// Evaluation stacks kept for the next evaluation on this thread: one
+    /// runs at every hit of a patterned surface, and need not allocate.
+    static STACKS: std::cell::RefCell<Vec<Vec<Value>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl Drop for Eval<'_> {
+    fn drop(&mut self) {
+        let mut stack = std::mem::take(&mut self.stack);
+        stack.clear();
+        STACKS.with(|s| s.borrow_mut().push(stack));
+    }
+}
+
 /// One evaluation's state.
 pub struct Eval<'p> {
     program: &'p Program,
     vars: &'p RayVars,
     args: &'p [f64],
     stack: Vec<Value>,
+    /// The values of the file's variables (definitions without
+    /// parameters) evaluated so far: the same for the whole evaluation, as
+    /// Radiance keeps them for a ray.
+    known: Vec<Option<f64>>,
     steps: u32,
     depth: u32,
     fault: Option<Fault>,
@@ -243,7 +261,8 @@ impl<'p> Eval<'p> {
             program,
             vars,
             args,
-            stack: Vec::with_capacity(32),
+            stack: STACKS.with(|s| s.borrow_mut().pop()).unwrap_or_default(),
+            known: Vec::new(),
             steps: 0,
             depth: 0,
             fault: None,
@@ -348,6 +367,20 @@ impl<'p> Eval<'p> {
                     Some(&e) => self.node(e, base, count),
                     None => self.fail(Fault::Arithmetic),
                 }
+            }
+            Node::Call(Callee::User(f), args) if args.is_empty() => {
+                let f = *f as usize;
+                if let Some(Some(v)) = self.known.get(f) {
+                    return *v;
+                }
+                let v = self.call_on(Callee::User(f as u32), &[], base, count);
+                if self.fault.is_none() {
+                    if self.known.len() <= f {
+                        self.known.resize(self.program.functions.len().max(f + 1), None);
+                    }
+                    self.known[f] = Some(v);
+                }
+                v
             }
             Node::Call(f, args) => self.call_on(*f, args, base, count),
             Node::CallParam(i, args) => {

@@ -12,7 +12,8 @@ fn eval_with(file: &str, expr: &str, vars: &RayVars, args: &[f64]) -> Result<f64
     let mut c = Compiler::new(&defs, "test.cal");
     let root = c.root(&expression(expr, "expr").unwrap()).unwrap();
     let program = c.finish();
-    Eval::new(&program, vars, args).value(root)
+    let value = Eval::new(&program, vars, args).value(root);
+    value
 }
 
 fn eval(file: &str, expr: &str) -> f64 {

@@ -140,13 +140,13 @@ impl FunctionFiles {
                 }
             }
         };
-        Ok(Pattern {
-            name: p.name.clone(),
+        Ok(Pattern::new(
+            p.name.clone(),
             kind,
-            program: c.finish(),
-            args: p.reals.clone(),
+            c.finish(),
+            p.reals.clone(),
             to_pattern,
-        })
+        ))
     }
 
     /// The definitions of function file `name` (`.` for none).
