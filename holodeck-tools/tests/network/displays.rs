@@ -527,14 +527,15 @@ fn a_request_to_a_hung_server_fails_with_a_timeout() {
     let file = small_room(dir.path());
     let (server, addr) = start_server(file.to_str().unwrap(), "127.0.0.1:0", "t");
     let mut session = DisplaySession::connect(&addr, "t", true).unwrap();
-    session.set_timeout(std::time::Duration::from_secs(1));
     let req = BeamRequest {
         beams: (0..50).map(|b| (BeamKey::new(0, b), 1)).collect(),
         eye: None,
         seen: ViewBeams::default(),
     };
-    // Answered while the server runs.
+    // Answered while the server runs (with the default timeout: a loaded
+    // machine may take more than a second).
     session.request(&req, true, &mut |_| {}).unwrap();
+    session.set_timeout(std::time::Duration::from_secs(1));
     server.signal(libc::SIGSTOP);
     let e = session.request(&req, true, &mut |_| {}).unwrap_err();
     server.signal(libc::SIGCONT);

@@ -44,12 +44,13 @@ fn samplers_on_a_tenth_of_a_scene_file_store_only_exact_rays() {
         "--scene-memory",
         &budget,
     ]));
-    run_stores_then_quit(&run, &file, 5_000, "samplers tracing the scene file");
+    // Enough rays that some beams see the lamp, whichever the samplers took.
+    run_stores_then_quit(&run, &file, 20_000, "samplers tracing the scene file");
     let o = run.finish();
     assert!(o.status.success(), "{}", text(&o));
     let mut hdk = HoloFile::open(&file, &OpenOptions::read_only()).unwrap();
     let rays = hdk.summary().rays();
-    assert!(rays >= 5_000, "{rays}");
+    assert!(rays >= 20_000, "{rays}");
     // Each stored depth is where the ray really hits, each color what it sees.
     let (checked, lights) = check_rays_against_room(&mut hdk);
     assert_eq!(checked, rays);
