@@ -680,7 +680,17 @@ mod tests {
         /// the same mean, count, depths and firefly candidates.
         #[test]
         fn merging_groups_equals_adding_rays(
-            rays in prop::collection::vec((0.0f32..10.0, 0.1f32..2.0, 1.0f32..1.01, prop::bool::ANY), 1..60),
+            // Floats drawn on fixed grids: proptest's own sampler of narrow
+            // float ranges (1.0..1.01) can trip its internal checks.
+            rays in prop::collection::vec(
+                (
+                    (0u32..100_000).prop_map(|x| x as f32 * 1e-4),
+                    (1_000u32..20_000).prop_map(|x| x as f32 * 1e-4),
+                    (0u32..10_000).prop_map(|x| 1.0 + x as f32 * 1e-6),
+                    prop::bool::ANY,
+                ),
+                1..60,
+            ),
             cut in 0usize..60,
         ) {
             let mk = |r: &[(f32, f32, f32, bool)]| {
