@@ -5,35 +5,9 @@
 use holodeck_protocol::Picture;
 
 use crate::sample::Sample;
+pub use crate::stats::DriverStats;
 use crate::store::SampleStore;
 pub use crate::viewport::{DriverError, Viewport, MAX_VIEWPORT_PIXELS};
-
-/// What a driver has seen and done. Every ray received is counted once, as
-/// `kept` (it started a pixel's estimate), `merged`, `replaced`, `discarded`,
-/// `outside` or `rejected_nonfinite`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct DriverStats {
-    /// Rays given to [`Driver::add`].
-    pub received: u64,
-    /// Pixel estimates held for the current frame.
-    pub kept: u64,
-    /// Rays that joined the estimate of their pixel's surface.
-    pub merged: u64,
-    /// Rays that hit a surface in front of their pixel's estimate, which
-    /// they replaced (the earlier rays saw something hidden from the eye).
-    pub replaced: u64,
-    /// Rays that hit behind their pixel's surface (past a silhouette, through
-    /// a window): the multidepth rays of the paper's Figure 6, left out.
-    pub discarded: u64,
-    /// Rays rejected for NaN or infinite numbers.
-    pub rejected_nonfinite: u64,
-    /// Rays that reproject outside the frame (or behind the eye).
-    pub outside: u64,
-    /// Estimates whose brightest ray was cut as a firefly in the last frame.
-    pub fireflies: u64,
-    /// Times the stored estimates were dropped after a large rotation.
-    pub cache_drops: u64,
-}
 
 /// An image representation (`Send`, so that a display may fill it on one
 /// thread while it decodes on others).

@@ -23,6 +23,7 @@
 //! * `sample` — decoded rays with their world hit points.
 //! * `sphere` — the Delaunay triangulation on the view sphere.
 //! * `splat` — point splatting, the benchmark baseline.
+//! * `stats` — what a driver has seen and done (`DriverStats`).
 //! * `store` — the sample store: one running estimate per pixel, shared by every driver.
 //! * `tonemap` — radiance to display values.
 //! * `viewport` — a view and its frame size, checked; why a driver refuses one.
@@ -44,6 +45,7 @@ pub mod request;
 pub mod sample;
 pub mod sphere;
 pub mod splat;
+pub mod stats;
 pub mod store;
 #[cfg(test)]
 pub(crate) mod testkit;

@@ -10,7 +10,7 @@ use holodeck_file::HoloFile;
 use holodeck_protocol::wire::SamplingMode;
 use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
 use holodeck_sampler::beam::{trace_batch, FileRules};
-use holodeck_sampler::shade::wavefront::AUTO_MIN_PATHS;
+use holodeck_sampler::shade::AUTO_MIN_PATHS;
 use holodeck_sampler::{Reorder, Tracer};
 use holodeck_server::schedule::BatchSchedule;
 

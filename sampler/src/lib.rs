@@ -26,4 +26,4 @@ pub mod worker;
 pub use accel::KdTree;
 pub use error::SceneError;
 pub use scene::{Material, Scene, SceneBuilder, Sky, Triangle};
-pub use shade::{FirstHits, FirstSurface, Reorder, Rng, Sample, TraceOptions, Tracer};
+pub use shade::{Caster, FirstHits, FirstSurface, Reorder, Rng, Sample, TraceOptions, Tracer};

@@ -52,7 +52,7 @@ const SEND_EVERY: Duration = Duration::from_millis(20);
 /// Rays a worker gathers from packets that arrived together before it
 /// traces them as one batch, where its tracer sorts batches: enough for
 /// [`crate::Reorder::Auto`] to sort them.
-const GATHER_RAYS: u64 = 2 * crate::shade::wavefront::AUTO_MIN_PATHS as u64;
+const GATHER_RAYS: u64 = 2 * crate::shade::AUTO_MIN_PATHS as u64;
 
 /// Traces packets from the server at `addr` until it closes the connection;
 /// returns the rays traced. `scene` is the content hash of `tracer`'s scene.

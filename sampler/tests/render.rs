@@ -133,7 +133,8 @@ fn a_stand_in_caster_renders_the_same_picture() {
         occluded: AtomicUsize::new(0),
     });
     let own = Tracer::new(scene.clone(), options);
-    let stand_in = Tracer::new(scene, options).with_caster(counting.clone());
+    let caster = holodeck_sampler::Caster::outside(&scene, counting.clone());
+    let stand_in = Tracer::with_caster(scene, caster, options);
     let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
     let opts = RenderOptions {
         width: 32,

@@ -37,9 +37,10 @@ pub use estimate::{luminance, Estimate, EstimatorOptions, Fit};
 pub use index::{PixelIndex, Spot};
 use radix::radix_sort;
 
-use crate::driver::{DriverStats, Viewport};
 use crate::project::Projector;
 use crate::sample::Sample;
+use crate::stats::DriverStats;
+use crate::viewport::Viewport;
 
 /// A view change that turns the view direction by more than this many degrees
 /// drops the stored estimates: the paper's drivers "ignore their locally

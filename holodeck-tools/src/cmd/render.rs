@@ -192,8 +192,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     tracing::info!(
         "kd-tree and wide BVH over {} triangles built in {build:.2} s: {:?}, {:?}",
         count(triangles),
-        tracer.tree().stats(),
-        tracer.bvh().map(|b| b.stats())
+        tracer.caster().tree().map(|t| t.stats()),
+        tracer.caster().bvh().map(|b| b.stats())
     );
     let bar = crate::progress::Progress::counting("rendering", crate::progress::Unit::Rows, Some(u64::from(a.height)));
     let options = RenderOptions {
@@ -206,7 +206,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let picture = render::render(&tracer, &view, &options, &|done, _| bar.set(done as u64))
         .context("-x/--width, -y/--height or --spp")?;
     bar.finish();
-    if let Some(e) = tracer.scene_file().and_then(|f| f.cache().error()) {
+    if let Some(e) = tracer.caster().file().and_then(|f| f.cache().error()) {
         bail!("{}: {e}", a.scene);
     }
     let secs = start.elapsed().as_secs_f64();
@@ -256,7 +256,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             r.seconds
         );
     }
-    if let Some(f) = tracer.scene_file() {
+    if let Some(f) = tracer.caster().file() {
         // What this view needed of the scene file: its working set, when the cache held it all.
         let st = f.cache().stats();
         summary!(

@@ -1,9 +1,11 @@
-//! Another ray caster standing in for the tracer's own: a benchmark traces
-//! the same paths through an outside library's hierarchy (Embree, in
-//! `holodeck bench tracer --embree`) to compare whole path tracing, not
-//! just ray casts.
+//! The interface every in-core ray caster offers: the kd-tree, the wide
+//! BVH and Embree (feature `embree`) are siblings behind it. The path
+//! tracer dispatches over them by `shade::Caster`, so that our own walks
+//! stay inlined; another library's hierarchy enters through this trait
+//! alone (`holodeck bench tracer --embree` traces the same paths through
+//! Embree to compare whole path tracing, not just ray casts).
 
-use super::{Hit, WideBvh};
+use super::{Hit, KdTree, WideBvh};
 use crate::geom::Ray;
 
 /// Single-ray queries a tracer needs of its scene's triangles (indices as
@@ -25,5 +27,15 @@ impl RayCaster for WideBvh {
 
     fn occluded_by(&self, ray: &Ray, blocks: &mut dyn FnMut(u32) -> bool) -> bool {
         WideBvh::occluded_by(self, ray, blocks)
+    }
+}
+
+impl RayCaster for KdTree {
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        KdTree::intersect(self, ray)
+    }
+
+    fn occluded_by(&self, ray: &Ray, blocks: &mut dyn FnMut(u32) -> bool) -> bool {
+        KdTree::occluded_by(self, ray, blocks)
     }
 }

@@ -108,7 +108,7 @@ pub fn trace_sample_fetching(
     fetch: &mut Fetch,
 ) -> RayRecord {
     let (start, origin, dir) = traced_ray(section, rules, s);
-    let sample = tracer.trace_fetching(origin, dir, rules.vdistance, rng, fetch);
+    let sample = tracer.trace_with(origin, dir, rules.vdistance, rng, fetch);
     encode(section, s, start, &sample)
 }
 
@@ -185,7 +185,7 @@ mod tests {
                     let n = 1 + (beam as usize % 21);
                     let samples = uniform_rays(section, beam, n, &mut Rng::new(5, beam.into())).unwrap();
                     let mut want = Vec::new();
-                    let seed = crate::shade::tracer::batch_seed(&mut Rng::new(6, beam.into()));
+                    let seed = crate::shade::batch_seed(&mut Rng::new(6, beam.into()));
                     for (k, s) in samples.iter().enumerate() {
                         // The estimates one by one, each walking from the start as before.
                         let (start, origin, dir) = traced_ray(section, rules, s);

@@ -307,11 +307,17 @@ fn the_tracer_never_keeps_a_result_made_from_missing_data() {
     let rays = rays(&scene, 400, 9);
     let mut rng = crate::Rng::new(1, 1);
     let got = ooc.trace_batch(rays.len(), &mut rng, |k, rng, fetch| {
-        (k, ooc.trace_fetching(rays[k].origin, rays[k].dir, false, rng, fetch))
+        (k, ooc.trace_with(rays[k].origin, rays[k].dir, false, rng, fetch))
     });
     assert_eq!(got.len(), rays.len());
     for (k, s) in got {
-        let want = core.trace_measuring(rays[k].origin, rays[k].dir, false, &mut crate::Rng::new(1, 1));
+        let want = core.trace_with(
+            rays[k].origin,
+            rays[k].dir,
+            false,
+            &mut crate::Rng::new(1, 1),
+            &mut Fetch::load(),
+        );
         assert!(
             s.distance == want.distance || (s.distance - want.distance).abs() <= 1e-5 * want.distance,
             "ray {k}: {} vs {}",
@@ -381,10 +387,10 @@ fn damaged_files_are_refused_with_what_is_wrong() {
     let tracer = crate::Tracer::out_of_core(Arc::new(hurt), crate::TraceOptions::default());
     let mut rng = crate::Rng::new(1, 2);
     let kept = tracer.trace_batch(10, &mut rng, |_, rng, fetch| {
-        tracer.trace_fetching(Vec3::new(3.0, 2.0, 1.2), Vec3::X, false, rng, fetch)
+        tracer.trace_with(Vec3::new(3.0, 2.0, 1.2), Vec3::X, false, rng, fetch)
     });
     assert!(kept.len() <= 10);
-    assert!(tracer.scene_file().unwrap().cache().error().is_some());
+    assert!(tracer.caster().file().unwrap().cache().error().is_some());
 }
 
 #[test]
@@ -597,7 +603,7 @@ fn a_scene_file_assembled_in_memory_traces_like_the_in_core_tree() {
         assert_eq!(c.map(|h| h.t), a.map(|h| h.t), "ray {k}");
     }
     let tracer = crate::Tracer::in_core_from_file(&file, crate::TraceOptions::default()).unwrap();
-    assert!(tracer.scene_file().is_none());
+    assert!(tracer.caster().file().is_none());
     assert_eq!(tracer.assembled().map(|r| r.blocks), Some(file.header().blocks));
 }
 

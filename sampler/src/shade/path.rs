@@ -15,9 +15,10 @@
 //! Never: cast a ray itself (other than through the depth-first driver), or
 //! read a random number anywhere but in [`Tracer::shade`].
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 use super::bsdf::{self, is_delta, transmits};
+use super::hit::SurfaceHit;
 use super::rng::Rng;
 use super::sampling::{power_heuristic, Frame};
 use super::tracer::Tracer;
@@ -28,25 +29,6 @@ use crate::scene::Material;
 /// Segments a path may take beyond its bounce limit: crossing a thin pane
 /// is not a bounce, and this stops a path that only crosses panes.
 const EXTRA_SEGMENTS: u32 = 64;
-
-/// A hit as shading needs it.
-#[derive(Clone, Copy)]
-pub(super) struct SurfaceHit {
-    pub(super) t: f32,
-    /// Unit geometric normal.
-    pub(super) ng: Vec3,
-    /// Triangle id (for light pdfs); `u32::MAX` for a voxel.
-    pub(super) tri: u32,
-    /// Barycentric weights of the triangle's vertices 1 and 2 (texture lookups).
-    pub(super) bary: Vec2,
-    /// The triangle's vertices (texture footprints and tangents; zero for a voxel).
-    pub(super) verts: [Vec3; 3],
-    /// Material index, or `None` for a voxel (a diffuse proxy of `color`).
-    pub(super) material: Option<u32>,
-    pub(super) color: Vec3,
-    /// Voxel radius (0 for triangles): later rays start beyond the voxel.
-    pub(super) radius: f32,
-}
 
 pub(super) fn flat_specular(m: &Material) -> bool {
     matches!(m, Material::Mirror { .. } | Material::Glass { thin: true, .. })
@@ -155,6 +137,20 @@ impl Path {
 }
 
 impl Tracer {
+    /// [`Tracer::estimate`] walking from the start, for tests that compare
+    /// against estimates given their first hit.
+    #[cfg(test)]
+    pub(crate) fn estimate_walking(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        vdistance: bool,
+        rng: &mut Rng,
+        fetch: &mut Fetch,
+    ) -> (Vec3, f32) {
+        self.estimate(origin, dir, None, vdistance, rng, fetch)
+    }
+
     /// One path's radiance and first distance, walked depth first; `first`,
     /// when given, is the hit of the first segment (found beforehand, in core).
     pub(super) fn estimate(

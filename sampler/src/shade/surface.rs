@@ -11,8 +11,8 @@
 
 use glam::{Vec2, Vec3};
 
+use super::hit::SurfaceHit;
 use super::lights::LightSample;
-use super::path::SurfaceHit;
 use super::tracer::Tracer;
 use crate::accel::Hit;
 use crate::geom::{intersect_triangle, offset_origin, Ray, RayPrep};
@@ -46,7 +46,7 @@ impl Tracer {
     /// kept by a scene file), if it has any.
     #[inline]
     fn tri_uvs(&self, tri: u32) -> Option<[Vec2; 3]> {
-        match &self.ooc {
+        match self.caster.file() {
             Some(ooc) => ooc.triangle_uvs(tri),
             None if self.scene.uvs.is_empty() => None,
             None => Some(self.scene.triangle_uvs(tri as usize)),
@@ -56,7 +56,7 @@ impl Tracer {
     /// The tangents of triangle `tri`'s vertices, where its file gave them.
     #[inline]
     fn tri_tangents(&self, tri: u32) -> Option<[glam::Vec4; 3]> {
-        match &self.ooc {
+        match self.caster.file() {
             Some(ooc) => ooc.triangle_tangents(tri),
             None if self.scene.tangents.is_empty() => None,
             None => self.scene.triangle_tangents(tri as usize),
@@ -158,7 +158,7 @@ impl Tracer {
                     t_max: ray.t_max - moved,
                 };
                 travelled = moved;
-                h = self.intersect_in_core(&r)?;
+                h = self.caster.intersect(&r)?;
             }
             h.t += travelled;
         }

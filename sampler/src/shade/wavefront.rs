@@ -15,92 +15,16 @@
 //! Never: used out of core (scene files batch their rays by the blocks
 //! they wait for), or where a path's random numbers could depend on the order.
 
-use std::str::FromStr;
-use std::sync::OnceLock;
-
 use glam::Vec3;
 
-use super::path::{Direct, Path, SurfaceHit};
+use super::hit::SurfaceHit;
+use super::options::{last_level_cache_bytes, Reorder, AUTO_MIN_PATHS};
+use super::path::{Direct, Path};
 use super::rng::Rng;
 use super::tracer::Tracer;
 use crate::accel::RayOrder;
 use crate::geom::Ray;
 use crate::ooc::Fetch;
-
-/// How a tracer orders the rays of a batch of paths ([`Tracer::trace_rays`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Reorder {
-    /// Sorted where that pays, as timed while the batches run: on an
-    /// in-core scene whose structure and mesh are larger than the
-    /// last-level cache, batches of at least [`AUTO_MIN_PATHS`] paths are
-    /// traced both ways (sorted by origin, which measured faster than by
-    /// hit point for whole paths, and each to its end), then the faster
-    /// way, with the other tried now and then. Otherwise each path is
-    /// traced to its end.
-    #[default]
-    Auto,
-    /// Each path traced to its end, in the batch's order (for comparison).
-    Off,
-    /// Always a segment at a time, sorted by estimated hit point (the
-    /// first occupied cell of a coarse grid along each ray).
-    HitPoint,
-    /// Always a segment at a time, sorted by ray origin.
-    Origin,
-}
-
-impl std::fmt::Display for Reorder {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Reorder::Auto => "auto",
-            Reorder::Off => "off",
-            Reorder::HitPoint => "hit-point",
-            Reorder::Origin => "origin",
-        })
-    }
-}
-
-impl FromStr for Reorder {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Reorder, String> {
-        match s {
-            "auto" => Ok(Reorder::Auto),
-            "off" => Ok(Reorder::Off),
-            "hit-point" => Ok(Reorder::HitPoint),
-            "origin" => Ok(Reorder::Origin),
-            _ => Err(format!(
-                "unknown ray order {s:?}: expected auto, off, hit-point or origin"
-            )),
-        }
-    }
-}
-
-/// Paths a batch needs before [`Reorder::Auto`] tries sorting it: below
-/// this the sort does not pay for itself even on large scenes (`holodeck
-/// bench tracer`: bounce rays sorted in batches of 32,768 ran no faster than
-/// as given on the 10M landscape; whole paths gained only in batches of a
-/// million).
-pub const AUTO_MIN_PATHS: usize = 1 << 18;
-
-/// Bytes of the largest CPU cache, read once from Linux's sysfs (8 MiB
-/// where it cannot be read).
-pub fn last_level_cache_bytes() -> usize {
-    static BYTES: OnceLock<usize> = OnceLock::new();
-    *BYTES.get_or_init(|| {
-        let read = |i: u32| -> Option<usize> {
-            let text = std::fs::read_to_string(format!("/sys/devices/system/cpu/cpu0/cache/index{i}/size")).ok()?;
-            let text = text.trim();
-            let (digits, unit) = text.split_at(text.find(|c: char| !c.is_ascii_digit()).unwrap_or(text.len()));
-            let n: usize = digits.parse().ok()?;
-            Some(match unit {
-                "K" => n << 10,
-                "M" => n << 20,
-                "G" => n << 30,
-                _ => n,
-            })
-        };
-        (0..8).filter_map(read).max().unwrap_or(8 << 20)
-    })
-}
 
 impl Tracer {
     /// Whether a batch of `paths` paths may be traced a segment at a time
@@ -108,7 +32,7 @@ impl Tracer {
     /// [`Reorder::Auto`] measures whether it pays (a scene larger than the
     /// caches, a batch of at least [`AUTO_MIN_PATHS`]). In core only.
     pub fn may_reorder(&self, paths: usize) -> bool {
-        if self.ooc.is_some() || paths == 0 {
+        if self.caster.file().is_some() || paths == 0 {
             return false;
         }
         match self.options.reorder {
@@ -139,7 +63,7 @@ impl Tracer {
     /// structure and the mesh) is larger than the last-level cache: where
     /// [`Reorder::Auto`] sorts large batches, and callers gather them.
     pub fn exceeds_cache(&self) -> bool {
-        self.ooc.is_none() && self.in_core_bytes() > last_level_cache_bytes()
+        self.caster.file().is_none() && self.in_core_bytes() > last_level_cache_bytes()
     }
 
     /// Traces `paths` (each with its random sequence and its first hit)
@@ -179,7 +103,7 @@ impl Tracer {
                 .flat_map(|(_, d)| d.shadows.iter().flatten().map(|s| s.0))
                 .collect();
             let mut seen = self
-                .tree
+                .caster
                 .in_order(&shadows, shadow_order, |r| self.visibility(*r, &mut fetch))
                 .into_iter();
             for (i, d) in &waiting {
@@ -190,7 +114,7 @@ impl Tracer {
             }
             live = next;
             let rays: Vec<Ray> = live.iter().map(|&i| paths[i as usize].ray).collect();
-            hits = self.tree.in_order(&rays, order, |r| self.nearest(r, 0.0, &mut fetch));
+            hits = self.caster.in_order(&rays, order, |r| self.nearest(r, 0.0, &mut fetch));
         }
         paths.iter().map(Path::result).collect()
     }

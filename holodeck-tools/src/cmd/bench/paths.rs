@@ -8,8 +8,8 @@ use std::time::Instant;
 use anyhow::Result;
 use holodeck_protocol::View;
 use holodeck_sampler::geom::{offset_origin, Ray};
+use holodeck_sampler::shade::last_level_cache_bytes;
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
-use holodeck_sampler::shade::wavefront::last_level_cache_bytes;
 use holodeck_sampler::{FirstHits, Reorder, Rng, Sample, Scene, TraceOptions, Tracer};
 
 /// Paths per batch in the table.

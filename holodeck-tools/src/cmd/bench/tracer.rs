@@ -529,7 +529,11 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         // turns with ours, best of two each.
         let e = holodeck_sampler::accel::embree::Embree::new(&room.positions, room.triangles.iter().map(|t| t.v))?;
         let ours = Tracer::new(room.clone(), one_bounce(true));
-        let theirs = Tracer::new(room.clone(), one_bounce(true)).with_caster(std::sync::Arc::new(e));
+        let theirs = Tracer::with_caster(
+            room.clone(),
+            holodeck_sampler::Caster::outside(&room, std::sync::Arc::new(e)),
+            one_bounce(true),
+        );
         let mut best = [(0f64, 0u32, f64::NAN); 2];
         for _ in 0..2 {
             for (b, tracer) in best.iter_mut().zip([&ours, &theirs]) {
@@ -681,7 +685,9 @@ fn beam_row(per_beam: usize) -> Result<String> {
             .fold(0f64, f64::max)
     };
     // First hits as the tracer finds them: through the wide BVH when it has one.
-    let (tree, bvh) = (tracer.tree(), tracer.bvh());
+    let (Some(tree), bvh) = (tracer.caster().tree(), tracer.caster().bvh()) else {
+        anyhow::bail!("the room's tracer has no kd-tree");
+    };
     let single_hits = best(&mut || {
         for beam in &rays {
             for r in beam {
@@ -873,7 +879,7 @@ pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
             ..TraceOptions::default()
         },
     );
-    let Some(bvh) = tracer.bvh() else {
+    let Some(bvh) = tracer.caster().bvh() else {
         return Ok(out);
     };
     let rays = tiled_primary(&view, 128);
