@@ -24,7 +24,7 @@ pub mod truth;
 pub use fill::{fill, FillOptions, FillReport, ViewFill};
 pub use prepare::{prepare, PrepareOptions, Prepared};
 pub use recall::{recall, DriverChoice, Recalled};
-pub use scene_input::{load, SceneInput};
+pub use scene_input::{load, SceneInput, ROOM_VIEW};
 
 /// Why a library call failed.
 #[derive(Debug, thiserror::Error)]

@@ -14,6 +14,10 @@ use holodeck_sampler::{Scene, TraceOptions, Tracer};
 
 use crate::Error;
 
+/// A view from inside the built-in room (`builtin:room`) toward its window:
+/// the view the commands and benchmarks use when none is given.
+pub const ROOM_VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";
+
 /// Fetcher threads that load blocks of a scene file.
 pub const FETCHERS: usize = 2;
 

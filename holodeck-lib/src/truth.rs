@@ -166,6 +166,41 @@ pub fn walk(v: &View, n: usize, step: f64, turn: f64) -> Vec<View> {
         .collect()
 }
 
+/// The LOD ratio C of Áfra 2012, eq. (3), for `pixels` pixels of error: a
+/// voxel of radius R at distance t stands in for its subtree when R <= t C,
+/// i.e. when its projected radius is below that of a disc of `pixels` area.
+pub fn lod_ratio(pixels: f64, view: &View, width: u32) -> f32 {
+    if pixels <= 0.0 {
+        return 0.0;
+    }
+    let r_max = (pixels / std::f64::consts::PI).sqrt();
+    // lambda = (w / 2) / tan(fov / 2): pixels per unit of tangent.
+    let half = (view.horizontal.to_radians() / 2.0).tan().max(1e-6);
+    let lambda = f64::from(width) / 2.0 / half;
+    (r_max / lambda) as f32
+}
+
+/// `picture` cleaned by Open Image Denoise with its albedo and normals.
+#[cfg(feature = "oidn")]
+pub fn denoise_oidn(
+    picture: &holodeck_protocol::Picture,
+    albedo: &holodeck_protocol::Picture,
+    normal: &holodeck_protocol::Picture,
+) -> std::result::Result<holodeck_protocol::Picture, holodeck_display::denoise::DenoiseError> {
+    holodeck_display::denoise::oidn::denoise(picture, Some(albedo), Some(normal))
+}
+
+/// Without the `oidn` feature there is nothing to clean with: always
+/// [`DenoiseError::NoOidn`](holodeck_display::denoise::DenoiseError::NoOidn).
+#[cfg(not(feature = "oidn"))]
+pub fn denoise_oidn(
+    _: &holodeck_protocol::Picture,
+    _: &holodeck_protocol::Picture,
+    _: &holodeck_protocol::Picture,
+) -> std::result::Result<holodeck_protocol::Picture, holodeck_display::denoise::DenoiseError> {
+    Err(holodeck_display::denoise::DenoiseError::NoOidn)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,61 +1,20 @@
 //! `holodeck`: the one command users learn. It parses arguments and calls
 //! into the libraries (`holodeck`: scenes, fills, pictures from a file,
-//! references); it also holds what only the command uses so far: the demo,
-//! benchmarks and charts.
+//! references; `holodeck_bench`: the benchmarks, charts and the demo's
+//! measured walk), printing and showing progress through `holodeck_cli`.
 //!
-//! * `chart` — line charts as SVG and PNG.
-//! * `cmd` — one module per command (`cmd/bench`, `cmd/chart`: the benchmarks and charts).
-//! * `demo` — the demo's walk, its methods, sheets and report.
-//! * `generated` — generated result documents and the blocks that quote them.
-//! * `human` — numbers for people.
+//! * `cmd` — one module per command: its arguments and a `run` over the libraries.
 //! * `parent` — living and dying with a parent process.
-//! * `prepare` — a scene's file opened for filling, with what was found said.
-//! * `progress` — progress on stderr, in one style.
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-/// Prints a line saying what a command did (a summary, a file written) to
-/// standard output, unless `-q` asked for errors only. What a command was
-/// asked to show (`info`, `check`, `compare`, tables) is printed as usual.
-macro_rules! summary {
-    ($($arg:tt)*) => {
-        if !$crate::quiet() {
-            println!($($arg)*);
-        }
-    };
-}
+#[macro_use]
+extern crate holodeck_cli;
 
-/// A note or warning on standard error, unless `-q` asked for errors only.
-macro_rules! note {
-    ($($arg:tt)*) => {
-        if !$crate::quiet() {
-            eprintln!($($arg)*);
-        }
-    };
-}
-
-/// Prints a line of a command's results (a table row, its heading) to
-/// standard output; with `--markdown` the command also keeps it for the
-/// document it generates (see `generated::record`).
-macro_rules! out {
-    () => {
-        $crate::generated::out_line("")
-    };
-    ($($arg:tt)*) => {
-        $crate::generated::out_line(&format!($($arg)*))
-    };
-}
-
-mod chart;
 mod cmd;
-mod demo;
-mod generated;
-mod human;
 mod parent;
-mod prepare;
-mod progress;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
 #[derive(Parser)]
@@ -124,9 +83,9 @@ enum Command {
     /// Write the section grids as an OBJ line mesh for any 3D viewer.
     Grid(cmd::grid::Args),
     /// Speed against accuracy, drawn: error by paths and time, a walkthrough, LOD, grid resolution, scene memory.
-    Chart(cmd::chart::Args),
+    Chart(holodeck_bench::chart::Args),
     /// Benchmarks, each beside a baseline measured in the same run; `all` runs them all and `compare` diffs two runs.
-    Bench(cmd::bench::Args),
+    Bench(holodeck_bench::bench::Args),
     /// Generate built-in scenes and inspect scene files.
     Scene(cmd::scene::Args),
     /// Render a view of a scene directly with the path tracer (the accuracy reference).
@@ -147,23 +106,6 @@ enum Command {
     Sample(cmd::sample::Args),
     /// Send a command to a running server: pause, kill, adopt an edited scene, status...
     Admin(cmd::admin::Args),
-}
-
-/// The verbosity this process was given (`-v` count, `-q`), for the
-/// `holodeck` processes it starts: they log as it does.
-static VERBOSITY: std::sync::OnceLock<(u8, bool)> = std::sync::OnceLock::new();
-
-/// The arguments that give a child `holodeck` this process's verbosity.
-pub(crate) fn verbosity_args() -> Vec<&'static str> {
-    match VERBOSITY.get().copied().unwrap_or((0, false)) {
-        (_, true) => vec!["-q"],
-        (n, false) => vec!["-v"; usize::from(n.min(4))],
-    }
-}
-
-/// Whether `-q` asked for errors only (messages printed directly obey it too).
-pub(crate) fn quiet() -> bool {
-    VERBOSITY.get().is_some_and(|v| v.1)
 }
 
 fn init_logging(verbose: u8, quiet: bool) {
@@ -273,7 +215,7 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let cli = Cli::parse();
-    let _ = VERBOSITY.set((cli.verbose, cli.quiet));
+    holodeck_cli::verbosity::set(cli.verbose, cli.quiet);
     init_logging(cli.verbose, cli.quiet);
     if cli.exit_with_parent {
         parent::exit_with_parent();
@@ -288,8 +230,8 @@ fn main() -> ExitCode {
         Command::Import(a) => cmd::import::run(a),
         Command::Export(a) => cmd::export::run(a),
         Command::Grid(a) => cmd::grid::run(a),
-        Command::Bench(a) => cmd::bench::run(a),
-        Command::Chart(a) => cmd::chart::run(a),
+        Command::Bench(a) => holodeck_bench::bench::run(a),
+        Command::Chart(a) => holodeck_bench::chart::run(a),
         Command::Scene(a) => cmd::scene::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::Fill(a) => cmd::fill::run(a),

@@ -6,8 +6,8 @@ use anyhow::{bail, Context, Result};
 use holodeck_protocol::wire::client::{self, ClientError};
 use holodeck_protocol::wire::{Control, Frame, Message, Progress, Role};
 
-use super::args::{TokenArgs, MAX_TRIANGLES};
-use crate::human::{bytes, count, count_in};
+use holodeck_cli::args::{TokenArgs, MAX_TRIANGLES};
+use holodeck_cli::human::{bytes, count, count_in};
 
 /// Arguments of `holodeck admin`.
 #[derive(clap::Args)]

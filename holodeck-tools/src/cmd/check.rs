@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use holodeck_file::storage::{self, CheckReport, StorageError};
 
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck check`.
 #[derive(clap::Args)]
@@ -57,7 +57,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    let bar = crate::progress::Progress::counting("verifying", crate::progress::Unit::Bytes, Some(0));
+    let bar = holodeck_cli::progress::Progress::counting("verifying", holodeck_cli::progress::Unit::Bytes, Some(0));
     let report = storage::check(&a.file, |done, total| {
         bar.set_total(total);
         bar.set(done);

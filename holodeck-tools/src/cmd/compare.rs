@@ -47,10 +47,10 @@ pub struct Args {
     #[arg(long)]
     scene: Option<String>,
     /// The view of the pictures (Radiance notation), for the band.
-    #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true)]
+    #[arg(long, default_value = holodeck::ROOM_VIEW, allow_hyphen_values = true)]
     view: String,
     /// The level the clamped relative RMSE clamps every channel at.
-    #[arg(long, default_value_t = DEFAULT_CLAMP, value_parser = super::args::positive)]
+    #[arg(long, default_value_t = DEFAULT_CLAMP, value_parser = holodeck_cli::args::positive)]
     clamp: f64,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -81,7 +81,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     .with_clamp(a.clamp);
     let yardstick = match &a.scene {
         Some(scene) => {
-            let view = super::view_arg::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
+            let view = holodeck_cli::view_arg::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
             let input = SceneInput::open(scene, None, None)?;
             let tracer = input.tracer(TraceOptions::default());
             let (w, h) = (yardstick.reference().width, yardstick.reference().height);

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use holodeck_file::storage;
 
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck copy`.
 #[derive(clap::Args)]
@@ -38,7 +38,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let bar = crate::progress::Progress::counting("copying", crate::progress::Unit::Rays, Some(0));
+    let bar = holodeck_cli::progress::Progress::counting("copying", holodeck_cli::progress::Unit::Rays, Some(0));
     let options = storage::CopyOptions { diskspace: a.diskspace };
     let r = storage::copy_with(&a.src, &a.dst, &options, |done, total| {
         bar.set_total(total);

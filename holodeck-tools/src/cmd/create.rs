@@ -8,7 +8,7 @@ use holodeck_file::settings::{parse_size, Settings};
 use holodeck_file::HoloFile;
 use holodeck_protocol::{SectionSpec, SectionTextError, MAX_BEAMS_PER_SECTION};
 
-use crate::human::count_in;
+use holodeck_cli::human::count_in;
 
 /// Arguments of `holodeck create`.
 #[derive(clap::Args)]
@@ -94,7 +94,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         "created {} with {} section(s), {} beams",
         a.file.display(),
         settings.sections.len(),
-        crate::human::count(beams)
+        holodeck_cli::human::count(beams)
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -5,8 +5,8 @@ use std::process::{Command, ExitCode};
 
 use anyhow::{Context, Result};
 
-use crate::demo::Demo;
-use crate::human::count_in;
+use holodeck_bench::demo::Demo;
+use holodeck_cli::human::count_in;
 
 /// Arguments of `holodeck demo`.
 #[derive(clap::Args)]
@@ -51,7 +51,7 @@ pub struct Args {
     #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=1000))]
     views: u32,
     /// Triangles of the scenery outside the window (K, M suffixes).
-    #[arg(long, default_value = "200K", value_parser = count_in(1000, super::args::MAX_TRIANGLES))]
+    #[arg(long, default_value = "200K", value_parser = count_in(1000, holodeck_cli::args::MAX_TRIANGLES))]
     triangles: u64,
     /// Frame width.
     #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(16..=4096))]
@@ -64,7 +64,7 @@ pub struct Args {
     reference_spp: u32,
     /// Instead of --reference-spp: the seconds all the references may take together
     /// (the samples per pixel that fit are found by timing a pass of the first view).
-    #[arg(long, conflicts_with = "reference_spp", value_parser = crate::cmd::args::non_negative)]
+    #[arg(long, conflicts_with = "reference_spp", value_parser = holodeck_cli::args::non_negative)]
     reference_time: Option<f64>,
     /// Seed of the fill.
     #[arg(long, default_value_t = 1)]
@@ -107,10 +107,10 @@ fn publish(a: &Args, dir: &std::path::Path, summary: &str) -> Result<()> {
         .into_iter()
         .map(|(file, caption)| (a.output.join(file), caption))
         .collect();
-    crate::generated::publish_with_charts(
+    holodeck_cli::generated::publish_with_charts(
         dir,
         "demo",
-        &crate::generated::command_line(),
+        &holodeck_cli::generated::command_line(),
         format!("{summary}\n"),
         &charts,
     )?;
@@ -138,8 +138,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.window {
         let hdk = a.output.join("demo.hdk");
         let status = Command::new(std::env::current_exe().context("finding the holodeck executable")?)
-            .args(crate::verbosity_args())
-            .args(["run", crate::demo::SCENE])
+            .args(holodeck_cli::verbosity::child_args())
+            .args(["run", holodeck_bench::demo::SCENE])
             .arg(&hdk)
             .args([
                 "--triangles",

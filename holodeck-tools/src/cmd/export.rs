@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use holodeck_file::radiance::{self, Layout};
 
-use crate::human::{bytes, count};
+use holodeck_cli::human::{bytes, count};
 
 /// Arguments of `holodeck export`.
 #[derive(clap::Args)]
@@ -45,7 +45,7 @@ struct RadianceArgs {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let Format::Radiance(a) = a.format;
-    let bar = crate::progress::Progress::counting("exporting", crate::progress::Unit::Rays, Some(0));
+    let bar = holodeck_cli::progress::Progress::counting("exporting", holodeck_cli::progress::Unit::Rays, Some(0));
     let r = radiance::export(&a.file, &a.output, Layout::LP64, |done, total| {
         bar.set_total(total);
         bar.set(done);

@@ -11,10 +11,10 @@ use holodeck_sampler::TraceOptions;
 use holodeck_file::settings::parse_duration;
 use holodeck_file::{HoloFile, OpenOptions};
 
-use super::args::MAX_TRIANGLES;
-use crate::human::{bytes, count, count_in};
-use crate::progress::{Progress, Unit};
 use holodeck::fill::{fill, FillOptions, ViewFill};
+use holodeck_cli::args::MAX_TRIANGLES;
+use holodeck_cli::human::{bytes, count, count_in};
+use holodeck_cli::progress::{Progress, Unit};
 
 /// Arguments of `holodeck fill`.
 #[derive(clap::Args)]
@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long, default_value_t = 8)]
     bounces: u32,
     #[command(flatten)]
-    reorder: super::args::ReorderArgs,
+    reorder: holodeck_cli::args::ReorderArgs,
     /// Seed of this run (use another to add independent rays).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -63,7 +63,7 @@ pub struct Args {
     /// With --views: new rays pass this near the eyes of the views that see their beam
     /// (each in turn, by its share of the beam), as a fraction of the section diagonal
     /// (0: anywhere in the beam).
-    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = super::args::non_negative)]
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, requires = "views", value_parser = holodeck_cli::args::non_negative)]
     eye_radius: f64,
     /// For a .hds scene file: decompressed blocks kept in memory (K, M, G; default: all of them).
     #[arg(long, value_parser = holodeck_file::settings::parse_size)]
@@ -106,7 +106,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .map(|t| parse_duration(t, 1.0))
         .transpose()
         .context("--time")?;
-    let (scene, mut file) = crate::prepare::prepare(
+    let (scene, mut file) = holodeck_cli::prepare::prepare(
         &a.scene,
         &a.file,
         a.triangles,

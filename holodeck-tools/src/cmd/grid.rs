@@ -38,7 +38,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
     }
     match &a.output {
-        Some(path) => super::outfile::write(path, obj.as_bytes(), &[&a.file])?,
+        Some(path) => holodeck_cli::outfile::write(path, obj.as_bytes(), &[&a.file])?,
         None => print!("{obj}"),
     }
     Ok(ExitCode::SUCCESS)

@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 use holodeck_file::radiance::{self, ByteOrder, ImportOptions};
 use holodeck_protocol::SectionKind;
 
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck import`.
 #[derive(clap::Args)]
@@ -64,7 +64,7 @@ fn parse_kind(s: &str) -> Result<SectionKind, String> {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let Format::Radiance(a) = a.format;
-    let bar = crate::progress::Progress::counting("importing", crate::progress::Unit::Rays, Some(0));
+    let bar = holodeck_cli::progress::Progress::counting("importing", holodeck_cli::progress::Unit::Rays, Some(0));
     let r = radiance::import(
         &a.file,
         &a.output,

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use holodeck_file::{HoloFile, OpenOptions};
 
-use crate::human::{bytes, count};
+use holodeck_cli::human::{bytes, count};
 
 /// Arguments of `holodeck info`.
 #[derive(clap::Args)]

@@ -1,9 +1,6 @@
 //! One module per subcommand: argument definitions and a `run` that calls the libraries.
 
 pub mod admin;
-pub mod args;
-pub mod bench;
-pub mod chart;
 pub mod check;
 pub mod compare;
 pub mod copy;
@@ -15,7 +12,6 @@ pub mod grid;
 pub mod import;
 pub mod info;
 pub mod optimize;
-pub mod outfile;
 pub mod pict;
 pub mod render;
 pub mod run;
@@ -23,5 +19,4 @@ pub mod sample;
 pub mod scene;
 pub mod serve;
 pub mod view;
-pub mod view_arg;
 pub mod window;

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Result;
 use holodeck_file::storage;
 
-use crate::human::{bytes, count};
+use holodeck_cli::human::{bytes, count};
 
 /// Arguments of `holodeck optimize`.
 #[derive(clap::Args)]
@@ -25,7 +25,7 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
-    let bar = crate::progress::Progress::counting("optimizing", crate::progress::Unit::Bytes, Some(0));
+    let bar = holodeck_cli::progress::Progress::counting("optimizing", holodeck_cli::progress::Unit::Bytes, Some(0));
     let start = Instant::now();
     let r = storage::optimize(&a.file, |done, total| {
         bar.set_total(total);

@@ -12,8 +12,8 @@ use holodeck_display::{output, Viewport};
 use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::View;
 
-use crate::human::count;
 use holodeck::recall::draw;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck pict`.
 #[derive(clap::Args)]
@@ -39,15 +39,15 @@ pub struct Args {
     /// A Radiance view line (`rview -vtv -vp …`, `VIEW= …`) works as written;
     /// `-vo`/`-va` clip fore and aft, `-vs`/`-vl` shift and lift, `-vf FILE`
     /// reads a view file or a Radiance picture's header.
-    #[arg(long, default_value = super::render::ROOM_VIEW, allow_hyphen_values = true, conflicts_with = "views")]
+    #[arg(long, default_value = holodeck::ROOM_VIEW, allow_hyphen_values = true, conflicts_with = "views")]
     view: String,
     /// A file of views, one per line (a scripted path): numbered frames.
     #[arg(long)]
     views: Option<PathBuf>,
     #[command(flatten)]
-    frame: super::args::FrameArgs,
+    frame: holodeck_cli::args::FrameArgs,
     /// Beam selection: one view ray per this many pixels across and down.
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(super::args::SIDE))]
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(holodeck_cli::args::SIDE))]
     stride: u32,
     /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
     #[arg(short, long, required_unless_present = "window")]
@@ -94,7 +94,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
             v
         }
-        None => vec![super::view_arg::parse(&a.view).context("--view")?],
+        None => vec![holodeck_cli::view_arg::parse(&a.view).context("--view")?],
     };
     let mut file =
         HoloFile::open(&a.file, &OpenOptions::read_only()).with_context(|| format!("opening {}", a.file.display()))?;

@@ -9,12 +9,10 @@ use holodeck_protocol::View;
 use holodeck_sampler::render::{self, RenderOptions};
 use holodeck_sampler::TraceOptions;
 
-use super::args::{frame_size, MAX_TRIANGLES, SIDE};
-use crate::human::{count, count_in};
-use holodeck::SceneInput;
-
-/// A view from inside the built-in room toward its window.
-pub const ROOM_VIEW: &str = "-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56";
+use holodeck::truth::{denoise_oidn, lod_ratio};
+use holodeck::{SceneInput, ROOM_VIEW};
+use holodeck_cli::args::{frame_size, MAX_TRIANGLES, SIDE};
+use holodeck_cli::human::{count, count_in};
 
 /// Arguments of `holodeck render`.
 #[derive(clap::Args)]
@@ -78,12 +76,12 @@ pub struct Args {
     out_of_core: bool,
     /// For a .hds scene file: pixels of error; a voxel whose projected area is
     /// below this many pixels stands in for its subtree (0: exact triangles).
-    #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative)]
+    #[arg(long, default_value_t = 0.0, value_parser = holodeck_cli::args::non_negative)]
     lod: f64,
     /// For a .hds scene file: the same for bounce and shadow rays, as an angle
     /// in milliradians: a voxel whose radius is below this angle as seen from
     /// the ray's origin stands in for its subtree (0: exact triangles).
-    #[arg(long, default_value_t = 0.0, value_parser = super::args::non_negative, value_name = "MRAD")]
+    #[arg(long, default_value_t = 0.0, value_parser = holodeck_cli::args::non_negative, value_name = "MRAD")]
     lod_secondary: f64,
     /// Write the first surfaces' albedo here (.hdr or .png), for denoisers.
     #[arg(long)]
@@ -122,48 +120,10 @@ fn write_picture(picture: &holodeck_protocol::Picture, path: &Path, exposure: Op
     Ok(())
 }
 
-/// The LOD ratio C of Áfra 2012, eq. (3), for `pixels` pixels of error: a
-/// voxel of radius R at distance t stands in for its subtree when R <= t C,
-/// i.e. when its projected radius is below that of a disc of `pixels` area.
-pub fn lod_ratio(pixels: f64, view: &View, width: u32) -> f32 {
-    if pixels <= 0.0 {
-        return 0.0;
-    }
-    let r_max = (pixels / std::f64::consts::PI).sqrt();
-    // lambda = (w / 2) / tan(fov / 2): pixels per unit of tangent.
-    let half = (view.horizontal.to_radians() / 2.0).tan().max(1e-6);
-    let lambda = f64::from(width) / 2.0 / half;
-    (r_max / lambda) as f32
-}
-
-/// `picture` cleaned by Open Image Denoise with its albedo and normals.
-#[cfg(feature = "oidn")]
-pub fn denoise_oidn(
-    picture: &holodeck_protocol::Picture,
-    albedo: &holodeck_protocol::Picture,
-    normal: &holodeck_protocol::Picture,
-) -> Result<holodeck_protocol::Picture> {
-    Ok(holodeck_display::denoise::oidn::denoise(
-        picture,
-        Some(albedo),
-        Some(normal),
-    )?)
-}
-
-/// Without the `oidn` feature there is nothing to clean with.
-#[cfg(not(feature = "oidn"))]
-pub fn denoise_oidn(
-    _: &holodeck_protocol::Picture,
-    _: &holodeck_protocol::Picture,
-    _: &holodeck_protocol::Picture,
-) -> Result<holodeck_protocol::Picture> {
-    Err(holodeck_display::denoise::DenoiseError::NoOidn.into())
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     frame_size(a.width, a.height)?;
-    let view = super::view_arg::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
+    let view = holodeck_cli::view_arg::parse(&a.view).with_context(|| format!("--view {:?}", a.view))?;
     picture_ext(&a.output, "output")?;
     for (p, what) in [(&a.albedo, "--albedo"), (&a.normal, "--normal")] {
         if let Some(p) = p {
@@ -195,7 +155,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         tracer.caster().tree().map(|t| t.stats()),
         tracer.caster().bvh().map(|b| b.stats())
     );
-    let bar = crate::progress::Progress::counting("rendering", crate::progress::Unit::Rows, Some(u64::from(a.height)));
+    let bar = holodeck_cli::progress::Progress::counting(
+        "rendering",
+        holodeck_cli::progress::Unit::Rows,
+        Some(u64::from(a.height)),
+    );
     let options = RenderOptions {
         width: a.width,
         height: a.height,

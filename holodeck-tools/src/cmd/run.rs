@@ -12,9 +12,9 @@ use holodeck_file::settings::parse_duration;
 use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::{client, Control};
 
-use super::args::{frame_size, MAX_WORKERS, SIDE};
-use crate::human::count;
-use crate::progress::Progress;
+use holodeck_cli::args::{frame_size, MAX_WORKERS, SIDE};
+use holodeck_cli::human::count;
+use holodeck_cli::progress::Progress;
 
 /// Arguments of `holodeck run`.
 #[derive(clap::Args)]
@@ -87,7 +87,7 @@ pub struct Args {
     #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
     /// The display's denoiser: atrous, oidn (a build with --features oidn) or off.
-    #[arg(long, default_value = super::args::DEFAULT_DENOISER)]
+    #[arg(long, default_value = holodeck_cli::args::DEFAULT_DENOISER)]
     denoise: String,
     /// Largest number of bounces.
     #[arg(long, default_value_t = 8)]
@@ -96,7 +96,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
     #[command(flatten)]
-    reorder: super::args::ReorderArgs,
+    reorder: holodeck_cli::args::ReorderArgs,
     /// Write on top of a file whose newest commit is damaged, keeping what can
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
@@ -106,7 +106,7 @@ pub struct Args {
     #[arg(long)]
     vdistance: bool,
     /// Triangles for builtin:landscape (K, M suffixes).
-    #[arg(long, value_parser = crate::human::count_in(1, super::args::MAX_TRIANGLES))]
+    #[arg(long, value_parser = holodeck_cli::human::count_in(1, holodeck_cli::args::MAX_TRIANGLES))]
     triangles: Option<u64>,
     /// For a .hds scene file: decompressed blocks each sampler keeps in memory (K, M, G; default: all).
     #[arg(long, value_parser = holodeck_file::settings::parse_size)]
@@ -123,7 +123,7 @@ fn me() -> Result<Command> {
     // The child watches its standard input: when this process ends, it stops
     // too; and it logs as this process does (-q, -v).
     cmd.arg("--exit-with-parent")
-        .args(crate::verbosity_args())
+        .args(holodeck_cli::verbosity::child_args())
         .stdin(Stdio::piped());
     Ok(cmd)
 }
@@ -271,7 +271,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     };
     holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
     let (before, default_view) = {
-        let (_, file) = crate::prepare::prepare(
+        let (_, file) = holodeck_cli::prepare::prepare(
             &a.scene,
             &a.file,
             a.triangles,
@@ -280,7 +280,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             a.vdistance,
         )?;
         let view = if a.scene == "builtin:room" {
-            super::render::ROOM_VIEW.to_string()
+            holodeck::ROOM_VIEW.to_string()
         } else {
             super::window::default_view(&file.sections()[0])
         };

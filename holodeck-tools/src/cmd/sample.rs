@@ -9,9 +9,9 @@ use holodeck_file::settings::parse_duration;
 use holodeck_sampler::worker::{run_worker_retrying, WorkerError};
 use holodeck_sampler::{TraceOptions, Tracer};
 
-use super::args::{MAX_TRIANGLES, MAX_WORKERS};
-use crate::human::{count, count_in};
 use holodeck::SceneInput;
+use holodeck_cli::args::{MAX_TRIANGLES, MAX_WORKERS};
+use holodeck_cli::human::{count, count_in};
 
 /// Arguments of `holodeck sample`.
 #[derive(clap::Args)]
@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     connect: String,
     #[command(flatten)]
-    token: super::args::TokenArgs,
+    token: holodeck_cli::args::TokenArgs,
     /// Worker connections (one tracing thread each); default: one per core.
     #[arg(short = 'j', long, value_parser = clap::value_parser!(u32).range(1..=MAX_WORKERS))]
     jobs: Option<u32>,
@@ -46,7 +46,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     samples: u32,
     #[command(flatten)]
-    reorder: super::args::ReorderArgs,
+    reorder: holodeck_cli::args::ReorderArgs,
     /// Seed (give each worker host its own to trace independent rays).
     #[arg(long, default_value_t = 1)]
     seed: u64,

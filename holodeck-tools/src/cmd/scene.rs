@@ -10,9 +10,9 @@ use holodeck_sampler::scene::gen::{self, GenParams};
 use holodeck_sampler::scene::{content_hash, load_scene, write_scene};
 use holodeck_sampler::{Material, Scene, Sky};
 
-use super::args::MAX_TRIANGLES;
-use crate::human::{count, count_in};
-use crate::progress::{Progress, Unit};
+use holodeck_cli::args::MAX_TRIANGLES;
+use holodeck_cli::human::{count, count_in};
+use holodeck_cli::progress::{Progress, Unit};
 
 /// Arguments of `holodeck scene`.
 #[derive(clap::Args)]
@@ -319,11 +319,11 @@ fn build(a: BuildArgs) -> Result<ExitCode> {
         r.chunks,
         count(u64::from(r.blocks)),
         r.levels,
-        crate::human::bytes(r.decompressed_bytes),
-        crate::human::bytes(r.compressed_bytes),
+        holodeck_cli::human::bytes(r.decompressed_bytes),
+        holodeck_cli::human::bytes(r.compressed_bytes),
         100.0 * r.compressed_bytes as f64 / r.decompressed_bytes.max(1) as f64,
         a.codec.name(),
-        crate::human::bytes(r.file_bytes),
+        holodeck_cli::human::bytes(r.file_bytes),
         r.seconds,
         r.partition_seconds,
         r.chunk_seconds
@@ -348,14 +348,14 @@ fn recode(a: RecodeArgs) -> Result<ExitCode> {
         "wrote {}: {} blocks, {} decompressed; {} compressed ({:.1}%, {}) where {} had {} ({:.1}%); file {}; {:.1} s",
         a.output.display(),
         count(u64::from(r.blocks)),
-        crate::human::bytes(r.decompressed_bytes),
-        crate::human::bytes(r.after_bytes),
+        holodeck_cli::human::bytes(r.decompressed_bytes),
+        holodeck_cli::human::bytes(r.after_bytes),
         pct(r.after_bytes),
         a.codec.name(),
         a.input.display(),
-        crate::human::bytes(r.before_bytes),
+        holodeck_cli::human::bytes(r.before_bytes),
         pct(r.before_bytes),
-        crate::human::bytes(r.file_bytes),
+        holodeck_cli::human::bytes(r.file_bytes),
         r.seconds
     );
     Ok(ExitCode::SUCCESS)
@@ -384,8 +384,8 @@ fn info(a: InfoArgs) -> Result<ExitCode> {
         println!(
             "{:<13}{} decompressed, file {}",
             "size",
-            crate::human::bytes(h.decompressed_bytes),
-            crate::human::bytes(std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0))
+            holodeck_cli::human::bytes(h.decompressed_bytes),
+            holodeck_cli::human::bytes(std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0))
         );
         println!(
             "{:<13}x {:.3} .. {:.3}, y {:.3} .. {:.3}, z {:.3} .. {:.3} m",
@@ -448,12 +448,12 @@ fn describe(s: &Scene) -> String {
             format!(
                 "{} images, {} in memory with their mip levels",
                 s.textures.len(),
-                crate::human::bytes(s.textures.bytes() as u64)
+                holodeck_cli::human::bytes(s.textures.bytes() as u64)
             ),
         );
     }
     line("sky", sky(&s.sky));
-    for cut in crate::prepare::section_cuts(s, &s.sections) {
+    for cut in holodeck_cli::prepare::section_cuts(s, &s.sections) {
         line("warning", cut);
     }
     for (k, sec) in s.sections.iter().enumerate() {

@@ -130,7 +130,7 @@ fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Re
     let path = token_path(file, level);
     if !fresh {
         if let Some(t) = kept_token(&path) {
-            if !crate::quiet() {
+            if !holodeck_cli::quiet() {
                 eprintln!("{level} access token kept from {}", path.display());
             }
             return Ok(t);
@@ -140,7 +140,7 @@ fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Re
         .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
         .collect();
     write_token(&path, &t)?;
-    if !crate::quiet() {
+    if !holodeck_cli::quiet() {
         eprintln!("{level} access token written to {}", path.display());
     }
     Ok(t)

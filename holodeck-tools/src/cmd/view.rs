@@ -15,7 +15,7 @@ use holodeck_display::{output, Sample, Viewport};
 use holodeck_file::settings::parse_duration;
 use holodeck_protocol::View;
 
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck view`.
 #[derive(clap::Args)]
@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long)]
     connect: String,
     #[command(flatten)]
-    token: super::args::TokenArgs,
+    token: holodeck_cli::args::TokenArgs,
     /// Run without a window: walk --views and write frames into --frames.
     #[arg(long, requires = "views")]
     headless: bool,
@@ -66,7 +66,7 @@ pub struct Args {
     #[command(flatten)]
     window: super::window::WindowArgs,
     #[command(flatten)]
-    frame: super::args::FrameArgs,
+    frame: holodeck_cli::args::FrameArgs,
     /// Frame format: png or hdr.
     #[arg(long, default_value = "png")]
     format: String,
@@ -83,7 +83,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1024.0)]
     max_density: f64,
     /// New samples pass this near the eye, as a fraction of the section diagonal.
-    #[arg(long, default_value_t = RequestOptions::default().eye_radius, value_parser = super::args::non_negative)]
+    #[arg(long, default_value_t = RequestOptions::default().eye_radius, value_parser = holodeck_cli::args::non_negative)]
     eye_radius: f64,
     /// Connect read-only (cannot clobber, kill samplers or quit the server).
     #[arg(long)]

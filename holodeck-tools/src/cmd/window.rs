@@ -8,7 +8,7 @@ use holodeck_display::window::{self, Source, WalkOptions, WindowOptions};
 use holodeck_display::Viewport;
 use holodeck_protocol::{Section, View};
 
-use super::args::FrameArgs;
+use holodeck_cli::args::FrameArgs;
 
 /// Arguments of the window (shared by `view` and `pict --window`).
 #[derive(clap::Args, Clone, Debug)]
@@ -20,7 +20,7 @@ pub struct WindowArgs {
     #[arg(short = 'i', long)]
     pub script: bool,
     /// Beam selection: one view ray per this many pixels across and down.
-    #[arg(long, default_value_t = RequestOptions::default().stride, value_parser = clap::value_parser!(u32).range(super::args::SIDE))]
+    #[arg(long, default_value_t = RequestOptions::default().stride, value_parser = clap::value_parser!(u32).range(holodeck_cli::args::SIDE))]
     pub stride: u32,
 }
 

@@ -54,7 +54,7 @@ const PANEL: (u32, u32) = (640, 480);
 static FONT: Once = Once::new();
 
 /// Makes the bundled font the one text is drawn with (once per process).
-pub(crate) fn register_font() {
+pub fn register_font() {
     FONT.call_once(|| {
         let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
         // The font is bundled and known good; should it fail, text is left out rather than the chart.

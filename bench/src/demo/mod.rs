@@ -25,9 +25,9 @@ use holodeck_display::Viewport;
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::TraceOptions;
 
-use crate::human::count;
 use holodeck::fill::{fill, FillOptions, ViewFill};
 use holodeck::truth::Truth;
+use holodeck_cli::human::count;
 pub use methods::DRIVERS;
 use methods::{Column, Kind, Shot};
 
@@ -140,13 +140,13 @@ impl Demo {
         let hdk = self.out.join("demo.hdk");
         // Virtual distances: the walk looks out of the window, and what a
         // window shows must move with the eye as the view beyond it does.
-        let (input, mut file) = crate::prepare::prepare(SCENE, &hdk, Some(self.triangles), None, false, true)?;
+        let (input, mut file) = holodeck_cli::prepare::prepare(SCENE, &hdk, Some(self.triangles), None, false, true)?;
         let tracer = input.tracer(TraceOptions::default());
 
         // References first: every picture below is measured against them.
-        let bar = crate::progress::Progress::counting(
+        let bar = holodeck_cli::progress::Progress::counting(
             "rendering the reference views",
-            crate::progress::Unit::Views,
+            holodeck_cli::progress::Unit::Views,
             Some(views.len() as u64),
         );
         if let (Some(secs), Some(first)) = (self.reference_time, views.first()) {
@@ -168,9 +168,9 @@ impl Demo {
 
         // Every view, every holodeck method.
         let mut columns: Vec<Column> = kinds.iter().map(|&k| Column::new(k)).collect();
-        let bar = crate::progress::Progress::counting(
+        let bar = holodeck_cli::progress::Progress::counting(
             "drawing every view from the holodeck",
-            crate::progress::Unit::Views,
+            holodeck_cli::progress::Unit::Views,
             Some(views.len() as u64),
         );
         for (i, (view, truth)) in views.iter().zip(&truths).enumerate() {
@@ -211,9 +211,9 @@ impl Demo {
             .context("the default method is measured")?;
         let holodeck_secs = filled.secs + columns[default].secs();
         let share = holodeck_secs / views.len() as f64;
-        let bar = crate::progress::Progress::counting(
+        let bar = holodeck_cli::progress::Progress::counting(
             "rendering each view directly in the same time",
-            crate::progress::Unit::Views,
+            holodeck_cli::progress::Unit::Views,
             Some(views.len() as u64),
         );
         let mut overhead = 0.0;
@@ -300,9 +300,9 @@ impl Demo {
             views: Some(ViewFill::new(file.sections(), views, eye_radius)),
         };
         let stages = [self.rays / 16, self.rays / 4, self.rays];
-        let bar = crate::progress::Progress::counting(
+        let bar = holodeck_cli::progress::Progress::counting(
             "filling the holodeck for the walk",
-            crate::progress::Unit::Rays,
+            holodeck_cli::progress::Unit::Rays,
             Some(self.rays),
         );
         let (mut secs, mut filled) = (0.0, 0u64);
@@ -365,7 +365,7 @@ impl Demo {
                 seed: 77,
             };
             let (albedo, normal) = holodeck_sampler::render::render_aovs(tracer, &views[0], &o)?;
-            if let Ok(q) = crate::cmd::render::denoise_oidn(&p, &albedo, &normal) {
+            if let Ok(q) = holodeck::truth::denoise_oidn(&p, &albedo, &normal) {
                 cleaned.push((paths as f64, t + start.elapsed().as_secs_f64(), first.measure(&q)?.flip));
             }
         }

@@ -12,6 +12,7 @@ use holodeck_sampler::scene::section_fit::{cut, Cut};
 use holodeck_sampler::Scene;
 
 use crate::human::count;
+use crate::note;
 
 /// Loads a scene and opens its holodeck file for writing (see
 /// `holodeck::prepare`): says when a file that recorded no scene is

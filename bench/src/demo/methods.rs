@@ -15,8 +15,8 @@ use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, render_aovs, RenderOptions};
 use holodeck_sampler::Tracer;
 
-use crate::cmd::args::DriverChoice;
 use holodeck::truth::Truth;
+use holodeck_cli::args::DriverChoice;
 
 /// The display drivers drawn, in the order of the sheets.
 pub const DRIVERS: [&str; 3] = ["quadtree", "voronoi", "mesh"];
@@ -249,7 +249,7 @@ pub fn direct_oidn_for(
         seed,
     };
     let (albedo, normal) = render_aovs(tracer, view, &o)?;
-    let picture = crate::cmd::render::denoise_oidn(&noisy, &albedo, &normal)?;
+    let picture = holodeck::truth::denoise_oidn(&noisy, &albedo, &normal)?;
     *overhead = after.elapsed().as_secs_f64();
     Ok((picture, start.elapsed().as_secs_f64(), paths))
 }

@@ -151,7 +151,7 @@ pub fn number(v: f64) -> String {
     }
     let a = v.abs();
     if a >= 10_000.0 {
-        crate::human::count(v.round() as u64)
+        holodeck_cli::human::count(v.round() as u64)
     } else if a >= 100.0 {
         format!("{v:.0}")
     } else if a >= 10.0 {

@@ -21,7 +21,7 @@ use rand::{Rng, SeedableRng};
 
 use super::row;
 use super::rss;
-use crate::human::{bytes, count, count_in};
+use holodeck_cli::human::{bytes, count, count_in};
 
 /// Arguments of `holodeck bench storage`.
 #[derive(clap::Args)]
@@ -108,7 +108,7 @@ fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<(f64, 
     let beams = f.sections()[0].beam_count();
     let mut rng = StdRng::seed_from_u64(seed);
     let packet: Vec<RayRecord> = (0..4096).map(|_| random_ray(&mut rng)).collect();
-    let bar = crate::progress::Progress::counting("appending", crate::progress::Unit::Rays, Some(rays));
+    let bar = holodeck_cli::progress::Progress::counting("appending", holodeck_cli::progress::Unit::Rays, Some(rays));
     let start = Instant::now();
     let mut done = 0u64;
     while done < rays {

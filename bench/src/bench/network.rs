@@ -25,7 +25,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 use super::row;
-use crate::human::count;
+use holodeck_cli::human::count;
 use holodeck_sampler::beam::trace_batch;
 
 /// Arguments of `holodeck bench network`.
@@ -38,7 +38,7 @@ Example:
   holodeck bench network --seconds 8")]
 pub struct Args {
     /// Seconds per fill measurement.
-    #[arg(long, default_value_t = 8.0, value_parser = crate::cmd::args::positive)]
+    #[arg(long, default_value_t = 8.0, value_parser = holodeck_cli::args::positive)]
     pub seconds: f64,
     #[command(flatten)]
     pub files: super::Files,

@@ -21,8 +21,8 @@ use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
 use holodeck_sampler::{KdTree, Rng, Scene, TraceOptions, Tracer};
 
 use super::report::median;
-use crate::chart::{Panel, Series, SeriesLabelPosition};
-use crate::human::{bytes, count};
+use holodeck_cli::chart::{Panel, Series, SeriesLabelPosition};
+use holodeck_cli::human::{bytes, count};
 use holodeck_display::compare::relative_rmse;
 
 /// Arguments of `holodeck bench scene-file`.
@@ -36,7 +36,7 @@ Examples:
   holodeck bench scene-file --triangles 10M --charts docs    (ooc-budget, ooc-lod charts)")]
 pub struct Args {
     /// Landscape size (triangles).
-    #[arg(long, value_parser = crate::human::count_in(1, crate::cmd::args::MAX_TRIANGLES), default_value = "1M")]
+    #[arg(long, value_parser = holodeck_cli::human::count_in(1, holodeck_cli::args::MAX_TRIANGLES), default_value = "1M")]
     pub triangles: u64,
     /// Rays per measurement: a square of this many pixels per side.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=8192))]
@@ -276,8 +276,8 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             Arc::clone(&file),
             TraceOptions {
                 max_bounces: 1,
-                lod_primary: crate::cmd::render::lod_ratio(poe, &view, w),
-                lod_secondary: crate::cmd::render::lod_ratio(poe, &view, w),
+                lod_primary: holodeck::truth::lod_ratio(poe, &view, w),
+                lod_secondary: holodeck::truth::lod_ratio(poe, &view, w),
                 ..TraceOptions::default()
             },
         );
@@ -289,7 +289,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     };
     let (exact, exact_time, _) = frame(0.0)?;
     let voxel_hits = |poe: f64| {
-        let c = crate::cmd::render::lod_ratio(poe, &view, w);
+        let c = holodeck::truth::lod_ratio(poe, &view, w);
         prim.iter()
             .filter(|r| {
                 matches!(
@@ -359,7 +359,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         ];
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         for (stem, panels) in [("ooc-budget", std::slice::from_ref(&budget)), ("ooc-lod", &lod[..])] {
-            let [svg, png] = crate::chart::write(&dir.join(stem), panels)?;
+            let [svg, png] = holodeck_cli::chart::write(&dir.join(stem), panels)?;
             eprintln!("wrote {} and {}", svg.display(), png.display());
         }
     }

@@ -13,11 +13,11 @@ use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::{grid_for_beam_count, Section};
 use holodeck_sampler::{TraceOptions, Tracer};
 
-use crate::chart::{Panel, Series, SeriesLabelPosition};
-use crate::cmd::args::DriverChoice;
-use crate::human::count;
 use holodeck::fill::{fill, FillOptions, ViewFill};
 use holodeck::truth::Truth;
+use holodeck_cli::args::DriverChoice;
+use holodeck_cli::chart::{Panel, Series, SeriesLabelPosition};
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck chart grid`.
 #[derive(clap::Args)]
@@ -38,13 +38,13 @@ pub struct Args {
     #[arg(long, default_value = "builtin:room")]
     pub scene: String,
     /// The view.
-    #[arg(long, default_value = crate::cmd::render::ROOM_VIEW, allow_hyphen_values = true)]
+    #[arg(long, default_value = holodeck::ROOM_VIEW, allow_hyphen_values = true)]
     pub view: String,
     /// Target beam counts (repeat for several).
-    #[arg(long, value_parser = crate::human::count_in(100, 50_000_000), default_values = ["10K", "30K", "100K", "300K", "1M", "3M"])]
+    #[arg(long, value_parser = holodeck_cli::human::count_in(100, 50_000_000), default_values = ["10K", "30K", "100K", "300K", "1M", "3M"])]
     pub beams: Vec<u64>,
     /// Rays traced into each holodeck.
-    #[arg(long, default_value = "1M", value_parser = crate::human::count_in(1000, 1_000_000_000))]
+    #[arg(long, default_value = "1M", value_parser = holodeck_cli::human::count_in(1000, 1_000_000_000))]
     pub rays: u64,
     /// Frame width.
     #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(16..=4096))]
@@ -56,7 +56,7 @@ pub struct Args {
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub reference_spp: u32,
     #[command(flatten)]
-    pub markdown: crate::generated::MarkdownArgs,
+    pub markdown: holodeck_cli::generated::MarkdownArgs,
 }
 
 /// One grid's measurement.
@@ -82,7 +82,7 @@ pub fn measure(a: &Args, dir: &Path) -> Result<Vec<Point>> {
         anyhow::bail!("scene {} defines no holodeck section", a.scene);
     };
     let hash = holodeck_sampler::scene::hash::content_hash(&scene);
-    let view = crate::cmd::view_arg::parse(&a.view).context("--view")?;
+    let view = holodeck_cli::view_arg::parse(&a.view).context("--view")?;
     let tracer = Tracer::new(scene, TraceOptions::default());
     let halves = holodeck::truth::reference_halves(&tracer, &view, (a.width, a.height), a.reference_spp, 0x5eed)?;
     let truth = Truth::new(&tracer, &view, halves)?;
@@ -172,7 +172,7 @@ pub fn run(a: &Args) -> Result<()> {
         );
     }
     let x = |p: &Point| (p.beams as f64).log10();
-    let [svg, png] = crate::chart::write(
+    let [svg, png] = holodeck_cli::chart::write(
         &a.output.join("grid"),
         &[
             Panel {

@@ -15,7 +15,7 @@ use holodeck_sampler::scene::gen::{generate, GenParams};
 use holodeck_sampler::shade::sampling::{cosine_hemisphere, Frame};
 use holodeck_sampler::{FirstHits, KdTree, Rng, Scene, TraceOptions, Tracer};
 
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck bench tracer`.
 #[derive(clap::Args)]
@@ -31,7 +31,7 @@ Examples:
   holodeck bench tracer --triangles 10M --embree      (needs a build with --features embree)")]
 pub struct Args {
     /// Landscape sizes (triangles; repeat for several).
-    #[arg(long, value_parser = crate::human::count_in(1, crate::cmd::args::MAX_TRIANGLES), default_values = ["1M"])]
+    #[arg(long, value_parser = holodeck_cli::human::count_in(1, holodeck_cli::args::MAX_TRIANGLES), default_values = ["1M"])]
     pub triangles: Vec<u64>,
     /// Rays per measurement: a square of this many pixels per side.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(4..=8192))]
@@ -482,7 +482,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     // samples per second, and the error against a converged reference after
     // equal wall time, with and without light sampling.
     let room = generate("room", &GenParams::default())?;
-    let view = View::parse(crate::cmd::render::ROOM_VIEW)?;
+    let view = View::parse(holodeck::ROOM_VIEW)?;
     let (w, h) = (96u32, 72u32);
     let one_bounce = |light_sampling| TraceOptions {
         max_bounces: 1,
@@ -871,7 +871,7 @@ pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     }
     // Path tracing, one diffuse bounce with light sampling, in the room.
     let room = generate("room", &GenParams::default())?;
-    let view = View::parse(crate::cmd::render::ROOM_VIEW)?;
+    let view = View::parse(holodeck::ROOM_VIEW)?;
     let tracer = Tracer::new(
         room,
         TraceOptions {

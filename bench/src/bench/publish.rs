@@ -56,6 +56,6 @@ pub fn run(a: &Args) -> Result<ExitCode> {
     if text.trim().is_empty() {
         bail!("standard input is empty: nothing to publish");
     }
-    crate::generated::publish_with_charts(&a.markdown, &a.name, &a.command, text, &[])?;
+    holodeck_cli::generated::publish_with_charts(&a.markdown, &a.name, &a.command, text, &[])?;
     Ok(ExitCode::SUCCESS)
 }

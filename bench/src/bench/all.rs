@@ -104,12 +104,18 @@ pub fn run(a: &Args) -> Result<ExitCode> {
     }
     print!("{text}");
     if let Some(dir) = &a.markdown {
-        crate::generated::publish_with_charts(dir, "bench-all", &crate::generated::command_line(), text, &[])?;
+        holodeck_cli::generated::publish_with_charts(
+            dir,
+            "bench-all",
+            &holodeck_cli::generated::command_line(),
+            text,
+            &[],
+        )?;
     }
     let report = Report {
         format: FORMAT,
         version: env!("CARGO_PKG_VERSION").into(),
-        cpu: crate::generated::cpu(),
+        cpu: holodeck_cli::generated::cpu(),
         threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
         started,
         figures,

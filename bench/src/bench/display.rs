@@ -19,9 +19,9 @@ use holodeck_sampler::{TraceOptions, Tracer};
 use rayon::prelude::*;
 
 use super::row;
-use crate::cmd::render::ROOM_VIEW;
-use crate::human::count;
 use holodeck::fill::{fill, FillOptions, ViewFill};
+use holodeck::ROOM_VIEW;
+use holodeck_cli::human::count;
 
 /// Most driver samples `bench display` traces and holds at once.
 const MAX_DISPLAY_SAMPLES: u64 = 100_000_000;
@@ -36,10 +36,10 @@ Example:
   holodeck bench display --samples 1M --rays 4M")]
 pub struct Args {
     /// Driver samples (at most 100M: about 10 GB of samples).
-    #[arg(long, default_value = "1M", value_parser = crate::human::count_in(1, MAX_DISPLAY_SAMPLES))]
+    #[arg(long, default_value = "1M", value_parser = holodeck_cli::human::count_in(1, MAX_DISPLAY_SAMPLES))]
     pub samples: u64,
     /// Rays in the holodeck file drawn from.
-    #[arg(long, default_value = "4M", value_parser = crate::human::count_in(1, u64::MAX))]
+    #[arg(long, default_value = "4M", value_parser = holodeck_cli::human::count_in(1, u64::MAX))]
     pub rays: u64,
     #[command(flatten)]
     pub files: super::Files,
@@ -292,7 +292,7 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("pict-bench.hdk");
     let _ = std::fs::remove_file(&path);
-    let (_, mut file) = crate::prepare::prepare("builtin:room", &path, None, None, false, false)?;
+    let (_, mut file) = holodeck_cli::prepare::prepare("builtin:room", &path, None, None, false, false)?;
     let seen = ViewFill::new(file.sections(), std::slice::from_ref(&view), 0.0);
     eprintln!("filling {} rays for one view...", count(rays));
     let o = FillOptions {
@@ -312,14 +312,14 @@ pub fn run(samples: usize, rays: u64, dir: &Path, keep: bool) -> Result<()> {
         holodeck::recall::draw(
             &mut file,
             vp.clone(),
-            &crate::cmd::args::DriverChoice::plain(driver, Default::default()),
+            &holodeck_cli::args::DriverChoice::plain(driver, Default::default()),
             2,
             0,
         )?;
         let (_, _, st) = holodeck::recall::draw(
             &mut file,
             vp.clone(),
-            &crate::cmd::args::DriverChoice::plain(driver, Default::default()),
+            &holodeck_cli::args::DriverChoice::plain(driver, Default::default()),
             2,
             0,
         )?;

@@ -34,9 +34,9 @@ use holodeck_protocol::{BeamKey, Picture, View};
 use holodeck_sampler::render::{render, RenderOptions};
 use holodeck_sampler::{TraceOptions, Tracer};
 
-use crate::human::count;
 use holodeck::fill::{fill, FillOptions, ViewFill};
 use holodeck::truth::Truth;
+use holodeck_cli::human::count;
 use holodeck_sampler::beam::trace_batch;
 
 /// Arguments of `holodeck bench accuracy`.
@@ -57,19 +57,19 @@ Examples:
   holodeck bench accuracy --paths 1M --walk-views 0 --reference-spp 4096 -x 160 -y 120")]
 pub struct Args {
     /// Paths per budget (repeat for several).
-    #[arg(long, value_parser = crate::human::count_in(1, u64::from(u32::MAX)), default_values = ["62.5K", "250K", "1M", "4M"])]
+    #[arg(long, value_parser = holodeck_cli::human::count_in(1, u64::from(u32::MAX)), default_values = ["62.5K", "250K", "1M", "4M"])]
     pub paths: Vec<u64>,
     /// Scene.
     #[arg(long, default_value = "builtin:room")]
     pub scene: String,
     /// View (the walk starts there).
-    #[arg(long, default_value = crate::cmd::render::ROOM_VIEW, allow_hyphen_values = true)]
+    #[arg(long, default_value = holodeck::ROOM_VIEW, allow_hyphen_values = true)]
     pub view: String,
     /// Frame width.
-    #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(crate::cmd::args::SIDE))]
+    #[arg(short = 'x', long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(holodeck_cli::args::SIDE))]
     pub width: u32,
     /// Frame height.
-    #[arg(short = 'y', long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(crate::cmd::args::SIDE))]
+    #[arg(short = 'y', long, default_value_t = 96, value_parser = clap::value_parser!(u32).range(holodeck_cli::args::SIDE))]
     pub height: u32,
     /// Samples per pixel of the references (rendered once, kept in --dir).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
@@ -85,25 +85,25 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "room,landscape,arcade,blind")]
     pub light_scenes: Vec<String>,
     /// Rays filled for each scene's view in the light-kept part.
-    #[arg(long, default_value = "1M", value_parser = crate::human::count_in(1000, u64::from(u32::MAX)))]
+    #[arg(long, default_value = "1M", value_parser = holodeck_cli::human::count_in(1000, u64::from(u32::MAX)))]
     pub light_rays: u64,
     /// Relative RMSE every walkthrough view must reach.
-    #[arg(long, default_value_t = 0.2, value_parser = crate::cmd::args::positive)]
+    #[arg(long, default_value_t = 0.2, value_parser = holodeck_cli::args::positive)]
     pub target: f64,
     /// Eye radius of the holodeck's fills (fraction of the section diagonal).
-    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, value_parser = crate::cmd::args::non_negative)]
+    #[arg(long, default_value_t = holodeck_display::request::RequestOptions::default().eye_radius, value_parser = holodeck_cli::args::non_negative)]
     pub eye_radius: f64,
     #[command(flatten)]
-    pub estimator: crate::cmd::args::EstimatorArgs,
+    pub estimator: holodeck_cli::args::EstimatorArgs,
     #[command(flatten)]
     pub files: super::Files,
     #[command(flatten)]
-    pub markdown: crate::generated::MarkdownArgs,
+    pub markdown: holodeck_cli::generated::MarkdownArgs,
 }
 
 /// Runs `holodeck bench accuracy`.
 pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
-    crate::cmd::args::frame_size(a.width, a.height)?;
+    holodeck_cli::args::frame_size(a.width, a.height)?;
     a.markdown.start();
     AccuracyBench {
         scene: a.scene.clone(),
@@ -228,7 +228,7 @@ impl AccuracyBench {
     fn holodeck(&self, scene: &str, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<Filled> {
         let path = self.dir.join(format!("accuracy-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, mut file) = crate::prepare::prepare(scene, &path, None, None, false, true)?;
+        let (_, mut file) = holodeck_cli::prepare::prepare(scene, &path, None, None, false, true)?;
         let start = Instant::now();
         let o = FillOptions {
             rays: Some(paths),
@@ -243,7 +243,7 @@ impl AccuracyBench {
             )),
         };
         fill(tracer, &mut file, &o, &|_| {})?;
-        let choice = crate::cmd::args::DriverChoice::plain("quadtree", self.estimator);
+        let choice = holodeck_cli::args::DriverChoice::plain("quadtree", self.estimator);
         let (mut driver, _) = holodeck::recall(&mut file, self.viewport(view)?, &choice, 2, seed)?;
         let raw = driver.render();
         let raw_secs = start.elapsed().as_secs_f64();
@@ -269,7 +269,7 @@ impl AccuracyBench {
     fn session(&self, tracer: &Tracer, view: &View, paths: u64, seed: u64) -> Result<(Picture, f64, u64)> {
         let path = self.dir.join(format!("accuracy-session-{seed}.hdk"));
         let _ = std::fs::remove_file(&path);
-        let (_, file) = crate::prepare::prepare(&self.scene, &path, None, None, false, true)?;
+        let (_, file) = holodeck_cli::prepare::prepare(&self.scene, &path, None, None, false, true)?;
         let start = Instant::now();
         let mut walker = Walker::new(file, self.viewport(view)?, self.estimator)?;
         let (mut rays, mut density, mut step) = (0u64, 0.0f32, 0u64);
@@ -450,7 +450,7 @@ impl AccuracyBench {
         let max_steps = 64u32;
         let path = self.dir.join("accuracy-walk.hdk");
         let _ = std::fs::remove_file(&path);
-        let (_, file) = crate::prepare::prepare(&self.scene, &path, None, None, false, true)?;
+        let (_, file) = holodeck_cli::prepare::prepare(&self.scene, &path, None, None, false, true)?;
         let mut walker = Walker::new(file, self.viewport(&views[0])?, self.estimator)?;
         let (mut direct_total, mut holo_total) = (0.0, 0.0);
         let (mut direct_paths, mut holo_rays) = (0u64, 0u64);
@@ -589,7 +589,7 @@ fn scene_view(scene: &str) -> &'static str {
     match scene {
         "builtin:arcade" => ARCADE_VIEW,
         "builtin:blind" => BLIND_VIEW,
-        _ => crate::cmd::render::ROOM_VIEW,
+        _ => holodeck::ROOM_VIEW,
     }
 }
 
@@ -650,7 +650,7 @@ fn direct_oidn(tracer: &Tracer, view: &View, size: (u32, u32), paths: u64, seed:
         seed,
     };
     let (albedo, normal) = holodeck_sampler::render::render_aovs(tracer, view, &o)?;
-    let p = crate::cmd::render::denoise_oidn(&noisy, &albedo, &normal)?;
+    let p = holodeck::truth::denoise_oidn(&noisy, &albedo, &normal)?;
     Ok((p, start.elapsed().as_secs_f64()))
 }
 
@@ -772,7 +772,7 @@ pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
     use super::report::Figure;
     let bench = AccuracyBench {
         scene: "builtin:room".into(),
-        view: View::parse(crate::cmd::render::ROOM_VIEW)?,
+        view: View::parse(holodeck::ROOM_VIEW)?,
         width: 96,
         height: 72,
         paths: vec![250_000],

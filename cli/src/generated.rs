@@ -192,7 +192,7 @@ pub fn publish(dir: &Path, name: &str, command: &str, body: &str) -> Result<(Pat
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let path = dir.join(format!("{name}.md"));
     let text = format!("{}\n{}", header(command, SystemTime::now()), body.trim_end()) + "\n";
-    crate::cmd::outfile::write(&path, text.replace("](@/", "](").as_bytes(), &[])?;
+    crate::outfile::write(&path, text.replace("](@/", "](").as_bytes(), &[])?;
     let folder = dir
         .file_name()
         .map_or_else(|| "results".to_string(), |f| f.to_string_lossy().into_owned());
@@ -213,7 +213,7 @@ pub fn publish(dir: &Path, name: &str, command: &str, body: &str) -> Result<(Pat
         let old = std::fs::read_to_string(&doc).with_context(|| format!("reading {}", doc.display()))?;
         match splice(&old, &quote, &text).map_err(|e| anyhow::anyhow!("{}: {e}", doc.display()))? {
             Some(new) if new != old => {
-                crate::cmd::outfile::write(&doc, new.as_bytes(), &[])?;
+                crate::outfile::write(&doc, new.as_bytes(), &[])?;
                 refreshed.push(doc);
             }
             _ => {}

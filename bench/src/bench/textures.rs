@@ -16,7 +16,7 @@ use holodeck_sampler::scene::{load_scene, write_scene};
 use holodeck_sampler::{TraceOptions, Tracer};
 
 use super::report::median;
-use crate::human::{bytes, count};
+use holodeck_cli::human::{bytes, count};
 
 /// A view from the back of the room over the rug to the window, the brick
 /// wall on its right and the plant by the window.

@@ -18,7 +18,7 @@ use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::View;
 
 use super::row;
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck bench replay`.
 #[derive(clap::Args)]
@@ -35,7 +35,7 @@ pub struct Args {
     /// The holodeck file to replay.
     pub file: PathBuf,
     /// The walk's first view (Radiance view options).
-    #[arg(long, default_value = crate::cmd::render::ROOM_VIEW, allow_hyphen_values = true)]
+    #[arg(long, default_value = holodeck::ROOM_VIEW, allow_hyphen_values = true)]
     pub view: String,
     /// Views in the walk.
     #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(1..=10_000))]
@@ -108,7 +108,7 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
         ..OpenOptions::default()
     };
     let mut file = HoloFile::open(&a.file, &options).with_context(|| format!("opening {}", a.file.display()))?;
-    let first = crate::cmd::view_arg::parse(&a.view).context("--view")?;
+    let first = holodeck_cli::view_arg::parse(&a.view).context("--view")?;
     let views = holodeck::truth::walk(&first, a.views as usize, a.step, a.turn);
     let size = (a.width, a.height);
     // Every beam the walk sees read once, so the file's cache holds them.

@@ -61,13 +61,13 @@ struct DemoArgs {
     #[arg(short, long, default_value = "charts")]
     output: PathBuf,
     /// Rays traced into the holodeck.
-    #[arg(long, default_value = "4M", value_parser = crate::human::count_in(1000, 1_000_000_000))]
+    #[arg(long, default_value = "4M", value_parser = holodeck_cli::human::count_in(1000, 1_000_000_000))]
     rays: u64,
     /// Views of the walk (`error` uses the first).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
     views: u32,
     /// Triangles of the scenery outside the window.
-    #[arg(long, default_value = "200K", value_parser = crate::human::count_in(1000, super::args::MAX_TRIANGLES))]
+    #[arg(long, default_value = "200K", value_parser = holodeck_cli::human::count_in(1000, holodeck_cli::args::MAX_TRIANGLES))]
     triangles: u64,
     /// Samples per pixel of the references.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
@@ -84,7 +84,7 @@ struct SceneFileArgs {
     #[arg(short, long, default_value = "charts")]
     output: PathBuf,
     /// Landscape size (triangles).
-    #[arg(long, default_value = "1M", value_parser = crate::human::count_in(1000, super::args::MAX_TRIANGLES))]
+    #[arg(long, default_value = "1M", value_parser = holodeck_cli::human::count_in(1000, holodeck_cli::args::MAX_TRIANGLES))]
     triangles: u64,
     /// Rays per measurement: a square of this many pixels per side.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(16..=4096))]
@@ -92,7 +92,7 @@ struct SceneFileArgs {
     #[command(flatten)]
     files: super::bench::Files,
     #[command(flatten)]
-    markdown: crate::generated::MarkdownArgs,
+    markdown: holodeck_cli::generated::MarkdownArgs,
 }
 
 fn demo(a: &DemoArgs, views: u32) -> Result<ExitCode> {

@@ -30,7 +30,7 @@ pub struct Args {
     /// The later run.
     after: PathBuf,
     /// Smallest relative change that can count, whatever the noise.
-    #[arg(long, default_value_t = 0.03, value_parser = crate::cmd::args::non_negative)]
+    #[arg(long, default_value_t = 0.03, value_parser = holodeck_cli::args::non_negative)]
     floor: f64,
     /// Exit with status 1 when a figure got worse beyond the noise.
     #[arg(long)]

@@ -9,9 +9,9 @@ use holodeck_display::compare::Metrics;
 
 use super::methods::{Column, Kind};
 use super::{sheet, Demo, Fill};
-use crate::chart::{Panel, Series, SeriesLabelPosition};
-use crate::human::count;
 use holodeck::truth::Truth;
+use holodeck_cli::chart::{Panel, Series, SeriesLabelPosition};
+use holodeck_cli::human::count;
 
 /// The methods a sheet shows after the reference: by name, and the label
 /// under each.
@@ -69,7 +69,7 @@ pub fn charts(out: &Path, filled: &Fill, columns: &[Column], views: usize) -> Re
         .filter(|(_, c)| !c.is_empty())
         .map(|(n, c)| curve(n, c, |p| p.1))
         .collect();
-    crate::chart::write(
+    holodeck_cli::chart::write(
         &out.join("chart-error-vs-paths-and-time"),
         &[
             Panel {
@@ -115,7 +115,7 @@ pub fn charts(out: &Path, filled: &Fill, columns: &[Column], views: usize) -> Re
             })
             .collect()
     };
-    crate::chart::write(
+    holodeck_cli::chart::write(
         &out.join("chart-walkthrough"),
         &[
             Panel {

@@ -55,7 +55,7 @@ pub fn write(path: &Path, panels: &[Panel<'_>], tone: &ToneMap) -> Result<()> {
             rgb[to..to + w * 3].copy_from_slice(&pixels[row * w * 3..(row + 1) * w * 3]);
         }
     }
-    crate::chart::register_font();
+    holodeck_cli::chart::register_font();
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (sheet_w as u32, sheet_h as u32)).into_drawing_area();
         let style = ("sans-serif", 12).into_font().color(&BLACK);

@@ -17,7 +17,7 @@ use holodeck_protocol::wire::{Frame, Message, Role};
 use holodeck_protocol::{BeamKey, Section, View, ViewBeams};
 
 use super::network::{me, quit, serve, Peer};
-use crate::human::count;
+use holodeck_cli::human::count;
 
 /// Arguments of `holodeck bench share`.
 #[derive(clap::Args)]
