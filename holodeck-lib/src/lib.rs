@@ -6,6 +6,7 @@
 //! measure them against converged references ([`truth::Truth`]).
 //! `examples/fill_and_draw.rs` does all three in a page.
 //!
+//! * `demo` — the demo's stages: its walk, and the ways a view is drawn and scored.
 //! * `fill` — a batch fill in one process: the schedule picks beams, the cores trace them, the file keeps the rays.
 //! * `prepare` — a scene and its file made ready to fill: created, adopted or refused.
 //! * `recall` — pictures from a file: the beams a view sees, read, decoded and handed to a driver.
@@ -13,6 +14,7 @@
 //! * `scene_input` — what the commands that trace accept as a scene.
 //! * `truth` — converged reference pictures in two halves that state their own noise, and direct renders.
 
+pub mod demo;
 pub mod fill;
 pub mod prepare;
 pub mod recall;
@@ -87,6 +89,9 @@ pub enum Error {
     /// A picture cannot be measured against its reference.
     #[error(transparent)]
     Compare(#[from] holodeck_display::compare::CompareError),
+    /// A denoiser failed (or is not in this build).
+    #[error(transparent)]
+    Denoise(#[from] holodeck_display::denoise::DenoiseError),
     /// A picture size is impossible.
     #[error(transparent)]
     PictureSize(#[from] holodeck_protocol::PictureSizeError),

@@ -9,12 +9,15 @@
 //! summary table of every measure per method.
 //!
 //! Every number is measured here, in this run, against references whose own
-//! noise is stated beside them.
+//! noise is stated beside them. The stages (the walk, the ways of drawing a
+//! view) are the library's (`holodeck::demo`); this module runs them in
+//! order and writes what they give.
+//!
+//! * `report` — the sheets, charts, summary table and JSON of a run.
+//! * `sheet` — a comparison sheet of pictures side by side.
 
-mod methods;
 mod report;
 mod sheet;
-pub mod walk;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -25,11 +28,12 @@ use holodeck_display::Viewport;
 use holodeck_protocol::{Picture, View};
 use holodeck_sampler::TraceOptions;
 
+pub use holodeck::demo::methods::DRIVERS;
+use holodeck::demo::methods::{self, Column, Kind, Shot};
+use holodeck::demo::walk;
 use holodeck::fill::{fill, FillOptions, ViewFill};
 use holodeck::truth::Truth;
 use holodeck_cli::human::count;
-pub use methods::DRIVERS;
-use methods::{Column, Kind, Shot};
 
 /// What the demo does and where it writes.
 #[derive(Clone, Debug)]

@@ -7,8 +7,8 @@ use std::path::Path;
 use anyhow::Result;
 use holodeck_display::compare::Metrics;
 
-use super::methods::{Column, Kind};
 use super::{sheet, Demo, Fill};
+use holodeck::demo::methods::{Column, Kind};
 use holodeck::truth::Truth;
 use holodeck_cli::chart::{Panel, Series, SeriesLabelPosition};
 use holodeck_cli::human::count;
@@ -234,7 +234,9 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
         );
     }
     // The references' own noise against the default method's errors.
-    let default = columns.iter().find(|c| c.kind == super::methods::default_method());
+    let default = columns
+        .iter()
+        .find(|c| c.kind == holodeck::demo::methods::default_method());
     let noise: Vec<f64> = r
         .truths
         .iter()

@@ -6,7 +6,6 @@
 
 use std::time::Instant;
 
-use anyhow::{Context, Result};
 use holodeck_display::compare::Metrics;
 use holodeck_display::denoise::{AtrousOptions, Denoiser};
 use holodeck_display::{EstimatorOptions, Viewport};
@@ -15,8 +14,11 @@ use holodeck_protocol::{Picture, View};
 use holodeck_sampler::render::{render, render_aovs, RenderOptions};
 use holodeck_sampler::Tracer;
 
-use holodeck::truth::Truth;
-use holodeck_cli::args::DriverChoice;
+use crate::truth::Truth;
+use crate::{DriverChoice, Error};
+
+/// What the functions here return.
+type Result<T> = std::result::Result<T, Error>;
 
 /// The display drivers drawn, in the order of the sheets.
 pub const DRIVERS: [&str; 3] = ["quadtree", "voronoi", "mesh"];
@@ -168,7 +170,7 @@ pub fn draw_holodeck(
     seed: u64,
 ) -> Result<Vec<(usize, Shot)>> {
     let choice = DriverChoice::plain(driver, EstimatorOptions::default());
-    let (mut d, recalled) = holodeck::recall(file, viewport, &choice, 2, seed)?;
+    let (mut d, recalled) = crate::recall(file, viewport, &choice, 2, seed)?;
     let start = Instant::now();
     let raw = d.render();
     let base = recalled.secs.as_secs_f64() + start.elapsed().as_secs_f64();
@@ -205,23 +207,22 @@ pub fn draw_holodeck(
 /// taken and the paths traced.
 pub fn direct_for(tracer: &Tracer, view: &View, size: (u32, u32), secs: f64, seed: u64) -> Result<(Picture, f64, u64)> {
     let start = Instant::now();
-    let mut sum: Option<Picture> = None;
-    let mut passes = 0u64;
-    while passes == 0 || start.elapsed().as_secs_f64() < secs {
+    let pass = |passes: u64| {
         let o = RenderOptions {
             width: size.0,
             height: size.1,
             spp: 1,
             seed: seed << 20 | passes,
         };
-        let p = render(tracer, view, &o, &|_, _| {})?;
-        match &mut sum {
-            None => sum = Some(p),
-            Some(acc) => acc.pixels.iter_mut().zip(&p.pixels).for_each(|(a, b)| *a += *b),
-        }
+        render(tracer, view, &o, &|_, _| {})
+    };
+    let mut picture = pass(0)?;
+    let mut passes = 1u64;
+    while start.elapsed().as_secs_f64() < secs {
+        let p = pass(passes)?;
+        picture.pixels.iter_mut().zip(&p.pixels).for_each(|(a, b)| *a += *b);
         passes += 1;
     }
-    let mut picture = sum.context("no pass rendered")?;
     picture.pixels.iter_mut().for_each(|p| *p /= passes as f32);
     let paths = passes * u64::from(size.0) * u64::from(size.1);
     Ok((picture, start.elapsed().as_secs_f64(), paths))
@@ -249,7 +250,7 @@ pub fn direct_oidn_for(
         seed,
     };
     let (albedo, normal) = render_aovs(tracer, view, &o)?;
-    let picture = holodeck::truth::denoise_oidn(&noisy, &albedo, &normal)?;
+    let picture = crate::truth::denoise_oidn(&noisy, &albedo, &normal)?;
     *overhead = after.elapsed().as_secs_f64();
     Ok((picture, start.elapsed().as_secs_f64(), paths))
 }
