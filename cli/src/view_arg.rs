@@ -64,6 +64,16 @@ fn from_file(mut view: View, path: &Path) -> Result<View> {
     Ok(view)
 }
 
+/// The views of a view file, one Radiance view per line (at least one).
+pub fn read_views(path: &std::path::Path) -> Result<Vec<View>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
+    if views.is_empty() {
+        bail!("{} holds no views", path.display());
+    }
+    Ok(views)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

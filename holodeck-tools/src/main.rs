@@ -5,6 +5,8 @@
 //!
 //! * `cmd` — one module per command: its arguments and a `run` over the libraries.
 //! * `parent` — living and dying with a parent process.
+//! * `supervise` — child processes a command starts and watches, and stop signals.
+//! * `window` — what `view` and `pict --window` share to open the walkthrough window.
 
 use std::process::ExitCode;
 
@@ -15,6 +17,8 @@ extern crate holodeck_cli;
 
 mod cmd;
 mod parent;
+mod supervise;
+mod window;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.
 #[derive(Parser)]

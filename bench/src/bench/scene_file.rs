@@ -6,7 +6,7 @@
 //! 0.5 to 8 pixels of error; and the file assembled in memory, as samplers
 //! trace it when every block fits.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -116,10 +116,38 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             ..GenParams::default()
         },
     )?;
-    let n = scene.triangles.len() as u64;
     let t0 = Instant::now();
     let tree = KdTree::build(&scene, &Default::default());
     let in_core_build = t0.elapsed().as_secs_f64();
+    let Some((path, decompressed)) = builds_table(&scene, &tree, in_core_build, dir, keep)? else {
+        return Ok(());
+    };
+    let view = View::parse(VIEW)?;
+    let prim = primary(&view, pixels as usize);
+    let budget_series = budgets_table(&tree, &scene, &prim, &path, decompressed)?;
+    let file = Arc::new(OocScene::open(&path, None, 2)?);
+    let lod = lod_table(&file, &view, &prim, pixels)?;
+    if let Some(dir) = charts {
+        write_charts(dir, scene.triangles.len() as u64, budget_series, lod)?;
+    }
+    if !keep {
+        drop(file);
+        let _ = std::fs::remove_file(&path);
+    }
+    Ok(())
+}
+
+/// The table of builds: the in-core kd-tree, then a scene file with each
+/// codec in a quarter of the scene's memory. The LZ4 file's path and its
+/// decompressed bytes (the zstd file is removed unless `keep`).
+fn builds_table(
+    scene: &Scene,
+    tree: &KdTree,
+    in_core_build: f64,
+    dir: &Path,
+    keep: bool,
+) -> Result<Option<(PathBuf, u64)>> {
+    let n = scene.triangles.len() as u64;
     let tree_bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + tree.stats().bytes;
     out!();
     out!("| build | memory budget | chunks | time (2 cores) | decompressed | file | ratio | decompression (1 core) |");
@@ -161,17 +189,21 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
             let _ = std::fs::remove_file(&path);
         }
     }
-    let Some((path, decompressed)) = lz4 else { return Ok(()) };
+    Ok(lz4)
+}
 
-    let view = View::parse(VIEW)?;
-    let prim = primary(&view, pixels as usize);
-    let bounce = bounces(&tree, &scene, &prim);
+/// The table of rays/s out of core at cache budgets of the whole, 30% and
+/// 10% of the scene, cold and warm, beside the in-core tree on the same
+/// rays (primary, diffuse bounces, bounces sorted by hit point), then the
+/// file assembled in memory. The warm and cold curves, for the chart.
+fn budgets_table(tree: &KdTree, scene: &Scene, prim: &[Ray], path: &Path, decompressed: u64) -> Result<Vec<Series>> {
+    let bounce = bounces(tree, scene, prim);
     out!();
     out!("| rays | in core (baseline, median) | budget | cold | warm (median of {REPEATS}) | warm / in core (median of pairs) | hits differing |");
     out!("|---|---|---|---|---|---|---|");
     let mut budget_series = Vec::new();
     // The file assembled in memory, as samplers do when every block fits.
-    let (mesh, assembled, report) = OocScene::open(&path, None, 0)?.in_core()?;
+    let (mesh, assembled, report) = OocScene::open(path, None, 0)?.in_core()?;
     let mut assembled_rows = Vec::new();
     // The bounce rays again, sorted by estimated hit point (Moon 2010; the
     // in-core tree's coarse grid stands in for the coarse level).
@@ -181,7 +213,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         .map(|i| bounce[i as usize])
         .collect();
     for (label, rays) in [
-        ("primary", &prim),
+        ("primary", prim),
         ("diffuse bounce", &bounce),
         ("diffuse bounce, sorted by hit point", &sorted),
     ] {
@@ -194,7 +226,7 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         let want = in_core().1;
         for share in [1.0, 0.3, 0.1] {
             let budget = ((decompressed as f64 * share) as usize).max(1 << 16);
-            let file = OocScene::open(&path, Some(budget), 2)?;
+            let file = OocScene::open(path, Some(budget), 2)?;
             let (cold, mut wrong) = trace_ooc(&file, rays, &want);
             // Warm: passes alternating with the in-core baseline, so that both
             // see the same machine; the medians of each and of their ratio.
@@ -261,9 +293,21 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         out!("{row}");
     }
     drop((mesh, assembled));
+    Ok(budget_series)
+}
 
-    // LOD: frame time and error against LOD off, all blocks resident.
-    let file = Arc::new(OocScene::open(&path, None, 2)?);
+/// What the LOD table measured, per pixels of error: frame time against
+/// LOD off, relative RMSE against LOD off, and the share of primary rays
+/// ending at a voxel; with the frame size.
+struct LodCurves {
+    size: (u32, u32),
+    time: Vec<(f64, f64)>,
+    error: Vec<(f64, f64)>,
+    voxels: Vec<(f64, f64)>,
+}
+
+/// The LOD table: frame time and error against LOD off, all blocks resident.
+fn lod_table(file: &Arc<OocScene>, view: &View, prim: &[Ray], pixels: u32) -> Result<LodCurves> {
     let (w, h) = (pixels, pixels * 5 / 7);
     let opts = RenderOptions {
         width: w,
@@ -273,23 +317,23 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
     };
     let frame = |poe: f64| -> Result<(Picture, f64, u64)> {
         let tracer = Tracer::out_of_core(
-            Arc::clone(&file),
+            Arc::clone(file),
             TraceOptions {
                 max_bounces: 1,
-                lod_primary: holodeck::truth::lod_ratio(poe, &view, w),
-                lod_secondary: holodeck::truth::lod_ratio(poe, &view, w),
+                lod_primary: holodeck::truth::lod_ratio(poe, view, w),
+                lod_secondary: holodeck::truth::lod_ratio(poe, view, w),
                 ..TraceOptions::default()
             },
         );
         // Once to load every block, once to time.
-        render(&tracer, &view, &opts, &|_, _| {})?;
+        render(&tracer, view, &opts, &|_, _| {})?;
         let t = Instant::now();
-        let p = render(&tracer, &view, &opts, &|_, _| {})?;
+        let p = render(&tracer, view, &opts, &|_, _| {})?;
         Ok((p, t.elapsed().as_secs_f64(), file.cache().stats().resident_bytes as u64))
     };
     let (exact, exact_time, _) = frame(0.0)?;
     let voxel_hits = |poe: f64| {
-        let c = holodeck::truth::lod_ratio(poe, &view, w);
+        let c = holodeck::truth::lod_ratio(poe, view, w);
         prim.iter()
             .filter(|r| {
                 matches!(
@@ -320,52 +364,58 @@ pub fn run(triangles: u64, pixels: u32, dir: &Path, keep: bool, charts: Option<&
         error_curve.push((poe, error));
         voxel_curve.push((poe, voxels));
     }
-    if let Some(dir) = charts {
-        let scene_name = format!("landscape, {} triangles", count(n));
-        let budget = Panel {
-            title: format!("Scene-memory budget: rays/s against in core ({scene_name})"),
-            x_label: "cache budget, % of the decompressed scene".into(),
-            y_label: "rays/s, out of core / in core".into(),
-            legend: SeriesLabelPosition::LowerRight,
-            series: budget_series,
-        };
-        let lod = [
-            Panel {
-                title: format!("LOD: frame time ({scene_name})"),
-                x_label: "pixels of error".into(),
-                y_label: "frame time / LOD off".into(),
-                legend: SeriesLabelPosition::LowerLeft,
-                series: vec![Series {
-                    name: format!("{w} x {h}, 4 spp, 1 bounce"),
-                    points: time_curve,
-                }],
-            },
-            Panel {
-                title: "LOD: image error and voxel hits".into(),
-                x_label: "pixels of error".into(),
-                y_label: "share".into(),
-                legend: SeriesLabelPosition::UpperLeft,
-                series: vec![
-                    Series {
-                        name: "relative RMSE against LOD off".into(),
-                        points: error_curve,
-                    },
-                    Series {
-                        name: "primary rays ending at a voxel".into(),
-                        points: voxel_curve,
-                    },
-                ],
-            },
-        ];
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for (stem, panels) in [("ooc-budget", std::slice::from_ref(&budget)), ("ooc-lod", &lod[..])] {
-            let [svg, png] = holodeck_cli::chart::write(&dir.join(stem), panels)?;
-            eprintln!("wrote {} and {}", svg.display(), png.display());
-        }
-    }
-    if !keep {
-        drop(file);
-        let _ = std::fs::remove_file(&path);
+    Ok(LodCurves {
+        size: (w, h),
+        time: time_curve,
+        error: error_curve,
+        voxels: voxel_curve,
+    })
+}
+
+/// Charts of the budget and LOD tables into `dir`.
+fn write_charts(dir: &Path, n: u64, budget_series: Vec<Series>, lod: LodCurves) -> Result<()> {
+    let (w, h) = lod.size;
+    let (time_curve, error_curve, voxel_curve) = (lod.time, lod.error, lod.voxels);
+    let scene_name = format!("landscape, {} triangles", count(n));
+    let budget = Panel {
+        title: format!("Scene-memory budget: rays/s against in core ({scene_name})"),
+        x_label: "cache budget, % of the decompressed scene".into(),
+        y_label: "rays/s, out of core / in core".into(),
+        legend: SeriesLabelPosition::LowerRight,
+        series: budget_series,
+    };
+    let lod = [
+        Panel {
+            title: format!("LOD: frame time ({scene_name})"),
+            x_label: "pixels of error".into(),
+            y_label: "frame time / LOD off".into(),
+            legend: SeriesLabelPosition::LowerLeft,
+            series: vec![Series {
+                name: format!("{w} x {h}, 4 spp, 1 bounce"),
+                points: time_curve,
+            }],
+        },
+        Panel {
+            title: "LOD: image error and voxel hits".into(),
+            x_label: "pixels of error".into(),
+            y_label: "share".into(),
+            legend: SeriesLabelPosition::UpperLeft,
+            series: vec![
+                Series {
+                    name: "relative RMSE against LOD off".into(),
+                    points: error_curve,
+                },
+                Series {
+                    name: "primary rays ending at a voxel".into(),
+                    points: voxel_curve,
+                },
+            ],
+        },
+    ];
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (stem, panels) in [("ooc-budget", std::slice::from_ref(&budget)), ("ooc-lod", &lod[..])] {
+        let [svg, png] = holodeck_cli::chart::write(&dir.join(stem), panels)?;
+        eprintln!("wrote {} and {}", svg.display(), png.display());
     }
     Ok(())
 }

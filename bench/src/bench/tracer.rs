@@ -309,19 +309,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
              `cargo build --release -p holodeck-tools --features embree` (needs libembree-dev)"
         );
     }
-    // Embree's rows, printed after ours.
-    #[cfg_attr(not(feature = "embree"), allow(unused_mut))]
-    let mut beside: Vec<String> = Vec::new();
-    // Rows of the reordering table, printed after the first.
-    let mut reordered: Vec<String> = Vec::new();
-    // Rows of the build-memory table.
-    let mut memory: Vec<String> = Vec::new();
-    // Rows of the wide BVH's table.
-    let mut wide: Vec<String> = Vec::new();
-    // Rows of the table of rays spread over the whole scene.
-    let mut scattered: Vec<String> = Vec::new();
-    // Rows of the table of whole paths in each order.
-    let mut paths: Vec<String> = Vec::new();
+    let mut rows = Rows::default();
     println!("holodeck bench tracer: {pixels} x {pixels} rays per measurement, ray casting on one core");
     println!();
     println!(
@@ -329,80 +317,114 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for case in cases(triangles)? {
-        let scene = &case.scene;
-        let peak_known = super::reset_peak_rss();
-        let before = super::rss().1;
-        let start = Instant::now();
-        let tree = KdTree::build(scene, &BuildOptions::default());
-        let kd_build = start.elapsed().as_secs_f64();
-        // The first build gives the peak memory; the rest take turns.
-        let peak = super::rss().0;
-        let (build, bvh) = builds(&case.label, scene, kd_build, embree)?;
-        let st = tree.stats();
-        let bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + st.bytes;
-        let mib = |b: u64| b as f64 / f64::from(1 << 20);
-        let mesh = (bytes - st.bytes) as u64;
-        // The target's measure: the build's peak with the mesh beside it,
-        // against what remains (the tree and the mesh).
-        let grown = peak.saturating_sub(before);
-        memory.push(if peak_known {
-            format!(
-                "| {} | {:.0} MiB | {:.0} MiB | {:.0} MiB | {:.2} |",
-                case.label,
-                mib(mesh),
-                mib(st.bytes as u64),
-                mib(grown),
-                (grown + mesh) as f64 / bytes.max(1) as f64
-            )
-        } else {
-            format!(
-                "| {} | {:.0} MiB | {:.0} MiB | unknown (this system cannot reset the peak) | |",
-                case.label,
-                mib(mesh),
-                mib(st.bytes as u64)
-            )
-        });
-        let primary = tiled_primary(&case.view, pixels as usize);
-        let (primary_packets, primary_packet_hits) = packet_throughput(&tree, &primary);
-        let (primary_rate, hits) = throughput(&tree, &primary);
-        let mut wrong = differing(&primary_packet_hits, &hits);
-        let bounce = bounces_from(scene, &hits);
-        let (bounce_rate, bounce_hits) = throughput(&tree, &bounce);
-        let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, &bounce);
-        wrong += differing(&bounce_packet_hits, &bounce_hits);
-        reordered.push(reordering_row(&case.label, &tree, &bounce, &bounce_hits));
-        wide.push(wide_row(&case.label, scene, &bvh, &tree, build, &primary, &bounce));
-        scattered.push(scattered_row(&case.label, scene, &tree, &bvh));
-        let tris = scene.triangles.len().max(1) as f64;
-        println!(
-            "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
-            case.label,
-            count(scene.triangles.len() as u64),
-            build.kd,
-            st.bytes as f64 / tris,
-            (bytes - st.bytes) as f64 / tris,
-            primary_rate / 1e6,
-            primary_packets / 1e6,
-            bounce_rate / 1e6,
-            bounce_packets / 1e6
-        );
-        paths.extend(super::paths::rows(&case.label, scene, &case.view)?);
-        #[cfg(feature = "embree")]
-        if embree {
-            beside.push(side_by_side(
-                &case.label,
-                scene,
-                build,
-                [primary_rate, primary_packets, bounce_rate, bounce_packets],
-                &bvh,
-                &primary,
-                &hits,
-                &bounce,
-                &bounce_hits,
-            )?);
-        }
-        drop(bvh);
+        case_rows(&case, pixels, embree, &mut rows)?;
     }
+    print_tables(rows, embree);
+    beam_table()?;
+    room_paths_table(embree)
+}
+
+/// The rows of the tables printed after the first, gathered case by case.
+#[derive(Default)]
+struct Rows {
+    /// Embree's rows.
+    beside: Vec<String>,
+    /// The reordering table.
+    reordered: Vec<String>,
+    /// The build-memory table.
+    memory: Vec<String>,
+    /// The wide BVH's table.
+    wide: Vec<String>,
+    /// Rays spread over the whole scene.
+    scattered: Vec<String>,
+    /// Whole paths in each order.
+    paths: Vec<String>,
+}
+
+/// Measures one case: prints its row of the first table and gathers its
+/// rows of the others.
+#[cfg_attr(not(feature = "embree"), allow(unused_variables))]
+fn case_rows(case: &Case, pixels: u32, embree: bool, rows: &mut Rows) -> Result<()> {
+    let scene = &case.scene;
+    let peak_known = super::reset_peak_rss();
+    let before = super::rss().1;
+    let start = Instant::now();
+    let tree = KdTree::build(scene, &BuildOptions::default());
+    let kd_build = start.elapsed().as_secs_f64();
+    // The first build gives the peak memory; the rest take turns.
+    let peak = super::rss().0;
+    let (build, bvh) = builds(&case.label, scene, kd_build, embree)?;
+    let st = tree.stats();
+    let bytes = scene.positions.len() * 12 + scene.triangles.len() * 16 + st.bytes;
+    let mib = |b: u64| b as f64 / f64::from(1 << 20);
+    let mesh = (bytes - st.bytes) as u64;
+    // The target's measure: the build's peak with the mesh beside it,
+    // against what remains (the tree and the mesh).
+    let grown = peak.saturating_sub(before);
+    rows.memory.push(if peak_known {
+        format!(
+            "| {} | {:.0} MiB | {:.0} MiB | {:.0} MiB | {:.2} |",
+            case.label,
+            mib(mesh),
+            mib(st.bytes as u64),
+            mib(grown),
+            (grown + mesh) as f64 / bytes.max(1) as f64
+        )
+    } else {
+        format!(
+            "| {} | {:.0} MiB | {:.0} MiB | unknown (this system cannot reset the peak) | |",
+            case.label,
+            mib(mesh),
+            mib(st.bytes as u64)
+        )
+    });
+    let primary = tiled_primary(&case.view, pixels as usize);
+    let (primary_packets, primary_packet_hits) = packet_throughput(&tree, &primary);
+    let (primary_rate, hits) = throughput(&tree, &primary);
+    let mut wrong = differing(&primary_packet_hits, &hits);
+    let bounce = bounces_from(scene, &hits);
+    let (bounce_rate, bounce_hits) = throughput(&tree, &bounce);
+    let (bounce_packets, bounce_packet_hits) = packet_throughput(&tree, &bounce);
+    wrong += differing(&bounce_packet_hits, &bounce_hits);
+    rows.reordered
+        .push(reordering_row(&case.label, &tree, &bounce, &bounce_hits));
+    rows.wide
+        .push(wide_row(&case.label, scene, &bvh, &tree, build, &primary, &bounce));
+    rows.scattered.push(scattered_row(&case.label, scene, &tree, &bvh));
+    let tris = scene.triangles.len().max(1) as f64;
+    println!(
+        "| {} | {} | {:.2} s | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} | {wrong} |",
+        case.label,
+        count(scene.triangles.len() as u64),
+        build.kd,
+        st.bytes as f64 / tris,
+        (bytes - st.bytes) as f64 / tris,
+        primary_rate / 1e6,
+        primary_packets / 1e6,
+        bounce_rate / 1e6,
+        bounce_packets / 1e6
+    );
+    rows.paths.extend(super::paths::rows(&case.label, scene, &case.view)?);
+    #[cfg(feature = "embree")]
+    if embree {
+        rows.beside.push(side_by_side(
+            &case.label,
+            scene,
+            build,
+            [primary_rate, primary_packets, bounce_rate, bounce_packets],
+            &bvh,
+            &primary,
+            &hits,
+            &bounce,
+            &bounce_hits,
+        )?);
+    }
+    drop(bvh);
+    Ok(())
+}
+
+/// Prints the tables gathered case by case.
+fn print_tables(rows: Rows, embree: bool) {
     println!();
     println!(
         "Memory while building (resident memory of this process above what it held just before the build, at its peak):"
@@ -410,7 +432,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     println!();
     println!("| scene | mesh | kd-tree | build's peak | (build's peak + mesh) / (kd-tree + mesh) |");
     println!("|---|---|---|---|---|");
-    for row in memory {
+    for row in rows.memory {
         println!("{row}");
     }
     println!();
@@ -420,7 +442,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     println!();
     println!("| scene | build (2 cores, best of two) | bytes/tri | shape | primary, single | diffuse bounce, single | primary, packets of 8, wide BVH | diffuse bounce, packets of 8, wide BVH | rays with another nearest distance (kd-tree and packets against single BVH rays) |");
     println!("|---|---|---|---|---|---|---|---|---|");
-    for row in wide {
+    for row in rows.wide {
         println!("{row}");
     }
     if embree {
@@ -433,7 +455,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
             "| scene | build, kd-tree / wide BVH / Embree | primary, single | primary, packets of 8 | diffuse bounce, single | diffuse bounce, packets of 8 | primary, single, wide BVH | diffuse bounce, single, wide BVH | primary, packets of 8, wide BVH | diffuse bounce, packets of 8, wide BVH | rays hitting another triangle |"
         );
         println!("|---|---|---|---|---|---|---|---|---|---|---|");
-        for row in beside {
+        for row in rows.beside {
             println!("{row}");
         }
     }
@@ -446,7 +468,7 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         "| scene | rays | as given | by hit point, batches of 4,096 (/ as given) | by hit point, batches of 32,768 | by hit point (Moon 2010), one batch | by origin, one batch | hit point / as given | origin / as given | hits differing |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
-    for row in reordered {
+    for row in rows.reordered {
         println!("{row}");
     }
     println!();
@@ -458,14 +480,18 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
         "| scene | rays | kd-tree, as given | kd-tree, by hit point (/ as given) | kd-tree, by origin (/ as given) | wide BVH, as given | wide BVH, by hit point (/ as given) | wide BVH, by origin (/ as given) | hits differing from as given |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    for row in scattered {
+    for row in rows.scattered {
         println!("{row}");
     }
     println!();
     println!("{}", super::paths::heading());
-    for row in paths {
+    for row in rows.paths {
         println!("{row}");
     }
+}
+
+/// The table of one beam packet's rays in the furnished room.
+fn beam_table() -> Result<()> {
     println!();
     println!(
         "Beam packets in the furnished room: the rays of one beam packet (from one sampled pair of grid cells), first hits one ray at a time and in packets of 8, and the whole sample (path tracing, 8 bounces, one estimate) with each and with the choice timed as it runs (the samplers' way):"
@@ -478,9 +504,14 @@ pub fn run(triangles: &[u64], pixels: u32, embree: bool) -> Result<()> {
     for per_beam in [4, 32] {
         println!("{}", beam_row(per_beam)?);
     }
-    // Path tracing with one diffuse bounce in the furnished room, on one core:
-    // samples per second, and the error against a converged reference after
-    // equal wall time, with and without light sampling.
+    Ok(())
+}
+
+/// Path tracing with one diffuse bounce in the furnished room, on one core:
+/// samples per second, and the error against a converged reference after
+/// equal wall time, with and without light sampling (and through Embree).
+#[cfg_attr(not(feature = "embree"), allow(unused_variables))]
+fn room_paths_table(embree: bool) -> Result<()> {
     let room = generate("room", &GenParams::default())?;
     let view = View::parse(holodeck::ROOM_VIEW)?;
     let (w, h) = (96u32, 72u32);

@@ -1,11 +1,10 @@
 //! `holodeck fill`: trace rays of a scene into a holodeck file, in this process.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
-use holodeck_protocol::{BeamKey, Section, View};
 use holodeck_sampler::TraceOptions;
 
 use holodeck_file::settings::parse_duration;
@@ -79,22 +78,6 @@ pub struct Args {
     vdistance: bool,
 }
 
-/// The views in the file at `path`, one per line.
-pub(crate) fn read_views(path: &Path) -> Result<Vec<View>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
-    if views.is_empty() {
-        bail!("{} holds no views", path.display());
-    }
-    Ok(views)
-}
-
-/// The beams the views in `path` see, with the view rays in each (the
-/// weights of a fill limited to those views).
-pub(crate) fn seen_by_views(path: &Path, sections: &[Section]) -> Result<Vec<(BeamKey, u32)>> {
-    Ok(ViewFill::new(sections, &read_views(path)?, 0.0).seen)
-}
-
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     if a.rays.is_none() && a.time.is_none() {
@@ -134,7 +117,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
         batch: 4096,
         seed: a.seed,
         views: match &a.views {
-            Some(path) => Some(ViewFill::new(file.sections(), &read_views(path)?, a.eye_radius)),
+            Some(path) => Some(ViewFill::new(
+                file.sections(),
+                &holodeck_cli::view_arg::read_views(path)?,
+                a.eye_radius,
+            )),
             None => None,
         },
     };

@@ -19,4 +19,3 @@ pub mod sample;
 pub mod scene;
 pub mod serve;
 pub mod view;
-pub mod window;

@@ -101,11 +101,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if a.window {
         let view = views.into_iter().next().context("no view")?;
         let source = holodeck::replay::FileSource::new(file, a.file.display().to_string());
-        let args = super::window::WindowArgs {
+        let args = crate::window::WindowArgs {
             script: a.script,
             stride: a.stride,
         };
-        super::window::open(Box::new(source), view, &a.frame, &args, Default::default())?;
+        crate::window::open(Box::new(source), view, &a.frame, &args, Default::default())?;
         return Ok(ExitCode::SUCCESS);
     }
     let Some(output) = &a.output else {

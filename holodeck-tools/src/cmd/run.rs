@@ -3,7 +3,7 @@
 //! display it is a batch fill.
 
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
@@ -15,6 +15,8 @@ use holodeck_protocol::wire::{client, Control};
 use holodeck_cli::args::{frame_size, MAX_WORKERS, SIDE};
 use holodeck_cli::human::count;
 use holodeck_cli::progress::Progress;
+
+use crate::supervise::{how, me, stop_on_signals, stop_signal, Child};
 
 /// Arguments of `holodeck run`.
 #[derive(clap::Args)]
@@ -118,128 +120,6 @@ fn driver_names() -> clap::builder::PossibleValuesParser {
     clap::builder::PossibleValuesParser::new(std::iter::once("none").chain(holodeck_display::DRIVERS.iter().copied()))
 }
 
-fn me() -> Result<Command> {
-    let mut cmd = Command::new(std::env::current_exe().context("finding the holodeck executable")?);
-    // The child watches its standard input: when this process ends, it stops
-    // too; and it logs as this process does (-q, -v).
-    cmd.arg("--exit-with-parent")
-        .args(holodeck_cli::verbosity::child_args())
-        .stdin(Stdio::piped());
-    Ok(cmd)
-}
-
-/// A process `run` started, named for messages. Dropping it kills the
-/// process if it still runs, so an error in `run` leaves nothing behind.
-struct Child {
-    name: String,
-    process: std::process::Child,
-    /// Set once its exit has been reported (or was expected).
-    done: bool,
-}
-
-impl Child {
-    fn spawn(name: impl Into<String>, mut cmd: Command) -> Result<Child> {
-        let name = name.into();
-        let process = cmd.spawn().with_context(|| format!("starting the {name}"))?;
-        Ok(Child {
-            name,
-            process,
-            done: false,
-        })
-    }
-
-    /// The exit status, if it has exited.
-    fn exited(&mut self) -> Result<Option<ExitStatus>> {
-        self.process
-            .try_wait()
-            .with_context(|| format!("waiting for the {}", self.name))
-    }
-
-    /// Waits up to `limit` for it to exit; kills it after that. Returns what
-    /// went wrong, if anything: a failure or signal, or having to be killed.
-    fn finish(&mut self, limit: Duration) -> Option<String> {
-        let start = Instant::now();
-        loop {
-            match self.process.try_wait() {
-                Ok(Some(status)) => {
-                    self.done = true;
-                    return (!status.success()).then(|| format!("the {} {}", self.name, how(status)));
-                }
-                Ok(None) if start.elapsed() < limit => std::thread::sleep(Duration::from_millis(50)),
-                _ => {
-                    let _ = self.process.kill();
-                    let _ = self.process.wait();
-                    self.done = true;
-                    return Some(format!(
-                        "the {} did not stop within {limit:?} and was killed",
-                        self.name
-                    ));
-                }
-            }
-        }
-    }
-}
-
-impl Drop for Child {
-    fn drop(&mut self) {
-        if !self.done && matches!(self.process.try_wait(), Ok(None)) {
-            let _ = self.process.kill();
-            let _ = self.process.wait();
-        }
-    }
-}
-
-/// How a process ended, in words.
-fn how(status: ExitStatus) -> String {
-    use std::os::unix::process::ExitStatusExt;
-    match (status.code(), status.signal()) {
-        (_, Some(sig)) => {
-            let name = match sig {
-                libc::SIGKILL => " (SIGKILL)",
-                libc::SIGTERM => " (SIGTERM)",
-                libc::SIGINT => " (SIGINT)",
-                libc::SIGSEGV => " (SIGSEGV)",
-                libc::SIGABRT => " (SIGABRT)",
-                _ => "",
-            };
-            format!("was killed by signal {sig}{name}")
-        }
-        (Some(code), None) => format!("failed with exit status {code}"),
-        (None, None) => "ended for an unknown reason".into(),
-    }
-}
-
-/// The signal (SIGINT or SIGTERM) that asked `run` to stop, 0 for none.
-static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
-
-extern "C" fn note_stop(signal: libc::c_int) {
-    STOP_SIGNAL.store(signal, std::sync::atomic::Ordering::Relaxed);
-}
-
-/// Makes SIGINT and SIGTERM to `run` (Ctrl-C, `kill PID`) stop the run as
-/// its TIME would: the server flushes and quits, the samplers and display
-/// stop, the summary is printed, and `run` exits 128 + the signal.
-fn stop_on_signals() {
-    for signal in [libc::SIGINT, libc::SIGTERM] {
-        // SAFETY: the handler only stores to an atomic, which is
-        // async-signal-safe; the action struct is fully initialised.
-        unsafe {
-            let mut action: libc::sigaction = std::mem::zeroed();
-            action.sa_sigaction = note_stop as extern "C" fn(libc::c_int) as usize;
-            libc::sigemptyset(&mut action.sa_mask);
-            libc::sigaction(signal, &action, std::ptr::null_mut());
-        }
-    }
-}
-
-/// The signal that asked the run to stop, if one did.
-fn stop_signal() -> Option<libc::c_int> {
-    match STOP_SIGNAL.load(std::sync::atomic::Ordering::Relaxed) {
-        0 => None,
-        s => Some(s),
-    }
-}
-
 /// Asks the server at `addr` to flush and quit.
 pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
     client::send_control(addr, token, Control::Quit)?;
@@ -249,128 +129,25 @@ pub(crate) fn quit(addr: &str, token: &str) -> Result<()> {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     frame_size(a.width, a.height)?;
-    let chosen = match &a.old_driver {
-        Some(d) => {
-            eprintln!("holodeck run: -o {d} names the display driver as older versions did; it is --driver {d} now");
-            d.as_str()
-        }
-        None => a.driver.as_str(),
-    };
-    let driver = (chosen != "none").then(|| chosen.to_string());
-    let screen = ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
-    let windowed = driver.is_some() && screen && !a.headless;
-    let time = match (&a.time, windowed) {
-        (Some(t), _) => parse_duration(t, 1.0).context("--time")?,
-        // Until the window closes.
-        (None, true) => Duration::MAX,
-        (None, false) => {
-            bail!("give --time: without a window nothing else ends the run (with one, closing it does: q)")
-        }
-    };
-    holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
-    let (before, default_view) = {
-        let (_, file) = holodeck_cli::prepare::prepare(
-            &a.scene,
-            &a.file,
-            a.triangles,
-            a.scene_memory,
-            a.accept_loss,
-            a.vdistance,
-        )?;
-        let view = if a.scene == "builtin:room" {
-            holodeck::ROOM_VIEW.to_string()
-        } else {
-            super::window::default_view(&file.sections()[0])
-        };
-        (file.summary().rays(), view)
-    };
-    let display = match (driver, &a.views) {
-        (None, _) => None,
-        (Some(d), Some(views)) => Some((d, views.clone())),
-        (Some(d), None) => {
-            // No views given: the room's own view, or along the first section from its middle.
-            std::fs::create_dir_all(&a.frames).with_context(|| format!("creating {}", a.frames.display()))?;
-            let path = a.frames.join("views.vf");
-            std::fs::write(&path, format!("{default_view}\n"))
-                .with_context(|| format!("writing {}", path.display()))?;
-            Some((d, path))
-        }
-    };
+    let plan = Plan::new(&a)?;
     let file = a
         .file
         .to_str()
         .context("the file name must be valid UTF-8")?
         .to_string();
-    let mut server = me()?;
-    server
-        .args(["serve", &file, "--listen", &a.listen])
-        .args(a.accept_loss.then_some("--accept-loss"))
-        .args(
-            a.diskspace
-                .iter()
-                .flat_map(|d| ["--diskspace".to_string(), d.to_string()]),
-        )
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit());
-    let mut server = Child::spawn("server", server)?;
-    let mut line = String::new();
-    BufReader::new(server.process.stdout.as_mut().context("server output")?).read_line(&mut line)?;
-    let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
-        let why = server.finish(Duration::from_secs(5)).unwrap_or_default();
-        bail!("the server did not start: {why}");
-    };
+    let (server, addr) = start_server(&a, &file)?;
     let token_file = format!("{file}.token");
-    // Samplers need no more than writer access.
-    let writer_token_file = format!("{file}.writer.token");
     let token = std::fs::read_to_string(&token_file)
         .with_context(|| format!("reading {token_file}"))?
         .trim()
         .to_string();
-    let bounces = a.bounces.to_string();
-    let samples = a.samples.to_string();
-    let reorder = a.reorder.reorder.to_string();
-    let mut workers: Vec<Child> = (0..a.workers)
-        .map(|i| {
-            let mut cmd = me()?;
-            cmd.args([
-                "sample",
-                &a.scene,
-                "--connect",
-                &addr,
-                "--token-file",
-                &writer_token_file,
-                "-j",
-                "1",
-            ])
-            .args([
-                "--bounces",
-                &bounces,
-                "--samples",
-                &samples,
-                "--reorder",
-                &reorder,
-                "--retry-for",
-                "0s",
-                "--seed",
-                &(i as u64 + 1).to_string(),
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit());
-            if let Some(m) = a.scene_memory {
-                cmd.args(["--scene-memory", &m.to_string()]);
-            }
-            if let Some(t) = a.triangles {
-                cmd.args(["--triangles", &t.to_string()]);
-            }
-            Child::spawn(format!("sampler {}", i + 1), cmd)
-        })
-        .collect::<Result<_>>()?;
-    let how_long = if time == Duration::MAX {
+    let workers = (0..a.workers)
+        .map(|i| Child::spawn(format!("sampler {}", i + 1), sampler_command(&a, &addr, &file, i)?))
+        .collect::<Result<Vec<_>>>()?;
+    let how_long = if plan.time == Duration::MAX {
         "until the window is closed".to_string()
     } else {
-        format!("for {time:?}")
+        format!("for {:?}", plan.time)
     };
     summary!(
         "filling {} with {} local samplers {how_long} (server {addr}; another display joins with \
@@ -379,175 +156,358 @@ pub fn run(a: Args) -> Result<ExitCode> {
         workers.len()
     );
     let start = Instant::now();
-    let mut viewer = match &display {
+    let viewer = match &plan.display {
         Some((driver, views)) => {
-            let mut cmd = me()?;
-            cmd.args([
-                "view",
-                "--connect",
-                &addr,
-                "--token-file",
-                &token_file,
-                "--driver",
-                driver,
-                "--denoise",
-                &a.denoise,
-            ])
-            .arg("--views")
-            .arg(views)
-            .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
-            .stderr(Stdio::inherit());
-            if driver == "voronoi" {
-                cmd.args(["--geometry", a.scene.as_str()]);
-            }
-            if !windowed {
-                let count = std::fs::read_to_string(views)
-                    .with_context(|| format!("reading {}", views.display()))?
-                    .lines()
-                    .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
-                    .count()
-                    .max(1);
-                let wait = format!("{}s", time.as_secs_f64() / count as f64);
-                cmd.arg("--headless")
-                    .arg("--frames")
-                    .arg(&a.frames)
-                    .args(["--wait", &wait, "--steps", "2"]);
-            }
-            Some(Child::spawn(if windowed { "window" } else { "display" }, cmd)?)
+            let cmd = display_command(&a, &plan, &addr, &token_file, driver, views)?;
+            Some(Child::spawn(if plan.windowed { "window" } else { "display" }, cmd)?)
         }
         None => None,
     };
-    let mut failures: Vec<String> = Vec::new();
-    // A window shows its own progress; a run bounded by TIME shows the time.
-    let bar = (time != Duration::MAX).then(|| Progress::timed("running", None, time));
-    let mut server_stopped = false;
+    let mut session = Session {
+        server,
+        workers,
+        viewer,
+        failures: Vec::new(),
+        server_stopped: false,
+    };
     stop_on_signals();
-    while start.elapsed() < time {
-        if stop_signal().is_some() {
-            break;
-        }
-        if let Some(status) = server.exited()? {
-            // A server stops on its own at TIME or a full DISKSPACE; anything else is a failure.
-            server.done = true;
-            server_stopped = true;
-            if !status.success() {
-                failures.push(format!("the server {}", how(status)));
+    session.supervise(start, &plan)?;
+    session.close_display(plan.windowed)?;
+    let secs = start.elapsed().as_secs_f64();
+    let early = session.server_stopped
+        && stop_signal().is_none()
+        && plan.time != Duration::MAX
+        && secs + 1.0 < plan.time.as_secs_f64();
+    session.stop(&addr, &token)?;
+    report(&a, plan.rays_before, secs, early)?;
+    if !session.failures.is_empty() {
+        bail!("{}", session.failures.join("; "));
+    }
+    if let Some(signal) = stop_signal() {
+        let name = if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
+        eprintln!("holodeck run: interrupted by {name}: stopped early, the file flushed");
+        return Ok(ExitCode::from(128 + signal as u8));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// What the arguments decide before anything starts.
+struct Plan {
+    /// Whether the display is a window (a driver, a screen, not --headless).
+    windowed: bool,
+    /// How long to run (`Duration::MAX`: until the window closes).
+    time: Duration,
+    /// The display's driver and views file, if there is a display.
+    display: Option<(String, PathBuf)>,
+    /// Rays the file held before.
+    rays_before: u64,
+}
+
+impl Plan {
+    /// Checks the arguments, prepares the file (created or adopted), and
+    /// writes a views file for a display given none.
+    fn new(a: &Args) -> Result<Plan> {
+        let chosen = match &a.old_driver {
+            Some(d) => {
+                eprintln!(
+                    "holodeck run: -o {d} names the display driver as older versions did; it is --driver {d} now"
+                );
+                d.as_str()
             }
-            break;
-        }
-        if let Some(v) = &mut viewer {
-            if let Some(status) = v.exited()? {
-                v.done = true;
-                if !status.success() {
-                    failures.push(format!("the display {}", how(status)));
-                }
+            None => a.driver.as_str(),
+        };
+        let driver = (chosen != "none").then(|| chosen.to_string());
+        let screen = ["DISPLAY", "WAYLAND_DISPLAY"]
+            .iter()
+            .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+        let windowed = driver.is_some() && screen && !a.headless;
+        let time = match (&a.time, windowed) {
+            (Some(t), _) => parse_duration(t, 1.0).context("--time")?,
+            // Until the window closes.
+            (None, true) => Duration::MAX,
+            (None, false) => {
+                bail!("give --time: without a window nothing else ends the run (with one, closing it does: q)")
+            }
+        };
+        holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
+        let (_, file) = holodeck_cli::prepare::prepare(
+            &a.scene,
+            &a.file,
+            a.triangles,
+            a.scene_memory,
+            a.accept_loss,
+            a.vdistance,
+        )?;
+        let display = match (driver, &a.views) {
+            (None, _) => None,
+            (Some(d), Some(views)) => Some((d, views.clone())),
+            (Some(d), None) => {
+                // No views given: the room's own view, or along the first section from its middle.
+                let view = if a.scene == "builtin:room" {
+                    holodeck::ROOM_VIEW.to_string()
+                } else {
+                    crate::window::default_view(&file.sections()[0])
+                };
+                std::fs::create_dir_all(&a.frames).with_context(|| format!("creating {}", a.frames.display()))?;
+                let path = a.frames.join("views.vf");
+                std::fs::write(&path, format!("{view}\n")).with_context(|| format!("writing {}", path.display()))?;
+                Some((d, path))
+            }
+        };
+        Ok(Plan {
+            windowed,
+            time,
+            display,
+            rays_before: file.summary().rays(),
+        })
+    }
+}
+
+/// Starts `holodeck serve` on `file` and reads the address it says it
+/// listens on (its first line of output).
+fn start_server(a: &Args, file: &str) -> Result<(Child, String)> {
+    let mut cmd = me()?;
+    cmd.args(["serve", file, "--listen", &a.listen])
+        .args(a.accept_loss.then_some("--accept-loss"))
+        .args(
+            a.diskspace
+                .iter()
+                .flat_map(|d| ["--diskspace".to_string(), d.to_string()]),
+        )
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit());
+    let mut server = Child::spawn("server", cmd)?;
+    let mut line = String::new();
+    BufReader::new(server.process.stdout.as_mut().context("server output")?).read_line(&mut line)?;
+    let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
+        let why = server.finish(Duration::from_secs(5)).unwrap_or_default();
+        bail!("the server did not start: {why}");
+    };
+    Ok((server, addr))
+}
+
+/// The command line of local sampler `i` (one thread; writer access only).
+fn sampler_command(a: &Args, addr: &str, file: &str, i: u32) -> Result<Command> {
+    let mut cmd = me()?;
+    // Samplers need no more than writer access.
+    let writer_token_file = format!("{file}.writer.token");
+    cmd.args([
+        "sample",
+        &a.scene,
+        "--connect",
+        addr,
+        "--token-file",
+        &writer_token_file,
+        "-j",
+        "1",
+    ])
+    .args(["--bounces", &a.bounces.to_string(), "--samples", &a.samples.to_string()])
+    .args(["--reorder", &a.reorder.reorder.to_string(), "--retry-for", "0s"])
+    .args(["--seed", &(u64::from(i) + 1).to_string()])
+    .stdout(Stdio::null())
+    .stderr(Stdio::inherit());
+    if let Some(m) = a.scene_memory {
+        cmd.args(["--scene-memory", &m.to_string()]);
+    }
+    if let Some(t) = a.triangles {
+        cmd.args(["--triangles", &t.to_string()]);
+    }
+    Ok(cmd)
+}
+
+/// The display's command line: a window, or a headless walk of `views`
+/// sharing the run's time among them.
+fn display_command(a: &Args, plan: &Plan, addr: &str, token_file: &str, driver: &str, views: &Path) -> Result<Command> {
+    let mut cmd = me()?;
+    cmd.args([
+        "view",
+        "--connect",
+        addr,
+        "--token-file",
+        token_file,
+        "--driver",
+        driver,
+    ])
+    .args(["--denoise", &a.denoise])
+    .arg("--views")
+    .arg(views)
+    .args(["-x", &a.width.to_string(), "-y", &a.height.to_string()])
+    .stderr(Stdio::inherit());
+    if driver == "voronoi" {
+        cmd.args(["--geometry", a.scene.as_str()]);
+    }
+    if !plan.windowed {
+        let count = std::fs::read_to_string(views)
+            .with_context(|| format!("reading {}", views.display()))?
+            .lines()
+            .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+            .count()
+            .max(1);
+        let wait = format!("{}s", plan.time.as_secs_f64() / count as f64);
+        cmd.arg("--headless")
+            .arg("--frames")
+            .arg(&a.frames)
+            .args(["--wait", &wait, "--steps", "2"]);
+    }
+    Ok(cmd)
+}
+
+/// The processes of a run and what went wrong with them.
+struct Session {
+    server: Child,
+    workers: Vec<Child>,
+    viewer: Option<Child>,
+    /// Each failure, in words, in the order seen.
+    failures: Vec<String>,
+    /// Whether the server has exited (and was reported).
+    server_stopped: bool,
+}
+
+impl Session {
+    /// Watches the processes until the plan's time is up, a signal asks to
+    /// stop, the server or the display ends, or every sampler has ended.
+    fn supervise(&mut self, start: Instant, plan: &Plan) -> Result<()> {
+        // A window shows its own progress; a run bounded by TIME shows the time.
+        let bar = (plan.time != Duration::MAX).then(|| Progress::timed("running", None, plan.time));
+        while start.elapsed() < plan.time && stop_signal().is_none() {
+            if let Some(status) = self.server.exited()? {
+                // A server stops on its own at TIME or a full DISKSPACE; anything else is a failure.
+                self.server_ended(status);
                 break;
             }
-        }
-        for w in workers.iter_mut().filter(|w| !w.done) {
-            if let Some(status) = w.exited()? {
-                w.done = true;
-                if !status.success() {
-                    let failure = format!("{} {}", w.name, how(status));
-                    match &bar {
-                        Some(bar) => bar.suspend(|| eprintln!("holodeck run: {failure}")),
-                        None => eprintln!("holodeck run: {failure}"),
-                    }
-                    failures.push(failure);
-                }
-            }
-        }
-        if !workers.is_empty() && workers.iter().all(|w| w.done) && viewer.as_ref().is_none_or(|v| v.done || !windowed)
-        {
-            // Every sampler has ended: nothing would be traced for the rest
-            // of TIME. Samplers end well by themselves when their server
-            // quits: wait for it to finish closing its file (as a quit
-            // would); after failed samplers, the server is asked to quit below.
-            let wait = if failures.is_empty() { 60 } else { 2 };
-            let grace = Instant::now() + Duration::from_secs(wait);
-            let mut status = server.exited()?;
-            while status.is_none() && Instant::now() < grace {
-                std::thread::sleep(Duration::from_millis(50));
-                status = server.exited()?;
-            }
-            match status {
-                Some(status) => {
-                    server.done = true;
-                    server_stopped = true;
+            if let Some(v) = &mut self.viewer {
+                if let Some(status) = v.exited()? {
+                    v.done = true;
                     if !status.success() {
-                        failures.push(format!("the server {}", how(status)));
+                        self.failures.push(format!("the display {}", how(status)));
+                    }
+                    break;
+                }
+            }
+            for w in self.workers.iter_mut().filter(|w| !w.done) {
+                if let Some(status) = w.exited()? {
+                    w.done = true;
+                    if !status.success() {
+                        let failure = format!("{} {}", w.name, how(status));
+                        match &bar {
+                            Some(bar) => bar.suspend(|| eprintln!("holodeck run: {failure}")),
+                            None => eprintln!("holodeck run: {failure}"),
+                        }
+                        self.failures.push(failure);
                     }
                 }
-                None if failures.is_empty() => {
-                    failures.push("every sampler ended before TIME, and the server did not stop".to_string())
-                }
-                None => {}
             }
-            break;
+            let display_done = self.viewer.as_ref().is_none_or(|v| v.done || !plan.windowed);
+            if !self.workers.is_empty() && self.workers.iter().all(|w| w.done) && display_done {
+                self.samplers_all_ended()?;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(200));
+            if let Some(bar) = &bar {
+                bar.tick();
+            }
         }
-        std::thread::sleep(Duration::from_millis(200));
         if let Some(bar) = &bar {
-            bar.tick();
+            bar.finish();
+        }
+        Ok(())
+    }
+
+    /// Notes that the server exited with `status`.
+    fn server_ended(&mut self, status: ExitStatus) {
+        self.server.done = true;
+        self.server_stopped = true;
+        if !status.success() {
+            self.failures.push(format!("the server {}", how(status)));
         }
     }
-    if let Some(bar) = &bar {
-        bar.finish();
+
+    /// Every sampler has ended: nothing would be traced for the rest of
+    /// TIME. Samplers end well by themselves when their server quits: waits
+    /// for it to finish closing its file (as a quit would); after failed
+    /// samplers, the server is asked to quit later.
+    fn samplers_all_ended(&mut self) -> Result<()> {
+        let wait = if self.failures.is_empty() { 60 } else { 2 };
+        let grace = Instant::now() + Duration::from_secs(wait);
+        let mut status = self.server.exited()?;
+        while status.is_none() && Instant::now() < grace {
+            std::thread::sleep(Duration::from_millis(50));
+            status = self.server.exited()?;
+        }
+        match status {
+            Some(status) => self.server_ended(status),
+            None if self.failures.is_empty() => self
+                .failures
+                .push("every sampler ended before TIME, and the server did not stop".to_string()),
+            None => {}
+        }
+        Ok(())
     }
-    if let Some(v) = viewer.as_mut().filter(|v| !v.done) {
+
+    /// Closes a display still at work: a window (or any display after a
+    /// stop signal) at once; a headless display gets two seconds to write
+    /// its last frame.
+    fn close_display(&mut self, windowed: bool) -> Result<()> {
+        let Some(v) = self.viewer.as_mut().filter(|v| !v.done) else {
+            return Ok(());
+        };
         if windowed || stop_signal().is_some() {
-            // TIME is up (or the run was stopped) with the display still at work: close it.
             let _ = v.process.kill();
             let _ = v.process.wait();
             v.done = true;
-        } else {
-            // TIME bounds the run: a headless display still drawing gets two
-            // seconds to write its last frame, then stops.
-            let grace = Instant::now() + Duration::from_secs(2);
-            let mut status = v.exited()?;
-            while status.is_none() && Instant::now() < grace {
-                std::thread::sleep(Duration::from_millis(50));
-                status = v.exited()?;
-            }
-            match status {
-                Some(status) if !status.success() => failures.push(format!("the display {}", how(status))),
-                Some(_) => {}
-                None => {
-                    tracing::info!("the display was still drawing when TIME was up; stopped");
-                    let _ = v.process.kill();
-                    let _ = v.process.wait();
-                }
-            }
-            v.done = true;
+            return Ok(());
         }
-    }
-    let secs = start.elapsed().as_secs_f64();
-    if let (Some(_), false) = (stop_signal(), server_stopped) {
-        // Ctrl-C reaches the whole process group: the server may have
-        // flushed and quit on its own already.
-        std::thread::sleep(Duration::from_millis(300));
-        if let Some(status) = server.exited()? {
-            server.done = true;
-            server_stopped = true;
-            if !status.success() {
-                failures.push(format!("the server {}", how(status)));
+        let grace = Instant::now() + Duration::from_secs(2);
+        let mut status = v.exited()?;
+        while status.is_none() && Instant::now() < grace {
+            std::thread::sleep(Duration::from_millis(50));
+            status = v.exited()?;
+        }
+        match status {
+            Some(status) if !status.success() => self.failures.push(format!("the display {}", how(status))),
+            Some(_) => {}
+            None => {
+                tracing::info!("the display was still drawing when TIME was up; stopped");
+                let _ = v.process.kill();
+                let _ = v.process.wait();
             }
         }
+        v.done = true;
+        Ok(())
     }
-    if !server_stopped {
-        if let Err(e) = quit(&addr, &token) {
-            failures.push(format!("asking the server to quit: {e:#}"));
+
+    /// Asks a server still running to flush and quit, and waits for it and
+    /// the samplers to end.
+    fn stop(&mut self, addr: &str, token: &str) -> Result<()> {
+        if stop_signal().is_some() && !self.server_stopped {
+            // Ctrl-C reaches the whole process group: the server may have
+            // flushed and quit on its own already.
+            std::thread::sleep(Duration::from_millis(300));
+            if let Some(status) = self.server.exited()? {
+                self.server_ended(status);
+            }
         }
-        failures.extend(server.finish(Duration::from_secs(60)));
-    }
-    for w in workers.iter_mut().filter(|w| !w.done) {
-        // Samplers of a server that failed fail too; that is not news.
-        let failure = w.finish(Duration::from_secs(10));
-        // Stopped by a signal, samplers that took it too are not news either.
-        if failures.is_empty() && stop_signal().is_none() {
-            failures.extend(failure);
+        if !self.server_stopped {
+            if let Err(e) = quit(addr, token) {
+                self.failures.push(format!("asking the server to quit: {e:#}"));
+            }
+            self.failures.extend(self.server.finish(Duration::from_secs(60)));
         }
+        for w in self.workers.iter_mut().filter(|w| !w.done) {
+            // Samplers of a server that failed fail too; that is not news.
+            let failure = w.finish(Duration::from_secs(10));
+            // Stopped by a signal, samplers that took it too are not news either.
+            if self.failures.is_empty() && stop_signal().is_none() {
+                self.failures.extend(failure);
+            }
+        }
+        Ok(())
     }
-    let early = server_stopped && stop_signal().is_none() && time != Duration::MAX && secs + 1.0 < time.as_secs_f64();
+}
+
+/// Prints what the run added to the file, and why it ended early if the
+/// server stopped on its own before TIME.
+fn report(a: &Args, before: u64, secs: f64, early: bool) -> Result<()> {
     let after = HoloFile::open(&a.file, &OpenOptions::read_only())?.summary();
     let added = after.rays().saturating_sub(before);
     summary!(
@@ -566,13 +526,5 @@ pub fn run(a: Args) -> Result<ExitCode> {
              stored is committed; give --diskspace SIZE (0 for none) to go on past a full DISKSPACE"
         );
     }
-    if !failures.is_empty() {
-        bail!("{}", failures.join("; "));
-    }
-    if let Some(signal) = stop_signal() {
-        let name = if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
-        eprintln!("holodeck run: interrupted by {name}: stopped early, the file flushed");
-        return Ok(ExitCode::from(128 + signal as u8));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }

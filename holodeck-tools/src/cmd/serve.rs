@@ -239,7 +239,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let fill = match (&a.views, a.no_fill) {
         (_, true) => Fill::Off,
         (Some(path), false) => {
-            let seen = super::fill::seen_by_views(path, file.sections())?;
+            let views = holodeck_cli::view_arg::read_views(path)?;
+            let seen = holodeck::ViewFill::new(file.sections(), &views, 0.0).seen;
             eprintln!("filling only what the views see: {} beam requests", seen.len());
             Fill::Views(seen)
         }

@@ -64,7 +64,7 @@ pub struct Args {
     #[arg(short = 'o', long = "output", hide = true, conflicts_with = "frames")]
     old_frames: Option<PathBuf>,
     #[command(flatten)]
-    window: super::window::WindowArgs,
+    window: crate::window::WindowArgs,
     #[command(flatten)]
     frame: holodeck_cli::args::FrameArgs,
     /// Frame format: png or hdr.
@@ -119,7 +119,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     }
     let token = a.token.token()?;
     let wait = parse_duration(&a.wait, 1.0).context("--wait")?;
-    let views = read_views(&views_path)?;
+    let views = holodeck_cli::view_arg::read_views(&views_path)?;
     std::fs::create_dir_all(&output).with_context(|| format!("creating {}", output.display()))?;
     let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
@@ -244,26 +244,16 @@ pub fn run(a: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The views of a view file (at least one).
-fn read_views(path: &std::path::Path) -> Result<Vec<View>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let views = View::parse_list(&text).map_err(|(line, e)| anyhow::anyhow!("{}:{line}: {e}", path.display()))?;
-    if views.is_empty() {
-        bail!("{} holds no views", path.display());
-    }
-    Ok(views)
-}
-
 /// The window on a live session.
 fn windowed(a: Args) -> Result<ExitCode> {
     let token = a.token.token()?;
     let session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
     let view = match &a.views {
-        Some(path) => read_views(path)?.remove(0),
+        Some(path) => holodeck_cli::view_arg::read_views(path)?.remove(0),
         None => {
             let first = session.sections().first().context("the holodeck has no sections")?;
-            View::parse(&super::window::default_view(first))?
+            View::parse(&crate::window::default_view(first))?
         }
     };
     let source = holodeck_display::window::ServerSource::new(session, a.connect.clone());
@@ -276,6 +266,6 @@ fn windowed(a: Args) -> Result<ExitCode> {
         },
         ..Default::default()
     };
-    super::window::open(Box::new(source), view, &a.frame, &a.window, walk)?;
+    crate::window::open(Box::new(source), view, &a.frame, &a.window, walk)?;
     Ok(ExitCode::SUCCESS)
 }
