@@ -232,12 +232,24 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
             net / own,
         );
     }
-
-    // Recall to one display.
     let path = dir.join("net-recall.hdk");
     eprintln!("writing a 20M-ray file for recall...");
     let section = recall_file(&path, 20_000_000)?;
-    let (server, addr) = serve(&path, &["--no-fill"])?;
+    recall_rows(&path, &section)?;
+    crowd_rows(&path, &section, seconds)?;
+    if !keep {
+        let _ = std::fs::remove_file(&path);
+        for level in ["writer", "viewer"] {
+            let _ = std::fs::remove_file(dir.join(format!("net-recall.hdk.{level}.token")));
+        }
+    }
+    Ok(())
+}
+
+/// Recall to one display: cached against uncached, and the latency of a
+/// request for about 100k cached samples.
+fn recall_rows(path: &Path, section: &Section) -> Result<()> {
+    let (server, addr) = serve(path, &["--no-fill"])?;
     let mut display = Peer::connect(&addr, Role::Display, "")?;
     let all: Vec<(BeamKey, u32)> = (0..section.beam_count()).map(|b| (BeamKey::new(0, b), 1)).collect();
     let some = &all[..all.len() / 2];
@@ -281,10 +293,14 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
     );
     drop(display);
     quit(&addr, server)?;
+    Ok(())
+}
 
-    // 16 synthetic samplers and 8 displays at once.
+/// 16 synthetic samplers and 8 displays at once on the file for `seconds`:
+/// rays stored, the displays' latencies, the server's peak memory.
+fn crowd_rows(path: &Path, section: &Section, seconds: f64) -> Result<()> {
     eprintln!("16 samplers and 8 displays for {seconds} s...");
-    let (server, addr) = serve(&path, &["--cache", "64M"])?;
+    let (server, addr) = serve(path, &["--cache", "64M"])?;
     let pid = server.id();
     std::thread::sleep(Duration::from_millis(300));
     let (_, rss0) = super::rss_of(&pid.to_string());
@@ -373,12 +389,6 @@ pub fn run(dir: &Path, seconds: f64, keep: bool) -> Result<()> {
         format!("after start {:.1} MiB; CACHE 64 MiB", rss0 as f64 / (1 << 20) as f64),
         peak as f64 / rss0.max(1) as f64,
     );
-    if !keep {
-        let _ = std::fs::remove_file(&path);
-        for level in ["writer", "viewer"] {
-            let _ = std::fs::remove_file(dir.join(format!("net-recall.hdk.{level}.token")));
-        }
-    }
     Ok(())
 }
 

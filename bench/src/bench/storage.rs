@@ -349,46 +349,7 @@ pub fn run(a: &Args) -> Result<ExitCode> {
     println!();
     println!("| measurement | result | baseline (same run) | ratio |");
     println!("|---|---|---|---|");
-
-    // The large fill runs in a child process so its peak memory is its own.
-    let (fill_rss, fill_out) = child_rss(
-        &["bench", "fill", "--rays", &a.rays.to_string(), "--cache", &a.cache],
-        &big,
-    )?;
-    let field = |n: usize| -> f64 {
-        fill_out
-            .split_whitespace()
-            .nth(n)
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(f64::NAN)
-    };
-    let (fill_secs, close_secs) = (field(2), field(3));
-    let (raw_secs, raw_bytes) = raw_read(&big, true)?;
-    let raw = raw_bytes as f64 / 10.0 / raw_secs;
-    let raw_text = format!(
-        "raw read {} ({}/s)",
-        rate(raw_bytes / 10, raw_secs),
-        bytes((raw_bytes as f64 / raw_secs) as u64)
-    );
-    row(
-        "append: random beams, packets of 1-21 rays, flush every 2 s and at the end",
-        rate(a.rays, fill_secs),
-        raw_text.clone(),
-        a.rays as f64 / fill_secs / raw,
-    );
-    row(
-        "close: compacting the file as filled",
-        format!("{close_secs:.2} s"),
-        format!("appending {fill_secs:.2} s"),
-        close_secs / fill_secs,
-    );
-
-    row(
-        &format!("peak RSS filling {} rays, child process", count(a.rays)),
-        format!("{} above its start", bytes(fill_rss)),
-        format!("CACHE {}", bytes(cache)),
-        fill_rss as f64 / cache as f64,
-    );
+    let filled = fill_rows(a, &big, cache)?;
     let beams = section.beam_count();
     let mut all: Vec<BeamKey> = (0..beams).map(|b| BeamKey::new(0, b)).collect();
     all.shuffle(&mut StdRng::seed_from_u64(2));
@@ -402,13 +363,91 @@ pub fn run(a: &Args) -> Result<ExitCode> {
         in_order: &in_order,
         size: request,
     };
-    lists.report("as filled", &big, cache, raw, &raw_text)?;
+    lists.report("as filled", &big, cache, filled.rays_per_sec, &filled.text)?;
+    let optimized_bytes = optimize_rows(&big, filled.secs)?;
+    let raw = RawRead::of(&big, true)?;
+    lists.report("optimized", &big, cache, raw.rays_per_sec, &raw.text)?;
+    os_cached_rows(&big, cache, &lists)?;
+    cache_hit_row(&big, cache, random, &raw)?;
+    stream_row(a, &big, optimized_bytes, cache)?;
+    reference_rows(a, &reference, &settings, &raw)?;
+    if !a.files.keep {
+        for p in [&big, &reference] {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
 
-    let before = HoloFile::open(&big, &OpenOptions::read_only())?.summary();
+/// A raw read of a whole file, the baseline of the rows beside it.
+struct RawRead {
+    /// Seconds it took.
+    secs: f64,
+    /// Its bytes as 10-byte records per second.
+    rays_per_sec: f64,
+    /// The baseline's words in the table.
+    text: String,
+}
+
+impl RawRead {
+    /// Reads `path` whole, from the disk (`cold`: the OS cache dropped
+    /// first) or from the OS cache.
+    fn of(path: &Path, cold: bool) -> Result<RawRead> {
+        let (secs, n) = raw_read(path, cold)?;
+        let what = if cold { "raw read" } else { "raw read, OS-cached" };
+        Ok(RawRead {
+            secs,
+            rays_per_sec: n as f64 / 10.0 / secs,
+            text: format!("{what} {} ({}/s)", rate(n / 10, secs), bytes((n as f64 / secs) as u64)),
+        })
+    }
+}
+
+/// The large fill (in a child process, so that its peak memory is its
+/// own): append, close and peak memory rows, beside a raw read of the file.
+fn fill_rows(a: &Args, big: &Path, cache: u64) -> Result<RawRead> {
+    let (fill_rss, fill_out) = child_rss(
+        &["bench", "fill", "--rays", &a.rays.to_string(), "--cache", &a.cache],
+        big,
+    )?;
+    let field = |n: usize| -> f64 {
+        fill_out
+            .split_whitespace()
+            .nth(n)
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(f64::NAN)
+    };
+    let (fill_secs, close_secs) = (field(2), field(3));
+    let raw = RawRead::of(big, true)?;
+    row(
+        "append: random beams, packets of 1-21 rays, flush every 2 s and at the end",
+        rate(a.rays, fill_secs),
+        raw.text.clone(),
+        a.rays as f64 / fill_secs / raw.rays_per_sec,
+    );
+    row(
+        "close: compacting the file as filled",
+        format!("{close_secs:.2} s"),
+        format!("appending {fill_secs:.2} s"),
+        close_secs / fill_secs,
+    );
+    row(
+        &format!("peak RSS filling {} rays, child process", count(a.rays)),
+        format!("{} above its start", bytes(fill_rss)),
+        format!("CACHE {}", bytes(cache)),
+        fill_rss as f64 / cache as f64,
+    );
+    Ok(raw)
+}
+
+/// Optimizes the large file: its time against a raw read of it (`raw_secs`)
+/// and its bytes per ray before and after. The optimized file's bytes.
+fn optimize_rows(big: &Path, raw_secs: f64) -> Result<u64> {
+    let before = HoloFile::open(big, &OpenOptions::read_only())?.summary();
     let start = Instant::now();
-    storage::optimize(&big, |_, _| {})?;
+    storage::optimize(big, |_, _| {})?;
     let opt_secs = start.elapsed().as_secs_f64();
-    let after = HoloFile::open(&big, &OpenOptions::read_only())?.summary();
+    let after = HoloFile::open(big, &OpenOptions::read_only())?.summary();
     row(
         &format!("optimize {}", bytes(before.file_bytes)),
         format!("{opt_secs:.2} s"),
@@ -421,48 +460,42 @@ pub fn run(a: &Args) -> Result<ExitCode> {
         "10 (records alone)".into(),
         after.bytes_per_ray() / 10.0,
     );
-    let (raw_secs, raw_bytes) = raw_read(&big, true)?;
-    let raw = raw_bytes as f64 / 10.0 / raw_secs;
-    let raw_text = format!(
-        "raw read {} ({}/s)",
-        rate(raw_bytes / 10, raw_secs),
-        bytes((raw_bytes as f64 / raw_secs) as u64)
-    );
-    lists.report("optimized", &big, cache, raw, &raw_text)?;
-    // The same from the OS page cache: engine overhead alone, free of the disk.
-    let (warm_secs, warm_bytes) = raw_read(&big, false)?;
-    let warm_raw = warm_bytes as f64 / 10.0 / warm_secs;
-    let warm_text = format!(
-        "raw read, OS-cached {} ({}/s)",
-        rate(warm_bytes / 10, warm_secs),
-        bytes((warm_bytes as f64 / warm_secs) as u64)
-    );
-    let requests: Vec<&[BeamKey]> = in_order.chunks(request).collect();
-    let (rays, secs) = recall(&big, cache, &requests, false)?;
+    Ok(after.file_bytes)
+}
+
+/// Recall of the optimized file from the OS page cache: the engine's
+/// overhead alone, free of the disk.
+fn os_cached_rows(big: &Path, cache: u64, lists: &RequestLists<'_>) -> Result<()> {
+    let warm = RawRead::of(big, false)?;
+    let requests: Vec<&[BeamKey]> = lists.in_order.chunks(lists.size).collect();
+    let (rays, secs) = recall(big, cache, &requests, false)?;
     row(
         &format!(
             "OS-cached recall optimized: all beams, beam-order lists of {} ({} rays)",
-            count(request as u64),
+            count(lists.size as u64),
             count(rays)
         ),
         rate(rays, secs),
-        warm_text.clone(),
-        rays as f64 / secs / warm_raw,
+        warm.text.clone(),
+        rays as f64 / secs / warm.rays_per_sec,
     );
-    let (rays, secs) = recall(&big, cache, &[&view], false)?;
+    let (rays, secs) = recall(big, cache, &[lists.view], false)?;
     row(
         &format!(
             "OS-cached recall optimized: {} beams seen along a walk ({} rays)",
-            count(view.len() as u64),
+            count(lists.view.len() as u64),
             count(rays)
         ),
         rate(rays, secs),
-        warm_text.clone(),
-        rays as f64 / secs / warm_raw,
+        warm.text,
+        rays as f64 / secs / warm.rays_per_sec,
     );
+    Ok(())
+}
 
-    // Cache hits: the random request again, rays copied out, five times.
-    let mut f = reader(&big, cache)?;
+/// Cache hits: the random request again, rays copied out, five times.
+fn cache_hit_row(big: &Path, cache: u64, random: &[BeamKey], raw: &RawRead) -> Result<()> {
+    let mut f = reader(big, cache)?;
     let first = f.read_beams(random, |_, _| {})?;
     let mut sink: Vec<RayRecord> = Vec::with_capacity(1 << 20);
     let start = Instant::now();
@@ -483,43 +516,52 @@ pub fn run(a: &Args) -> Result<ExitCode> {
             count(first.beams)
         ),
         rate(hit_rays, hit_secs),
-        raw_text.clone(),
-        hit_rays as f64 / hit_secs / raw,
+        raw.text.clone(),
+        hit_rays as f64 / hit_secs / raw.rays_per_sec,
     );
-    drop(f);
+    Ok(())
+}
 
-    let request_text = request.to_string();
+/// Peak memory of a child process streaming every beam of the file
+/// (`file_bytes` long).
+fn stream_row(a: &Args, big: &Path, file_bytes: u64, cache: u64) -> Result<()> {
+    let request_text = a.request.to_string();
     let (above, _) = child_rss(
         &["bench", "stream", "--cache", &a.cache, "--request", &request_text],
-        &big,
+        big,
     )?;
     row(
         &format!(
             "peak RSS streaming every beam of a {} file ({:.1}x CACHE), child process",
-            bytes(after.file_bytes),
-            after.file_bytes as f64 / cache as f64
+            bytes(file_bytes),
+            file_bytes as f64 / cache as f64
         ),
         format!("{} above its start", bytes(above)),
         format!("CACHE {}", bytes(cache)),
         above as f64 / cache as f64,
     );
+    Ok(())
+}
 
-    let (ref_fill, _) = fill(&reference, &settings, a.reference_rays, 3)?;
-    let before = HoloFile::open(&reference, &OpenOptions::read_only())?.summary();
-    let (raw_ref, _) = raw_read(&reference, true)?;
-    drop_os_cache(&reference)?;
+/// The reference fill (Radiance's sizes): append, a cold optimize, and
+/// bytes per ray against Radiance's.
+fn reference_rows(a: &Args, reference: &Path, settings: &Settings, raw: &RawRead) -> Result<()> {
+    let (ref_fill, _) = fill(reference, settings, a.reference_rays, 3)?;
+    let before = HoloFile::open(reference, &OpenOptions::read_only())?.summary();
+    let (raw_ref, _) = raw_read(reference, true)?;
+    drop_os_cache(reference)?;
     let start = Instant::now();
-    storage::optimize(&reference, |_, _| {})?;
+    storage::optimize(reference, |_, _| {})?;
     let opt_secs = start.elapsed().as_secs_f64();
-    let after = HoloFile::open(&reference, &OpenOptions::read_only())?.summary();
+    let after = HoloFile::open(reference, &OpenOptions::read_only())?.summary();
     row(
         &format!(
             "reference fill ({} rays, 154,728 beams): append",
             count(a.reference_rays)
         ),
         rate(a.reference_rays, ref_fill),
-        raw_text.clone(),
-        a.reference_rays as f64 / ref_fill / raw,
+        raw.text.clone(),
+        a.reference_rays as f64 / ref_fill / raw.rays_per_sec,
     );
     row(
         &format!("reference fill: optimize {} (cold)", bytes(before.file_bytes)),
@@ -533,12 +575,7 @@ pub fn run(a: &Args) -> Result<ExitCode> {
         "Radiance 10.40".into(),
         after.bytes_per_ray() / 10.40,
     );
-    if !a.files.keep {
-        for p in [&big, &reference] {
-            let _ = std::fs::remove_file(p);
-        }
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
 /// The fast version for `bench all`: a million random rays appended to the

@@ -148,6 +148,39 @@ impl Demo {
         let tracer = input.tracer(TraceOptions::default());
 
         // References first: every picture below is measured against them.
+        let truths = self.references(&tracer, &views)?;
+        let reference_secs = start.elapsed().as_secs_f64();
+
+        let kinds = methods::methods();
+        let filled = self.fill(&tracer, &mut file, &views, &truths[0], &kinds)?;
+        let mut columns = self.draw_walk(&mut file, &views, &truths, &kinds)?;
+        file.close()?;
+
+        // Each view traced directly from scratch in its share of the
+        // holodeck's time (the fill and every frame of the default method).
+        let default = kinds
+            .iter()
+            .position(|&k| k == methods::default_method())
+            .context("the default method is measured")?;
+        let holodeck_secs = filled.secs + columns[default].secs();
+        let share = holodeck_secs / views.len() as f64;
+        self.direct_walk(&tracer, &views, &truths, &kinds, share, &mut columns)?;
+
+        let run = report::Run {
+            demo: self,
+            hdk: &hdk,
+            filled: &filled,
+            holodeck_secs,
+            reference_secs,
+            truths: &truths,
+            frames: &frames,
+            total_secs: 0.0,
+        };
+        self.write_results(run, start, &columns)
+    }
+
+    /// The converged reference of every view of the walk.
+    fn references(&mut self, tracer: &holodeck_sampler::Tracer, views: &[View]) -> Result<Vec<Truth>> {
         let bar = holodeck_cli::progress::Progress::counting(
             "rendering the reference views",
             holodeck_cli::progress::Unit::Views,
@@ -155,29 +188,35 @@ impl Demo {
         );
         if let (Some(secs), Some(first)) = (self.reference_time, views.first()) {
             let each = secs / views.len() as f64;
-            self.reference_spp = holodeck::truth::spp_for_time(&tracer, first, self.size(), each)?;
+            self.reference_spp = holodeck::truth::spp_for_time(tracer, first, self.size(), each)?;
         }
         let mut truths = Vec::with_capacity(views.len());
         for (i, v) in views.iter().enumerate() {
             let seed = 0x005e_ed0f_7e57 + 2 * i as u64;
-            let halves = holodeck::truth::reference_halves(&tracer, v, self.size(), self.reference_spp, seed)?;
-            truths.push(Truth::new(&tracer, v, halves)?);
+            let halves = holodeck::truth::reference_halves(tracer, v, self.size(), self.reference_spp, seed)?;
+            truths.push(Truth::new(tracer, v, halves)?);
             bar.inc(1);
         }
         bar.finish();
-        let reference_secs = start.elapsed().as_secs_f64();
+        Ok(truths)
+    }
 
-        let kinds = methods::methods();
-        let filled = self.fill(&tracer, &mut file, &views, &truths[0], &kinds)?;
-
-        // Every view, every holodeck method.
+    /// Every view drawn by every holodeck method; a driver that fails is
+    /// not asked again, its columns saying why.
+    fn draw_walk(
+        &self,
+        file: &mut holodeck_file::HoloFile,
+        views: &[View],
+        truths: &[Truth],
+        kinds: &[Kind],
+    ) -> Result<Vec<Column>> {
         let mut columns: Vec<Column> = kinds.iter().map(|&k| Column::new(k)).collect();
         let bar = holodeck_cli::progress::Progress::counting(
             "drawing every view from the holodeck",
             holodeck_cli::progress::Unit::Views,
             Some(views.len() as u64),
         );
-        for (i, (view, truth)) in views.iter().zip(&truths).enumerate() {
+        for (i, (view, truth)) in views.iter().zip(truths).enumerate() {
             for driver in DRIVERS {
                 let mine: Vec<usize> = (0..kinds.len())
                     .filter(|&k| matches!(kinds[k], Kind::Holodeck { driver: d, .. } if d == driver))
@@ -185,7 +224,7 @@ impl Demo {
                 if mine.iter().all(|&k| columns[k].failed.is_some()) {
                     continue;
                 }
-                match methods::draw_holodeck(&mut file, self.viewport(view)?, driver, &kinds, truth, self.seed) {
+                match methods::draw_holodeck(file, self.viewport(view)?, driver, kinds, truth, self.seed) {
                     Ok(shots) => {
                         for (k, shot) in shots {
                             columns[k].shots.resize_with(i, || None);
@@ -202,26 +241,30 @@ impl Demo {
             bar.inc(1);
         }
         bar.finish();
-        file.close()?;
         for c in &mut columns {
             c.shots.resize_with(views.len(), || None);
         }
+        Ok(columns)
+    }
 
-        // Each view traced directly from scratch in its share of the
-        // holodeck's time (the fill and every frame of the default method).
-        let default = kinds
-            .iter()
-            .position(|&k| k == methods::default_method())
-            .context("the default method is measured")?;
-        let holodeck_secs = filled.secs + columns[default].secs();
-        let share = holodeck_secs / views.len() as f64;
+    /// Each view traced directly in `share` seconds, raw and cleaned by
+    /// OIDN, into the direct methods' columns.
+    fn direct_walk(
+        &self,
+        tracer: &holodeck_sampler::Tracer,
+        views: &[View],
+        truths: &[Truth],
+        kinds: &[Kind],
+        share: f64,
+        columns: &mut [Column],
+    ) -> Result<()> {
         let bar = holodeck_cli::progress::Progress::counting(
             "rendering each view directly in the same time",
             holodeck_cli::progress::Unit::Views,
             Some(views.len() as u64),
         );
         let mut overhead = 0.0;
-        for (i, (view, truth)) in views.iter().zip(&truths).enumerate() {
+        for (i, (view, truth)) in views.iter().zip(truths).enumerate() {
             for (k, kind) in kinds.iter().enumerate() {
                 let Kind::Direct { oidn } = kind else { continue };
                 if columns[k].failed.is_some() {
@@ -229,9 +272,9 @@ impl Demo {
                 }
                 let seed = 1000 + i as u64;
                 let shot = if *oidn {
-                    methods::direct_oidn_for(&tracer, view, self.size(), share, seed, &mut overhead)
+                    methods::direct_oidn_for(tracer, view, self.size(), share, seed, &mut overhead)
                 } else {
-                    methods::direct_for(&tracer, view, self.size(), share, seed)
+                    methods::direct_for(tracer, view, self.size(), share, seed)
                 };
                 match shot {
                     Ok((picture, secs, paths)) => {
@@ -248,35 +291,29 @@ impl Demo {
             bar.inc(1);
         }
         bar.finish();
+        Ok(())
+    }
 
+    /// Frames, sheets, charts, the summary (Markdown, returned) and its JSON.
+    fn write_results(&self, mut run: report::Run<'_>, start: Instant, columns: &[Column]) -> Result<String> {
+        let (frames, truths, filled) = (run.frames, run.truths, run.filled);
         // Frames and sheets.
         for (i, truth) in truths.iter().enumerate() {
             let name = |what: &str| frames.join(format!("view{:02}-{what}.png", i + 1));
             save(&truth.picture, &truth.tone, &name("reference"))?;
-            for c in &columns {
+            for c in columns {
                 if let Some(s) = &c.shots[i] {
                     save(&s.picture, &truth.tone, &name(&c.kind.file_name()))?;
                 }
             }
-            report::sheet(&self.out, i, truth, &columns, self.reference_spp)?;
+            report::sheet(&self.out, i, truth, columns, self.reference_spp)?;
         }
-        report::charts(&self.out, &filled, &columns, views.len())?;
-        let summary = report::summary(
-            &report::Run {
-                demo: self,
-                hdk: &hdk,
-                filled: &filled,
-                holodeck_secs,
-                reference_secs,
-                truths: &truths,
-                frames: &frames,
-                total_secs: start.elapsed().as_secs_f64(),
-            },
-            &columns,
-        );
+        report::charts(&self.out, filled, columns, truths.len())?;
+        run.total_secs = start.elapsed().as_secs_f64();
+        let summary = report::summary(&run, columns);
         let path = self.out.join("summary.md");
         std::fs::write(&path, &summary).with_context(|| format!("writing {}", path.display()))?;
-        let json = report::json(&columns, &truths, holodeck_secs, &filled);
+        let json = report::json(columns, truths, run.holodeck_secs, filled);
         let path = self.out.join("summary.json");
         std::fs::write(&path, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("writing {}", path.display()))?;

@@ -183,18 +183,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         None
     };
     if let Some((albedo, normal)) = &aovs {
-        if let Some(p) = &a.albedo {
-            write_picture(albedo, p, Some(1.0), &view)?;
-        }
-        if let Some(p) = &a.normal {
-            // Unit vectors as colours: (n + 1) / 2, which RGBE and PNG can hold.
-            let shown = holodeck_protocol::Picture {
-                width: normal.width,
-                height: normal.height,
-                pixels: normal.pixels.iter().map(|n| (*n + glam::Vec3::ONE) * 0.5).collect(),
-            };
-            write_picture(&shown, p, Some(1.0), &view)?;
-        }
+        write_aovs(&a, albedo, normal, &view)?;
     }
     let picture = match (&aovs, oidn) {
         (Some((albedo, normal)), true) => denoise_oidn(&picture, albedo, normal)?,
@@ -212,6 +201,36 @@ pub fn run(a: Args) -> Result<ExitCode> {
         rayon::current_num_threads(),
         count(triangles)
     );
+    say_what_the_scene_file_took(&tracer);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes the auxiliary pictures asked for: the albedo, and the normals as
+/// colours.
+fn write_aovs(
+    a: &Args,
+    albedo: &holodeck_protocol::Picture,
+    normal: &holodeck_protocol::Picture,
+    view: &View,
+) -> Result<()> {
+    if let Some(p) = &a.albedo {
+        write_picture(albedo, p, Some(1.0), view)?;
+    }
+    if let Some(p) = &a.normal {
+        // Unit vectors as colours: (n + 1) / 2, which RGBE and PNG can hold.
+        let shown = holodeck_protocol::Picture {
+            width: normal.width,
+            height: normal.height,
+            pixels: normal.pixels.iter().map(|n| (*n + glam::Vec3::ONE) * 0.5).collect(),
+        };
+        write_picture(&shown, p, Some(1.0), view)?;
+    }
+    Ok(())
+}
+
+/// Says what assembling or walking a scene file took, and how many
+/// estimates were replaced by black.
+fn say_what_the_scene_file_took(tracer: &holodeck_sampler::Tracer) {
     if let Some(r) = tracer.assembled() {
         summary!(
             "scene file: assembled in memory ({} blocks, {} MB, {:.2} s); --out-of-core to trace it through the block cache",
@@ -240,5 +259,4 @@ pub fn run(a: Args) -> Result<ExitCode> {
             tracer.non_finite_count()
         );
     }
-    Ok(ExitCode::SUCCESS)
 }

@@ -121,43 +121,69 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let wait = parse_duration(&a.wait, 1.0).context("--wait")?;
     let views = holodeck_cli::view_arg::read_views(&views_path)?;
     std::fs::create_dir_all(&output).with_context(|| format!("creating {}", output.display()))?;
-    let mut session = DisplaySession::connect(&a.connect, &token, a.read_only)
+    let session = DisplaySession::connect(&a.connect, &token, a.read_only)
         .with_context(|| format!("connecting to {}", a.connect))?;
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
-    let mut driver = a.frame.driver_choice()?.make(first)?;
-    let mut hist = Histogram::new();
-    let save = |driver: &mut dyn holodeck_display::Driver,
-                view: &View,
-                hist: &Histogram,
-                name: String,
-                new: u64,
-                total: u64,
-                took: Duration|
-     -> Result<()> {
+    let driver = a.frame.driver_choice()?.make(first)?;
+    let mut walk = Headless {
+        a: &a,
+        output,
+        wait,
+        session,
+        driver,
+        hist: Histogram::new(),
+    };
+    for (i, view) in views.into_iter().enumerate() {
+        walk.view(i, view)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A headless display walking its views, writing frames.
+struct Headless<'a> {
+    a: &'a Args,
+    /// Where frames go.
+    output: PathBuf,
+    /// How long each view refines after its first frame.
+    wait: Duration,
+    session: DisplaySession,
+    driver: Box<dyn holodeck_display::Driver>,
+    /// Luminance of every sample received, for the tone map.
+    hist: Histogram,
+}
+
+impl Headless<'_> {
+    /// Draws the driver's frame of `view` into the file `name`, saying how
+    /// many samples came (`new`, `total`) in how long.
+    fn save(&mut self, view: &View, name: String, new: u64, total: u64, took: Duration) -> Result<()> {
         let start = Instant::now();
-        let picture = driver.render();
+        let picture = self.driver.render();
         let render = start.elapsed();
-        let path = output.join(name);
-        let mode = output::parse_tone(&a.frame.tone, Some(&picture))?;
-        output::save(&picture, hist, mode, &path, Some(view))?;
+        let path = self.output.join(name);
+        let mode = output::parse_tone(&self.a.frame.tone, Some(&picture))?;
+        output::save(&picture, &self.hist, mode, &path, Some(view))?;
         summary!(
             "{}: {} new samples in {:.0} ms ({} in all, {} pixel estimates), drawn in {:.1} ms",
             path.display(),
             count(new),
             took.as_secs_f64() * 1e3,
             count(total),
-            count(driver.stats().kept),
+            count(self.driver.stats().kept),
             render.as_secs_f64() * 1e3
         );
         Ok(())
-    };
-    for (i, view) in views.into_iter().enumerate() {
+    }
+
+    /// View `i` of the walk: its first request and frame, then `--steps`
+    /// frames while the density rises, within `--wait`.
+    fn view(&mut self, i: usize, view: View) -> Result<()> {
+        let a = self.a;
         let viewport = Viewport::new(view, a.frame.width, a.frame.height)?;
         // The driver keeps its estimates across small moves (reprojected); after
         // a large turn it drops them, and the server must send everything again.
-        let drops = driver.stats().cache_drops;
-        driver.set_view(viewport.clone());
-        let resend = i == 0 || driver.stats().cache_drops > drops;
+        let drops = self.driver.stats().cache_drops;
+        self.driver.set_view(viewport.clone());
+        let resend = i == 0 || self.driver.stats().cache_drops > drops;
         let mut refinement = Refinement::new(a.density, a.max_density);
         let options = RequestOptions {
             eye_radius: a.eye_radius,
@@ -172,76 +198,61 @@ pub fn run(a: Args) -> Result<ExitCode> {
             })
         };
         let mut request = if resend {
-            BeamRequest::for_viewport(
-                session.sections(),
-                &viewport,
-                &RequestOptions {
-                    density: a.density,
-                    ..options
-                },
-                i as u64,
-            )
+            let first = RequestOptions {
+                density: a.density,
+                ..options
+            };
+            BeamRequest::for_viewport(self.session.sections(), &viewport, &first, i as u64)
         } else {
-            refining(driver.as_ref(), &session, a.density)
+            refining(self.driver.as_ref(), &self.session, a.density)
         };
-        let mut sink = |s: &[Sample]| {
-            hist.add_many(s.iter().map(|x| x.color));
-            driver.add(s);
+        let t = {
+            let (driver, hist) = (&mut self.driver, &mut self.hist);
+            let mut sink = |s: &[Sample]| {
+                hist.add_many(s.iter().map(|x| x.color));
+                driver.add(s);
+            };
+            let session = &self.session;
+            refinement.asked(outstanding(&request, &|k| if resend { 0 } else { session.received(k) }));
+            self.session.request(&request, resend, &mut sink)?
         };
-        refinement.asked(outstanding(&request, &|k| if resend { 0 } else { session.received(k) }));
-        let t = session.request(&request, resend, &mut sink)?;
         let mut received = t.samples;
         let name = |step: u32| format!("view{:04}_{step:02}.{}", i + 1, a.format);
-        save(
-            driver.as_mut(),
-            &viewport.view,
-            &hist,
-            name(0),
-            t.samples,
-            received,
-            t.elapsed,
-        )?;
-        if wait.is_zero() {
-            continue;
+        self.save(&viewport.view, name(0), t.samples, received, t.elapsed)?;
+        if self.wait.is_zero() {
+            return Ok(());
         }
         let steps = a.steps.max(1);
         let mut last = Instant::now();
         for step in 1..=steps {
             let start = Instant::now();
-            let deadline = start + wait / steps;
+            let deadline = start + self.wait / steps;
             let mut new = 0u64;
             while Instant::now() < deadline {
+                let (driver, hist) = (&mut self.driver, &mut self.hist);
                 let mut sink = |s: &[Sample]| {
                     hist.add_many(s.iter().map(|x| x.color));
                     driver.add(s);
                 };
-                let n = session.refine((Instant::now() + TICK).min(deadline), &mut sink)?;
+                let n = self.session.refine((Instant::now() + TICK).min(deadline), &mut sink)?;
                 new += n;
                 if n > 0 {
                     last = Instant::now();
                 }
-                let missing = outstanding(&request, &|k| session.received(k));
+                let missing = outstanding(&request, &|k| self.session.received(k));
                 if let Some(density) = refinement.raise(missing, last.elapsed() >= QUIET) {
                     last = Instant::now();
-                    request = refining(driver.as_ref(), &session, density);
-                    refinement.asked(outstanding(&request, &|k| session.received(k)));
+                    request = refining(self.driver.as_ref(), &self.session, density);
+                    refinement.asked(outstanding(&request, &|k| self.session.received(k)));
                     tracing::info!("view {}: asking for {density} samples per pixel", i + 1);
-                    session.raise(&request)?;
+                    self.session.raise(&request)?;
                 }
             }
             received += new;
-            save(
-                driver.as_mut(),
-                &viewport.view,
-                &hist,
-                name(step),
-                new,
-                received,
-                start.elapsed(),
-            )?;
+            self.save(&viewport.view, name(step), new, received, start.elapsed())?;
         }
+        Ok(())
     }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// The window on a live session.
