@@ -200,6 +200,26 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
     );
     s += MEASURES;
     s += "Means over the views. Seconds: the holodeck's fill and every frame of the method; a direct render's every view, each given the holodeck's time (fill and quadtree + atrous frames) over the views. Light kept: the method's luminance over the reference's in the darkest quarter, the middle half and the brightest quarter of the reference's pixels, and in the silhouette band; peak: the brightest spot kept.\n\n";
+    s += &method_table(r, columns);
+    let default = columns
+        .iter()
+        .find(|c| c.kind == holodeck::demo::methods::default_method());
+    s += &reference_noise(r, default);
+    s += &against_oidn(columns, default, n);
+    s += CHARTS;
+    s += &format!(
+        "\nThe walk: the holodeck's quadtree + atrous pictures after {:.1} s (fill and every frame). Frames in {}, comparison sheets, charts and summary.json in {}; {:.0} s in all.\n",
+        r.holodeck_secs,
+        r.frames.display(),
+        d.out.display(),
+        r.total_secs
+    );
+    s
+}
+
+/// The table of every method's means over the views.
+fn method_table(r: &Run<'_>, columns: &[Column]) -> String {
+    let mut s = String::new();
     s += "| method | rays or paths | seconds | FLIP | HDR-FLIP | SSIM | clamped rel. RMSE | clamped rel. MSE | rel. RMSE | rel. MSE | dark | middle | bright | band | peak |\n";
     s += "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for c in columns {
@@ -233,10 +253,13 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
             cell(c.mean(|m| m.peak), 3),
         );
     }
-    // The references' own noise against the default method's errors.
-    let default = columns
-        .iter()
-        .find(|c| c.kind == holodeck::demo::methods::default_method());
+    s
+}
+
+/// The references' own noise against the default method's errors.
+fn reference_noise(r: &Run<'_>, default: Option<&Column>) -> String {
+    let n = r.truths.len();
+    let mut s = String::new();
     let noise: Vec<f64> = r
         .truths
         .iter()
@@ -269,7 +292,13 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
             too_noisy.join("; ")
         );
     }
-    // The holodeck's default picture against what a user would otherwise do.
+    s
+}
+
+/// The holodeck's default picture against what a user would otherwise do:
+/// a direct render cleaned by OIDN in the same time.
+fn against_oidn(columns: &[Column], default: Option<&Column>, n: usize) -> String {
+    let mut s = String::new();
     let oidn = columns.iter().find(|c| c.kind == Kind::Direct { oidn: true });
     match (default, oidn) {
         (Some(h), Some(o)) if o.failed.is_none() => {
@@ -305,14 +334,6 @@ pub fn summary(r: &Run<'_>, columns: &[Column]) -> String {
             s += "The direct render cleaned by OIDN is missing: this build has no Open Image Denoise (build with --features oidn, see the README).\n";
         }
     }
-    s += CHARTS;
-    s += &format!(
-        "\nThe walk: the holodeck's quadtree + atrous pictures after {:.1} s (fill and every frame). Frames in {}, comparison sheets, charts and summary.json in {}; {:.0} s in all.\n",
-        r.holodeck_secs,
-        r.frames.display(),
-        d.out.display(),
-        r.total_secs
-    );
     s
 }
 

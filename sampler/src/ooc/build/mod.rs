@@ -334,18 +334,21 @@ pub fn build_scene_file(
     result
 }
 
-#[allow(clippy::too_many_arguments)]
-fn build_in(
-    source: &dyn TriangleSource,
-    meta: &SceneMeta,
-    out: &Path,
-    work: &Path,
-    partial: &Path,
-    settings: &BuildSettings,
-    progress: Progress<'_>,
-    start: Instant,
-) -> Result<BuildReport, OocError> {
-    // Pass 1: size, bounds, emitters, and the hash of a stream with no other identity.
+/// What the first pass over a source finds.
+struct Scan {
+    /// Triangles.
+    count: u64,
+    /// Their bounds (a point at the origin for none).
+    bounds: Aabb,
+    /// The triangles that emit light.
+    emitters: Vec<Emitter>,
+    /// The scene's identity.
+    content_hash: String,
+}
+
+/// Pass 1: size, bounds, emitters, and the hash of a stream with no other
+/// identity; every triangle's material and vertices checked.
+fn scan(source: &dyn TriangleSource, meta: &SceneMeta, progress: Progress<'_>) -> Result<Scan, OocError> {
     let mut count = 0u64;
     let mut bounds = Aabb::EMPTY;
     let mut emitters = Vec::new();
@@ -406,7 +409,45 @@ fn build_in(
             hi: Vec3::ZERO,
         };
     }
+    Ok(Scan {
+        count,
+        bounds,
+        emitters,
+        content_hash,
+    })
+}
 
+/// Builds one chunk's triangles (within `b`, `depth` median splits down)
+/// in core and adds its blocks.
+fn build_chunk(
+    tris: Vec<RawTri>,
+    b: Aabb,
+    depth: usize,
+    blocks: &mut Blocks,
+    meta: &SceneMeta,
+    settings: &BuildSettings,
+) -> Result<super::Link, OocError> {
+    let chunk = Chunk::build(&tris, b, &meta.materials);
+    drop(tris);
+    let first = blocks.entries.len() as u32;
+    let d = decompose(&chunk, 0, b, first, (depth / 3 + 1) as u16, settings.block_bytes);
+    drop(chunk);
+    blocks.add(d)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn build_in(
+    source: &dyn TriangleSource,
+    meta: &SceneMeta,
+    out: &Path,
+    work: &Path,
+    partial: &Path,
+    settings: &BuildSettings,
+    progress: Progress<'_>,
+    start: Instant,
+) -> Result<BuildReport, OocError> {
+    let found = scan(source, meta, progress)?;
+    let (count, bounds) = (found.count, found.bounds);
     let limit = (settings.memory / BUILD_BYTES_PER_TRIANGLE).max(1024);
     let mut top = TopTree::default();
     let root = top.push(TopNode::Empty);
@@ -424,16 +465,6 @@ fn build_in(
         triangles: count,
         ..BuildReport::default()
     };
-    let build_chunk =
-        |tris: Vec<RawTri>, b: Aabb, depth: usize, blocks: &mut Blocks| -> Result<super::Link, OocError> {
-            let chunk = Chunk::build(&tris, b, &meta.materials);
-            drop(tris);
-            let first = blocks.entries.len() as u32;
-            let d = decompose(&chunk, 0, b, first, (depth / 3 + 1) as u16, settings.block_bytes);
-            drop(chunk);
-            blocks.add(d)
-        };
-
     let partition_start = Instant::now();
     if count <= limit {
         let mut tris = Vec::with_capacity(count as usize);
@@ -444,94 +475,25 @@ fn build_in(
         report.partition_seconds = partition_start.elapsed().as_secs_f64();
         progress("building", 0, count);
         let t0 = Instant::now();
-        let link = build_chunk(tris, bounds, 0, &mut blocks)?;
+        let link = build_chunk(tris, bounds, 0, &mut blocks, meta, settings)?;
         top.nodes[root] = TopNode::Chunk(link);
         report.chunks = 1;
         report.largest_chunk = count;
         report.chunk_seconds = t0.elapsed().as_secs_f64();
         progress("building", count, count);
     } else {
-        // Pass 2: sort into chunk files at spatial medians.
-        let levels = ((count as f64 / limit as f64).log2().ceil() as usize + 1).min(MAX_FIRST_CHUNKS.ilog2() as usize);
-        let mut spills = Vec::new();
-        make_chunks(&mut top, root, bounds, 0, levels, work, &mut spills)?;
-        let mut slot_of = vec![usize::MAX; top.nodes.len()];
-        for (k, s) in spills.iter().enumerate() {
-            slot_of[s.node] = k;
-        }
-        let mut routed = 0u64;
-        source.stream(&mut |batch| {
-            for t in batch {
-                route(&top, &mut spills, &slot_of, t, root, &bounds)?;
-            }
-            routed += batch.len() as u64;
-            progress("partitioning", routed, count);
-            Ok(())
-        })?;
-        for s in &mut spills {
-            s.close()?;
-        }
-        report.partition_seconds = partition_start.elapsed().as_secs_f64();
-        let t0 = Instant::now();
-        let mut queue: Vec<Spill> = spills.into_iter().rev().collect();
-        let mut built = 0u64;
-        while let Some(s) = queue.pop() {
-            if s.count > limit && s.depth < 40 {
-                // Too big for memory: split at its spatial median, unless that separates nothing.
-                let (axis, split) = midpoint(&s.bounds);
-                let (lb, rb) = split_box(&s.bounds, axis, split);
-                let l = top.push(TopNode::Empty);
-                let r = top.push(TopNode::Empty);
-                let mut halves = [
-                    Spill::create(work.join(format!("chunk-{l}.tri")), lb, s.depth + 1, l)?,
-                    Spill::create(work.join(format!("chunk-{r}.tri")), rb, s.depth + 1, r)?,
-                ];
-                spill::for_each(&s.path, |t| {
-                    let tb = t.bounds();
-                    if tb.lo[axis] <= split {
-                        halves[0].push(&t, &tb)?;
-                    }
-                    if tb.hi[axis] >= split {
-                        halves[1].push(&t, &tb)?;
-                    }
-                    Ok(())
-                })?;
-                s.remove();
-                let [mut a, mut b] = halves;
-                a.close()?;
-                b.close()?;
-                if a.count > s.count * 9 / 10 && b.count > s.count * 9 / 10 {
-                    tracing::warn!("a chunk of {} triangles does not split; building it whole", s.count);
-                    a.depth = 40;
-                    b.depth = 40;
-                }
-                top.nodes[s.node] = TopNode::Inner {
-                    axis,
-                    split,
-                    children: [l, r],
-                };
-                queue.push(b);
-                queue.push(a);
-                continue;
-            }
-            let tris = s.read_all()?;
-            s.remove();
-            report.chunks += 1;
-            report.largest_chunk = report.largest_chunk.max(s.count);
-            let link = if tris.is_empty() {
-                None
-            } else {
-                Some(build_chunk(tris, s.bounds, s.depth, &mut blocks)?)
-            };
-            top.nodes[s.node] = link.map_or(TopNode::Empty, TopNode::Chunk);
-            built += s.count;
-            progress("building", built.min(count), count);
-            // Empty space around the chunk's triangles is cut off above it.
-            if link.is_some() {
-                top.cut_empty(s.node, &s.bounds, &s.content);
-            }
-        }
-        report.chunk_seconds = t0.elapsed().as_secs_f64();
+        let mut chunks = Chunking {
+            source,
+            meta,
+            settings,
+            progress,
+            work,
+            limit,
+            top: &mut top,
+            blocks: &mut blocks,
+            report: &mut report,
+        };
+        chunks.partition(root, bounds, count, partition_start)?;
     }
 
     // The top of the tree, over the chunks.
@@ -544,17 +506,14 @@ fn build_in(
         None => Texturing::default(),
     };
     blocks.file.flush().map_err(|e| OocError::io(&blocks.path, e))?;
-
-    // The file: header, blocks by level, index, trailer.
-    let levels = u32::from(blocks.levels.max(1));
     let header = Header {
         codec: settings.codec,
-        content_hash,
+        content_hash: found.content_hash,
         triangles: count,
         references: blocks.references,
         skipped: source.skipped(),
         blocks: blocks.entries.len() as u32,
-        levels,
+        levels: u32::from(blocks.levels.max(1)),
         decompressed_bytes: blocks.raw,
         bounds: [bounds.lo.to_array(), bounds.hi.to_array()],
         root: HeaderLink::from_link(&root_link),
@@ -562,12 +521,149 @@ fn build_in(
         material_names: meta.material_names.clone(),
         sky: meta.sky.clone(),
         sections: source.sections()?,
-        emitters,
+        emitters: found.emitters,
         textures: texturing.textures,
         maps_block: texturing.maps_block,
         uv_blocks: texturing.uv_blocks,
         uv_tangents: texturing.uv_tangents,
     };
+    write_file(&blocks, header, partial, out, progress, &mut report)?;
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// A source too large for the memory budget, sorted into chunk files at
+/// spatial medians and built chunk by chunk.
+struct Chunking<'a> {
+    source: &'a dyn TriangleSource,
+    meta: &'a SceneMeta,
+    settings: &'a BuildSettings,
+    progress: Progress<'a>,
+    /// The build's work folder, where chunk files go.
+    work: &'a Path,
+    /// Triangles a chunk may hold to be built in core.
+    limit: u64,
+    top: &'a mut TopTree,
+    blocks: &'a mut Blocks,
+    report: &'a mut BuildReport,
+}
+
+impl Chunking<'_> {
+    /// Pass 2: sorts the `count` triangles into chunk files under `root`
+    /// (within `bounds`), splits the chunks still too big, and builds each.
+    fn partition(&mut self, root: usize, bounds: Aabb, count: u64, partition_start: Instant) -> Result<(), OocError> {
+        let (limit, progress, work) = (self.limit, self.progress, self.work);
+        // Pass 2: sort into chunk files at spatial medians.
+        let levels = ((count as f64 / limit as f64).log2().ceil() as usize + 1).min(MAX_FIRST_CHUNKS.ilog2() as usize);
+        let mut spills = Vec::new();
+        make_chunks(self.top, root, bounds, 0, levels, work, &mut spills)?;
+        let mut slot_of = vec![usize::MAX; self.top.nodes.len()];
+        for (k, s) in spills.iter().enumerate() {
+            slot_of[s.node] = k;
+        }
+        let mut routed = 0u64;
+        self.source.stream(&mut |batch| {
+            for t in batch {
+                route(self.top, &mut spills, &slot_of, t, root, &bounds)?;
+            }
+            routed += batch.len() as u64;
+            progress("partitioning", routed, count);
+            Ok(())
+        })?;
+        for s in &mut spills {
+            s.close()?;
+        }
+        self.report.partition_seconds = partition_start.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let mut queue: Vec<Spill> = spills.into_iter().rev().collect();
+        let mut built = 0u64;
+        while let Some(s) = queue.pop() {
+            if s.count > limit && s.depth < 40 {
+                let [a, b] = self.split(s)?;
+                queue.push(b);
+                queue.push(a);
+                continue;
+            }
+            let tris = s.read_all()?;
+            s.remove();
+            self.report.chunks += 1;
+            self.report.largest_chunk = self.report.largest_chunk.max(s.count);
+            let link = if tris.is_empty() {
+                None
+            } else {
+                Some(build_chunk(
+                    tris,
+                    s.bounds,
+                    s.depth,
+                    self.blocks,
+                    self.meta,
+                    self.settings,
+                )?)
+            };
+            self.top.nodes[s.node] = link.map_or(TopNode::Empty, TopNode::Chunk);
+            built += s.count;
+            progress("building", built.min(count), count);
+            // Empty space around the chunk's triangles is cut off above it.
+            if link.is_some() {
+                self.top.cut_empty(s.node, &s.bounds, &s.content);
+            }
+        }
+        self.report.chunk_seconds = t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// A chunk too big for memory, split at its spatial median into two
+    /// chunk files (unless that separates nothing: then both are built
+    /// whole); its node in the top tree becomes their parent.
+    fn split(&mut self, s: Spill) -> Result<[Spill; 2], OocError> {
+        let work = self.work;
+        let (axis, split) = midpoint(&s.bounds);
+        let (lb, rb) = split_box(&s.bounds, axis, split);
+        let l = self.top.push(TopNode::Empty);
+        let r = self.top.push(TopNode::Empty);
+        let mut halves = [
+            Spill::create(work.join(format!("chunk-{l}.tri")), lb, s.depth + 1, l)?,
+            Spill::create(work.join(format!("chunk-{r}.tri")), rb, s.depth + 1, r)?,
+        ];
+        spill::for_each(&s.path, |t| {
+            let tb = t.bounds();
+            if tb.lo[axis] <= split {
+                halves[0].push(&t, &tb)?;
+            }
+            if tb.hi[axis] >= split {
+                halves[1].push(&t, &tb)?;
+            }
+            Ok(())
+        })?;
+        s.remove();
+        let [mut a, mut b] = halves;
+        a.close()?;
+        b.close()?;
+        if a.count > s.count * 9 / 10 && b.count > s.count * 9 / 10 {
+            tracing::warn!("a chunk of {} triangles does not split; building it whole", s.count);
+            a.depth = 40;
+            b.depth = 40;
+        }
+        self.top.nodes[s.node] = TopNode::Inner {
+            axis,
+            split,
+            children: [l, r],
+        };
+        Ok([a, b])
+    }
+}
+
+/// Writes the file beside `out` and renames it: the header, the blocks in
+/// order of level, the index and the trailer.
+fn write_file(
+    blocks: &Blocks,
+    header: Header,
+    partial: &Path,
+    out: &Path,
+    progress: Progress<'_>,
+    report: &mut BuildReport,
+) -> Result<(), OocError> {
+    let levels = header.levels;
     let mut order: Vec<usize> = (0..blocks.entries.len()).collect();
     order.sort_by_key(|&i| (blocks.entries[i].level, i));
     let mut src = File::open(&blocks.path).map_err(|e| OocError::io(&blocks.path, e))?;
@@ -591,6 +687,5 @@ fn build_in(
     report.decompressed_bytes = blocks.raw;
     report.compressed_bytes = blocks.at;
     report.file_bytes = fs::metadata(out).map(|m| m.len()).unwrap_or(0);
-    report.seconds = start.elapsed().as_secs_f64();
-    Ok(report)
+    Ok(())
 }
