@@ -109,6 +109,9 @@ async fn send_beams(
     Ok(Ok((sent, total)))
 }
 
+/// Serves one display until it leaves, the server stops, or it quits the
+/// server: its beam requests, the rays that land in its beams later, its
+/// control commands, and progress reports.
 async fn display_loop(
     mut conn: Connection,
     shared: &Shared,
@@ -134,24 +137,7 @@ async fn display_loop(
         let frame = tokio::select! {
             f = conn.read() => f?,
             _ = link.wake.notified() => {
-                let dirty: Vec<(BeamKey, u64)> = link
-                    .take()
-                    .into_iter()
-                    .filter_map(|k| sent.get(&k).map(|&n| (k, n)))
-                    .collect();
-                if !dirty.is_empty() {
-                    match send_beams(&mut conn, shared, dirty).await? {
-                        Ok((got, _)) => {
-                            for (k, n) in got {
-                                *sent.entry(k).or_default() += n;
-                            }
-                        }
-                        Err(e) => {
-                            let message = e.to_string();
-                            conn.write(&Frame::Message(Message::Error { message })).await?
-                        }
-                    }
-                }
+                send_landed(&mut conn, shared, link, &mut sent).await?;
                 continue;
             }
             _ = stop.changed() => return Ok(()),
@@ -169,111 +155,23 @@ async fn display_loop(
                 replace,
                 resend,
             }) => {
-                // Each beam once (the last count asked for wins), and never
-                // more beams than the holodeck has.
-                let all: usize = shared.sections.iter().map(|s| s.beam_count() as usize).sum();
-                if beams.len() > all {
-                    let message = format!("{} beams requested; the holodeck has {all}", beams.len());
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
-                    continue;
-                }
-                let beams: Vec<(BeamKey, u32)> = {
-                    let mut last: HashMap<BeamKey, u32> = HashMap::with_capacity(beams.len());
-                    let mut order = Vec::with_capacity(beams.len());
-                    for (k, n) in beams {
-                        if last.insert(k, n).is_none() {
-                            order.push(k);
-                        }
-                    }
-                    order.into_iter().map(|k| (k, last[&k])).collect()
-                };
-                let bad = beams.iter().find(|(k, _)| {
-                    shared
-                        .sections
-                        .get(k.section as usize)
-                        .is_none_or(|s| k.beam >= s.beam_count())
-                });
-                if let Some((k, _)) = bad {
-                    let message = format!("no beam {} in section {}", k.beam, k.section);
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
-                    continue;
-                }
-                if let Err(message) = (Message::BeamRequest {
-                    beams: Vec::new(),
-                    eye,
-                    replace,
-                    resend,
-                })
-                .validate()
-                {
-                    let message = message.to_string();
-                    conn.write(&Frame::Message(Message::Error { message })).await?;
-                    continue;
-                }
-                // Rays that land while the beams are read are caught below
-                // (and the watch ends on every path out of here).
-                let watch = Watch::new(shared);
-                // Every stored ray of the requested beams this display does
-                // not hold yet, at once.
-                let wanted: Vec<(BeamKey, u64)> = beams
-                    .iter()
-                    .map(|&(k, _)| (k, if resend { 0 } else { sent.get(&k).copied().unwrap_or(0) }))
-                    .collect();
-                let (got, rays) = match send_beams(&mut conn, shared, wanted.clone()).await? {
-                    Ok(x) => x,
-                    Err(e) => {
-                        let message = e.to_string();
+                let beams = match checked_request(shared, beams, eye, replace, resend) {
+                    Ok(beams) => beams,
+                    Err(message) => {
                         conn.write(&Frame::Message(Message::Error { message })).await?;
                         continue;
                     }
                 };
-                let read: HashMap<BeamKey, u64> = got.iter().fold(HashMap::new(), |mut m, &(k, n)| {
-                    *m.entry(k).or_default() += n;
-                    m
-                });
-                for (k, from) in wanted {
-                    sent.insert(k, from + read.get(&k).copied().unwrap_or(0));
-                }
-                conn.write(&Frame::Message(Message::Delivered {
-                    beams: got.len() as u32,
-                    rays,
-                }))
-                .await?;
-                let request: Vec<(BeamKey, u32, u64)> = beams
-                    .iter()
-                    .map(|&(k, desired)| (k, desired, sent.get(&k).copied().unwrap_or(0)))
-                    .collect();
-                let keys: Vec<BeamKey> = beams.iter().map(|b| b.0).collect();
-                let landed = watch.end(|scheduler| {
-                    scheduler.requests().request(id, &request, eye, replace);
-                    &keys
-                });
-                // Those rays may have missed the read (their beam was not yet
-                // this display's): send what is past `sent` on the next wake.
-                for k in landed {
-                    link.mark(k);
-                }
-                shared.work.notify_waiters();
+                let request = Request {
+                    beams,
+                    eye,
+                    replace,
+                    resend,
+                };
+                answer_request(&mut conn, shared, id, link, &mut sent, request).await?;
             }
             Frame::Message(Message::Control(c)) => {
-                let quit = c == Control::Quit;
-                let allowed = access >= c.needs();
-                let outcome = if !allowed {
-                    ControlOutcome::Refused {
-                        reason: format!("{c:?} needs {} access; this connection has {access} access", c.needs()),
-                    }
-                } else {
-                    match shared.control(&c).await {
-                        Ok(()) => ControlOutcome::Done,
-                        Err(e) => ControlOutcome::Failed { error: e.to_string() },
-                    }
-                };
-                conn.write(&Frame::Message(Message::ControlReply(ControlReply {
-                    control: c,
-                    outcome,
-                })))
-                .await?;
-                if quit && allowed {
+                if answer_control(&mut conn, shared, access, c).await? {
                     return Ok(());
                 }
             }
@@ -283,4 +181,181 @@ async fn display_loop(
             }
         }
     }
+}
+
+/// Sends the rays that landed in the display's beams since it was last
+/// sent them (those past `sent`), and counts them in `sent`.
+async fn send_landed(
+    conn: &mut Connection,
+    shared: &Shared,
+    link: &DisplayLink,
+    sent: &mut HashMap<BeamKey, u64>,
+) -> Result<(), ConnectionError> {
+    let dirty: Vec<(BeamKey, u64)> = link
+        .take()
+        .into_iter()
+        .filter_map(|k| sent.get(&k).map(|&n| (k, n)))
+        .collect();
+    if dirty.is_empty() {
+        return Ok(());
+    }
+    match send_beams(conn, shared, dirty).await? {
+        Ok((got, _)) => {
+            for (k, n) in got {
+                *sent.entry(k).or_default() += n;
+            }
+            Ok(())
+        }
+        Err(e) => {
+            let message = e.to_string();
+            conn.write(&Frame::Message(Message::Error { message })).await
+        }
+    }
+}
+
+/// A display's beam request, checked.
+struct Request {
+    /// Each beam once, with its desired rays (the last count asked for wins).
+    beams: Vec<(BeamKey, u32)>,
+    eye: Option<holodeck_protocol::wire::EyePoint>,
+    replace: bool,
+    resend: bool,
+}
+
+/// A beam request's beams, each once (the last count asked for wins), or
+/// what is wrong with the request: more beams than the holodeck has, a beam
+/// it does not have, an eye out of range.
+fn checked_request(
+    shared: &Shared,
+    beams: Vec<(BeamKey, u32)>,
+    eye: Option<holodeck_protocol::wire::EyePoint>,
+    replace: bool,
+    resend: bool,
+) -> Result<Vec<(BeamKey, u32)>, String> {
+    let all: usize = shared.sections.iter().map(|s| s.beam_count() as usize).sum();
+    if beams.len() > all {
+        return Err(format!("{} beams requested; the holodeck has {all}", beams.len()));
+    }
+    let beams: Vec<(BeamKey, u32)> = {
+        let mut last: HashMap<BeamKey, u32> = HashMap::with_capacity(beams.len());
+        let mut order = Vec::with_capacity(beams.len());
+        for (k, n) in beams {
+            if last.insert(k, n).is_none() {
+                order.push(k);
+            }
+        }
+        order.into_iter().map(|k| (k, last[&k])).collect()
+    };
+    let bad = beams.iter().find(|(k, _)| {
+        shared
+            .sections
+            .get(k.section as usize)
+            .is_none_or(|s| k.beam >= s.beam_count())
+    });
+    if let Some((k, _)) = bad {
+        return Err(format!("no beam {} in section {}", k.beam, k.section));
+    }
+    Message::BeamRequest {
+        beams: Vec::new(),
+        eye,
+        replace,
+        resend,
+    }
+    .validate()
+    .map_err(|e| e.to_string())?;
+    Ok(beams)
+}
+
+/// Answers a checked request: every stored ray of its beams the display
+/// does not hold yet, at once, then `Delivered`; then the request goes to
+/// the scheduler, and rays that landed meanwhile are sent on the next wake.
+async fn answer_request(
+    conn: &mut Connection,
+    shared: &Shared,
+    id: u64,
+    link: &DisplayLink,
+    sent: &mut HashMap<BeamKey, u64>,
+    r: Request,
+) -> Result<(), ConnectionError> {
+    // Rays that land while the beams are read are caught below
+    // (and the watch ends on every path out of here).
+    let watch = Watch::new(shared);
+    let wanted: Vec<(BeamKey, u64)> = r
+        .beams
+        .iter()
+        .map(|&(k, _)| {
+            (
+                k,
+                if r.resend {
+                    0
+                } else {
+                    sent.get(&k).copied().unwrap_or(0)
+                },
+            )
+        })
+        .collect();
+    let (got, rays) = match send_beams(conn, shared, wanted.clone()).await? {
+        Ok(x) => x,
+        Err(e) => {
+            let message = e.to_string();
+            return conn.write(&Frame::Message(Message::Error { message })).await;
+        }
+    };
+    let read: HashMap<BeamKey, u64> = got.iter().fold(HashMap::new(), |mut m, &(k, n)| {
+        *m.entry(k).or_default() += n;
+        m
+    });
+    for (k, from) in wanted {
+        sent.insert(k, from + read.get(&k).copied().unwrap_or(0));
+    }
+    conn.write(&Frame::Message(Message::Delivered {
+        beams: got.len() as u32,
+        rays,
+    }))
+    .await?;
+    let request: Vec<(BeamKey, u32, u64)> = r
+        .beams
+        .iter()
+        .map(|&(k, desired)| (k, desired, sent.get(&k).copied().unwrap_or(0)))
+        .collect();
+    let keys: Vec<BeamKey> = r.beams.iter().map(|b| b.0).collect();
+    let landed = watch.end(|scheduler| {
+        scheduler.requests().request(id, &request, r.eye, r.replace);
+        &keys
+    });
+    // Those rays may have missed the read (their beam was not yet
+    // this display's): send what is past `sent` on the next wake.
+    for k in landed {
+        link.mark(k);
+    }
+    shared.work.notify_waiters();
+    Ok(())
+}
+
+/// Answers a control command as the connection's access allows; true if it
+/// was a quit that was done (the display's connection then ends).
+async fn answer_control(
+    conn: &mut Connection,
+    shared: &Shared,
+    access: Access,
+    c: Control,
+) -> Result<bool, ConnectionError> {
+    let quit = c == Control::Quit;
+    let allowed = access >= c.needs();
+    let outcome = if !allowed {
+        ControlOutcome::Refused {
+            reason: format!("{c:?} needs {} access; this connection has {access} access", c.needs()),
+        }
+    } else {
+        match shared.control(&c).await {
+            Ok(()) => ControlOutcome::Done,
+            Err(e) => ControlOutcome::Failed { error: e.to_string() },
+        }
+    };
+    conn.write(&Frame::Message(Message::ControlReply(ControlReply {
+        control: c,
+        outcome,
+    })))
+    .await?;
+    Ok(quit && allowed)
 }

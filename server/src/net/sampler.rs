@@ -89,6 +89,9 @@ impl Meter {
     }
 }
 
+/// Serves one sampler until it leaves, stalls, is killed by an admin, or
+/// the server stops: hands it work as its measured rate allows, stores what
+/// it traces, and gives back to the schedule whatever it still had.
 pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(), ConnectionError> {
     let (mut reader, mut writer) = conn.split();
     // The writer runs on its own task: while a big batch goes out the
@@ -108,10 +111,7 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
     let stall = shared.config.stall.max(shared.config.latency * 4);
     let mut stop = shared.shutdown.subscribe();
     let mut kill = shared.kill_samplers.subscribe();
-    let mut pending: HashMap<u64, Work> = HashMap::new();
-    let mut outstanding = 0u64;
-    let mut meter = Meter::new();
-    let mut progress = Instant::now();
+    let mut work = Outstanding::new();
     // Timers made once: a sampler sends a frame per packet, and a timer per
     // frame would cost more than the frame.
     let mut idle = tokio::time::interval(Duration::from_millis(250));
@@ -121,53 +121,20 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
         if *stop.borrow() {
             break Ok(());
         }
-        let target = meter.queue(shared.config.latency, u64::from(shared.config.initial_queue));
         // Registered before asking, so a wake-up between the two is not lost.
         let woken = shared.work.notified();
         tokio::pin!(woken);
         woken.as_mut().enable();
-        if outstanding <= target / 2 && !shared.store.refusing() {
-            match batches.try_reserve() {
-                Ok(slot) => {
-                    let work = shared.lock_scheduler().next(
-                        target - outstanding,
-                        shared.config.request_packet.min(MAX_PACKET_RAYS),
-                        shared.config.packet.min(MAX_PACKET_RAYS),
-                    );
-                    if !work.is_empty() {
-                        if pending.is_empty() {
-                            progress = Instant::now();
-                        }
-                        let mut frames = Vec::with_capacity(work.len());
-                        for w in work {
-                            let id = shared.id();
-                            outstanding += u64::from(w.rays);
-                            pending.insert(id, w);
-                            frames.push(Frame::Message(Message::Trace(TracePacket {
-                                id,
-                                key: w.key,
-                                rays: w.rays,
-                                mode: w.mode,
-                            })));
-                        }
-                        meter.started(Instant::now());
-                        slot.send(frames);
-                    }
-                }
-                Err(mpsc::error::TrySendError::Closed(())) => {
-                    break Err(ConnectionError::Stalled("the sampler stopped taking work".into()));
-                }
-                // The last batch is still going out: top up once it has.
-                Err(mpsc::error::TrySendError::Full(())) => {}
-            }
+        if let Err(e) = work.hand_out(shared, &batches) {
+            break Err(e);
         }
         let mut frame = tokio::select! {
             f = reader.read() => f,
-            _ = &mut woken, if pending.is_empty() => continue,
+            _ = &mut woken, if work.pending.is_empty() => continue,
             // Nothing to do (paused, or the file is full): look again now and then.
-            _ = idle.tick(), if pending.is_empty() || batches.capacity() == 0 => continue,
-            _ = watchdog.tick(), if !pending.is_empty() => {
-                if progress.elapsed() > stall {
+            _ = idle.tick(), if work.pending.is_empty() || batches.capacity() == 0 => continue,
+            _ = watchdog.tick(), if !work.pending.is_empty() => {
+                if work.progress.elapsed() > stall {
                     break Err(ConnectionError::Stalled(format!("no results for {stall:?} with work outstanding")));
                 }
                 continue;
@@ -181,26 +148,7 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
         // That frame and every one that came with it, before looking for more work.
         let end = loop {
             match frame {
-                Ok(Some(Frame::Finished { id, key, records })) => match pending.get(&id) {
-                    Some(w) if w.key == key && records.len() == w.rays as usize => {
-                        let w = *w;
-                        pending.remove(&id);
-                        outstanding -= u64::from(w.rays);
-                        progress = Instant::now();
-                        meter.finished(u64::from(w.rays), progress, pending.is_empty());
-                        shared.store.append(key, records).await;
-                        let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
-                        forward(shared, key, &displays);
-                    }
-                    _ => {
-                        let message = format!("packet {id} does not match any packet sent to you");
-                        let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
-                    }
-                },
-                Ok(Some(_)) => {
-                    let message = "samplers send finished packets only".to_string();
-                    let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
-                }
+                Ok(Some(f)) => work.take(shared, &batches, f).await,
                 Ok(None) => break Some(Ok(())),
                 Err(e) => break Some(Err(e)),
             }
@@ -227,16 +175,114 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
         let _ = tokio::time::timeout(KILL_GRACE, async { while let Ok(Some(_)) = reader.read().await {} }).await;
     }
     writing.abort();
-    // Whatever the sampler still had is traced again by someone else.
-    let mut scheduler = shared.lock_scheduler();
-    for w in pending.values() {
-        scheduler.give_back(w.key, w.rays, w.source);
-    }
-    drop(scheduler);
-    if let Some(r) = meter.rate() {
-        tracing::debug!("a sampler left after tracing at {r:.0} rays/s");
-    }
+    work.give_back(shared);
     result
+}
+
+/// The work a sampler holds: packets sent and not yet finished.
+struct Outstanding {
+    /// By packet id.
+    pending: HashMap<u64, Work>,
+    /// Rays in `pending`.
+    rays: u64,
+    /// The sampler's rate, measured.
+    meter: Meter,
+    /// When it last made progress (or was given work with none out).
+    progress: Instant,
+}
+
+impl Outstanding {
+    fn new() -> Outstanding {
+        Outstanding {
+            pending: HashMap::new(),
+            rays: 0,
+            meter: Meter::new(),
+            progress: Instant::now(),
+        }
+    }
+
+    /// Tops the sampler's queue up to what its rate covers in the target
+    /// latency, once half of it is done, unless the file refuses rays or the
+    /// last batch is still going out.
+    fn hand_out(&mut self, shared: &Shared, batches: &mpsc::Sender<Vec<Frame>>) -> Result<(), ConnectionError> {
+        let target = self
+            .meter
+            .queue(shared.config.latency, u64::from(shared.config.initial_queue));
+        if self.rays > target / 2 || shared.store.refusing() {
+            return Ok(());
+        }
+        let slot = match batches.try_reserve() {
+            Ok(slot) => slot,
+            Err(mpsc::error::TrySendError::Closed(())) => {
+                return Err(ConnectionError::Stalled("the sampler stopped taking work".into()));
+            }
+            // The last batch is still going out: top up once it has.
+            Err(mpsc::error::TrySendError::Full(())) => return Ok(()),
+        };
+        let work = shared.lock_scheduler().next(
+            target - self.rays,
+            shared.config.request_packet.min(MAX_PACKET_RAYS),
+            shared.config.packet.min(MAX_PACKET_RAYS),
+        );
+        if work.is_empty() {
+            return Ok(());
+        }
+        if self.pending.is_empty() {
+            self.progress = Instant::now();
+        }
+        let mut frames = Vec::with_capacity(work.len());
+        for w in work {
+            let id = shared.id();
+            self.rays += u64::from(w.rays);
+            self.pending.insert(id, w);
+            frames.push(Frame::Message(Message::Trace(TracePacket {
+                id,
+                key: w.key,
+                rays: w.rays,
+                mode: w.mode,
+            })));
+        }
+        self.meter.started(Instant::now());
+        slot.send(frames);
+        Ok(())
+    }
+
+    /// Takes one frame from the sampler: a finished packet that matches one
+    /// sent is stored and forwarded to the displays that want its beam;
+    /// anything else is answered with an error.
+    async fn take(&mut self, shared: &Shared, batches: &mpsc::Sender<Vec<Frame>>, frame: Frame) {
+        let message = match frame {
+            Frame::Finished { id, key, records } => match self.pending.get(&id) {
+                Some(w) if w.key == key && records.len() == w.rays as usize => {
+                    let w = *w;
+                    self.pending.remove(&id);
+                    self.rays -= u64::from(w.rays);
+                    self.progress = Instant::now();
+                    self.meter
+                        .finished(u64::from(w.rays), self.progress, self.pending.is_empty());
+                    shared.store.append(key, records).await;
+                    let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
+                    forward(shared, key, &displays);
+                    return;
+                }
+                _ => format!("packet {id} does not match any packet sent to you"),
+            },
+            _ => "samplers send finished packets only".to_string(),
+        };
+        let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
+    }
+
+    /// Whatever the sampler still had is traced again by someone else.
+    fn give_back(&self, shared: &Shared) {
+        let mut scheduler = shared.lock_scheduler();
+        for w in self.pending.values() {
+            scheduler.give_back(w.key, w.rays, w.source);
+        }
+        drop(scheduler);
+        if let Some(r) = self.meter.rate() {
+            tracing::debug!("a sampler left after tracing at {r:.0} rays/s");
+        }
+    }
 }
 
 /// Tells the displays that want `key` that it has new rays.

@@ -50,12 +50,51 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     if listeners.is_empty() {
         return Err(ServeError::NoListener);
     }
+    let (shared, store, thread, stopped) = start_state(file, config);
+    let lens = store.lens().await?;
+    let batch = shared.batch(&lens)?;
+    {
+        let mut scheduler = shared.lock_scheduler();
+        scheduler.restart(batch);
+        scheduler.requests().set_share(shared.config.share);
+    }
+    let flusher = spawn_flusher(store.clone());
+    let reports = spawn_reports(&shared).await;
+    let reporter = shared
+        .config
+        .report
+        .map(|every| tokio::spawn(report(store.clone(), every)));
+    let (acceptors, peers) = spawn_acceptors(listeners);
+    let mut tasks = tokio::task::JoinSet::new();
+    run_until_stopped(&shared, &store, peers, stopped, &mut tasks).await;
+    let background = Background {
+        acceptors,
+        flusher,
+        reports,
+        reporter,
+    };
+    let rays = close(shared, store, thread, tasks, background).await?;
+    tracing::info!("flushed and closed: {rays} rays in the file");
+    Ok(())
+}
+
+/// The state every connection shares, around the file's thread; and the
+/// receiver that learns when an admin says quit.
+fn start_state(
+    file: HoloFile,
+    config: ServerConfig,
+) -> (
+    Arc<Shared>,
+    FileThread,
+    super::file_thread::StoreThread,
+    watch::Receiver<bool>,
+) {
     let sections = file.sections().to_vec();
     let scene = file.settings().scene.clone();
     let obstructions = file.settings().obstructions;
     let vdistance = file.settings().vdistance;
     let (store, thread) = FileThread::spawn(file);
-    let (shutdown, mut stopped) = watch::channel(false);
+    let (shutdown, stopped) = watch::channel(false);
     let shared = Arc::new(Shared {
         config,
         obstructions,
@@ -75,33 +114,32 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         display_count: AtomicU32::new(0),
         progress: watch::channel(Progress::default()).0,
     });
-    let lens = store.lens().await?;
-    let batch = shared.batch(&lens)?;
-    {
-        let mut scheduler = shared.lock_scheduler();
-        scheduler.restart(batch);
-        scheduler.requests().set_share(shared.config.share);
-    }
-    let flusher = {
-        let store = store.clone();
-        tokio::spawn(async move {
-            let mut tick = tokio::time::interval(Duration::from_secs(2));
-            loop {
-                tick.tick().await;
-                match store.flush().await {
-                    // Says what a crash can no longer take away (tests wait on it).
-                    Ok(rays) => tracing::debug!("periodic flush: {rays} rays durable"),
-                    Err(e) => tracing::error!("periodic flush: {e}"),
-                }
+    (shared, store, thread, stopped)
+}
+
+/// Flushes the file every two seconds.
+fn spawn_flusher(store: FileThread) -> tokio::task::JoinHandle<()> {
+    tokio::spawn(async move {
+        let mut tick = tokio::time::interval(Duration::from_secs(2));
+        loop {
+            tick.tick().await;
+            match store.flush().await {
+                // Says what a crash can no longer take away (tests wait on it).
+                Ok(rays) => tracing::debug!("periodic flush: {rays} rays durable"),
+                Err(e) => tracing::error!("periodic flush: {e}"),
             }
-        })
-    };
-    // Displays get the first report as they connect, and a new one each second.
+        }
+    })
+}
+
+/// Sends displays the first progress report now, and a new one each
+/// second.
+async fn spawn_reports(shared: &Arc<Shared>) -> tokio::task::JoinHandle<()> {
     let mut rate = super::rate::RateWindow::default();
     let first = shared.progress_now(&mut rate).await;
     shared.progress.send_replace(first);
-    let reports = {
-        let shared = Arc::clone(&shared);
+    let shared = Arc::clone(shared);
+    {
         tokio::spawn(async move {
             let mut tick = tokio::time::interval(PROGRESS_EVERY);
             tick.tick().await;
@@ -111,21 +149,18 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
                 shared.progress.send_replace(p);
             }
         })
-    };
-    let reporter = shared
-        .config
-        .report
-        .map(|every| tokio::spawn(report(store.clone(), every)));
-    let time_limit = shared.config.time;
-    let deadline = async move {
-        match time_limit {
-            Some(t) => tokio::time::sleep(t).await,
-            None => std::future::pending::<()>().await,
-        }
-    };
-    tokio::pin!(deadline);
-    // One accept loop per socket, all feeding one queue.
-    let (peers_tx, mut peers) = mpsc::channel::<(Box<dyn Stream>, String)>(64);
+    }
+}
+
+/// One accept loop per socket, all feeding one queue of new peers.
+#[allow(clippy::type_complexity)]
+fn spawn_acceptors(
+    listeners: Vec<Listener>,
+) -> (
+    Vec<tokio::task::JoinHandle<()>>,
+    mpsc::Receiver<(Box<dyn Stream>, String)>,
+) {
+    let (peers_tx, peers) = mpsc::channel::<(Box<dyn Stream>, String)>(64);
     let mut acceptors = Vec::new();
     for l in listeners {
         let tx = peers_tx.clone();
@@ -147,8 +182,27 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         }));
     }
     drop(peers_tx);
+    (acceptors, peers)
+}
+
+/// Serves peers as they come until an admin says quit, TIME is up, the
+/// file refuses rays with no display left to serve, or a signal.
+async fn run_until_stopped(
+    shared: &Arc<Shared>,
+    store: &FileThread,
+    mut peers: mpsc::Receiver<(Box<dyn Stream>, String)>,
+    mut stopped: watch::Receiver<bool>,
+    tasks: &mut tokio::task::JoinSet<()>,
+) {
+    let time_limit = shared.config.time;
+    let deadline = async move {
+        match time_limit {
+            Some(t) => tokio::time::sleep(t).await,
+            None => std::future::pending::<()>().await,
+        }
+    };
+    tokio::pin!(deadline);
     let mut full_check = tokio::time::interval(Duration::from_millis(200));
-    let mut tasks = tokio::task::JoinSet::new();
     // Made once: a signal arriving between two turns of the loop is not lost.
     let interrupted = tokio::signal::ctrl_c();
     let terminated = terminate();
@@ -156,7 +210,7 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
     loop {
         tokio::select! {
             Some((stream, peer)) = peers.recv() => {
-                let shared = Arc::clone(&shared);
+                let shared = Arc::clone(shared);
                 tasks.spawn(async move {
                     match handle(stream, &shared).await {
                         Ok(()) => {}
@@ -189,8 +243,32 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
             }
         }
     }
-    // Tell every connection to stop, then end those that do not: packets they
-    // had out are simply never stored.
+}
+
+/// The server's background tasks, ended at close.
+struct Background {
+    acceptors: Vec<tokio::task::JoinHandle<()>>,
+    flusher: tokio::task::JoinHandle<()>,
+    reports: tokio::task::JoinHandle<()>,
+    reporter: Option<tokio::task::JoinHandle<()>>,
+}
+
+/// Tells every connection to stop, ends those that do not (packets they
+/// had out are simply never stored), flushes and closes the file; the rays
+/// in it.
+async fn close(
+    shared: Arc<Shared>,
+    store: FileThread,
+    thread: super::file_thread::StoreThread,
+    mut tasks: tokio::task::JoinSet<()>,
+    b: Background,
+) -> Result<u64, ServeError> {
+    let Background {
+        acceptors,
+        flusher,
+        reports,
+        reporter,
+    } = b;
     let _ = shared.shutdown.send(true);
     for a in &acceptors {
         a.abort();
@@ -216,8 +294,7 @@ pub async fn serve(listeners: Vec<Listener>, file: HoloFile, config: ServerConfi
         .unwrap_or(Ok(()));
     let rays = flushed?;
     closed?;
-    tracing::info!("flushed and closed: {rays} rays in the file");
-    Ok(())
+    Ok(rays)
 }
 
 /// Prints a progress line every `every`: rays stored, the rate since the last
