@@ -22,6 +22,7 @@ use super::error::CommitDamage;
 use super::error::{Result, StorageError};
 use super::extents::Extents;
 use super::format::{self, BeamEntry, ChunkRef, Extent, Prefix, Slot, COPIES, DIR_CHUNK_BEAMS};
+use super::found::Survey;
 use super::io::{self, WriteBatch};
 use super::survey;
 use crate::settings::Settings;
@@ -191,27 +192,7 @@ impl Disk {
             })?;
         io::lock(&file, path, exclusive)?;
         let sv = survey::survey(&file, path)?;
-        if let (true, Some(found)) = (writable, sv.legacy) {
-            return Err(StorageError::Format {
-                path: path.to_path_buf(),
-                source: format::FormatError::OldVersion {
-                    found,
-                    supported: format::FORMAT_VERSION,
-                },
-            });
-        }
-        if let Some(damage) = &sv.damage {
-            if writable && !accept_loss {
-                return Err(StorageError::Damaged {
-                    path: path.to_path_buf(),
-                    damage: Box::new(damage.clone()),
-                });
-            }
-            tracing::warn!(path = %path.display(), "{}", damage.describe());
-        }
-        for note in sv.torn.iter().chain(&sv.repaired) {
-            tracing::warn!(path = %path.display(), "{note}");
-        }
+        refuse_or_warn(&sv, path, writable, accept_loss)?;
         let chunks = chunks_of(&sv.settings.sections);
         let mut chunk_start = Vec::with_capacity(sv.settings.sections.len());
         for (i, c) in chunks.iter().enumerate() {
@@ -219,38 +200,8 @@ impl Disk {
                 chunk_start.push(i);
             }
         }
-        let mut blocks = vec![None; chunks.len()];
-        let mut root = None;
-        let mut stale = Vec::new();
-        match &sv.clean {
-            Some((slot, refs))
-                if refs.len() == chunks.len() && refs.iter().zip(&chunks).all(|(r, c)| same_range(r, c)) =>
-            {
-                for (b, r) in blocks.iter_mut().zip(refs) {
-                    *b = Some(r.extents());
-                }
-                root = Some(slot.root_copies());
-            }
-            _ => stale.clone_from(&sv.metadata),
-        }
-        let mut used: Vec<Extent> = sv.dirs.iter().flatten().map(|e| e.extent()).collect();
-        if root.is_some() {
-            used.extend(sv.metadata.iter().copied());
-        }
-        let mut extents = Extents::from_used(sv.data_start, used).map_err(|o| StorageError::Format {
-            path: path.to_path_buf(),
-            source: format::FormatError::Invalid {
-                what: format!("commit {}", sv.generation),
-                at: o.second.offset,
-                detail: format!(
-                    "bytes {}..{} are claimed twice (also by {}..{})",
-                    o.second.offset,
-                    o.second.end(),
-                    o.first.offset,
-                    o.first.end()
-                ),
-            },
-        })?;
+        let (blocks, root, stale) = committed_blocks(&sv, &chunks);
+        let mut extents = extents_in_use(&sv, root.is_some(), path)?;
         // What a damaged commit was read from stays untouched until the commit that replaces it.
         let stale: Vec<Extent> = stale.into_iter().flat_map(|e| extents.claim_free_within(e)).collect();
         let chunk_dirty: Vec<bool> = blocks
@@ -1022,6 +973,80 @@ impl Disk {
         let blocks: u64 = self.blocks.iter().flatten().flatten().map(|e| e.len).sum();
         blocks + self.root.iter().flatten().map(|e| e.len).sum::<u64>()
     }
+}
+
+/// Refuses to write a file of an older format, or a damaged one unless the
+/// user accepts the loss; says what a survey found torn, repaired or lost.
+fn refuse_or_warn(sv: &Survey, path: &Path, writable: bool, accept_loss: bool) -> Result<()> {
+    if let (true, Some(found)) = (writable, sv.legacy) {
+        return Err(StorageError::Format {
+            path: path.to_path_buf(),
+            source: format::FormatError::OldVersion {
+                found,
+                supported: format::FORMAT_VERSION,
+            },
+        });
+    }
+    if let Some(damage) = &sv.damage {
+        if writable && !accept_loss {
+            return Err(StorageError::Damaged {
+                path: path.to_path_buf(),
+                damage: Box::new(damage.clone()),
+            });
+        }
+        tracing::warn!(path = %path.display(), "{}", damage.describe());
+    }
+    for note in sv.torn.iter().chain(&sv.repaired) {
+        tracing::warn!(path = %path.display(), "{note}");
+    }
+    Ok(())
+}
+
+/// Where the newest clean commit keeps each directory chunk and the root,
+/// where it matches the sections' chunks; otherwise none (every chunk is
+/// written anew) and the metadata read is stale.
+#[allow(clippy::type_complexity)]
+fn committed_blocks(
+    sv: &Survey,
+    chunks: &[Chunk],
+) -> (Vec<Option<[Extent; COPIES]>>, Option<[Extent; COPIES]>, Vec<Extent>) {
+    let mut blocks = vec![None; chunks.len()];
+    let mut root = None;
+    let mut stale = Vec::new();
+    match &sv.clean {
+        Some((slot, refs)) if refs.len() == chunks.len() && refs.iter().zip(chunks).all(|(r, c)| same_range(r, c)) => {
+            for (b, r) in blocks.iter_mut().zip(refs) {
+                *b = Some(r.extents());
+            }
+            root = Some(slot.root_copies());
+        }
+        _ => stale.clone_from(&sv.metadata),
+    }
+    (blocks, root, stale)
+}
+
+/// The file's space as the survey found it used: the beams' extents, and
+/// the metadata where the commit is kept (`committed`). Bytes claimed twice
+/// are a format error.
+fn extents_in_use(sv: &Survey, committed: bool, path: &Path) -> Result<Extents> {
+    let mut used: Vec<Extent> = sv.dirs.iter().flatten().map(|e| e.extent()).collect();
+    if committed {
+        used.extend(sv.metadata.iter().copied());
+    }
+    Extents::from_used(sv.data_start, used).map_err(|o| StorageError::Format {
+        path: path.to_path_buf(),
+        source: format::FormatError::Invalid {
+            what: format!("commit {}", sv.generation),
+            at: o.second.offset,
+            detail: format!(
+                "bytes {}..{} are claimed twice (also by {}..{})",
+                o.second.offset,
+                o.second.end(),
+                o.first.offset,
+                o.first.end()
+            ),
+        },
+    })
 }
 
 #[cfg(test)]

@@ -376,80 +376,23 @@ pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
             problems: problems.join("\n"),
         });
     };
-    let mut dirs: Vec<Vec<BeamEntry>> = beams.iter().map(|&n| vec![BeamEntry::default(); n as usize]).collect();
-    let mut claims: Vec<(Extent, Claim)> = Vec::new();
-    // Chunks of the newest commit whose directory is lost: (section, first, beams, rays).
-    let mut lost: Vec<ChunkRef> = Vec::new();
-    let mut claimed_rays = None;
-    let mut clean_chunks = None;
-    let mut weak_chunks = Vec::new();
-    claims.extend(newest.root_copies().iter().map(|e| (*e, Claim::NewestMeta)));
-    match read_root(file, path, &newest, &beams, file_len, &mut f.repaired)? {
-        Ok(chunks) => {
-            claimed_rays = Some(chunks.iter().map(|c| c.rays).sum::<u64>());
-            let mut all = true;
-            for c in &chunks {
-                claims.extend(c.extents().iter().map(|e| (*e, Claim::NewestMeta)));
-                let notes = f.repaired.len();
-                let read = read_chunk(file, path, c, data_start, file_len, &mut f.repaired)?;
-                if f.repaired.len() > notes {
-                    weak_chunks.push((c.section, c.first));
-                }
-                match read {
-                    Ok(entries) => {
-                        let dir = &mut dirs[c.section as usize];
-                        for (i, e) in entries.into_iter().enumerate() {
-                            let b = c.first + i as u32;
-                            dir[b as usize] = e;
-                            if e.count > 0 {
-                                claims.push((e.extent(), Claim::NewestBeam(c.section, b)));
-                            }
-                        }
-                    }
-                    Err(p) => {
-                        f.problems.push(p);
-                        lost.push(*c);
-                        all = false;
-                    }
-                }
-            }
-            if all {
-                clean_chunks = Some(chunks);
-            }
-        }
-        Err(p) => {
-            f.problems.push(p);
-            lost.extend(whole_sections(&beams));
-        }
-    }
-    // Lost directories: take them from the commit before, where it verifies.
-    let mut fallback = None;
-    if !lost.is_empty() {
-        if let Some(&(_, older)) = slots.iter().find(|(_, s)| s.generation < newest.generation) {
-            let mut ignored = Vec::new();
-            if let Ok(chunks) = read_root(file, path, &older, &beams, file_len, &mut ignored)? {
-                claims.extend(older.root_copies().iter().map(|e| (*e, Claim::OlderMeta)));
-                for c in chunks.iter().filter(|c| lost.iter().any(|l| overlaps(l, c))) {
-                    let Ok(entries) = read_chunk(file, path, c, data_start, file_len, &mut ignored)? else {
-                        continue;
-                    };
-                    fallback = Some(older.generation);
-                    claims.extend(c.extents().iter().map(|e| (*e, Claim::OlderMeta)));
-                    let dir = &mut dirs[c.section as usize];
-                    for (i, e) in entries.into_iter().enumerate() {
-                        let b = c.first + i as u32;
-                        let inside = lost
-                            .iter()
-                            .any(|l| l.section == c.section && (l.first..l.first + l.beams).contains(&b));
-                        if inside && e.count > 0 {
-                            dir[b as usize] = e;
-                            claims.push((e.extent(), Claim::OlderBeam(c.section, b)));
-                        }
-                    }
-                }
-            }
-        }
-    }
+    let at = Place {
+        file,
+        path,
+        beams: &beams,
+        data_start,
+        file_len,
+    };
+    let mut read = at.newest(&newest, &mut f)?;
+    let fallback = at.fall_back(&slots, &newest, &mut read)?;
+    let Directories {
+        mut dirs,
+        claims,
+        claimed_rays,
+        clean_chunks,
+        weak_chunks,
+        ..
+    } = read;
     let metadata = plan_claims(&mut dirs, claims, data_start, file_len, &mut f.problems);
     let damage = (!f.problems.is_empty()).then(|| CommitDamage {
         generation: newest.generation,
@@ -481,6 +424,132 @@ pub(crate) fn survey(file: &File, path: &Path) -> Result<Survey> {
         uneven_slots: f.uneven_slots,
         legacy: None,
     })
+}
+
+/// Where a survey reads: the file, its sections' beam counts and its extent.
+struct Place<'a> {
+    file: &'a File,
+    path: &'a Path,
+    /// Beams per section.
+    beams: &'a [u32],
+    /// Where beam data may start.
+    data_start: u64,
+    file_len: u64,
+}
+
+/// The beam directories a survey read, and who claims which bytes.
+struct Directories {
+    /// Per section, per beam.
+    dirs: Vec<Vec<BeamEntry>>,
+    /// Every extent the commits read claim, by whom.
+    claims: Vec<(Extent, Claim)>,
+    /// Chunks of the newest commit whose directory is lost.
+    lost: Vec<ChunkRef>,
+    /// Rays the newest commit's root says it holds, where it verifies.
+    claimed_rays: Option<u64>,
+    /// The newest commit's chunks, where every one of them verified.
+    clean_chunks: Option<Vec<ChunkRef>>,
+    /// Chunks read only after a repair (section, first beam).
+    weak_chunks: Vec<(u32, u32)>,
+}
+
+impl Place<'_> {
+    /// The newest commit's root and directory chunks; what does not verify
+    /// is noted in `f` and its chunks listed as lost.
+    fn newest(&self, newest: &Slot, f: &mut Findings) -> Result<Directories> {
+        let (file, path, beams, data_start, file_len) =
+            (self.file, self.path, self.beams, self.data_start, self.file_len);
+        let mut dirs: Vec<Vec<BeamEntry>> = beams.iter().map(|&n| vec![BeamEntry::default(); n as usize]).collect();
+        let mut claims: Vec<(Extent, Claim)> = Vec::new();
+        // Chunks of the newest commit whose directory is lost: (section, first, beams, rays).
+        let mut lost: Vec<ChunkRef> = Vec::new();
+        let mut claimed_rays = None;
+        let mut clean_chunks = None;
+        let mut weak_chunks = Vec::new();
+        claims.extend(newest.root_copies().iter().map(|e| (*e, Claim::NewestMeta)));
+        match read_root(file, path, newest, beams, file_len, &mut f.repaired)? {
+            Ok(chunks) => {
+                claimed_rays = Some(chunks.iter().map(|c| c.rays).sum::<u64>());
+                let mut all = true;
+                for c in &chunks {
+                    claims.extend(c.extents().iter().map(|e| (*e, Claim::NewestMeta)));
+                    let notes = f.repaired.len();
+                    let read = read_chunk(file, path, c, data_start, file_len, &mut f.repaired)?;
+                    if f.repaired.len() > notes {
+                        weak_chunks.push((c.section, c.first));
+                    }
+                    match read {
+                        Ok(entries) => {
+                            let dir = &mut dirs[c.section as usize];
+                            for (i, e) in entries.into_iter().enumerate() {
+                                let b = c.first + i as u32;
+                                dir[b as usize] = e;
+                                if e.count > 0 {
+                                    claims.push((e.extent(), Claim::NewestBeam(c.section, b)));
+                                }
+                            }
+                        }
+                        Err(p) => {
+                            f.problems.push(p);
+                            lost.push(*c);
+                            all = false;
+                        }
+                    }
+                }
+                if all {
+                    clean_chunks = Some(chunks);
+                }
+            }
+            Err(p) => {
+                f.problems.push(p);
+                lost.extend(whole_sections(beams));
+            }
+        }
+        Ok(Directories {
+            dirs,
+            claims,
+            lost,
+            claimed_rays,
+            clean_chunks,
+            weak_chunks,
+        })
+    }
+
+    /// Lost directories taken from the commit before, where it verifies;
+    /// the generation they came from, if any did.
+    fn fall_back(&self, slots: &[(usize, Slot)], newest: &Slot, d: &mut Directories) -> Result<Option<u64>> {
+        let (file, path, beams, data_start, file_len) =
+            (self.file, self.path, self.beams, self.data_start, self.file_len);
+        let (lost, claims, dirs) = (&d.lost, &mut d.claims, &mut d.dirs);
+        let mut fallback = None;
+        if !lost.is_empty() {
+            if let Some(&(_, older)) = slots.iter().find(|(_, s)| s.generation < newest.generation) {
+                let mut ignored = Vec::new();
+                if let Ok(chunks) = read_root(file, path, &older, beams, file_len, &mut ignored)? {
+                    claims.extend(older.root_copies().iter().map(|e| (*e, Claim::OlderMeta)));
+                    for c in chunks.iter().filter(|c| lost.iter().any(|l| overlaps(l, c))) {
+                        let Ok(entries) = read_chunk(file, path, c, data_start, file_len, &mut ignored)? else {
+                            continue;
+                        };
+                        fallback = Some(older.generation);
+                        claims.extend(c.extents().iter().map(|e| (*e, Claim::OlderMeta)));
+                        let dir = &mut dirs[c.section as usize];
+                        for (i, e) in entries.into_iter().enumerate() {
+                            let b = c.first + i as u32;
+                            let inside = lost
+                                .iter()
+                                .any(|l| l.section == c.section && (l.first..l.first + l.beams).contains(&b));
+                            if inside && e.count > 0 {
+                                dir[b as usize] = e;
+                                claims.push((e.extent(), Claim::OlderBeam(c.section, b)));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(fallback)
+    }
 }
 
 fn whole_sections(beams: &[u32]) -> Vec<ChunkRef> {
