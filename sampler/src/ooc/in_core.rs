@@ -63,8 +63,30 @@ impl OocScene {
             .into_par_iter()
             .map(|id| self.cache().read(id))
             .collect::<Result<_, _>>()?;
-        let corrupt = OocError::Corrupt;
         let mut scene = self.shell();
+        self.assemble_mesh(&blocks, &mut scene)?;
+        self.separate_textured(&mut scene)?;
+        let (nodes, leaf_tris) = self.assemble_tree(&blocks)?;
+        let corrupt = OocError::Corrupt;
+        let bytes = blocks.iter().map(|b| b.memory() as u64).sum();
+        drop(blocks);
+        let node_count = nodes.len();
+        let tree = KdTree::from_parts(nodes, leaf_tris, self.bounds(), &scene).map_err(|e| corrupt(e.to_string()))?;
+        let report = InCoreReport {
+            blocks: h.blocks,
+            bytes,
+            nodes: node_count,
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        Ok((scene, tree, report))
+    }
+
+    /// The triangles of `blocks` into `scene`: a triangle's vertices come
+    /// from the first block that lists it; each block's vertices are
+    /// appended whole, so its indices only shift.
+    fn assemble_mesh(&self, blocks: &[Block], scene: &mut Scene) -> Result<(), OocError> {
+        let corrupt = OocError::Corrupt;
+        let h = self.header();
         let count = usize::try_from(h.triangles).map_err(|_| corrupt("too many triangles".into()))?;
         let listed: usize = blocks.iter().map(|b| b.ids.len()).sum();
         if count > listed {
@@ -72,10 +94,8 @@ impl OocScene {
                 "the header counts {count} triangles, the blocks list {listed}"
             )));
         }
-        // A triangle's vertices come from the first block that lists it; each
-        // block's vertices are appended whole, so its indices only shift.
         let mut triangles = vec![None; count];
-        for b in &blocks {
+        for b in blocks {
             let base = u32::try_from(scene.positions.len())
                 .ok()
                 .filter(|base| base.checked_add(b.verts.len() as u32).is_some())
@@ -98,7 +118,14 @@ impl OocScene {
             .enumerate()
             .map(|(id, t)| t.ok_or_else(|| corrupt(format!("triangle {id} is in no block"))))
             .collect::<Result<_, _>>()?;
-        // Textured triangles get vertices of their own, with their texture coordinates.
+        Ok(())
+    }
+
+    /// Textured triangles get vertices of their own, with their texture
+    /// coordinates (and tangents, where the file keeps them).
+    fn separate_textured(&self, scene: &mut Scene) -> Result<(), OocError> {
+        let corrupt = OocError::Corrupt;
+        let count = scene.triangles.len();
         if !self.texturing.uvs.is_empty() {
             scene.uvs = vec![glam::Vec2::ZERO; scene.positions.len()];
             if !self.texturing.tangents.is_empty() {
@@ -121,9 +148,16 @@ impl OocScene {
                 t.v = [base, base + 1, base + 2];
             }
         }
+        Ok(())
+    }
 
-        // The tree: links are followed, not kept; a walk through more links
-        // than there are levels means links that cycle.
+    /// The kd-tree's nodes and leaf lists, walked from the root through the
+    /// blocks' treelets: links are followed, not kept; a walk through more
+    /// links than there are levels means links that cycle.
+    #[allow(clippy::type_complexity)]
+    fn assemble_tree(&self, blocks: &[Block]) -> Result<(Vec<Node>, Vec<u32>), OocError> {
+        let corrupt = OocError::Corrupt;
+        let h = self.header();
         let root = self.root();
         let (mut nodes, mut leaf_tris) = (vec![Node::leaf(0, 0)], Vec::new());
         let mut todo = vec![(0usize, root.block, root.node, 0u32)];
@@ -166,16 +200,6 @@ impl OocScene {
                 }
             }
         }
-        let bytes = blocks.iter().map(|b| b.memory() as u64).sum();
-        drop(blocks);
-        let node_count = nodes.len();
-        let tree = KdTree::from_parts(nodes, leaf_tris, self.bounds(), &scene).map_err(|e| corrupt(e.to_string()))?;
-        let report = InCoreReport {
-            blocks: h.blocks,
-            bytes,
-            nodes: node_count,
-            seconds: start.elapsed().as_secs_f64(),
-        };
-        Ok((scene, tree, report))
+        Ok((nodes, leaf_tris))
     }
 }
