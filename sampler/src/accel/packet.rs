@@ -89,6 +89,12 @@ impl KdTree {
         out
     }
 
+    /// The rays of `rays` in the octant `mask` selects, walked through the
+    /// tree together, their nearest hits into `out`.
+    ///
+    /// Long because it is the packet walk's inner loop: the lanes' origins,
+    /// inverse directions, intervals and the node stack stay in locals (and
+    /// registers) from the root to the last leaf.
     fn packet_octant(&self, rays: &[Ray], mask: u32, out: &mut [Option<Hit>; PACKET]) {
         let (mut origin, mut inv) = ([[0f32; PACKET]; 3], [[0f32; PACKET]; 3]);
         let mut t_min = [f32::INFINITY; PACKET];

@@ -147,6 +147,11 @@ impl OocScene {
     /// Walks the leaves along the ray front to back (see the in-core walk).
     /// `lod` is the voxel-size-to-distance ratio below which a voxel stands in
     /// for its subtree (0: never).
+    ///
+    /// Long because it is one traversal loop (Áfra 2012, Algorithm 1): the
+    /// node stack, the ray's interval and the block in hand stay in locals
+    /// across inner nodes, links, voxels and leaves; split, every step would
+    /// hand them back and forth on the hottest path out of core.
     fn walk<'g>(
         &'g self,
         ray: &Ray,

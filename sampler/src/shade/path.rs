@@ -221,6 +221,11 @@ impl Tracer {
     /// emits or what the sky sends, samples lights for shadow rays, and
     /// samples the BSDF for the next ray. Every random number a path uses
     /// is drawn here.
+    ///
+    /// Long because it is the estimator's one place of randomness: the order
+    /// in which it draws random numbers is what makes the depth-first and
+    /// wavefront estimates the same bits (see the module doc), and it reads
+    /// as that order, top to bottom.
     #[inline(always)]
     pub(super) fn shade(&self, p: &mut Path, hit: Option<SurfaceHit>, rng: &mut Rng, direct: &mut Direct) -> Step {
         let o = &self.options;

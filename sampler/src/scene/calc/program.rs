@@ -461,7 +461,7 @@ impl<'p> Eval<'p> {
     }
 
     /// The value of native `b` on `args`: one match arm per native, each a
-    /// line or a few (a long function for that reason alone).
+    /// line or a few. Long because of that alone: a table of natives.
     fn native(&mut self, b: Builtin, args: &[Value]) -> f64 {
         use Builtin::*;
         let mut nums = [0.0f64; 4];

@@ -150,6 +150,9 @@ fn quad(
 }
 
 /// The textured things, added to a scene that has the built-in room.
+///
+/// Long because it is the gallery's inventory: each piece's texture,
+/// material and placement in turn, read top to bottom like a list.
 pub fn add_gallery_pieces(b: &mut SceneBuilder) -> Result<(), SceneError> {
     let plain = |t: u32| TexRef::new(t);
     let rug_tex = texture(b, "gallery:rug", rug(), Encoding::Srgb)?;

@@ -38,6 +38,12 @@ pub(super) struct Source<'a> {
 
 impl Source<'_> {
     /// Our material and maps for glTF material `m` (named `name` in notes).
+    ///
+    /// Long because it reads glTF's material properties one after another
+    /// (emission, occlusion, base colour with metal and roughness,
+    /// transmission and IOR, normals, alpha), each with the note that says
+    /// what is approximated or ignored next to the property it concerns, and
+    /// then fixes the material those factors and textures make.
     pub(super) fn convert(&self, b: &mut SceneBuilder, m: &gltf::Material, name: &str) -> (Material, MaterialMaps) {
         let file = self.path.display().to_string();
         let note = |b: &mut SceneBuilder, what: String| b.note(&file, Some(name), what);

@@ -221,47 +221,7 @@ impl Modifiers {
             let target = p.strings.first().map_or("", String::as_str);
             self.lookup(target, at)?
         } else if PATTERNS.contains(&kind) {
-            self.skies.remove(&p.name);
-            self.pictures.remove(&p.name);
-            self.patterns.remove(&p.name);
-            if let Some(sky) = sky_pattern(p, at)? {
-                self.skies.insert(p.name.clone(), sky);
-            } else if let Some(picture) = picture_pattern(p, at, dir, placed)? {
-                self.pictures.insert(p.name.clone(), picture);
-            } else if is_function_pattern(kind) {
-                match self.files.pattern(p, dir, placed) {
-                    Ok(pattern) => {
-                        let mut chain = self.patterns.get(&p.modifier).cloned().unwrap_or_default();
-                        chain.push(pattern);
-                        self.patterns.insert(p.name.clone(), chain);
-                    }
-                    Err(why) => {
-                        tracing::warn!("{at}: {}: {why}; the pattern is ignored", p.what());
-                        report.note(NoteKind::PatternIgnored, at, || format!("{}: {why}", p.what()));
-                    }
-                }
-            } else {
-                report.note(NoteKind::PatternIgnored, at, || p.what());
-            }
-            let pattern = self.patterns.get(&p.name).and_then(|c| c.last());
-            match (self.lookup(&p.modifier, at)?, self.pictures.get(&p.name), pattern) {
-                // A picture over a material (surface -> pattern -> material):
-                // surfaces that name the pattern show the material pictured.
-                (Resolved::Material(slot), Some(picture), _) => {
-                    let mut pictured = self.slots[slot].clone();
-                    pictured.picture = Some(picture.clone());
-                    self.slots.push(pictured);
-                    Resolved::Material(self.slots.len() - 1)
-                }
-                // The same for a function or data pattern.
-                (Resolved::Material(slot), None, Some(pattern)) => {
-                    let mut patterned = self.slots[slot].clone();
-                    patterned.patterns.push(pattern.clone());
-                    self.slots.push(patterned);
-                    Resolved::Material(self.slots.len() - 1)
-                }
-                (resolved, ..) => resolved,
-            }
+            self.define_pattern(p, at, dir, placed, report)?
         } else if MIXTURES.contains(&kind) {
             let [fore, back] = match &p.strings[..] {
                 [fore, back, ..] => [fore, back],
@@ -293,34 +253,96 @@ impl Modifiers {
         } else if kind == "mist" {
             Resolved::Invisible(NoteKind::MistInvisible)
         } else {
-            let (material, light) = convert(p, at, report)?;
-            material.validate().map_err(|e| {
-                let (what, message) = (p.what(), e.to_string());
-                RadError::new(at, RadErrorKind::BadArguments { what, message })
-            })?;
-            let sky = match light {
-                LightKind::Glow => self.skies.get(&p.modifier).cloned(),
-                _ => None,
-            };
-            let picture = self.pictures.get(&p.modifier).cloned();
-            let patterns = match light {
-                // A sky's pattern shapes the sky; the glow itself is the sky.
-                LightKind::Glow if sky.is_some() => Vec::new(),
-                _ => self.patterns.get(&p.modifier).cloned().unwrap_or_default(),
-            };
-            self.slots.push(Slot {
-                name: p.name.clone(),
-                material,
-                light,
-                at: at.clone(),
-                sky,
-                picture,
-                patterns,
-            });
-            Resolved::Material(self.slots.len() - 1)
+            self.define_material(p, at, report)?
         };
         self.names.insert(p.name.clone(), resolved);
         Ok(true)
+    }
+
+    /// Defines pattern `p`: a sky's distribution, a picture, or a function
+    /// or data pattern (chained onto its modifier's), noted where ignored.
+    /// Over a material, what it resolves to is that material pictured or
+    /// patterned.
+    fn define_pattern(
+        &mut self,
+        p: &Primitive,
+        at: &Location,
+        dir: &std::path::Path,
+        placed: &glam::DMat4,
+        report: &mut RadReport,
+    ) -> Result<Resolved, RadError> {
+        self.skies.remove(&p.name);
+        self.pictures.remove(&p.name);
+        self.patterns.remove(&p.name);
+        if let Some(sky) = sky_pattern(p, at)? {
+            self.skies.insert(p.name.clone(), sky);
+        } else if let Some(picture) = picture_pattern(p, at, dir, placed)? {
+            self.pictures.insert(p.name.clone(), picture);
+        } else if is_function_pattern(&p.kind) {
+            match self.files.pattern(p, dir, placed) {
+                Ok(pattern) => {
+                    let mut chain = self.patterns.get(&p.modifier).cloned().unwrap_or_default();
+                    chain.push(pattern);
+                    self.patterns.insert(p.name.clone(), chain);
+                }
+                Err(why) => {
+                    tracing::warn!("{at}: {}: {why}; the pattern is ignored", p.what());
+                    report.note(NoteKind::PatternIgnored, at, || format!("{}: {why}", p.what()));
+                }
+            }
+        } else {
+            report.note(NoteKind::PatternIgnored, at, || p.what());
+        }
+        let pattern = self.patterns.get(&p.name).and_then(|c| c.last());
+        let resolved = match (self.lookup(&p.modifier, at)?, self.pictures.get(&p.name), pattern) {
+            // A picture over a material (surface -> pattern -> material):
+            // surfaces that name the pattern show the material pictured.
+            (Resolved::Material(slot), Some(picture), _) => {
+                let mut pictured = self.slots[slot].clone();
+                pictured.picture = Some(picture.clone());
+                self.slots.push(pictured);
+                Resolved::Material(self.slots.len() - 1)
+            }
+            // The same for a function or data pattern.
+            (Resolved::Material(slot), None, Some(pattern)) => {
+                let mut patterned = self.slots[slot].clone();
+                patterned.patterns.push(pattern.clone());
+                self.slots.push(patterned);
+                Resolved::Material(self.slots.len() - 1)
+            }
+            (resolved, ..) => resolved,
+        };
+        Ok(resolved)
+    }
+
+    /// Defines material `p` (converted, checked), with the sky, picture and
+    /// patterns its modifier names.
+    fn define_material(&mut self, p: &Primitive, at: &Location, report: &mut RadReport) -> Result<Resolved, RadError> {
+        let (material, light) = convert(p, at, report)?;
+        material.validate().map_err(|e| {
+            let (what, message) = (p.what(), e.to_string());
+            RadError::new(at, RadErrorKind::BadArguments { what, message })
+        })?;
+        let sky = match light {
+            LightKind::Glow => self.skies.get(&p.modifier).cloned(),
+            _ => None,
+        };
+        let picture = self.pictures.get(&p.modifier).cloned();
+        let patterns = match light {
+            // A sky's pattern shapes the sky; the glow itself is the sky.
+            LightKind::Glow if sky.is_some() => Vec::new(),
+            _ => self.patterns.get(&p.modifier).cloned().unwrap_or_default(),
+        };
+        self.slots.push(Slot {
+            name: p.name.clone(),
+            material,
+            light,
+            at: at.clone(),
+            sky,
+            picture,
+            patterns,
+        });
+        Ok(Resolved::Material(self.slots.len() - 1))
     }
 }
 
