@@ -37,7 +37,9 @@ pub fn entry_face(axis: usize, dir: Vec3) -> usize {
     2 * axis + usize::from(dir[axis] < 0.0)
 }
 
-fn oct_encode(n: Vec3) -> [u16; 2] {
+/// The octahedral coordinates of `n` rounded to 16 bits each (the four
+/// corners, all straight down, as one).
+fn oct_quantize(n: Vec3) -> [u16; 2] {
     let n = n / (n.x.abs() + n.y.abs() + n.z.abs()).max(1e-20);
     let p = if n.z >= 0.0 {
         Vec2::new(n.x, n.y)
@@ -46,7 +48,29 @@ fn oct_encode(n: Vec3) -> [u16; 2] {
         Vec2::new((1.0 - n.y.abs()) * s(n.x), (1.0 - n.x.abs()) * s(n.y))
     };
     let q = |v: f32| ((v.clamp(-1.0, 1.0) * 0.5 + 0.5) * 65535.0).round() as u16;
-    [q(p.x), q(p.y)]
+    let e = [q(p.x), q(p.y)];
+    // The four corners of the square are all straight down (-z): one of
+    // them stands for it, so that a decoded normal encodes to the same bits.
+    if e.iter().all(|&v| v == 0 || v == u16::MAX) {
+        return [u16::MAX; 2];
+    }
+    e
+}
+
+/// A unit normal in two 16-bit octahedral coordinates, chosen so that
+/// decoding and encoding again gives the same bits: near the fold (the
+/// equator) a normal can round to either side of it, and the code is
+/// moved to the one its own decoding rounds to.
+fn oct_encode(n: Vec3) -> [u16; 2] {
+    let mut e = oct_quantize(n);
+    for _ in 0..4 {
+        let again = oct_quantize(oct_decode(e));
+        if again == e {
+            break;
+        }
+        e = again;
+    }
+    e
 }
 
 fn oct_decode(e: [u16; 2]) -> Vec3 {
