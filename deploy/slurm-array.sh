@@ -4,7 +4,8 @@
 # Workers are stateless: tasks may start late, be preempted or end early; the
 # server gives their unfinished packets back to its schedule.
 #
-#   holodeck serve room.hdk --listen 0.0.0.0:7777      # on a host the nodes can reach
+#   holodeck serve room.hdk --listen 0.0.0.0:7777      # on a host the nodes can reach (TLS: the
+#                                                      # token file pins its certificate)
 #   sbatch --export=ALL,HOLODECK_SERVER=login1:7777 slurm-array.sh
 #
 #SBATCH --job-name=holodeck-samplers

@@ -10,6 +10,8 @@ pub use holodeck::DriverChoice;
 use holodeck_display::denoise::Denoiser;
 use holodeck_display::geometry::{Geometry, DEFAULT_BUDGET};
 use holodeck_display::EstimatorOptions;
+use holodeck_protocol::wire::client;
+use holodeck_protocol::wire::tls::Pin;
 use holodeck_protocol::{check_picture_size, MAX_PICTURE_SIDE};
 
 /// Pixels along one side of a picture (the whole picture is checked by
@@ -84,9 +86,42 @@ pub struct TokenArgs {
     /// Access token.
     #[arg(long, conflicts_with = "token_file")]
     token: Option<String>,
-    /// File holding the access token (as `holodeck serve` writes it).
+    /// File holding the access token (as `holodeck serve` writes it, with the
+    /// fingerprint of the server's certificate, which is then pinned: TLS).
     #[arg(long)]
     token_file: Option<PathBuf>,
+    /// The SHA-256 fingerprint of the server's certificate, to pin it (TLS)
+    /// where the token is given with --token; `holodeck serve` prints it.
+    #[arg(long, value_name = "HEX")]
+    tls_fingerprint: Option<String>,
+    /// Talk to a server on another host over plain TCP: the token and every
+    /// ray cross the network in clear text, readable and forgeable by anyone
+    /// on the path. Without it a server elsewhere needs a pinned certificate.
+    #[arg(long, conflicts_with = "tls_fingerprint")]
+    plain_text: bool,
+}
+
+/// The line of a token file that pins the server's certificate.
+pub const FINGERPRINT_LINE: &str = "tls-sha256 ";
+
+/// What a token file holds: the token (its first line) and the server's
+/// certificate fingerprint, where a `tls-sha256 HEX` line gives one.
+pub fn read_token_file(path: &std::path::Path) -> Result<(String, Option<Pin>)> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut lines = text.lines();
+    let token = lines.next().unwrap_or("").trim().to_string();
+    let mut pin = None;
+    for line in lines {
+        if let Some(hex) = line.trim().strip_prefix(FINGERPRINT_LINE.trim_end()) {
+            let p = Pin::parse(hex.trim())
+                .with_context(|| format!("{}: {:?} is not a SHA-256 fingerprint", path.display(), hex.trim()))?;
+            pin = Some(p);
+        }
+    }
+    if token.is_empty() {
+        bail!("{} holds no token", path.display());
+    }
+    Ok((token, pin))
 }
 
 impl TokenArgs {
@@ -94,11 +129,35 @@ impl TokenArgs {
     pub fn token(&self) -> Result<String> {
         Ok(match (&self.token, &self.token_file) {
             (Some(t), _) => t.clone(),
-            (None, Some(p)) => std::fs::read_to_string(p)
-                .with_context(|| format!("reading {}", p.display()))?
-                .trim()
-                .to_string(),
+            (None, Some(p)) => read_token_file(p)?.0,
             (None, None) => bail!("give --token or --token-file (the server writes FILE.token)"),
+        })
+    }
+
+    /// The server's certificate fingerprint, from the flag or the file.
+    pub fn pin(&self) -> Result<Option<Pin>> {
+        if let Some(hex) = &self.tls_fingerprint {
+            return Pin::parse(hex)
+                .map(Some)
+                .with_context(|| format!("--tls-fingerprint {hex:?}: not 64 hex digits"));
+        }
+        match &self.token_file {
+            Some(p) => Ok(read_token_file(p)?.1),
+            None => Ok(None),
+        }
+    }
+
+    /// The address the client connects to for `--connect ADDR`: TLS with
+    /// the pinned certificate where there is one, plain otherwise (which the
+    /// client allows to this machine alone, unless --plain-text).
+    pub fn address(&self, connect: &str) -> Result<String> {
+        if connect.starts_with("unix:") {
+            return Ok(connect.to_string());
+        }
+        Ok(match (self.pin()?, self.plain_text) {
+            (Some(pin), _) => client::address(connect, Some(pin)),
+            (None, true) => format!("{}{connect}", client::PLAIN_PREFIX),
+            (None, false) => connect.to_string(),
         })
     }
 }

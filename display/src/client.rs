@@ -92,7 +92,7 @@ impl DisplaySession {
     pub fn connect(addr: &str, token: &str, read_only: bool) -> Result<DisplaySession, ClientError> {
         let (writer, welcome) = client::open(addr, client::hello(Role::Display, token, "", read_only))?;
         let reader = writer.stream().try_clone().map_err(|e| ClientError::Link {
-            addr: addr.to_string(),
+            addr: client::shown(addr).to_string(),
             source: LinkError::Io(e),
         })?;
         let (tx, frames) = std::sync::mpsc::channel();
@@ -114,7 +114,7 @@ impl DisplaySession {
             }
         });
         Ok(DisplaySession {
-            addr: addr.to_string(),
+            addr: client::shown(addr).to_string(),
             writer,
             frames,
             decoder: SampleDecoder::new(welcome.sections),

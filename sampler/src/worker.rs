@@ -64,7 +64,7 @@ pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u
 /// admin stopped the samplers (rather than the server closing).
 fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<(u64, bool), WorkerError> {
     let io = |source: LinkError| WorkerError::Io {
-        addr: addr.to_string(),
+        addr: client::shown(addr).to_string(),
         source,
     };
     let (mut link, welcome): (FrameLink<ClientStream>, _) =
@@ -103,11 +103,11 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
                 Frame::Message(Message::Error { message }) => tracing::warn!("server: {message}"),
                 Frame::Message(Message::Refused { reason, retry }) => {
                     if retry {
-                        tracing::warn!("{addr}: {reason}");
+                        tracing::warn!("{}: {reason}", client::shown(addr));
                         return Ok((traced, true));
                     }
                     return Err(WorkerError::Connect(ClientError::Refused {
-                        addr: addr.to_string(),
+                        addr: client::shown(addr).to_string(),
                         role: client::role_name(Role::Sampler),
                         reason,
                         retry,
@@ -162,7 +162,10 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
             }
         }
     }
-    tracing::info!("{addr}: the server closed the connection after {traced} rays");
+    tracing::info!(
+        "{}: the server closed the connection after {traced} rays",
+        client::shown(addr)
+    );
     Ok((traced, false))
 }
 
@@ -204,7 +207,7 @@ pub fn run_worker_retrying(
             Err(WorkerError::Connect(ClientError::Refused {
                 reason, retry: true, ..
             })) => {
-                tracing::warn!("{addr}: refused for now ({reason}); retrying");
+                tracing::warn!("{}: refused for now ({reason}); retrying", client::shown(addr));
                 reached = true;
                 (None, true)
             }
@@ -224,14 +227,14 @@ pub fn run_worker_retrying(
         if since.elapsed() >= retry_for {
             return match failure {
                 Some(error) if !reached => Err(WorkerError::Unreachable {
-                    addr: addr.to_string(),
+                    addr: client::shown(addr).to_string(),
                     retried: retry_for,
                     error: Box::new(error),
                 }),
                 _ => Ok(total),
             };
         }
-        tracing::info!("{addr}: server unavailable; retrying in {delay:?}");
+        tracing::info!("{}: server unavailable; retrying in {delay:?}", client::shown(addr));
         std::thread::sleep(delay.min(retry_for.saturating_sub(since.elapsed())));
         delay = (delay * 2).min(Duration::from_secs(10));
     }

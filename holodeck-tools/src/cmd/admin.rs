@@ -85,6 +85,7 @@ fn describe(p: &Progress) -> String {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let token = a.token.token()?;
+    let addr = a.token.address(&a.connect)?;
     let control = match a.command {
         Command::Pause => Control::Pause,
         Command::Resume => Control::Resume,
@@ -104,7 +105,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
         }
         Command::Status => {
-            let (mut link, welcome) = client::open(&a.connect, client::hello(Role::Admin, &token, "", true))?;
+            let (mut link, welcome) = client::open(&addr, client::hello(Role::Admin, &token, "", true))?;
             // Every connection gets a report as it comes.
             loop {
                 match link.read().with_context(|| format!("reading from {}", a.connect))? {
@@ -118,7 +119,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             }
         }
     };
-    match client::send_control(&a.connect, &token, control.clone()) {
+    match client::send_control(&addr, &token, control.clone()) {
         Ok(_) => {
             println!("{}: {control:?} done", a.connect);
             Ok(ExitCode::SUCCESS)

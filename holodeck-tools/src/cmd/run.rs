@@ -137,10 +137,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         .to_string();
     let (server, addr) = start_server(&a, &file)?;
     let token_file = format!("{file}.token");
-    let token = std::fs::read_to_string(&token_file)
-        .with_context(|| format!("reading {token_file}"))?
-        .trim()
-        .to_string();
+    let token = holodeck_cli::args::read_token_file(Path::new(&token_file))?.0;
     let workers = (0..a.workers)
         .map(|i| Child::spawn(format!("sampler {}", i + 1), sampler_command(&a, &addr, &file, i)?))
         .collect::<Result<Vec<_>>>()?;

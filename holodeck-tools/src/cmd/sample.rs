@@ -79,6 +79,7 @@ fn modified(spec: &str) -> Option<SystemTime> {
 /// Runs the command.
 pub fn run(a: Args) -> Result<ExitCode> {
     let token = a.token.token()?;
+    let addr = a.token.address(&a.connect)?;
     let options = TraceOptions {
         max_bounces: a.bounces,
         samples: a.samples,
@@ -119,7 +120,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let results: Vec<Option<Result<u64, WorkerError>>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..jobs)
             .map(|j| {
-                let (scene, token, addr) = (&scene, &token, &a.connect);
+                let (scene, token, addr) = (&scene, &token, &addr);
                 s.spawn(move || {
                     run_worker_retrying(
                         addr,

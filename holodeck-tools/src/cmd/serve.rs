@@ -6,10 +6,12 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
+use holodeck_cli::args::FINGERPRINT_LINE;
 use holodeck_file::settings::{parse_duration, parse_size};
 use holodeck_file::{HoloFile, OpenOptions};
+use holodeck_protocol::wire::tls::Pin;
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
-use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tokens};
+use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tls, Tokens};
 use holodeck_server::schedule::Share;
 use rand::Rng;
 
@@ -24,6 +26,10 @@ a file readable by the owner only unless given on the command line:
   FILE.viewer.token  viewer (--viewer-token): displays that only read
 A restarted server keeps the tokens already in those files (so running samplers and displays
 get back in); --new-tokens writes new ones, locking out everyone who had the old.
+TCP peers speak TLS: a self-signed certificate is made on first use (FILE.tls.crt, its key
+FILE.tls.key readable by the owner only; or --tls-cert/--tls-key), and its fingerprint is
+written into the token files, which pin it. Peers on other hosts must speak TLS unless
+--plain-text-on-network (tokens and rays then cross the network in clear text).
 Display requests are traced first;
 otherwise samplers fill every beam by volume (or only what --views see; none with --no-fill).
 Stops, flushing everything, on SIGINT/SIGTERM, an admin's quit, TIME, or a full DISKSPACE.
@@ -95,6 +101,19 @@ pub struct Args {
     /// still be read and losing the rest for good (see `holodeck check`).
     #[arg(long)]
     accept_loss: bool,
+    /// The server's certificate chain (PEM) for TLS, with --tls-key; default:
+    /// the file's own, FILE.tls.crt, made self-signed on first use.
+    #[arg(long, requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// The private key (PEM) of --tls-cert.
+    #[arg(long, requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
+    /// Also take the plain protocol from other hosts: their tokens and rays
+    /// cross the network in clear text, readable and forgeable on the path.
+    /// Without it, peers elsewhere must speak TLS (the token files pin the
+    /// certificate); this machine may always speak plain.
+    #[arg(long)]
+    plain_text_on_network: bool,
 }
 
 /// Values of `--request-share`.
@@ -139,7 +158,7 @@ fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Re
     let t: String = (0..32)
         .map(|_| format!("{:x}", rand::thread_rng().gen_range(0..16u8)))
         .collect();
-    write_token(&path, &t)?;
+    write_token(&path, &t, None)?;
     if !holodeck_cli::quiet() {
         eprintln!("{level} access token written to {}", path.display());
     }
@@ -151,20 +170,21 @@ fn token_for(given: Option<String>, file: &Path, level: &str, fresh: bool) -> Re
 fn kept_token(path: &Path) -> Option<String> {
     use std::os::unix::fs::PermissionsExt;
     let meta = std::fs::symlink_metadata(path).ok()?;
-    if !meta.file_type().is_file() || meta.permissions().mode() & 0o077 != 0 || meta.len() > 64 {
+    if !meta.file_type().is_file() || meta.permissions().mode() & 0o077 != 0 || meta.len() > 256 {
         return None;
     }
     let text = std::fs::read_to_string(path).ok()?;
-    let t = text.trim();
+    let t = text.lines().next()?.trim();
     (t.len() == 32 && t.chars().all(|c| c.is_ascii_hexdigit())).then(|| t.to_string())
 }
 
-/// Writes the token readable by the owner only, to a temporary name first so
+/// Writes the token (and the line pinning the server's certificate, when
+/// there is one) readable by the owner only, to a temporary name first so
 /// that a failed write leaves no empty or partial token file behind. The
 /// temporary file is created new (`O_CREAT|O_EXCL|O_NOFOLLOW`): whatever
 /// lies at its name (a stale file, or a link planted to catch the token) is
 /// removed first, never written through.
-fn write_token(path: &Path, token: &str) -> Result<()> {
+fn write_token(path: &Path, token: &str, pin: Option<Pin>) -> Result<()> {
     use std::os::unix::fs::OpenOptionsExt;
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(format!(".{}.tmp", std::process::id()));
@@ -187,6 +207,9 @@ fn write_token(path: &Path, token: &str) -> Result<()> {
             other => other?,
         };
         writeln!(f, "{token}")?;
+        if let Some(pin) = pin {
+            writeln!(f, "{FINGERPRINT_LINE}{pin}")?;
+        }
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();
@@ -195,6 +218,39 @@ fn write_token(path: &Path, token: &str) -> Result<()> {
         return Err(e).with_context(|| format!("writing the access token to {}", path.display()));
     }
     Ok(())
+}
+
+/// The certificate the server presents: the user's, or the file's own
+/// (made self-signed for this machine's names and the listening address on
+/// first use); its fingerprint is said.
+fn server_tls(a: &Args) -> Result<Tls> {
+    let tls = match (&a.tls_cert, &a.tls_key) {
+        (Some(cert), Some(key)) => Tls::load(cert, key)?,
+        _ => {
+            let mut names = vec!["localhost".to_string(), "127.0.0.1".to_string(), "::1".to_string()];
+            if let Ok(host) = std::fs::read_to_string("/proc/sys/kernel/hostname") {
+                names.push(host.trim().to_string());
+            }
+            let listen_host = a.listen.rsplit_once(':').map_or(a.listen.as_str(), |(h, _)| h);
+            let listen_host = listen_host.trim_start_matches('[').trim_end_matches(']');
+            if !matches!(listen_host, "" | "0.0.0.0" | "::") {
+                names.push(listen_host.to_string());
+            }
+            names.retain(|n| !n.is_empty());
+            names.dedup();
+            let (tls, made) = Tls::own(&a.file, &names)?;
+            let (cert, _) = holodeck_server::net::tls::own_paths(&a.file);
+            if made {
+                note!(
+                    "made a self-signed TLS certificate {} (its key beside it, readable by you alone)",
+                    cert.display()
+                );
+            }
+            tls
+        }
+    };
+    note!("TLS certificate fingerprint (SHA-256): {}", tls.fingerprint);
+    Ok(tls)
 }
 
 /// Runs the command.
@@ -211,6 +267,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
             ..OpenOptions::default()
         },
     )?;
+    let tls = server_tls(&a)?;
     // Tokens are written once the file is open: a file that cannot be served keeps its old tokens.
     let tokens = Tokens {
         admin: token_for(a.token, &a.file, "admin", a.new_tokens)?,
@@ -222,6 +279,18 @@ pub fn run(a: Args) -> Result<ExitCode> {
         || tokens.viewer == tokens.writer
     {
         anyhow::bail!("the admin, writer and viewer tokens must differ from one another");
+    }
+    // The token files pin the certificate: a peer given one speaks TLS.
+    for (level, token) in [
+        ("admin", Some(&tokens.admin)),
+        ("writer", tokens.writer.as_ref()),
+        ("viewer", tokens.viewer.as_ref()),
+    ] {
+        let path = token_path(&a.file, level);
+        let generated = kept_token(&path).is_some_and(|t| Some(&t) == token);
+        if let (true, Some(token)) = (generated, token) {
+            write_token(&path, token, Some(tls.fingerprint))?;
+        }
     }
     if let Some(d) = &a.diskspace {
         let bytes = parse_size(d).context("--diskspace")?;
@@ -259,6 +328,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
             RequestShare::Fair => Share::Fair,
             RequestShare::Merged => Share::Merged,
         },
+        tls: Some(tls),
+        plain_from_network: a.plain_text_on_network,
         ..ServerConfig::new(String::new())
     };
     let runtime = tokio::runtime::Builder::new_multi_thread().enable_all().build()?;

@@ -118,11 +118,12 @@ pub fn run(a: Args) -> Result<ExitCode> {
         bail!("--format must be png or hdr, not {:?}", a.format);
     }
     let token = a.token.token()?;
+    let addr = a.token.address(&a.connect)?;
     let wait = parse_duration(&a.wait, 1.0).context("--wait")?;
     let views = holodeck_cli::view_arg::read_views(&views_path)?;
     std::fs::create_dir_all(&output).with_context(|| format!("creating {}", output.display()))?;
-    let session = DisplaySession::connect(&a.connect, &token, a.read_only)
-        .with_context(|| format!("connecting to {}", a.connect))?;
+    let session =
+        DisplaySession::connect(&addr, &token, a.read_only).with_context(|| format!("connecting to {}", a.connect))?;
     let first = Viewport::new(views[0].clone(), a.frame.width, a.frame.height)?;
     let driver = a.frame.driver_choice()?.make(first)?;
     let mut walk = Headless {
@@ -258,8 +259,9 @@ impl Headless<'_> {
 /// The window on a live session.
 fn windowed(a: Args) -> Result<ExitCode> {
     let token = a.token.token()?;
-    let session = DisplaySession::connect(&a.connect, &token, a.read_only)
-        .with_context(|| format!("connecting to {}", a.connect))?;
+    let addr = a.token.address(&a.connect)?;
+    let session =
+        DisplaySession::connect(&addr, &token, a.read_only).with_context(|| format!("connecting to {}", a.connect))?;
     let view = match &a.views {
         Some(path) => holodeck_cli::view_arg::read_views(path)?.remove(0),
         None => {

@@ -222,8 +222,15 @@ fn writers_pause_and_resume_but_only_admins_clobber_and_viewers_cannot_sample() 
         let path = format!("{f}{suffix}");
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600, "{path} is readable by the owner only");
-        let t = std::fs::read_to_string(&path).unwrap().trim().to_string();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mut lines = text.lines();
+        let t = lines.next().unwrap().trim().to_string();
         assert_eq!(t.len(), 32, "{path}: {t:?}");
+        let pin = lines.next().unwrap_or("");
+        assert!(
+            pin.starts_with("tls-sha256 ") && pin.len() == "tls-sha256 ".len() + 64,
+            "{path} pins the server's certificate: {pin:?}"
+        );
         t
     };
     let (admin, writer, viewer) = (read(".token"), read(".writer.token"), read(".viewer.token"));

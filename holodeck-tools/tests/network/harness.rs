@@ -431,6 +431,9 @@ pub fn run_stores_then_quit(run: &Proc, file: &Path, rays: u64, what: &str) {
     });
     let token = std::fs::read_to_string(format!("{}.token", file.display()))
         .unwrap()
+        .lines()
+        .next()
+        .unwrap()
         .trim()
         .to_string();
     let beams: Vec<(BeamKey, u32)> = {

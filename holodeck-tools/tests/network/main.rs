@@ -13,4 +13,5 @@ mod harness;
 mod lifecycle;
 mod scene_file;
 mod scenes;
+mod tls;
 mod window;

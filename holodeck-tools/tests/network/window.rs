@@ -68,7 +68,7 @@ fn standard_input_commands_drive_a_window_on_a_server() {
     // A window on a viewer's token may look but not clobber: the server
     // refuses, the window says so and goes on, and the rays stay.
     let viewer_token = std::fs::read_to_string(format!("{}.viewer.token", file.display())).unwrap();
-    let (mut viewer, mut vat) = window_of(viewer_token.trim());
+    let (mut viewer, mut vat) = window_of(viewer_token.lines().next().unwrap().trim());
     for command in ["clobber", "kill", "pause"] {
         viewer.say(command);
         viewer.wait_line("the refusal", &mut vat, |l| {

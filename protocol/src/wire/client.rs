@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use super::link::{FrameLink, LinkError};
 use super::message::{Access, Control, ControlOutcome, ControlReply, Hello, Message, MessageError, Role};
+use super::tls::{self, Pin, TLS_PREFIX};
 use super::{Frame, PROTOCOL_VERSION};
 use crate::section::{Section, SectionError};
 
@@ -98,6 +99,16 @@ pub enum ClientError {
         /// How long it was given.
         seconds: f64,
     },
+    /// A server on another host was asked for over plain TCP.
+    #[error(
+        "server {addr} is on another host and no certificate is pinned: the token would cross the \
+         network in clear text. Give the token file `holodeck serve` wrote (it pins the server's \
+         certificate for TLS), or --plain-text to send it in clear anyway"
+    )]
+    PlainOverNetwork {
+        /// The server's address.
+        addr: String,
+    },
     /// The server could not be reached, or the connection failed.
     #[error("server {addr}: {source}")]
     Link {
@@ -182,17 +193,65 @@ pub struct Welcome {
     pub access: Access,
 }
 
-/// Connects to `addr`: `host:port` for TCP (Nagle off), `unix:PATH` for a
-/// Unix socket.
+/// The prefix of an address that sends to another host over plain TCP,
+/// token and rays in clear text, as the user insisted (`--plain-text`).
+pub const PLAIN_PREFIX: &str = "plain:";
+
+/// An address as messages show it: without a pinned fingerprint or a
+/// `plain:` prefix.
+pub fn shown(addr: &str) -> &str {
+    if let Some(rest) = addr.strip_prefix(TLS_PREFIX) {
+        return rest.split_once('@').map_or(rest, |(_, at)| at);
+    }
+    addr.strip_prefix(PLAIN_PREFIX).unwrap_or(addr)
+}
+
+/// The address of a server at `host:port` whose certificate `pin` names
+/// (TLS), or the plain address where none does.
+pub fn address(host_port: &str, pin: Option<Pin>) -> String {
+    match pin {
+        Some(pin) => format!("{TLS_PREFIX}{pin}@{host_port}"),
+        None => host_port.to_string(),
+    }
+}
+
+/// Connects to `addr`: `tls:FINGERPRINT@host:port` for TLS to a server whose
+/// certificate has that SHA-256 fingerprint; `host:port` for plain TCP to
+/// this machine (a server elsewhere is refused: the token would cross the
+/// network in clear text), or `plain:host:port` to insist; `unix:PATH` for
+/// a Unix socket. TCP goes with Nagle's algorithm off.
 pub fn connect(addr: &str) -> Result<ClientStream, ClientError> {
     let link = |e: std::io::Error| ClientError::Link {
-        addr: addr.to_string(),
+        addr: shown(addr).to_string(),
         source: LinkError::Io(e),
     };
     if let Some(path) = addr.strip_prefix("unix:") {
         return Ok(ClientStream::Unix(UnixStream::connect(path).map_err(link)?));
     }
-    let s = TcpStream::connect(addr).map_err(link)?;
+    if let Some(rest) = addr.strip_prefix(TLS_PREFIX) {
+        let pinned = rest.split_once('@').and_then(|(pin, at)| Some((Pin::parse(pin)?, at)));
+        let Some((pin, host_port)) = pinned else {
+            return Err(ClientError::Protocol {
+                addr: shown(addr).to_string(),
+                what: "a TLS address is tls:FINGERPRINT@HOST:PORT, the fingerprint 64 hex digits".into(),
+            });
+        };
+        let s = TcpStream::connect(host_port).map_err(link)?;
+        let _ = s.set_nodelay(true);
+        let host = host_port.rsplit_once(':').map_or(host_port, |(h, _)| h);
+        let host = host.trim_start_matches('[').trim_end_matches(']');
+        return Ok(ClientStream::Unix(tls::tunnel(s, host, pin).map_err(link)?));
+    }
+    let (target, insisted) = match addr.strip_prefix(PLAIN_PREFIX) {
+        Some(t) => (t, true),
+        None => (addr, false),
+    };
+    let s = TcpStream::connect(target).map_err(link)?;
+    if !insisted && !s.peer_addr().is_ok_and(|a| a.ip().is_loopback()) {
+        return Err(ClientError::PlainOverNetwork {
+            addr: target.to_string(),
+        });
+    }
     let _ = s.set_nodelay(true);
     Ok(ClientStream::Tcp(s))
 }
@@ -222,7 +281,7 @@ pub fn role_name(role: Role) -> &'static str {
 pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: Hello) -> Result<Welcome, ClientError> {
     let role = hello.role;
     let io = |source: LinkError| ClientError::Link {
-        addr: addr.to_string(),
+        addr: shown(addr).to_string(),
         source,
     };
     link.write(&Frame::Message(Message::Hello(hello))).map_err(io)?;
@@ -239,7 +298,7 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
                 .enumerate()
                 .map(|(index, s)| {
                     Section::try_from(s).map_err(|error: SectionError| ClientError::Invalid {
-                        addr: addr.to_string(),
+                        addr: shown(addr).to_string(),
                         source: MessageError::Section { index, error },
                     })
                 })
@@ -252,17 +311,17 @@ pub fn handshake<S: Read + Write>(link: &mut FrameLink<S>, addr: &str, hello: He
             })
         }
         Some(Frame::Message(Message::Refused { reason, retry })) => Err(ClientError::Refused {
-            addr: addr.to_string(),
+            addr: shown(addr).to_string(),
             role: role_name(role),
             reason,
             retry,
         }),
         Some(other) => Err(ClientError::Protocol {
-            addr: addr.to_string(),
+            addr: shown(addr).to_string(),
             what: format!("expected Welcome or Refused, got {other:?}"),
         }),
         None => Err(ClientError::Closed {
-            addr: addr.to_string(),
+            addr: shown(addr).to_string(),
             when: "during the handshake",
         }),
     }
@@ -285,7 +344,7 @@ pub fn await_reply<S: Read + Write>(link: &mut FrameLink<S>, addr: &str) -> Resu
                 return match reply.outcome {
                     ControlOutcome::Done => Ok(reply),
                     outcome => Err(ClientError::Control {
-                        addr: addr.to_string(),
+                        addr: shown(addr).to_string(),
                         control: reply.control,
                         outcome,
                     }),
@@ -294,19 +353,19 @@ pub fn await_reply<S: Read + Write>(link: &mut FrameLink<S>, addr: &str) -> Resu
             Ok(Some(Frame::Message(Message::Progress(_)))) => {}
             Ok(Some(other)) => {
                 return Err(ClientError::Protocol {
-                    addr: addr.to_string(),
+                    addr: shown(addr).to_string(),
                     what: format!("expected the answer to a command, got {other:?}"),
                 })
             }
             Ok(None) => {
                 return Err(ClientError::Closed {
-                    addr: addr.to_string(),
+                    addr: shown(addr).to_string(),
                     when: "before answering the command",
                 })
             }
             Err(source) => {
                 return Err(ClientError::Link {
-                    addr: addr.to_string(),
+                    addr: shown(addr).to_string(),
                     source,
                 })
             }
@@ -333,7 +392,7 @@ pub fn send_control_within(
             ..
         } if matches!(io.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
             ClientError::Timeout {
-                addr: addr.to_string(),
+                addr: shown(addr).to_string(),
                 seconds: limit.as_secs_f64(),
             }
         }
@@ -341,7 +400,7 @@ pub fn send_control_within(
     };
     let stream = connect(addr)?;
     let link_error = |e: std::io::Error| ClientError::Link {
-        addr: addr.to_string(),
+        addr: shown(addr).to_string(),
         source: LinkError::Io(e),
     };
     stream.set_read_timeout(Some(limit)).map_err(link_error)?;
@@ -350,7 +409,7 @@ pub fn send_control_within(
     handshake(&mut link, addr, hello(Role::Admin, token, "", false)).map_err(timed_out)?;
     link.write(&Frame::Message(Message::Control(control)))
         .map_err(|source| ClientError::Link {
-            addr: addr.to_string(),
+            addr: shown(addr).to_string(),
             source,
         })
         .map_err(timed_out)?;

@@ -2,12 +2,13 @@
 //! admin tools): typed messages in length-prefixed frames. Control messages are
 //! postcard-encoded; ray payloads travel as raw 10-byte records. Encoding is
 //! pure; [`client`] alone opens sockets, for the blocking peers' side of the
-//! handshake. Every decoder takes untrusted bytes and never panics.
+//! handshake, over TLS ([`tls`]) where the address asks for it. Every decoder takes untrusted bytes and never panics.
 
 pub mod client;
 mod frame;
 mod link;
 mod message;
+pub mod tls;
 
 pub use frame::{decode_frame, encode_frame, Frame, FrameBuffer, FrameError, FRAME_HEADER, MAX_FRAME};
 pub use link::{FrameLink, LinkError};

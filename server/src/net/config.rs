@@ -1,5 +1,6 @@
 //! How a server runs: what its operator chose on the command line, fixed for
-//! the server's life. Plain data; nothing here touches a socket or the file.
+//! the server's life. Plain data (and the certificate it presents); nothing
+//! here touches a socket or the file.
 
 use std::time::Duration;
 
@@ -88,6 +89,11 @@ pub struct ServerConfig {
     pub stall: Duration,
     /// How display requests divide the samplers' rays.
     pub share: Share,
+    /// The certificate TCP peers may speak TLS to (`None`: plain only).
+    pub tls: Option<super::tls::Tls>,
+    /// Take the plain protocol from other hosts too (tokens and rays in
+    /// clear text); otherwise only this machine may speak it.
+    pub plain_from_network: bool,
 }
 
 impl ServerConfig {
@@ -109,6 +115,8 @@ impl ServerConfig {
             stop_when_full: true,
             stall: Duration::from_secs(30),
             share: Share::Fair,
+            tls: None,
+            plain_from_network: false,
         }
     }
 }

@@ -5,7 +5,25 @@ use std::path::{Path, PathBuf};
 
 use tokio::net::{TcpListener, UnixListener};
 
-use super::connection::Stream;
+use tokio::net::{TcpStream, UnixStream};
+
+/// A peer just accepted.
+pub enum Accepted {
+    /// Over TCP, from this address (TLS or plain: its first byte says).
+    Tcp(TcpStream, std::net::SocketAddr),
+    /// Over the Unix socket at this address.
+    Unix(UnixStream, String),
+}
+
+impl Accepted {
+    /// The peer in words, for logs.
+    pub fn peer(&self) -> String {
+        match self {
+            Accepted::Tcp(_, a) => a.to_string(),
+            Accepted::Unix(_, p) => p.clone(),
+        }
+    }
+}
 
 /// A listening socket.
 pub enum Listener {
@@ -63,17 +81,26 @@ impl Listener {
     }
 
     /// Waits for the next peer.
-    pub async fn accept(&self) -> std::io::Result<(Box<dyn Stream>, String)> {
+    pub async fn accept(&self) -> std::io::Result<Accepted> {
         match self {
             Listener::Tcp(l) => {
                 let (s, peer) = l.accept().await?;
                 let _ = s.set_nodelay(true);
-                Ok((Box::new(s), peer.to_string()))
+                Ok(Accepted::Tcp(s, peer))
             }
             Listener::Unix(l, p) => {
                 let (s, _) = l.accept().await?;
-                Ok((Box::new(s), format!("unix:{}", p.0.display())))
+                Ok(Accepted::Unix(s, format!("unix:{}", p.0.display())))
             }
+        }
+    }
+
+    /// Whether this is a TCP socket bound to a loopback address (or a Unix
+    /// socket): nobody on another host can reach it.
+    pub fn local_only(&self) -> bool {
+        match self {
+            Listener::Tcp(l) => l.local_addr().is_ok_and(|a| a.ip().is_loopback()),
+            Listener::Unix(..) => true,
         }
     }
 }

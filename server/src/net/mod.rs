@@ -5,7 +5,8 @@
 //! operator set the server up; `state` is what every connection task shares
 //! (and the control commands that change it); [`service`] checks each peer's
 //! handshake and hands it to the sampler or display loop; [`rate`] smooths the
-//! rays-per-second reports.
+//! rays-per-second reports; [`tls`] is the certificate and the first byte
+//! that tells TLS from the plain protocol.
 
 pub mod config;
 pub mod connection;
@@ -16,8 +17,10 @@ pub mod rate;
 mod sampler;
 pub mod service;
 mod state;
+pub mod tls;
 
 pub use config::{Fill, ServerConfig, Tokens};
 pub use listener::Listener;
 pub use service::serve;
 pub use state::ControlError;
+pub use tls::{Tls, TlsError};

@@ -25,8 +25,9 @@ use tokio::sync::{mpsc, watch, Notify};
 use super::config::ServerConfig;
 use super::connection::{Connection, ConnectionError, Stream};
 use super::file_thread::FileThread;
-use super::listener::Listener;
+use super::listener::{Accepted, Listener};
 use super::state::{Counted, Shared};
+use super::tls::Spoken;
 use crate::schedule::Scheduler;
 use holodeck_file::storage::{HoloFile, StorageError};
 
@@ -154,13 +155,8 @@ async fn spawn_reports(shared: &Arc<Shared>) -> tokio::task::JoinHandle<()> {
 
 /// One accept loop per socket, all feeding one queue of new peers.
 #[allow(clippy::type_complexity)]
-fn spawn_acceptors(
-    listeners: Vec<Listener>,
-) -> (
-    Vec<tokio::task::JoinHandle<()>>,
-    mpsc::Receiver<(Box<dyn Stream>, String)>,
-) {
-    let (peers_tx, peers) = mpsc::channel::<(Box<dyn Stream>, String)>(64);
+fn spawn_acceptors(listeners: Vec<Listener>) -> (Vec<tokio::task::JoinHandle<()>>, mpsc::Receiver<Accepted>) {
+    let (peers_tx, peers) = mpsc::channel::<Accepted>(64);
     let mut acceptors = Vec::new();
     for l in listeners {
         let tx = peers_tx.clone();
@@ -190,7 +186,7 @@ fn spawn_acceptors(
 async fn run_until_stopped(
     shared: &Arc<Shared>,
     store: &FileThread,
-    mut peers: mpsc::Receiver<(Box<dyn Stream>, String)>,
+    mut peers: mpsc::Receiver<Accepted>,
     mut stopped: watch::Receiver<bool>,
     tasks: &mut tokio::task::JoinSet<()>,
 ) {
@@ -209,10 +205,13 @@ async fn run_until_stopped(
     tokio::pin!(interrupted, terminated);
     loop {
         tokio::select! {
-            Some((stream, peer)) = peers.recv() => {
+            Some(accepted) = peers.recv() => {
                 let shared = Arc::clone(shared);
                 tasks.spawn(async move {
-                    match handle(stream, &shared).await {
+                    let peer = accepted.peer();
+                    let Some((stream, network)) = spoken(accepted, &shared).await else { return };
+                    let refuse_plain = network && !shared.config.plain_from_network;
+                    match handle(stream, &shared, refuse_plain).await {
                         Ok(()) => {}
                         // A peer that leaves without saying goodbye (a closed window) is no fault.
                         Err(e) if e.is_gone() => tracing::info!("{peer} went away: {e}"),
@@ -410,8 +409,32 @@ fn check(hello: &Hello, shared: &Shared) -> Result<Access, Refusal> {
     Ok(access)
 }
 
-async fn handle(stream: Box<dyn Stream>, shared: &Shared) -> Result<(), ConnectionError> {
+/// The byte stream of an accepted peer: TLS or plain (and then whether it
+/// came from another host); `None` where it left or its handshake failed.
+async fn spoken(accepted: Accepted, shared: &Shared) -> Option<(Box<dyn Stream>, bool)> {
+    match accepted {
+        Accepted::Unix(s, _) => Some((Box::new(s), false)),
+        Accepted::Tcp(s, peer) => match super::tls::accept(s, peer, shared.config.tls.as_ref()).await? {
+            Spoken::Tls(s) => Some((s, false)),
+            Spoken::Plain { stream, network } => Some((stream, network)),
+        },
+    }
+}
+
+/// What a server that takes TLS from other hosts answers a plain one.
+const PLAIN_REFUSED: &str = "this server takes peers on other hosts over TLS only (their tokens \
+would cross the network in clear text): connect with the token file `holodeck serve` wrote, which \
+pins the server's certificate";
+
+async fn handle(stream: Box<dyn Stream>, shared: &Shared, refuse_plain: bool) -> Result<(), ConnectionError> {
     let mut conn = Connection::new(stream);
+    if refuse_plain {
+        tracing::warn!("refused a peer on another host speaking the plain protocol");
+        let reason = PLAIN_REFUSED.to_string();
+        conn.write(&Frame::Message(Message::Refused { reason, retry: false }))
+            .await?;
+        return Ok(());
+    }
     // Nobody unauthenticated gets to make the server buffer 16 MiB.
     conn.set_max_frame(HANDSHAKE_FRAME);
     let first = tokio::time::timeout(Duration::from_secs(10), conn.read()).await;
