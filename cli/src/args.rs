@@ -97,8 +97,13 @@ pub struct TokenArgs {
     /// Talk to a server on another host over plain TCP: the token and every
     /// ray cross the network in clear text, readable and forgeable by anyone
     /// on the path. Without it a server elsewhere needs a pinned certificate.
-    #[arg(long, conflicts_with = "tls_fingerprint")]
+    #[arg(long, conflicts_with_all = ["tls_fingerprint", "tls_ca"])]
     plain_text: bool,
+    /// Check the server's certificate against this CA (PEM) and the host name
+    /// of --connect, instead of pinning it (for a certificate `serve` was
+    /// given with --tls-cert).
+    #[arg(long, value_name = "FILE", conflicts_with = "tls_fingerprint")]
+    tls_ca: Option<PathBuf>,
 }
 
 /// The line of a token file that pins the server's certificate.
@@ -153,6 +158,10 @@ impl TokenArgs {
     pub fn address(&self, connect: &str) -> Result<String> {
         if connect.starts_with("unix:") {
             return Ok(connect.to_string());
+        }
+        if let Some(ca) = &self.tls_ca {
+            let ca = ca.to_str().context("--tls-ca: the path must be valid UTF-8")?;
+            return Ok(format!("{}{ca}@{connect}", holodeck_protocol::wire::tls::TLS_CA_PREFIX));
         }
         Ok(match (self.pin()?, self.plain_text) {
             (Some(pin), _) => client::address(connect, Some(pin)),

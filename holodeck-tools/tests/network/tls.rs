@@ -120,3 +120,69 @@ fn tokens_cross_the_network_only_over_tls() {
     quit(&local, &token);
     drop(server.finish());
 }
+
+/// A CA, and a server certificate it signs for `localhost`, as PEM files in
+/// `dir`: (ca, cert, key).
+fn ca_and_server(dir: &std::path::Path, tag: &str) -> (std::path::PathBuf, std::path::PathBuf, std::path::PathBuf) {
+    let ca_key = rcgen::KeyPair::generate().unwrap();
+    let mut ca = rcgen::CertificateParams::new(Vec::<String>::new()).unwrap();
+    ca.is_ca = rcgen::IsCa::Ca(rcgen::BasicConstraints::Unconstrained);
+    let ca = ca.self_signed(&ca_key).unwrap();
+    let key = rcgen::KeyPair::generate().unwrap();
+    let cert = rcgen::CertificateParams::new(vec!["localhost".to_string()])
+        .unwrap()
+        .signed_by(&key, &ca, &ca_key)
+        .unwrap();
+    let paths = (
+        dir.join(format!("{tag}-ca.pem")),
+        dir.join(format!("{tag}-cert.pem")),
+        dir.join(format!("{tag}-key.pem")),
+    );
+    std::fs::write(&paths.0, ca.pem()).unwrap();
+    std::fs::write(&paths.1, cert.pem()).unwrap();
+    std::fs::write(&paths.2, key.serialize_pem()).unwrap();
+    paths
+}
+
+#[test]
+fn a_certificate_of_ones_own_ca_is_checked_against_it_and_the_host_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (ca, cert, key) = ca_and_server(dir.path(), "ours");
+    let (other_ca, _, _) = ca_and_server(dir.path(), "theirs");
+    let server = Proc::start(bin().args([
+        "serve",
+        file.to_str().unwrap(),
+        "--listen",
+        "127.0.0.1:0",
+        "--tls-cert",
+        cert.to_str().unwrap(),
+        "--tls-key",
+        key.to_str().unwrap(),
+    ]));
+    let addr = server.wait_line("the address the server listens on", &mut 0, |l| {
+        l.strip_prefix("listening on ").map(str::to_string)
+    });
+    let port = addr.rsplit_once(':').unwrap().1;
+    let by_name = format!("localhost:{port}");
+    let (token, _) = token_file(&dir.path().join("room.hdk.token"));
+    // Signed by our CA for localhost: good.
+    let o = status(&by_name, &["--token", &token, "--tls-ca", ca.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    // Another CA: refused.
+    let o = status(&by_name, &["--token", &token, "--tls-ca", other_ca.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("certificate"), "{}", text(&o));
+    // Our CA, but a name the certificate is not for: refused.
+    let o = status(&addr, &["--token", &token, "--tls-ca", ca.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("certificate"), "{}", text(&o));
+    // The token files pin the given certificate too.
+    let o = status(
+        &addr,
+        &["--token-file", dir.path().join("room.hdk.token").to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    quit(&addr, &token);
+    drop(server.finish());
+}

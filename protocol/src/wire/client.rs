@@ -1,9 +1,9 @@
 //! The blocking client side of a connection, shared by every peer (sampler
 //! workers, displays, admin tools, benchmarks): connect by address, say
 //! hello, and read the server's answer as a typed [`Welcome`] or a typed
-//! refusal. This is the one module of the crate that opens sockets; it never
-//! reads files or clocks, and it leaves what happens after the handshake to
-//! its caller.
+//! refusal. This is the one module of the crate that opens sockets; it reads
+//! no file but the CA certificates an address names, and no clock, and it
+//! leaves what happens after the handshake to its caller.
 
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpStream};
@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use super::link::{FrameLink, LinkError};
 use super::message::{Access, Control, ControlOutcome, ControlReply, Hello, Message, MessageError, Role};
-use super::tls::{self, Pin, TLS_PREFIX};
+use super::tls::{self, Pin, Trust, TLS_CA_PREFIX, TLS_PREFIX};
 use super::{Frame, PROTOCOL_VERSION};
 use crate::section::{Section, SectionError};
 
@@ -200,8 +200,11 @@ pub const PLAIN_PREFIX: &str = "plain:";
 /// An address as messages show it: without a pinned fingerprint or a
 /// `plain:` prefix.
 pub fn shown(addr: &str) -> &str {
-    if let Some(rest) = addr.strip_prefix(TLS_PREFIX) {
-        return rest.split_once('@').map_or(rest, |(_, at)| at);
+    if let Some(rest) = addr
+        .strip_prefix(TLS_PREFIX)
+        .or_else(|| addr.strip_prefix(TLS_CA_PREFIX))
+    {
+        return rest.rsplit_once('@').map_or(rest, |(_, at)| at);
     }
     addr.strip_prefix(PLAIN_PREFIX).unwrap_or(addr)
 }
@@ -216,7 +219,9 @@ pub fn address(host_port: &str, pin: Option<Pin>) -> String {
 }
 
 /// Connects to `addr`: `tls:FINGERPRINT@host:port` for TLS to a server whose
-/// certificate has that SHA-256 fingerprint; `host:port` for plain TCP to
+/// certificate has that SHA-256 fingerprint, `tls-ca:PATH@host:port` for TLS
+/// to one whose certificate the CA in the PEM file PATH signed for `host`;
+/// `host:port` for plain TCP to
 /// this machine (a server elsewhere is refused: the token would cross the
 /// network in clear text), or `plain:host:port` to insist; `unix:PATH` for
 /// a Unix socket. TCP goes with Nagle's algorithm off.
@@ -228,6 +233,13 @@ pub fn connect(addr: &str) -> Result<ClientStream, ClientError> {
     if let Some(path) = addr.strip_prefix("unix:") {
         return Ok(ClientStream::Unix(UnixStream::connect(path).map_err(link)?));
     }
+    let tls_to = |host_port: &str, trust: Trust<'_>| -> Result<ClientStream, ClientError> {
+        let s = TcpStream::connect(host_port).map_err(link)?;
+        let _ = s.set_nodelay(true);
+        let host = host_port.rsplit_once(':').map_or(host_port, |(h, _)| h);
+        let host = host.trim_start_matches('[').trim_end_matches(']');
+        Ok(ClientStream::Unix(tls::tunnel(s, host, trust).map_err(link)?))
+    };
     if let Some(rest) = addr.strip_prefix(TLS_PREFIX) {
         let pinned = rest.split_once('@').and_then(|(pin, at)| Some((Pin::parse(pin)?, at)));
         let Some((pin, host_port)) = pinned else {
@@ -236,11 +248,16 @@ pub fn connect(addr: &str) -> Result<ClientStream, ClientError> {
                 what: "a TLS address is tls:FINGERPRINT@HOST:PORT, the fingerprint 64 hex digits".into(),
             });
         };
-        let s = TcpStream::connect(host_port).map_err(link)?;
-        let _ = s.set_nodelay(true);
-        let host = host_port.rsplit_once(':').map_or(host_port, |(h, _)| h);
-        let host = host.trim_start_matches('[').trim_end_matches(']');
-        return Ok(ClientStream::Unix(tls::tunnel(s, host, pin).map_err(link)?));
+        return tls_to(host_port, Trust::Pinned(pin));
+    }
+    if let Some(rest) = addr.strip_prefix(TLS_CA_PREFIX) {
+        let Some((ca, host_port)) = rest.rsplit_once('@') else {
+            return Err(ClientError::Protocol {
+                addr: shown(addr).to_string(),
+                what: "a TLS address with a CA is tls-ca:PATH@HOST:PORT".into(),
+            });
+        };
+        return tls_to(host_port, Trust::Ca(std::path::Path::new(ca)));
     }
     let (target, insisted) = match addr.strip_prefix(PLAIN_PREFIX) {
         Some(t) => (t, true),

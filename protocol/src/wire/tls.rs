@@ -11,6 +11,7 @@ use std::fmt;
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpStream};
 use std::os::unix::net::UnixStream;
+use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use rustls::client::danger::{HandshakeSignatureValid, ServerCertVerified, ServerCertVerifier};
@@ -20,6 +21,11 @@ use rustls::{ClientConfig, ClientConnection, DigitallySignedStruct, SignatureSch
 /// The prefix of an address that asks for TLS with a pinned certificate:
 /// `tls:HEX@host:port`.
 pub const TLS_PREFIX: &str = "tls:";
+
+/// The prefix of an address that asks for TLS with the server's certificate
+/// checked against a CA and the host name: `tls-ca:PATH@host:port`, PATH a
+/// PEM file of the CA's certificates.
+pub const TLS_CA_PREFIX: &str = "tls-ca:";
 
 /// The SHA-256 fingerprint of a certificate's DER bytes.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -132,16 +138,63 @@ fn pinned_config(pin: Pin) -> Result<ClientConfig, rustls::Error> {
         .with_no_client_auth())
 }
 
-/// Runs the TLS handshake with `pin` over `tcp` (to `host`), then hands the
-/// session to pump threads and returns the local end that carries its
-/// plain bytes. Fails with the verifier's words when the certificate is
-/// not the pinned one.
-pub fn tunnel(mut tcp: TcpStream, host: &str, pin: Pin) -> std::io::Result<UnixStream> {
+/// The client configuration that trusts certificates the CA certificates
+/// in the PEM file `ca` sign, for the host name asked for.
+fn ca_config(ca: &Path) -> std::io::Result<ClientConfig> {
+    use rustls::pki_types::pem::PemObject;
+    let invalid =
+        |detail: String| std::io::Error::new(std::io::ErrorKind::InvalidData, format!("{}: {detail}", ca.display()));
+    let pem = std::fs::read(ca).map_err(|e| std::io::Error::new(e.kind(), format!("reading {}: {e}", ca.display())))?;
+    let mut roots = rustls::RootCertStore::empty();
+    for cert in CertificateDer::pem_slice_iter(&pem) {
+        let cert = cert.map_err(|e| invalid(format!("not a PEM certificate: {e}")))?;
+        roots.add(cert).map_err(|e| invalid(e.to_string()))?;
+    }
+    if roots.is_empty() {
+        return Err(invalid("holds no CA certificate".into()));
+    }
+    let provider = Arc::new(rustls::crypto::ring::default_provider());
+    Ok(ClientConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .map_err(|e| invalid(e.to_string()))?
+        .with_root_certificates(roots)
+        .with_no_client_auth())
+}
+
+/// How a TLS client trusts its server.
+#[derive(Clone, Debug)]
+pub enum Trust<'a> {
+    /// Exactly the certificate with this fingerprint.
+    Pinned(Pin),
+    /// Any certificate the CA certificates in this PEM file sign for the host name.
+    Ca(&'a Path),
+}
+
+/// Runs the TLS handshake over `tcp` (to `host`) trusting as `trust` says,
+/// then hands the session to pump threads and returns the local end that
+/// carries its plain bytes. Fails with the verifier's words when the
+/// certificate is not trusted.
+pub fn tunnel(mut tcp: TcpStream, host: &str, trust: Trust<'_>) -> std::io::Result<UnixStream> {
     let invalid = |e: rustls::Error| std::io::Error::new(std::io::ErrorKind::InvalidData, e.to_string());
-    let config = Arc::new(pinned_config(pin).map_err(invalid)?);
-    // The pin is the trust; the name only travels in the handshake.
-    let name = ServerName::try_from(host.to_string())
-        .unwrap_or_else(|_| ServerName::try_from("holodeck").expect("a valid DNS name"));
+    let (config, name) = match trust {
+        // The pin is the trust; the name only travels in the handshake.
+        Trust::Pinned(pin) => (
+            pinned_config(pin).map_err(invalid)?,
+            ServerName::try_from(host.to_string()).unwrap_or_else(|_| {
+                ServerName::IpAddress(std::net::IpAddr::from(std::net::Ipv4Addr::LOCALHOST).into())
+            }),
+        ),
+        Trust::Ca(ca) => {
+            let name = ServerName::try_from(host.to_string()).map_err(|e| {
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    format!("{host:?} is no host name: {e}"),
+                )
+            })?;
+            (ca_config(ca)?, name)
+        }
+    };
+    let config = Arc::new(config);
     let mut conn = ClientConnection::new(config, name).map_err(invalid)?;
     while conn.is_handshaking() {
         // rustls words a verifier's own refusal as an "unexpected error".
