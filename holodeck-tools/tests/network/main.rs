@@ -9,8 +9,10 @@ mod common;
 
 mod admin;
 mod displays;
+mod faults;
 mod harness;
 mod lifecycle;
+mod proxy;
 mod scene_file;
 mod scenes;
 mod tls;

@@ -1,0 +1,188 @@
+//! Samplers across network faults: a server and sampler processes joined
+//! through the fault-injecting proxy (latency, a slow link, every connection
+//! reset, a 30 s partition) and a sampler frozen by SIGSTOP. After each
+//! fault the server still answers a display, the fill resumes, no ray is
+//! stored twice, and the file checks clean. What each fault cost is printed
+//! (`cargo test -p holodeck-tools --test network faults -- --nocapture`).
+
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use holodeck_file::{HoloFile, OpenOptions};
+use holodeck_protocol::wire::Role;
+use holodeck_protocol::BeamKey;
+
+use crate::common::process::Proc;
+use crate::common::text;
+use crate::harness::*;
+use crate::proxy::{Faults, Proxy};
+
+/// The admin token of the servers here (the writer's is generated into its
+/// file, which pins the certificate: the samplers speak TLS).
+const TOKEN: &str = "faults";
+
+/// Every ray of a closed file, and how many of them are exact copies of
+/// another ray of their beam (a packet stored twice; a random ray repeats
+/// its 10 bytes with negligible odds).
+fn duplicates(file: &Path) -> (u64, u64) {
+    let mut f = HoloFile::open(file, &OpenOptions::read_only()).unwrap();
+    let keys: Vec<BeamKey> = (0..f.sections()[0].beam_count())
+        .map(|b| BeamKey::new(0, b))
+        .filter(|k| f.beam_len(*k).unwrap() > 0)
+        .collect();
+    let (mut rays, mut copies) = (0u64, 0u64);
+    f.read_beams(&keys, |_, records| {
+        let mut seen = HashSet::with_capacity(records.len());
+        for r in records {
+            rays += 1;
+            if !seen.insert(*r) {
+                copies += 1;
+            }
+        }
+    })
+    .unwrap();
+    (rays, copies)
+}
+
+/// A sampler process of the room connecting to `addr` with the writer token
+/// of `file`, reconnecting for 10 s after it loses the server.
+fn sampler_via(addr: &str, file: &Path, seed: u32) -> Proc {
+    let writer = format!("{}.writer.token", file.display());
+    Proc::start(bin().args([
+        "sample",
+        "builtin:room",
+        "--connect",
+        addr,
+        "--token-file",
+        &writer,
+        "-j",
+        "1",
+        "--bounces",
+        "0",
+        "--retry-for",
+        "10s",
+        "--seed",
+        &seed.to_string(),
+    ]))
+}
+
+/// A display connected straight to the server asks for rays of a few beams
+/// and gets an answer: the server keeps serving displays.
+fn display_is_served(addr: &str) {
+    let (mut display, _) = Client::connect(addr, Role::Display, TOKEN);
+    let want: Vec<(BeamKey, u32)> = (0..4).map(|b| (BeamKey::new(0, 500 + 7 * b), 1)).collect();
+    let got: HashMap<BeamKey, usize> = display.request(&want, None).into_iter().collect();
+    assert!(got.keys().all(|k| want.iter().any(|w| w.0 == *k)), "{got:?}");
+}
+
+/// Waits until the server has stored `more` rays beyond what it reported
+/// last; the time that took.
+fn resumes(server: &Proc, from: &mut usize, more: u64, what: &str) -> Duration {
+    let start = Instant::now();
+    let now = reports(server).last().copied().unwrap_or(0);
+    reported_above(server, from, now + more, what);
+    start.elapsed()
+}
+
+/// Quits the server and the samplers, and checks the file: clean, no ray
+/// stored twice. Returns the rays stored.
+fn close_and_check(mut server: Proc, addr: &str, samplers: Vec<Proc>, file: &Path, what: &str) -> u64 {
+    quit(addr, TOKEN);
+    assert!(server.wait().success(), "{}", server.text());
+    for s in samplers {
+        let o = s.finish();
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    assert_clean(file);
+    let (rays, copies) = duplicates(file);
+    eprintln!("{what}: {rays} rays stored, {copies} stored twice");
+    assert_eq!(copies, 0, "{what}: rays stored twice");
+    rays
+}
+
+#[test]
+fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", TOKEN, &["--report", "1s"]);
+    let proxy = Proxy::start(&addr);
+    proxy.set(Faults {
+        latency: Duration::from_millis(50),
+        bandwidth: 200 << 10,
+        partitioned: false,
+    });
+    let samplers = vec![sampler_via(&proxy.addr, &file, 1), sampler_via(&proxy.addr, &file, 2)];
+    let mut from = 0;
+    let took = resumes(&server, &mut from, 5_000, "a fill over 50 ms and 200 KiB/s");
+    eprintln!("latency 50 ms, 200 KiB/s: 5,000 rays stored in {took:.1?}");
+    display_is_served(&addr);
+    close_and_check(server, &addr, samplers, &file, "latency and a slow link");
+}
+
+#[test]
+fn after_every_connection_is_reset_and_a_30_s_partition_the_fill_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (server, addr) = start_server_with(
+        file.to_str().unwrap(),
+        "127.0.0.1:0",
+        TOKEN,
+        &["--report", "1s", "--stall-timeout", "5s"],
+    );
+    let proxy = Proxy::start(&addr);
+    let samplers = vec![sampler_via(&proxy.addr, &file, 1), sampler_via(&proxy.addr, &file, 2)];
+    let mut from = 0;
+    resumes(&server, &mut from, 10_000, "the fill through the proxy");
+    // Every connection reset: the samplers reconnect and go on.
+    proxy.reset_all();
+    let took = resumes(&server, &mut from, 10_000, "the fill after every connection was reset");
+    eprintln!("connections reset: 10,000 more rays stored {took:.1?} later");
+    // A partition: nothing gets through for 30 s, no connection closes.
+    proxy.set(Faults {
+        partitioned: true,
+        ..Faults::default()
+    });
+    let start = Instant::now();
+    let before = proxy.delivered();
+    // The server drops the silent samplers (their work goes back to the
+    // schedule) and keeps answering a display the whole time.
+    while start.elapsed() < Duration::from_secs(30) {
+        display_is_served(&addr);
+        std::thread::sleep(Duration::from_secs(2));
+    }
+    assert_eq!(proxy.delivered(), before, "nothing crossed the partition");
+    proxy.set(Faults::default());
+    let took = resumes(&server, &mut from, 10_000, "the fill after a 30 s partition");
+    eprintln!("30 s partition healed: 10,000 more rays stored {took:.1?} later");
+    close_and_check(server, &addr, samplers, &file, "resets and a partition");
+}
+
+#[test]
+fn a_frozen_sampler_host_loses_its_work_to_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let (server, addr) = start_server_with(
+        file.to_str().unwrap(),
+        "127.0.0.1:0",
+        TOKEN,
+        &["--report", "1s", "--stall-timeout", "3s"],
+    );
+    let frozen = sampler_via(&addr, &file, 1);
+    let mut samplers = vec![sampler_via(&addr, &file, 2)];
+    let mut from = 0;
+    resumes(&server, &mut from, 5_000, "the fill by two samplers");
+    frozen.signal(libc::SIGSTOP);
+    let start = Instant::now();
+    let mut at = 0;
+    server.wait_line("the frozen sampler dropped", &mut at, |l| {
+        (l.contains("no results for") || l.contains("stopped")).then_some(())
+    });
+    eprintln!("a sampler frozen by SIGSTOP: dropped after {:.1?}", start.elapsed());
+    let took = resumes(&server, &mut from, 5_000, "the fill by the other sampler");
+    eprintln!("its work traced by the other: 5,000 more rays {took:.1?} later");
+    display_is_served(&addr);
+    frozen.signal(libc::SIGCONT);
+    samplers.push(frozen);
+    close_and_check(server, &addr, samplers, &file, "a frozen sampler");
+}
