@@ -14,6 +14,7 @@ pub mod paths;
 pub mod publish;
 pub mod replay;
 pub mod report;
+pub mod scale;
 pub mod scene_file;
 pub mod share;
 pub mod storage;
@@ -37,6 +38,7 @@ Examples:
   holodeck bench scene-file --triangles 10M --charts docs
   holodeck bench display --samples 1M --rays 4M
   holodeck bench network --seconds 8
+  holodeck bench scale --samplers 1 --samplers 4 --samplers 16 --samplers 64
   holodeck bench share
   holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0
   holodeck bench textures --repeats 5
@@ -66,6 +68,8 @@ enum Bench {
     Display(display::Args),
     /// The server over loopback: fill overhead, recall to displays, many peers.
     Network(network::Args),
+    /// How many samplers one server feeds: light samplers N = 1..64, TLS and plain, beside the engine's append rate.
+    Scale(scale::Args),
     /// Two displays, one greedy, sharing real samplers: each display's share of the rays.
     Share(share::Args),
     /// Holodeck pictures against direct renders at equal compute: one view, a walkthrough.
@@ -82,6 +86,9 @@ enum Bench {
     /// Internal: fill one file (the child process of a memory measurement).
     #[command(hide = true)]
     Fill(storage::ChildArgs),
+    /// Internal: one light sampler (the child process of `bench scale`).
+    #[command(hide = true)]
+    ScaleSampler(scale::SamplerArgs),
 }
 
 /// Where a benchmark writes its files, and whether it keeps them.
@@ -105,6 +112,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
         Bench::SceneFile(a) => scene_file::run_args(&a),
         Bench::Display(a) => display::run_args(&a),
         Bench::Network(a) => network::run_args(&a),
+        Bench::Scale(a) => scale::run_args(&a),
+        Bench::ScaleSampler(a) => scale::run_sampler(&a),
         Bench::Share(a) => share::run_args(&a),
         Bench::Accuracy(a) => accuracy::run_args(&a),
         Bench::Textures(a) => textures::run_args(&a),

@@ -102,7 +102,9 @@ fn random_ray(rng: &mut StdRng) -> RayRecord {
 /// Appends `rays` in packets of 1-21 rays (as the paper's server did) to
 /// random beams. Returns the seconds until every ray is flushed, and those the
 /// close then takes (compacting the file).
-fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<(f64, f64)> {
+/// Appends `rays` random rays to a new file at `path` in packets of 1-21
+/// rays to random beams: seconds appending (flushed) and closing.
+pub(super) fn fill(path: &Path, settings: &Settings, rays: u64, seed: u64) -> Result<(f64, f64)> {
     HoloFile::create(path, settings)?;
     let mut f = HoloFile::open(path, &OpenOptions::default())?;
     let beams = f.sections()[0].beam_count();

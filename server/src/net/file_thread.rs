@@ -15,7 +15,7 @@ use holodeck_file::storage::{FileSummary, HoloFile, Result, StorageError};
 pub type Beams = Vec<(BeamKey, Vec<RayRecord>)>;
 
 enum Request {
-    Append(BeamKey, Vec<RayRecord>),
+    Append(Vec<(BeamKey, Vec<RayRecord>)>),
     Read(Vec<(BeamKey, u64)>, oneshot::Sender<Result<Beams>>),
     Lens(oneshot::Sender<Vec<Vec<u64>>>),
     Clobber(oneshot::Sender<Result<()>>),
@@ -53,8 +53,9 @@ impl FileThread {
         let handle = std::thread::spawn(move || -> Result<()> {
             while let Some(req) = rx.blocking_recv() {
                 match req {
-                    Request::Append(key, rays) => {
-                        if let Err(e) = file.append(key, &rays) {
+                    Request::Append(packets) => {
+                        for (key, rays) in packets {
+                            let Err(e) = file.append(key, &rays) else { continue };
                             // Log the first refusal only: every later packet meets the same wall.
                             if !refused.load(Ordering::SeqCst) {
                                 // A full DISKSPACE is the limit doing its job (the
@@ -168,7 +169,15 @@ impl FileThread {
     /// Waits while the storage thread is [`QUEUE`] requests behind: samplers
     /// are then slowed to what the disk takes, and memory stays bounded.
     pub async fn append(&self, key: BeamKey, rays: Vec<RayRecord>) {
-        let _ = self.tx.send(Request::Append(key, rays)).await;
+        self.append_many(vec![(key, rays)]).await;
+    }
+
+    /// Appends the rays of several packets, in order, in one request to the
+    /// storage thread (a sampler's packets that arrived together).
+    pub async fn append_many(&self, packets: Vec<(BeamKey, Vec<RayRecord>)>) {
+        if !packets.is_empty() {
+            let _ = self.tx.send(Request::Append(packets)).await;
+        }
     }
 
     /// Reads beams (in file order, through the cache), each from the given

@@ -148,7 +148,7 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
         // That frame and every one that came with it, before looking for more work.
         let end = loop {
             match frame {
-                Ok(Some(f)) => work.take(shared, &batches, f).await,
+                Ok(Some(f)) => work.take(&batches, f),
                 Ok(None) => break Some(Ok(())),
                 Err(e) => break Some(Err(e)),
             }
@@ -158,6 +158,7 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
                 Err(e) => Err(e),
             };
         };
+        work.store(shared).await;
         if let Some(end) = end {
             break end;
         }
@@ -189,6 +190,8 @@ struct Outstanding {
     meter: Meter,
     /// When it last made progress (or was given work with none out).
     progress: Instant,
+    /// Finished packets to store, with their rays.
+    done: Vec<(Work, Vec<holodeck_protocol::RayRecord>)>,
 }
 
 impl Outstanding {
@@ -198,6 +201,7 @@ impl Outstanding {
             rays: 0,
             meter: Meter::new(),
             progress: Instant::now(),
+            done: Vec::new(),
         }
     }
 
@@ -248,9 +252,9 @@ impl Outstanding {
     }
 
     /// Takes one frame from the sampler: a finished packet that matches one
-    /// sent is stored and forwarded to the displays that want its beam;
-    /// anything else is answered with an error.
-    async fn take(&mut self, shared: &Shared, batches: &mpsc::Sender<Vec<Frame>>, frame: Frame) {
+    /// sent is set aside to be stored (with the frames that came with it, by
+    /// [`Outstanding::store`]); anything else is answered with an error.
+    fn take(&mut self, batches: &mpsc::Sender<Vec<Frame>>, frame: Frame) {
         let message = match frame {
             Frame::Finished { id, key, records } => match self.pending.get(&id) {
                 Some(w) if w.key == key && records.len() == w.rays as usize => {
@@ -260,9 +264,7 @@ impl Outstanding {
                     self.progress = Instant::now();
                     self.meter
                         .finished(u64::from(w.rays), self.progress, self.pending.is_empty());
-                    shared.store.append(key, records).await;
-                    let displays = shared.lock_scheduler().finished(key, w.rays, w.source);
-                    forward(shared, key, &displays);
+                    self.done.push((w, records));
                     return;
                 }
                 _ => format!("packet {id} does not match any packet sent to you"),
@@ -270,6 +272,31 @@ impl Outstanding {
             _ => "samplers send finished packets only".to_string(),
         };
         let _ = batches.try_send(vec![Frame::Message(Message::Error { message })]);
+    }
+
+    /// Stores the finished packets set aside, in the order they came: their
+    /// rays in one request to the file's thread, the schedule told under one
+    /// lock, and the displays that want their beams woken.
+    async fn store(&mut self, shared: &Shared) {
+        if self.done.is_empty() {
+            return;
+        }
+        let done = std::mem::take(&mut self.done);
+        let finished: Vec<Work> = done.iter().map(|(w, _)| *w).collect();
+        shared
+            .store
+            .append_many(done.into_iter().map(|(w, records)| (w.key, records)).collect())
+            .await;
+        let woken: Vec<(BeamKey, Vec<u64>)> = {
+            let mut scheduler = shared.lock_scheduler();
+            finished
+                .iter()
+                .map(|w| (w.key, scheduler.finished(w.key, w.rays, w.source)))
+                .collect()
+        };
+        for (key, displays) in woken {
+            forward(shared, key, &displays);
+        }
     }
 
     /// Whatever the sampler still had is traced again by someone else.
@@ -280,7 +307,11 @@ impl Outstanding {
         }
         drop(scheduler);
         if let Some(r) = self.meter.rate() {
-            tracing::debug!("a sampler left after tracing at {r:.0} rays/s");
+            let queue = self
+                .meter
+                .queue(shared.config.latency, u64::from(shared.config.initial_queue));
+            // `holodeck bench scale` reads the queue.
+            tracing::debug!("a sampler left after tracing at {r:.0} rays/s (queue {queue} rays)");
         }
     }
 }

@@ -124,9 +124,14 @@ fn spawn_flusher(store: FileThread) -> tokio::task::JoinHandle<()> {
         let mut tick = tokio::time::interval(Duration::from_secs(2));
         loop {
             tick.tick().await;
+            let started = std::time::Instant::now();
             match store.flush().await {
                 // Says what a crash can no longer take away (tests wait on it).
-                Ok(rays) => tracing::debug!("periodic flush: {rays} rays durable"),
+                Ok(rays) => {
+                    tracing::debug!("periodic flush: {rays} rays durable");
+                    // The commit's latency (`holodeck bench scale` reads it).
+                    tracing::debug!("periodic flush took {:.1} ms", started.elapsed().as_secs_f64() * 1e3);
+                }
                 Err(e) => tracing::error!("periodic flush: {e}"),
             }
         }
