@@ -59,7 +59,7 @@ pub(super) fn me() -> Result<Command> {
 
 /// The tracer alone on `threads` threads: batch-schedule beams of the room,
 /// trace them, store nothing. Rays per second.
-fn tracer_rate(threads: usize, seconds: f64) -> Result<f64> {
+pub(super) fn tracer_rate(threads: usize, seconds: f64) -> Result<f64> {
     let scene = holodeck::load("builtin:room", None)?;
     let sections = scene.sections.clone();
     let tracer = Tracer::new(scene, TraceOptions::default());
