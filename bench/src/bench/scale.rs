@@ -78,11 +78,7 @@ pub fn run_sampler(a: &SamplerArgs) -> Result<ExitCode> {
         })
         .collect();
     let mut sent = 0u64;
-    loop {
-        let frame = match link.read() {
-            Ok(Some(f)) => f,
-            Ok(None) | Err(_) => break,
-        };
+    while let Ok(Some(frame)) = link.read() {
         let Frame::Message(Message::Trace(t)) = frame else {
             continue;
         };
