@@ -22,6 +22,9 @@ use crate::proxy::{Faults, Proxy};
 /// file, which pins the certificate: the samplers speak TLS).
 const TOKEN: &str = "faults";
 
+/// How long the samplers keep reconnecting after they lose the server.
+const RETRY: &str = "10s";
+
 /// Every ray of a closed file, and how many of them are exact copies of
 /// another ray of their beam (a packet stored twice; a random ray repeats
 /// its 10 bytes with negligible odds).
@@ -46,8 +49,8 @@ fn duplicates(file: &Path) -> (u64, u64) {
 }
 
 /// A sampler process of the room connecting to `addr` with the writer token
-/// of `file`, reconnecting for 10 s after it loses the server.
-fn sampler_via(addr: &str, file: &Path, seed: u32) -> Proc {
+/// of `file`, reconnecting for `retry` after it loses the server.
+fn sampler_via(addr: &str, file: &Path, seed: u32, retry: &str) -> Proc {
     let writer = format!("{}.writer.token", file.display());
     Proc::start(bin().args([
         "sample",
@@ -61,7 +64,7 @@ fn sampler_via(addr: &str, file: &Path, seed: u32) -> Proc {
         "--bounces",
         "0",
         "--retry-for",
-        "10s",
+        retry,
         "--seed",
         &seed.to_string(),
     ]))
@@ -91,8 +94,19 @@ fn close_and_check(mut server: Proc, addr: &str, samplers: Vec<Proc>, file: &Pat
     quit(addr, TOKEN);
     assert!(server.wait().success(), "{}", server.text());
     for s in samplers {
+        // A sampler retrying longer than the test waits is ended by SIGTERM;
+        // any other end must be a success.
+        let mut s = s;
+        let deadline = Instant::now() + Duration::from_secs(15);
+        while s.try_wait().is_none() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        if s.try_wait().is_none() {
+            s.signal(libc::SIGTERM);
+        }
         let o = s.finish();
-        assert!(o.status.success(), "{}", text(&o));
+        let by_us = std::os::unix::process::ExitStatusExt::signal(&o.status) == Some(libc::SIGTERM);
+        assert!(o.status.success() || by_us, "{}", text(&o));
     }
     assert_clean(file);
     let (rays, copies) = duplicates(file);
@@ -112,7 +126,10 @@ fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
         bandwidth: 200 << 10,
         partitioned: false,
     });
-    let samplers = vec![sampler_via(&proxy.addr, &file, 1), sampler_via(&proxy.addr, &file, 2)];
+    let samplers = vec![
+        sampler_via(&proxy.addr, &file, 1, RETRY),
+        sampler_via(&proxy.addr, &file, 2, RETRY),
+    ];
     let mut from = 0;
     let took = resumes(&server, &mut from, 5_000, "a fill over 50 ms and 200 KiB/s");
     eprintln!("latency 50 ms, 200 KiB/s: 5,000 rays stored in {took:.1?}");
@@ -131,7 +148,11 @@ fn after_every_connection_is_reset_and_a_30_s_partition_the_fill_resumes() {
         &["--report", "1s", "--stall-timeout", "5s"],
     );
     let proxy = Proxy::start(&addr);
-    let samplers = vec![sampler_via(&proxy.addr, &file, 1), sampler_via(&proxy.addr, &file, 2)];
+    // Longer than the partition: they keep trying across it.
+    let samplers = vec![
+        sampler_via(&proxy.addr, &file, 1, "60s"),
+        sampler_via(&proxy.addr, &file, 2, "60s"),
+    ];
     let mut from = 0;
     resumes(&server, &mut from, 10_000, "the fill through the proxy");
     // Every connection reset: the samplers reconnect and go on.
@@ -168,8 +189,8 @@ fn a_frozen_sampler_host_loses_its_work_to_the_others() {
         TOKEN,
         &["--report", "1s", "--stall-timeout", "3s"],
     );
-    let frozen = sampler_via(&addr, &file, 1);
-    let mut samplers = vec![sampler_via(&addr, &file, 2)];
+    let frozen = sampler_via(&addr, &file, 1, RETRY);
+    let mut samplers = vec![sampler_via(&addr, &file, 2, RETRY)];
     let mut from = 0;
     resumes(&server, &mut from, 5_000, "the fill by two samplers");
     frozen.signal(libc::SIGSTOP);

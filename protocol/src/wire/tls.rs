@@ -27,6 +27,9 @@ pub const TLS_PREFIX: &str = "tls:";
 /// PEM file of the CA's certificates.
 pub const TLS_CA_PREFIX: &str = "tls-ca:";
 
+/// Longest a TLS handshake may wait for the server.
+const HANDSHAKE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(20);
+
 /// The SHA-256 fingerprint of a certificate's DER bytes.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct Pin(pub [u8; 32]);
@@ -195,12 +198,17 @@ pub fn tunnel(mut tcp: TcpStream, host: &str, trust: Trust<'_>) -> std::io::Resu
         }
     };
     let config = Arc::new(config);
+    // A server that never answers the handshake fails it rather than hangs it.
+    tcp.set_read_timeout(Some(HANDSHAKE_TIMEOUT))?;
+    tcp.set_write_timeout(Some(HANDSHAKE_TIMEOUT))?;
     let mut conn = ClientConnection::new(config, name).map_err(invalid)?;
     while conn.is_handshaking() {
         // rustls words a verifier's own refusal as an "unexpected error".
         conn.complete_io(&mut tcp)
             .map_err(|e| std::io::Error::new(e.kind(), e.to_string().replace("unexpected error: ", "")))?;
     }
+    tcp.set_read_timeout(None)?;
+    tcp.set_write_timeout(None)?;
     let (local, inner) = UnixStream::pair()?;
     let reader = tcp.try_clone()?;
     let inner_reader = inner.try_clone()?;
