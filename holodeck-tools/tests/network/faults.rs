@@ -115,11 +115,20 @@ fn close_and_check(mut server: Proc, addr: &str, samplers: Vec<Proc>, file: &Pat
     rays
 }
 
-#[test]
-fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
+/// A server of a small room file reporting every second, with `extra`
+/// flags: its folder (kept while the test runs), file, process and address.
+fn served(extra: &[&str]) -> (tempfile::TempDir, std::path::PathBuf, Proc, String) {
     let dir = tempfile::tempdir().unwrap();
     let file = small_room(dir.path());
-    let (server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", TOKEN, &["--report", "1s"]);
+    let mut flags = vec!["--report", "1s"];
+    flags.extend_from_slice(extra);
+    let (server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", TOKEN, &flags);
+    (dir, file, server, addr)
+}
+
+#[test]
+fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
+    let (_dir, file, server, addr) = served(&[]);
     let proxy = Proxy::start(&addr);
     proxy.set(Faults {
         latency: Duration::from_millis(50),
@@ -139,14 +148,7 @@ fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
 
 #[test]
 fn after_every_connection_is_reset_and_a_30_s_partition_the_fill_resumes() {
-    let dir = tempfile::tempdir().unwrap();
-    let file = small_room(dir.path());
-    let (server, addr) = start_server_with(
-        file.to_str().unwrap(),
-        "127.0.0.1:0",
-        TOKEN,
-        &["--report", "1s", "--stall-timeout", "5s"],
-    );
+    let (_dir, file, server, addr) = served(&["--stall-timeout", "5s"]);
     let proxy = Proxy::start(&addr);
     // Longer than the partition: they keep trying across it.
     let samplers = vec![
@@ -181,14 +183,7 @@ fn after_every_connection_is_reset_and_a_30_s_partition_the_fill_resumes() {
 
 #[test]
 fn a_frozen_sampler_host_loses_its_work_to_the_others() {
-    let dir = tempfile::tempdir().unwrap();
-    let file = small_room(dir.path());
-    let (server, addr) = start_server_with(
-        file.to_str().unwrap(),
-        "127.0.0.1:0",
-        TOKEN,
-        &["--report", "1s", "--stall-timeout", "3s"],
-    );
+    let (_dir, file, server, addr) = served(&["--stall-timeout", "3s"]);
     let frozen = sampler_via(&addr, &file, 1, RETRY);
     let mut samplers = vec![sampler_via(&addr, &file, 2, RETRY)];
     let mut from = 0;
