@@ -268,6 +268,20 @@ impl Disk {
         }
     }
 
+    /// Writes header copy `copy`: the prefix, then the settings text.
+    fn write_header_copy(&mut self, prefix: Prefix, copy: usize, text: &str) -> Result<()> {
+        let base = copy as u64 * format::header_stride(prefix);
+        let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(prefix)).and_then(|()| {
+            io::write_at(
+                &self.file,
+                &self.path,
+                format::text_offset(prefix, copy),
+                &format::encode_text(text),
+            )
+        });
+        self.poison_on_error(r)
+    }
+
     /// Rewrites a damaged header copy (prefix and settings text) from the settings.
     fn restore_headers(&mut self, settings: &Settings, bad: [bool; COPIES]) -> Result<()> {
         if !bad.iter().any(|&b| b) {
@@ -280,16 +294,7 @@ impl Disk {
         }
         let prefix = self.prefix();
         for (copy, _) in bad.iter().enumerate().filter(|(_, &b)| b) {
-            let base = copy as u64 * format::header_stride(prefix);
-            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(prefix)).and_then(|()| {
-                io::write_at(
-                    &self.file,
-                    &self.path,
-                    format::text_offset(prefix, copy),
-                    &format::encode_text(&text),
-                )
-            });
-            self.poison_on_error(r)?;
+            self.write_header_copy(prefix, copy, &text)?;
             tracing::warn!(path = %self.path.display(), "rewrote header copy {}", copy + 1);
         }
         self.sync()
@@ -326,16 +331,7 @@ impl Disk {
             text_len: len,
         };
         for copy in [1, 0] {
-            let base = copy as u64 * format::header_stride(prefix);
-            let r = io::write_at(&self.file, &self.path, base, &format::encode_prefix(prefix)).and_then(|()| {
-                io::write_at(
-                    &self.file,
-                    &self.path,
-                    format::text_offset(prefix, copy),
-                    &format::encode_text(&text),
-                )
-            });
-            self.poison_on_error(r)?;
+            self.write_header_copy(prefix, copy, &text)?;
             self.sync()?;
         }
         self.text_len = len;
