@@ -1,6 +1,7 @@
 //! Samplers across network faults: a server and sampler processes joined
 //! through the fault-injecting proxy (latency, a slow link, every connection
-//! reset, a 30 s partition) and a sampler frozen by SIGSTOP. After each
+//! reset, a 30 s partition), a sampler frozen by SIGSTOP, and (where the
+//! test may) samplers in another network namespace across a veth pair. After each
 //! fault the server still answers a display, the fill resumes, no ray is
 //! stored twice, and the file checks clean. What each fault cost is printed
 //! (`cargo test -p holodeck-tools --test network faults -- --nocapture`).
@@ -201,4 +202,159 @@ fn a_frozen_sampler_host_loses_its_work_to_the_others() {
     frozen.signal(libc::SIGCONT);
     samplers.push(frozen);
     close_and_check(server, &addr, samplers, &file, "a frozen sampler");
+}
+
+/// Two network namespaces joined by a veth pair (the server's end
+/// 10.77.N.1, the samplers' 10.77.N.2), deleted again when dropped; `None`
+/// where this process may not make namespaces (no root, no CAP_NET_ADMIN).
+struct Namespaces {
+    server: String,
+    samplers: String,
+}
+
+impl Namespaces {
+    fn make() -> Option<Namespaces> {
+        let id = std::process::id() % 200 + 20;
+        let ns = Namespaces {
+            server: format!("hd-srv-{id}"),
+            samplers: format!("hd-smp-{id}"),
+        };
+        let ip = |args: &[&str]| {
+            std::process::Command::new("ip")
+                .args(args)
+                .output()
+                .is_ok_and(|o| o.status.success())
+        };
+        if !ip(&["netns", "add", &ns.server]) {
+            return None;
+        }
+        let (a, b) = (format!("hdva{id}"), format!("hdvb{id}"));
+        let ok = ip(&["netns", "add", &ns.samplers])
+            && ip(&["link", "add", &a, "type", "veth", "peer", "name", &b])
+            && ip(&["link", "set", &a, "netns", &ns.server])
+            && ip(&["link", "set", &b, "netns", &ns.samplers])
+            && [(&ns.server, &a, 1), (&ns.samplers, &b, 2)]
+                .iter()
+                .all(|(n, dev, host)| {
+                    let addr = format!("10.77.{id}.{host}/24");
+                    ip(&["-n", n, "addr", "add", &addr, "dev", dev])
+                        && ip(&["-n", n, "link", "set", dev, "up"])
+                        && ip(&["-n", n, "link", "set", "lo", "up"])
+                });
+        ok.then_some(ns)
+    }
+
+    /// The server's address across the pair.
+    fn server_addr(&self) -> String {
+        let id = self.server.rsplit('-').next().unwrap_or("0");
+        format!("10.77.{id}.1:7777")
+    }
+
+    /// `holodeck ARGS` inside namespace `ns`.
+    fn holodeck(ns: &str) -> std::process::Command {
+        let mut c = std::process::Command::new("ip");
+        c.args(["netns", "exec", ns, env!("CARGO_BIN_EXE_holodeck")]);
+        c
+    }
+}
+
+impl Drop for Namespaces {
+    fn drop(&mut self) {
+        for n in [&self.server, &self.samplers] {
+            let _ = std::process::Command::new("ip").args(["netns", "del", n]).output();
+        }
+    }
+}
+
+#[test]
+fn samplers_in_another_network_namespace_fill_over_tls() {
+    let Some(ns) = Namespaces::make() else {
+        eprintln!("this process cannot make network namespaces (it needs CAP_NET_ADMIN): skipped");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = small_room(dir.path());
+    let f = file.to_str().unwrap();
+    let addr = ns.server_addr();
+    let server = Proc::start(
+        Namespaces::holodeck(&ns.server)
+            .args(["serve", f, "--listen", &addr, "--token", TOKEN, "--report", "1s"])
+            .env("NO_COLOR", "1"),
+    );
+    server.wait_line("the server listening", &mut 0, |l| {
+        l.starts_with("listening on ").then_some(())
+    });
+    let writer = format!("{f}.writer.token");
+    let sampler = |seed: &str| {
+        Proc::start(Namespaces::holodeck(&ns.samplers).args([
+            "sample",
+            "builtin:room",
+            "--connect",
+            &addr,
+            "--token-file",
+            &writer,
+            "-j",
+            "1",
+            "--bounces",
+            "0",
+            "--retry-for",
+            "5s",
+            "--seed",
+            seed,
+        ]))
+    };
+    let samplers = vec![sampler("1"), sampler("2")];
+    let mut from = 0;
+    let took = resumes(&server, &mut from, 10_000, "samplers across the veth pair");
+    eprintln!("another namespace, over TLS: 10,000 rays stored in {took:.1?}");
+    // A token alone is not sent across: another host, and nothing pinned.
+    let o = crate::common::process::run(Namespaces::holodeck(&ns.samplers).args([
+        "admin",
+        "--connect",
+        &addr,
+        "--token",
+        TOKEN,
+        "status",
+    ]));
+    assert!(!o.status.success());
+    assert!(text(&o).contains("clear text"), "{}", text(&o));
+    // Plain text insisted on: the server refuses it from another host.
+    let o = crate::common::process::run(Namespaces::holodeck(&ns.samplers).args([
+        "admin",
+        "--connect",
+        &addr,
+        "--token",
+        TOKEN,
+        "--plain-text",
+        "status",
+    ]));
+    assert!(!o.status.success());
+    assert!(text(&o).contains("over TLS only"), "{}", text(&o));
+    // The admin token with the certificate pinned by hand: quit, over TLS.
+    let writer_file = std::fs::read_to_string(&writer).unwrap();
+    let pin = writer_file
+        .lines()
+        .find_map(|l| l.strip_prefix("tls-sha256 "))
+        .unwrap_or_else(|| panic!("the writer token file pins no certificate: {writer_file:?}"));
+    let o = crate::common::process::run(Namespaces::holodeck(&ns.samplers).args([
+        "admin",
+        "--connect",
+        &addr,
+        "--token",
+        TOKEN,
+        "--tls-fingerprint",
+        pin,
+        "quit",
+    ]));
+    assert!(o.status.success(), "{}", text(&o));
+    let mut server = server;
+    assert!(server.wait().success(), "{}", server.text());
+    for s in samplers {
+        let o = s.finish();
+        assert!(o.status.success(), "{}", text(&o));
+    }
+    assert_clean(&file);
+    let (rays, copies) = duplicates(&file);
+    eprintln!("another namespace: {rays} rays stored, {copies} stored twice");
+    assert_eq!(copies, 0);
 }
