@@ -49,17 +49,18 @@ fn duplicates(file: &Path) -> (u64, u64) {
     (rays, copies)
 }
 
-/// A sampler process of the room connecting to `addr` with the writer token
-/// of `file`, reconnecting for `retry` after it loses the server.
-fn sampler_via(addr: &str, file: &Path, seed: u32, retry: &str) -> Proc {
-    let writer = format!("{}.writer.token", file.display());
-    Proc::start(bin().args([
+/// The arguments of a sampler of the room (one thread, no bounces)
+/// connecting to `addr` with the token file `writer`, reconnecting for
+/// `retry` after it loses the server.
+fn sampler_args(addr: &str, writer: &str, retry: &str, seed: u32) -> Vec<String> {
+    let seed = seed.to_string();
+    [
         "sample",
         "builtin:room",
         "--connect",
         addr,
         "--token-file",
-        &writer,
+        writer,
         "-j",
         "1",
         "--bounces",
@@ -67,8 +68,17 @@ fn sampler_via(addr: &str, file: &Path, seed: u32, retry: &str) -> Proc {
         "--retry-for",
         retry,
         "--seed",
-        &seed.to_string(),
-    ]))
+        &seed,
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// A sampler process of the room connecting to `addr` with the writer token
+/// of `file`, reconnecting for `retry` after it loses the server.
+fn sampler_via(addr: &str, file: &Path, seed: u32, retry: &str) -> Proc {
+    let writer = format!("{}.writer.token", file.display());
+    Proc::start(bin().args(sampler_args(addr, &writer, retry, seed)))
 }
 
 /// A display connected straight to the server asks for rays of a few beams
@@ -285,25 +295,9 @@ fn samplers_in_another_network_namespace_fill_over_tls() {
         l.starts_with("listening on ").then_some(())
     });
     let writer = format!("{f}.writer.token");
-    let sampler = |seed: &str| {
-        Proc::start(Namespaces::holodeck(&ns.samplers).args([
-            "sample",
-            "builtin:room",
-            "--connect",
-            &addr,
-            "--token-file",
-            &writer,
-            "-j",
-            "1",
-            "--bounces",
-            "0",
-            "--retry-for",
-            "5s",
-            "--seed",
-            seed,
-        ]))
-    };
-    let samplers = vec![sampler("1"), sampler("2")];
+    let sampler =
+        |seed: u32| Proc::start(Namespaces::holodeck(&ns.samplers).args(sampler_args(&addr, &writer, "5s", seed)));
+    let samplers = vec![sampler(1), sampler(2)];
     let mut from = 0;
     let took = resumes(&server, &mut from, 10_000, "samplers across the veth pair");
     eprintln!("another namespace, over TLS: 10,000 rays stored in {took:.1?}");
