@@ -6,7 +6,7 @@
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::Duration;
 
 /// What the proxy does to the bytes it carries now.
@@ -22,7 +22,10 @@ pub struct Faults {
 
 /// The shared state of a proxy.
 struct State {
-    faults: Mutex<Faults>,
+    /// Read-held by a carrier from its check of the faults until its chunk
+    /// is delivered and counted, so that [`Proxy::set`] returns only once
+    /// no chunk let through under the old faults is still on its way.
+    faults: RwLock<Faults>,
     /// Connections carried, both halves, so that they can be reset.
     streams: Mutex<Vec<TcpStream>>,
     /// Bytes delivered, both ways.
@@ -44,7 +47,7 @@ impl Proxy {
         listener.set_nonblocking(true).unwrap();
         let addr = listener.local_addr().unwrap().to_string();
         let state = Arc::new(State {
-            faults: Mutex::new(Faults::default()),
+            faults: RwLock::new(Faults::default()),
             streams: Mutex::new(Vec::new()),
             delivered: AtomicU64::new(0),
             stop: AtomicBool::new(false),
@@ -59,6 +62,10 @@ impl Proxy {
                             continue;
                         };
                         let _ = (up.set_nodelay(true), down.set_nodelay(true));
+                        // A peer that stops reading breaks its connection
+                        // rather than holding the faults for ever.
+                        let limit = Some(Duration::from_secs(20));
+                        let _ = (up.set_write_timeout(limit), down.set_write_timeout(limit));
                         if let (Ok(a), Ok(b)) = (down.try_clone(), up.try_clone()) {
                             s.streams.lock().unwrap().extend([a, b]);
                         }
@@ -75,9 +82,10 @@ impl Proxy {
         Proxy { addr, state }
     }
 
-    /// Sets what the proxy does from now on.
+    /// Sets what the proxy does from now on; returns once every chunk let
+    /// through before has been delivered and counted.
     pub fn set(&self, faults: Faults) {
-        *self.state.faults.lock().unwrap() = faults;
+        *self.state.faults.write().unwrap() = faults;
     }
 
     /// Resets every connection it carries (both ends see the connection
@@ -109,23 +117,30 @@ fn carry(mut from: TcpStream, mut to: TcpStream, s: &State) {
             Ok(0) | Err(_) => break,
             Ok(n) => n,
         };
-        let faults = loop {
-            let f = *s.faults.lock().unwrap();
-            if !f.partitioned || s.stop.load(Ordering::Relaxed) {
-                break f;
+        // A chunk is checked, delayed, written and counted under one read
+        // hold of the faults; a partition releases it while waiting.
+        let delivered = loop {
+            let f = s.faults.read().unwrap();
+            if f.partitioned && !s.stop.load(Ordering::Relaxed) {
+                drop(f);
+                std::thread::sleep(Duration::from_millis(20));
+                continue;
             }
-            std::thread::sleep(Duration::from_millis(20));
+            if !f.latency.is_zero() {
+                std::thread::sleep(f.latency);
+            }
+            if f.bandwidth > 0 {
+                std::thread::sleep(Duration::from_secs_f64(n as f64 / f.bandwidth as f64));
+            }
+            let ok = to.write_all(&buf[..n]).is_ok();
+            if ok {
+                s.delivered.fetch_add(n as u64, Ordering::Relaxed);
+            }
+            break ok;
         };
-        if !faults.latency.is_zero() {
-            std::thread::sleep(faults.latency);
-        }
-        if faults.bandwidth > 0 {
-            std::thread::sleep(Duration::from_secs_f64(n as f64 / faults.bandwidth as f64));
-        }
-        if to.write_all(&buf[..n]).is_err() {
+        if !delivered {
             break;
         }
-        s.delivered.fetch_add(n as u64, Ordering::Relaxed);
     }
     let _ = to.shutdown(Shutdown::Both);
     let _ = from.shutdown(Shutdown::Both);
