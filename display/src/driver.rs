@@ -24,6 +24,20 @@ pub trait Driver: Send {
     fn add(&mut self, samples: &[Sample]) {
         self.store_mut().add(samples)
     }
+    /// Adds the stored rays of whole beams, decoded by `decoder`: the same
+    /// as [`Driver::add`] with every record decoded, in order, but faster
+    /// (see [`crate::store::Store::add_beams`]).
+    fn add_beams(
+        &mut self,
+        decoder: &crate::SampleDecoder,
+        beams: &[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])],
+    ) {
+        self.store_mut().add_beams(decoder, beams)
+    }
+    /// How long adding rays took so far, by stage.
+    fn insert_times(&self) -> crate::stats::InsertTimes {
+        self.store().insert_times()
+    }
     /// Changes the view (and frame size): samples are reprojected.
     fn set_view(&mut self, viewport: Viewport) {
         self.store_mut().set_view(viewport)

@@ -64,6 +64,20 @@ impl Projector {
     #[inline]
     pub fn locate(&self, p: DVec3) -> Option<(u32, u32, [f32; 2], f64)> {
         let (x, y, depth) = self.view.project(p)?;
+        let (col, row, at) = self.place(x, y)?;
+        Some((col, row, at, depth))
+    }
+
+    /// The view's projection constants.
+    pub fn view(&self) -> &ViewProjector {
+        &self.view
+    }
+
+    /// The pixel (column, row from the top) at view coordinates (`x`, `y`)
+    /// (0..1 across, 0..1 up, as [`ViewProjector::project`] gives them) and
+    /// where in it they fall (0..1 across, 0..1 down); `None` off the frame.
+    #[inline]
+    pub fn place(&self, x: f64, y: f64) -> Option<(u32, u32, [f32; 2])> {
         // A hand-built zero-sized viewport has no pixels to land on.
         if self.width == 0 || self.height == 0 || !(0.0..1.0).contains(&x) || !(0.0..1.0).contains(&y) {
             return None;
@@ -75,7 +89,7 @@ impl Projector {
             (fx - f64::from(col)).clamp(0.0, 1.0) as f32,
             (fy - f64::from(row)).clamp(0.0, 1.0) as f32,
         ];
-        Some((col, row, at, depth))
+        Some((col, row, at))
     }
 
     /// The unit direction this view looks at world point `p` along, given

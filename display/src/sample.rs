@@ -2,7 +2,7 @@
 //! that the same sample can be reprojected into any nearby view.
 
 use glam::DVec3;
-use holodeck_protocol::{BeamIndex, Hit, RayRecord, Section};
+use holodeck_protocol::{BeamDecoder, BeamIndex, Hit, RayRecord, Section};
 
 /// One ray sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -69,19 +69,29 @@ impl SampleDecoder {
         beam: BeamIndex,
         records: &'a [RayRecord],
     ) -> Option<impl Iterator<Item = Sample> + 'a> {
-        let d = self.sections.get(section as usize)?.beam_decoder(beam).ok()?;
-        Some(records.iter().map(move |r| {
-            let ray = d.decode(r);
-            Sample {
-                origin: ray.ray.origin,
-                direction: ray.ray.direction,
-                hit: match ray.hit {
-                    Hit::Point(p) => Some(p),
-                    Hit::Infinite => None,
-                },
-                color: ray.color,
-            }
-        }))
+        let d = self.beam(section, beam)?;
+        Some(records.iter().map(move |r| SampleDecoder::sample(&d, r)))
+    }
+
+    /// The decoder of one beam's records; `None` for an unknown section or
+    /// beam.
+    pub fn beam(&self, section: u32, beam: BeamIndex) -> Option<BeamDecoder> {
+        self.sections.get(section as usize)?.beam_decoder(beam).ok()
+    }
+
+    /// The sample of one record of the beam `d` decodes.
+    #[inline]
+    pub fn sample(d: &BeamDecoder, r: &RayRecord) -> Sample {
+        let ray = d.decode(r);
+        Sample {
+            origin: ray.ray.origin,
+            direction: ray.ray.direction,
+            hit: match ray.hit {
+                Hit::Point(p) => Some(p),
+                Hit::Infinite => None,
+            },
+            color: ray.color,
+        }
     }
 
     /// Appends the samples of `records` (all of beam `beam` of section

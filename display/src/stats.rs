@@ -27,3 +27,16 @@ pub struct DriverStats {
     /// Times the stored estimates were dropped after a large rotation.
     pub cache_drops: u64,
 }
+
+/// How long a sample store spent adding rays, by stage, since it was made
+/// (see `store::insert`): what a profile of replay reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InsertTimes {
+    /// Projecting rays onto pixels (and decoding stored records with it),
+    /// on every core.
+    pub project: std::time::Duration,
+    /// Sorting each batch into the index's order.
+    pub sort: std::time::Duration,
+    /// Finding each pixel's estimate and merging rays into it.
+    pub merge: std::time::Duration,
+}

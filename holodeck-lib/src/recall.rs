@@ -8,26 +8,18 @@ use holodeck_display::denoise::{Denoised, Denoiser};
 use holodeck_display::geometry::Geometry;
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
-use holodeck_display::{
-    make_driver, Driver, DriverSetup, DriverStats, EstimatorOptions, Sample, SampleDecoder, Viewport,
-};
+use holodeck_display::{make_driver, Driver, DriverSetup, DriverStats, EstimatorOptions, SampleDecoder, Viewport};
 use holodeck_file::HoloFile;
 use holodeck_protocol::{BeamKey, RayRecord};
-use rayon::prelude::*;
 
 use crate::Error;
 
-/// Rays decoded together in parallel before the driver takes them.
+/// Rays gathered before the driver takes them (a chunk ends with the beam
+/// that reaches this). The store numbers new estimates in its batches'
+/// order, and a frame samples its estimates by number to judge fireflies,
+/// so the chunks are part of what makes a picture: changing them changes
+/// pictures by rounding.
 const CHUNK_RAYS: usize = 1 << 17;
-
-/// Fills decode slots before decoding overwrites them (not finite: a slot
-/// left unfilled is rejected by the driver).
-const PLACEHOLDER: Sample = Sample {
-    origin: glam::DVec3::NAN,
-    direction: glam::DVec3::X,
-    hit: None,
-    color: [0.0; 3],
-};
 
 /// A display driver as chosen: its name, how pixels combine rays, the
 /// geometry the Voronoi driver culls with, and the denoiser after it.
@@ -80,13 +72,12 @@ pub struct Recalled {
     pub samples: u64,
     /// Reading, decoding and inserting.
     pub secs: Duration,
-    /// Of which reading the file (the rest of `secs` is decoding and
-    /// inserting, which run side by side).
+    /// Of which reading the file (the rest of `secs` is the driver's).
     pub read: Duration,
-    /// Decoding records into samples, on all cores.
+    /// Decoding records and projecting them onto pixels, on all cores.
     pub decode: Duration,
-    /// Inserting samples into the driver (projecting and merging them
-    /// into pixel estimates).
+    /// Sorting the projected rays by pixel and merging them into the
+    /// pixels' estimates.
     pub insert: Duration,
 }
 
@@ -111,34 +102,18 @@ pub fn recall(
     let mut d = driver.make(viewport)?;
     let mut samples = 0u64;
     let start = Instant::now();
-    let (mut flushing, mut decoding, mut inserting) = (Duration::ZERO, Duration::ZERO, Duration::ZERO);
-    // Beams are gathered into chunks and decoded in parallel; while the
-    // driver inserts one chunk (on one thread), the next is decoded.
+    let before = d.insert_times();
+    let mut adding = Duration::ZERO;
+    // Beams are gathered into chunks; the driver decodes and projects each
+    // chunk on every core as it inserts it, so no decoded ray is stored.
     let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * 2);
     let mut beams: Vec<(BeamKey, std::ops::Range<usize>)> = Vec::new();
-    let mut decoded: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
-    let mut waiting: Vec<Sample> = Vec::with_capacity(CHUNK_RAYS * 2);
     let mut flush = |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>| {
-        let d = &mut d;
         let at = Instant::now();
-        let insert = || {
-            let at = Instant::now();
-            if !waiting.is_empty() {
-                d.add(&waiting);
-            }
-            at.elapsed()
-        };
-        let decode = || {
-            let at = Instant::now();
-            decode_chunk(&decoder, records, beams, &mut decoded);
-            at.elapsed()
-        };
-        let (inserted, decoded_in) = rayon::join(insert, decode);
-        inserting += inserted;
-        decoding += decoded_in;
-        flushing += at.elapsed();
-        samples += decoded.len() as u64;
-        std::mem::swap(&mut waiting, &mut decoded);
+        let slices: Vec<(BeamKey, &[RayRecord])> = beams.iter().map(|(k, r)| (*k, &records[r.clone()])).collect();
+        d.add_beams(&decoder, &slices);
+        adding += at.elapsed();
+        samples += records.len() as u64;
         records.clear();
         beams.clear();
     };
@@ -151,48 +126,19 @@ pub fn recall(
         }
     })?;
     flush(&mut records, &mut beams);
-    // The last chunk decoded is still waiting.
-    flush(&mut records, &mut beams);
     let secs = start.elapsed();
+    let times = d.insert_times();
     Ok((
         d,
         Recalled {
             beams: keys.len(),
             samples,
             secs,
-            read: secs.saturating_sub(flushing),
-            decode: decoding,
-            insert: inserting,
+            read: secs.saturating_sub(adding),
+            decode: times.project.saturating_sub(before.project),
+            insert: (times.sort + times.merge).saturating_sub(before.sort + before.merge),
         },
     ))
-}
-
-/// Decodes one chunk of beams into `out`, one slot per record, each beam
-/// into its own slice, in parallel.
-fn decode_chunk(
-    decoder: &SampleDecoder,
-    records: &[RayRecord],
-    beams: &[(BeamKey, std::ops::Range<usize>)],
-    out: &mut Vec<Sample>,
-) {
-    out.clear();
-    out.resize(records.len(), PLACEHOLDER);
-    let mut jobs = Vec::with_capacity(beams.len());
-    let mut rest = &mut out[..];
-    for (k, r) in beams {
-        let (mine, tail) = rest.split_at_mut(r.len());
-        jobs.push((*k, &records[r.clone()], mine));
-        rest = tail;
-    }
-    jobs.into_par_iter().for_each(|(k, recs, slots)| {
-        // Slots of a beam that cannot decode keep the NaN placeholder, which
-        // the driver rejects and counts.
-        if let Some(it) = decoder.samples(k.section, k.beam, recs) {
-            for (slot, s) in slots.iter_mut().zip(it) {
-                *slot = s;
-            }
-        }
-    });
 }
 
 /// What drawing one frame took.

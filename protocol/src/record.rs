@@ -112,6 +112,21 @@ pub struct BeamDecoder {
 }
 
 impl BeamDecoder {
+    /// The entry and exit walls of the beam, each as a corner and the step
+    /// per sub-cell unit along its two axes: record sub-cell `[u, v]` is at
+    /// `corner + du * (u + 0.5) + dv * (v + 0.5)`, as [`BeamDecoder::decode`]
+    /// computes it (for decoders that work on several records at once).
+    pub fn walls(&self) -> [[DVec3; 3]; 2] {
+        [self.entry, self.exit].map(|w| [w.base, w.du, w.dv])
+    }
+
+    /// The distance from the entry wall to the record's hit, as
+    /// [`BeamDecoder::decode`] finds it; `None` for a ray that escaped.
+    #[inline]
+    pub fn depth(&self, rec: &RayRecord) -> Option<f64> {
+        self.depth.decode(rec.depth_code(), self.depth_scale)
+    }
+
     /// Decodes one record.
     #[inline]
     pub fn decode(&self, rec: &RayRecord) -> DecodedRay {
@@ -120,7 +135,7 @@ impl BeamDecoder {
         let along = b - a;
         let length = along.length();
         let direction = along / length;
-        let hit = match self.depth.decode(rec.depth_code(), self.depth_scale) {
+        let hit = match self.depth(rec) {
             Some(d) => Hit::Point(a + direction * d),
             None => Hit::Infinite,
         };

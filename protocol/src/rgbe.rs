@@ -66,12 +66,13 @@ impl Rgbe {
 
     /// Decodes to linear RGB at the center of each mantissa's quantization step.
     /// Always finite and non-negative.
+    #[inline]
     pub fn to_rgb(self) -> [f32; 3] {
         let [r, g, b, e] = self.0;
         if e == 0 {
             return [0.0; 3];
         }
-        let f = 2f64.powi(i32::from(e) - (EXPONENT_BIAS + 8));
+        let f = scale_of(e);
         [r, g, b].map(|m| ((f64::from(m) + 0.5) * f) as f32)
     }
 
@@ -86,9 +87,29 @@ impl Rgbe {
     }
 }
 
+/// 2^(e - 136), the value of a mantissa step for exponent byte `e` (1 to
+/// 255): built from its bits (every such power is a normal `f64`), exactly
+/// what `2f64.powi(e - 136)` gives, without its loop of multiplications.
+#[inline]
+fn scale_of(e: u8) -> f64 {
+    let n = i64::from(e) - i64::from(EXPONENT_BIAS + 8);
+    f64::from_bits(((n + 1023) as u64) << 52)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_exponent_scales_as_a_power_of_two() {
+        for e in 1..=255u8 {
+            assert_eq!(
+                scale_of(e),
+                2f64.powi(i32::from(e) - (EXPONENT_BIAS + 8)),
+                "exponent byte {e}"
+            );
+        }
+    }
     use proptest::prelude::*;
 
     #[test]

@@ -488,22 +488,30 @@ impl Frustum {
 /// Projection into a view with its constants precomputed (see [`View::projector`]).
 #[derive(Clone, Debug)]
 pub struct ViewProjector {
-    kind: ViewType,
-    position: DVec3,
-    direction: DVec3,
-    right: DVec3,
-    up: DVec3,
+    /// The projection.
+    pub kind: ViewType,
+    /// The eye.
+    pub position: DVec3,
+    /// The view direction, as given (depths along it are not normalized).
+    pub direction: DVec3,
+    /// Unit vector to the right of the view.
+    pub right: DVec3,
+    /// Unit vector up in the view.
+    pub up: DVec3,
     /// Horizontal scale: the tangent factor, the field in radians, the
     /// hemisphere's sine factor or the parallel width, by view type.
-    sx: f64,
+    pub sx: f64,
     /// Vertical scale, as `sx`.
-    sy: f64,
-    shift: f64,
-    lift: f64,
+    pub sy: f64,
+    /// The view's horizontal shift (`-vs`), in frame widths.
+    pub shift: f64,
+    /// The view's vertical lift (`-vl`), in frame heights.
+    pub lift: f64,
     /// Clipping range: along the view direction (perspective, parallel) or
     /// from the eye (fisheyes).
-    fore: f64,
-    aft: f64,
+    pub fore: f64,
+    /// The far end of the clipping range (infinity: none).
+    pub aft: f64,
 }
 
 impl ViewProjector {

@@ -65,6 +65,18 @@ impl Driver for Denoised {
         self.inner.add(samples)
     }
 
+    fn add_beams(
+        &mut self,
+        decoder: &crate::SampleDecoder,
+        beams: &[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])],
+    ) {
+        if !beams.is_empty() {
+            self.moving = false;
+            self.last = None;
+        }
+        self.inner.add_beams(decoder, beams)
+    }
+
     fn set_view(&mut self, viewport: Viewport) {
         if viewport != *self.inner.viewport() {
             self.moving = true;

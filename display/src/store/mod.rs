@@ -25,12 +25,15 @@
 
 pub mod estimate;
 pub mod index;
+mod insert;
+mod lanes;
 mod radix;
 mod spread;
 #[cfg(test)]
 mod tests;
 
 use glam::{DVec3, Vec3};
+use holodeck_protocol::{BeamKey, RayRecord};
 use rayon::prelude::*;
 
 pub use estimate::{luminance, Estimate, EstimatorOptions, Fit};
@@ -39,7 +42,7 @@ use radix::radix_sort;
 
 use crate::project::Projector;
 use crate::sample::Sample;
-use crate::stats::DriverStats;
+use crate::stats::{DriverStats, InsertTimes};
 use crate::viewport::Viewport;
 
 /// A view change that turns the view direction by more than this many degrees
@@ -55,11 +58,7 @@ const MIN_PARKED: usize = 1 << 16;
 
 /// Rays projected and sorted together: large enough that sorting pays, small
 /// enough that the scratch buffers stay a few megabytes.
-const CHUNK: usize = 1 << 18;
-
-/// Batches smaller than this are inserted in arrival order: sorting them
-/// costs more than it saves.
-const SORT_MIN: usize = 256;
+pub(super) const CHUNK: usize = 1 << 18;
 
 /// Batches at least this large are projected on every core.
 const PARALLEL_MIN: usize = 1 << 14;
@@ -117,6 +116,10 @@ pub trait SampleStore: Send {
     fn needs(&self, density: f32) -> Vec<f32>;
     /// The denoiser's guide ([`Store::guide`]).
     fn guide(&self) -> crate::denoise::Guide;
+    /// Adds the stored rays of whole beams ([`Store::add_beams`]).
+    fn add_beams(&mut self, decoder: &crate::SampleDecoder, beams: &[(BeamKey, &[RayRecord])]);
+    /// How long adding rays took, by stage ([`Store::insert_times`]).
+    fn insert_times(&self) -> InsertTimes;
 }
 
 impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
@@ -147,6 +150,12 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
     fn guide(&self) -> crate::denoise::Guide {
         Store::guide(self)
     }
+    fn add_beams(&mut self, decoder: &crate::SampleDecoder, beams: &[(BeamKey, &[RayRecord])]) {
+        Store::add_beams(self, decoder, beams)
+    }
+    fn insert_times(&self) -> InsertTimes {
+        Store::insert_times(self)
+    }
 }
 
 /// "No slot": in [`Store::moved_from`], an estimate that was not on the
@@ -170,6 +179,17 @@ struct Pending {
 }
 
 impl Pending {
+    /// A ray that lands on no pixel: `key` says why.
+    const fn nowhere(key: u64) -> Pending {
+        Pending {
+            key,
+            color: [0.0; 3],
+            weight: 0.0,
+            depth: 0.0,
+            at: [0; 2],
+        }
+    }
+
     #[inline]
     fn trusted(&self) -> bool {
         self.weight > 0.0
@@ -210,14 +230,6 @@ impl Pending {
     }
 }
 
-/// Where a ray of a batch lands.
-#[derive(Clone, Copy, Debug)]
-enum Projected {
-    On(Pending),
-    Off,
-    NonFinite,
-}
-
 /// The estimates of a driver, the index that finds them, the estimates parked
 /// off the frame, the counters and the view.
 #[derive(Clone, Debug)]
@@ -238,10 +250,15 @@ pub struct Store<I> {
     parked: Vec<Aggregate>,
     park: bool,
     stats: DriverStats,
-    /// Scratch for batches.
-    pending: Vec<Pending>,
-    projected: Vec<Projected>,
+    /// Scratch for batches: the projected rays, and the radix sort's
+    /// second buffer.
+    projected: Vec<Pending>,
     spare: Vec<Pending>,
+    /// The runs of a batch's rays on one estimate, and their merged estimates.
+    runs: Vec<insert::Run>,
+    merged: Vec<(Estimate, insert::Tally)>,
+    /// How long adding rays took, by stage.
+    times: InsertTimes,
     /// Per-frame buffers, kept so that drawing allocates nothing.
     frame: FrameScratch,
     /// The nearest depth of any estimate or ray in each pixel, by the
@@ -293,9 +310,11 @@ impl<I: PixelIndex + Sync> Store<I> {
             parked: Vec::new(),
             park,
             stats: DriverStats::default(),
-            pending: Vec::new(),
             projected: Vec::new(),
             spare: Vec::new(),
+            runs: Vec::new(),
+            merged: Vec::new(),
+            times: InsertTimes::default(),
             frame: FrameScratch::default(),
             near,
             moved_from: Vec::new(),
@@ -385,8 +404,9 @@ impl<I: PixelIndex + Sync> Store<I> {
     pub fn heap_bytes(&self) -> usize {
         self.entries.capacity() * std::mem::size_of::<Entry>()
             + self.parked.capacity() * std::mem::size_of::<Aggregate>()
-            + (self.pending.capacity() + self.spare.capacity()) * std::mem::size_of::<Pending>()
-            + self.projected.capacity() * std::mem::size_of::<Projected>()
+            + (self.projected.capacity() + self.spare.capacity()) * std::mem::size_of::<Pending>()
+            + self.runs.capacity() * std::mem::size_of::<insert::Run>()
+            + self.merged.capacity() * std::mem::size_of::<(Estimate, insert::Tally)>()
             + self.index.heap_bytes()
             + self.frame.colors.capacity() * std::mem::size_of::<Vec3>()
             + self.frame.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
@@ -397,144 +417,6 @@ impl<I: PixelIndex + Sync> Store<I> {
             + self.frame.pixel_wave.capacity()
             + self.frame.spread.heap_bytes()
             + (self.near.capacity() + self.moved_from.capacity()) * std::mem::size_of::<f32>()
-    }
-
-    /// Adds rays: the body of [`crate::Driver::add`].
-    pub fn add(&mut self, samples: &[Sample]) {
-        self.stats.received += samples.len() as u64;
-        for chunk in samples.chunks(CHUNK) {
-            self.insert_rays(chunk);
-        }
-    }
-
-    /// Projects a batch of rays, sorts it into index order and inserts it.
-    fn insert_rays(&mut self, samples: &[Sample]) {
-        let eye = self.viewport.view.position;
-        let (projector, index, options) = (&self.projector, &self.index, &self.options);
-        let project = |s: &Sample| -> Projected {
-            if !s.is_finite() {
-                return Projected::NonFinite;
-            }
-            let target = s.target(eye);
-            let Some((col, row, at, depth)) = projector.locate(target) else {
-                return Projected::Off;
-            };
-            let (weight, depth) = match s.hit {
-                Some(h) => {
-                    let cos = s.direction.dot(projector.look(h, depth));
-                    let w = options.weight(cos);
-                    // 2 (1 - cos θ) is θ², as in the weight.
-                    let angle = projector.pixel_angle(depth);
-                    let trusted = 2.0 * (1.0 - cos.clamp(-1.0, 1.0)) <= angle * angle;
-                    (if trusted { w } else { -w }, depth as f32)
-                }
-                // Parallel rays see the same point of the sky from anywhere
-                // nothing stands between: from the eye, if it passed through
-                // the eye; otherwise unless a surface of its pixel may hide it
-                // (checked on insertion, against the pixel's nearest depth).
-                None => {
-                    let miss = s.miss_distance(eye) as f32;
-                    (if miss > 0.0 { -miss } else { 1.0 }, f32::INFINITY)
-                }
-            };
-            Projected::On(Pending {
-                key: index.key(col, row),
-                color: s.color,
-                weight,
-                depth,
-                at: at.map(|a| (a * 65536.0).min(65535.0) as u16),
-            })
-        };
-        let mut projected = std::mem::take(&mut self.projected);
-        projected.clear();
-        if samples.len() >= PARALLEL_MIN {
-            projected.par_extend(samples.par_iter().map(project));
-        } else {
-            projected.extend(samples.iter().map(project));
-        }
-        let mut pending = std::mem::take(&mut self.pending);
-        pending.clear();
-        for p in &projected {
-            match p {
-                Projected::On(p) => pending.push(*p),
-                Projected::NonFinite => self.stats.rejected_nonfinite += 1,
-                Projected::Off => self.stats.outside += 1,
-            }
-        }
-        self.projected = projected;
-        if pending.len() >= SORT_MIN {
-            radix_sort(&mut pending, &mut self.spare, self.index.key_bits(), |p| p.key);
-        }
-        self.entries.reserve(pending.len().min(self.pixel_count()));
-        // With sub-pixels, a ray that passed far from the eye may hit a point
-        // the eye does not see though no ray of its own sub-pixel shows what
-        // hides it: it must not be behind the nearest surface of its whole
-        // pixel. The batch's own rays count first.
-        let sub = self.options.subpixels;
-        let shift = sub.trailing_zeros();
-        if sub > 1 {
-            for p in &pending {
-                let at = self.index.block(p.key, shift);
-                self.near[at] = self.near[at].min(p.depth);
-            }
-        }
-        let tolerance = 1.0 + self.options.depth_tolerance;
-        // A pixel's width at depth 1 (a parallel view has no eye point for
-        // a ray to pass: its sky is trusted as before).
-        let footprint = if self.projector.is_parallel() {
-            f32::INFINITY
-        } else {
-            (self.projector.pixel_angle(1.0) * f64::from(sub)) as f32
-        };
-        // Rays of one pixel are adjacent after the sort: after the first, the
-        // rest go straight to its slot instead of down the index again.
-        let mut last: Option<(u64, u32)> = None;
-        for p in &pending {
-            if sub > 1 && p.hidden_by(self.near[self.index.block(p.key, shift)], tolerance, footprint) {
-                self.stats.discarded += 1;
-                continue;
-            }
-            let slot = match last {
-                Some((key, slot)) if key == p.key => {
-                    self.offer(slot, p);
-                    slot
-                }
-                _ => match self.index.find(&self.entries, p.key) {
-                    Spot::Free(at) => {
-                        let slot = self.entries.len() as u32;
-                        self.entries.push(Entry {
-                            key: p.key,
-                            estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
-                        });
-                        self.index.fill(at, slot);
-                        slot
-                    }
-                    Spot::Taken(slot) => {
-                        self.offer(slot, p);
-                        slot
-                    }
-                },
-            };
-            last = Some((p.key, slot));
-        }
-        self.pending = pending;
-    }
-
-    /// A ray lands on the pixel whose estimate is `slot`.
-    #[inline]
-    fn offer(&mut self, slot: u32, p: &Pending) {
-        let e = &mut self.entries[slot as usize].estimate;
-        match e.fit(p.depth, p.depth, self.options.depth_tolerance) {
-            Fit::Joins => {
-                e.add_ray(p.color, p.ray_weight(), p.depth, p.at());
-                self.stats.merged += 1;
-            }
-            Fit::Nearer => {
-                *e = Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at());
-                self.stats.replaced += 1;
-            }
-            Fit::Behind => self.stats.discarded += 1,
-        }
     }
 
     /// Rebuilds the nearest depth of every pixel from the estimates.

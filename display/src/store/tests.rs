@@ -398,3 +398,214 @@ fn sky_seen_from_elsewhere_stays_out_of_pixels_with_a_surface() {
         }
     }
 }
+
+/// Records of `n` random rays of `section`'s beams (some beams long enough
+/// to be split across batches, one the section does not have), with random
+/// colors and depths (escaped rays, far logarithmic codes).
+fn random_beams(
+    section: &holodeck_protocol::Section,
+    n: usize,
+    seed: u64,
+) -> Vec<(holodeck_protocol::BeamKey, Vec<holodeck_protocol::RayRecord>)> {
+    use holodeck_protocol::{BeamKey, DepthCode, RayRecord, Rgbe};
+    let mut rng = Rng(seed | 1);
+    let mut bytes = Rng(seed.wrapping_mul(3) | 1);
+    let mut byte = || (bytes.next() * 256.0) as u8;
+    let mut beams = Vec::new();
+    let mut left = n;
+    let mut i = 0u32;
+    while left > 0 {
+        let len = match i {
+            0 => 300_000,
+            _ if i % 5 == 1 => 1,
+            _ => 40 + (i as usize * 37) % 3000,
+        }
+        .min(left);
+        let beam = if i == 3 {
+            section.beam_count() + 5
+        } else {
+            (rng.next() * f64::from(section.beam_count())) as u32
+        };
+        let records = (0..len)
+            .map(|_| {
+                let (entry, exit) = ([byte(), byte()], [byte(), byte()]);
+                // Most rays hit one of two walls, so that rays meet on surfaces.
+                let wall = |y: f64| {
+                    let ray = section.beam_ray(beam, entry, exit).ok()?;
+                    let d = (y - ray.origin.y) / ray.direction.y;
+                    (d > 0.0).then(|| section.encode_depth(d))
+                };
+                let depth = match byte() {
+                    0..=9 => Some(DepthCode::INFINITE),
+                    10..=19 => Some(DepthCode(u16::from_le_bytes([byte(), byte()]))),
+                    20..=140 => wall(3.0),
+                    _ => wall(2.0),
+                }
+                .unwrap_or(DepthCode(u16::from(byte()) * 8));
+                RayRecord::new(entry, exit, Rgbe([byte(), byte(), byte(), 100 + byte() / 8]), depth)
+            })
+            .collect();
+        beams.push((BeamKey::new(0, beam), records));
+        left -= len;
+        i += 1;
+    }
+    beams
+}
+
+#[test]
+fn stored_beams_make_the_same_picture_as_their_decoded_samples() {
+    use holodeck_protocol::{Section, SectionKind};
+    let section = Section::new(
+        [-2.0, -1.0, -2.0],
+        [[4.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 4.0]],
+        [8, 10, 8],
+        SectionKind::Interior,
+    )
+    .unwrap();
+    let decoder = crate::SampleDecoder::new(vec![section.clone()]);
+    let beams = random_beams(&section, 700_000, 11);
+    // Decoded one by one, as a display that receives samples does; a beam
+    // the decoder does not know gives samples that are not finite.
+    let broken = Sample {
+        origin: DVec3::NAN,
+        direction: DVec3::X,
+        hit: None,
+        color: [0.0; 3],
+    };
+    let mut samples = Vec::new();
+    for (k, records) in &beams {
+        if decoder.decode(k.section, k.beam, records, &mut samples) > 0 {
+            samples.extend(std::iter::repeat_n(broken, records.len()));
+        }
+    }
+    let slices: Vec<_> = beams.iter().map(|(k, r)| (*k, &r[..])).collect();
+    for (width, subpixels) in [(48, 0), (128, 1)] {
+        let vp = viewport(EYE_VIEW, width, width * 3 / 4);
+        let options = EstimatorOptions {
+            subpixels,
+            ..EstimatorOptions::default()
+        };
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        let (want, want_stats) = one.install(|| {
+            let mut d = QuadtreeDriver::with_options(vp.clone(), options);
+            d.add(&samples);
+            (d.render(), d.stats())
+        });
+        let (got, got_stats) = three.install(|| {
+            let mut d = QuadtreeDriver::with_options(vp.clone(), options);
+            d.add_beams(&decoder, &slices);
+            (d.render(), d.stats())
+        });
+        assert_eq!(got_stats, want_stats, "{width} pixels across");
+        let s = want_stats;
+        assert!(
+            s.merged > 5_000 && s.replaced > 0 && s.discarded > 0 && s.rejected_nonfinite > 0,
+            "{s:?}"
+        );
+        let same = got
+            .pixels
+            .iter()
+            .zip(&want.pixels)
+            .filter(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits))
+            .count();
+        assert_eq!(same, want.pixels.len(), "{width} pixels across: pixels that differ");
+    }
+}
+
+/// The store's insertion as it was first written, one ray after another
+/// on one thread (the reference the batched, parallel merge must match):
+/// projected, sorted, then each ray offered to its pixel's estimate.
+fn add_one_by_one<I: PixelIndex + Sync>(store: &mut Store<I>, samples: &[Sample]) {
+    store.stats.received += samples.len() as u64;
+    for chunk in samples.chunks(CHUNK) {
+        let lens = store.lens();
+        let mut pending: Vec<Pending> = chunk.iter().map(|s| lens.project(s)).collect();
+        store.stats.outside += pending.iter().filter(|p| p.key == insert::OFF).count() as u64;
+        store.stats.rejected_nonfinite += pending.iter().filter(|p| p.key == insert::NOT_FINITE).count() as u64;
+        pending.retain(|p| p.key < insert::NOT_FINITE);
+        if pending.len() >= 256 {
+            pending.sort_by_key(|p| p.key);
+        }
+        let sub = store.options.subpixels;
+        let shift = sub.trailing_zeros();
+        if sub > 1 {
+            for p in &pending {
+                let at = store.index.block(p.key, shift);
+                store.near[at] = store.near[at].min(p.depth);
+            }
+        }
+        let tolerance = 1.0 + store.options.depth_tolerance;
+        let footprint = (store.projector.pixel_angle(1.0) * f64::from(sub)) as f32;
+        let mut last: Option<(u64, u32)> = None;
+        for p in &pending {
+            if sub > 1 && p.hidden_by(store.near[store.index.block(p.key, shift)], tolerance, footprint) {
+                store.stats.discarded += 1;
+                continue;
+            }
+            let slot = match last {
+                Some((key, slot)) if key == p.key => slot,
+                _ => match store.index.find(&store.entries, p.key) {
+                    Spot::Free(at) => {
+                        let slot = store.entries.len() as u32;
+                        store.entries.push(Entry {
+                            key: p.key,
+                            estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
+                        });
+                        store.index.fill(at, slot);
+                        last = Some((p.key, slot));
+                        continue;
+                    }
+                    Spot::Taken(slot) => slot,
+                },
+            };
+            last = Some((p.key, slot));
+            let e = &mut store.entries[slot as usize].estimate;
+            match e.fit(p.depth, p.depth, store.options.depth_tolerance) {
+                Fit::Joins => {
+                    e.add_ray(p.color, p.ray_weight(), p.depth, p.at());
+                    store.stats.merged += 1;
+                }
+                Fit::Nearer => {
+                    *e = Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at());
+                    store.stats.replaced += 1;
+                }
+                Fit::Behind => store.stats.discarded += 1,
+            }
+        }
+    }
+}
+
+#[test]
+fn the_parallel_merge_makes_the_estimates_of_one_ray_after_another() {
+    use holodeck_protocol::{Section, SectionKind};
+    let section = Section::new(
+        [-2.0, -1.0, -2.0],
+        [[4.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 4.0]],
+        [8, 10, 8],
+        SectionKind::Interior,
+    )
+    .unwrap();
+    let decoder = crate::SampleDecoder::new(vec![section.clone()]);
+    let mut samples = Vec::new();
+    for (k, records) in random_beams(&section, 600_000, 5) {
+        decoder.decode(k.section, k.beam, &records, &mut samples);
+    }
+    for (width, subpixels) in [(48, 0), (128, 1)] {
+        let vp = viewport(EYE_VIEW, width, width * 3 / 4);
+        let options = EstimatorOptions {
+            subpixels,
+            ..EstimatorOptions::default()
+        };
+        let mut want = Store::new(vp.clone(), crate::quadtree::Tree::default(), true, options);
+        add_one_by_one(&mut want, &samples);
+        let mut got = Store::new(vp, crate::quadtree::Tree::default(), true, options);
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(3)
+            .build()
+            .unwrap()
+            .install(|| got.add(&samples));
+        assert_eq!(got.stats(), want.stats(), "{width} pixels across");
+        assert_eq!(got.entries(), want.entries(), "{width} pixels across");
+    }
+}

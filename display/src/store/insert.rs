@@ -1,0 +1,445 @@
+//! Rays into estimates: the body of [`crate::Driver::add`] and of
+//! [`Store::add_beams`].
+//!
+//! A batch goes in three stages, each timed ([`InsertTimes`]):
+//! * **Project** (on every core when large): each ray becomes the pixel key
+//!   it lands on, its weight and depth. Stored records are decoded in the
+//!   same pass, so that no decoded ray is ever written to memory.
+//! * **Sort** by key, in the index's memory order (a stable radix sort), so
+//!   that the rays of one pixel are adjacent and arrive in batch order.
+//! * **Merge**: one serial pass finds each distinct pixel's slot in the
+//!   index (the index restructures as it goes, so it is walked in key
+//!   order, as before), then the runs of rays on each slot are merged into
+//!   their estimates on every core. Runs touch distinct estimates and each
+//!   run is merged in arrival order, so the estimates are bit-identical to
+//!   one ray after another on one thread.
+
+use std::ops::Range;
+use std::time::Instant;
+
+use glam::DVec3;
+use holodeck_protocol::{BeamKey, RayRecord, ViewType};
+use rayon::prelude::*;
+
+use super::lanes;
+use super::radix::radix_sort;
+use super::{Entry, Estimate, EstimatorOptions, Fit, Pending, PixelIndex, Spot, Store, CHUNK};
+use crate::project::Projector;
+use crate::sample::{Sample, SampleDecoder};
+use crate::stats::InsertTimes;
+
+/// The key of a ray that lands off the frame.
+pub(super) const OFF: u64 = u64::MAX;
+
+/// The key of a ray with a number in it that is not finite.
+pub(super) const NOT_FINITE: u64 = u64::MAX - 1;
+
+/// Batches smaller than this are inserted in arrival order: sorting them
+/// costs more than it saves.
+const SORT_MIN: usize = 256;
+
+/// Batches of at least this many rays are projected on every core.
+const PARALLEL_RAYS: usize = 1 << 14;
+
+/// Records of one beam decoded and projected together by one task.
+const RAYS_PER_TASK: usize = 1 << 12;
+
+/// Batches of at least this many runs (distinct pixels with rays to merge)
+/// merge them on every core.
+const PARALLEL_RUNS: usize = 1 << 12;
+
+/// Runs merged together by one task.
+const RUNS_PER_TASK: usize = 1 << 9;
+
+/// What projecting a ray needs: the view's constants, shared by every core.
+pub(super) struct Lens<'a, I> {
+    pub(super) eye: DVec3,
+    pub(super) projector: &'a Projector,
+    index: &'a I,
+    options: &'a EstimatorOptions,
+}
+
+impl<I: PixelIndex> Lens<'_, I> {
+    /// Where `s` lands, with its weight and depth (its key [`OFF`] or
+    /// [`NOT_FINITE`] where it lands nowhere).
+    #[inline(always)]
+    pub(super) fn project(&self, s: &Sample) -> Pending {
+        if !s.is_finite() {
+            return Pending::nowhere(NOT_FINITE);
+        }
+        match s.hit {
+            Some(h) => {
+                let Some((col, row, at, depth)) = self.projector.locate(h) else {
+                    return Pending::nowhere(OFF);
+                };
+                let cos = s.direction.dot(self.projector.look(h, depth));
+                self.surface(col, row, at, depth, cos, s.color)
+            }
+            // Parallel rays see the same point of the sky from anywhere
+            // nothing stands between: from the eye, if it passed through
+            // the eye; otherwise unless a surface of its pixel may hide it
+            // (checked on insertion, against the pixel's nearest depth).
+            None => {
+                let Some((col, row, at, _)) = self.projector.locate(s.target(self.eye)) else {
+                    return Pending::nowhere(OFF);
+                };
+                let miss = s.miss_distance(self.eye) as f32;
+                Pending {
+                    key: self.index.key(col, row),
+                    color: s.color,
+                    weight: if miss > 0.0 { -miss } else { 1.0 },
+                    depth: f32::INFINITY,
+                    at: sub_position(at),
+                }
+            }
+        }
+    }
+
+    /// A ray that hit a surface at `depth` in pixel (`col`, `row`), at `at`
+    /// within it, arriving at `cos` (cosine of the angle) from the direction
+    /// the eye looks at its hit point along.
+    #[inline(always)]
+    pub(super) fn surface(&self, col: u32, row: u32, at: [f32; 2], depth: f64, cos: f64, color: [f32; 3]) -> Pending {
+        let w = self.options.weight(cos);
+        // 2 (1 - cos θ) is θ², as in the weight.
+        let angle = self.projector.pixel_angle(depth);
+        let trusted = 2.0 * (1.0 - cos.clamp(-1.0, 1.0)) <= angle * angle;
+        Pending {
+            key: self.index.key(col, row),
+            color,
+            weight: if trusted { w } else { -w },
+            depth: depth as f32,
+            at: sub_position(at),
+        }
+    }
+
+    /// Projects the records of one beam into `out` (one slot per record);
+    /// a beam the decoder does not know leaves every ray not finite, so
+    /// that it is rejected and counted as a broken sample would be.
+    #[inline]
+    fn project_beam(&self, decoder: &SampleDecoder, key: BeamKey, records: &[RayRecord], out: &mut [Pending]) {
+        let Some(d) = decoder.beam(key.section, key.beam) else {
+            out.fill(Pending::nowhere(NOT_FINITE));
+            return;
+        };
+        let done = if self.projector.view().kind == ViewType::Perspective {
+            lanes::project_perspective(self, &d, records, out)
+        } else {
+            0
+        };
+        for (slot, r) in out[done..].iter_mut().zip(&records[done..]) {
+            *slot = self.project(&SampleDecoder::sample(&d, r));
+        }
+    }
+}
+
+/// Where in its pixel a ray lands, in 65536ths.
+#[inline(always)]
+fn sub_position(at: [f32; 2]) -> [u16; 2] {
+    at.map(|a| (a * 65536.0).min(65535.0) as u16)
+}
+
+/// The rays of a sorted batch that land on one estimate, merged together.
+#[derive(Clone, Debug)]
+pub(super) struct Run {
+    slot: u32,
+    rays: Range<u32>,
+}
+
+/// What merging rays into estimates counted.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Tally {
+    merged: u64,
+    replaced: u64,
+    discarded: u64,
+}
+
+impl std::ops::AddAssign for Tally {
+    fn add_assign(&mut self, o: Tally) {
+        self.merged += o.merged;
+        self.replaced += o.replaced;
+        self.discarded += o.discarded;
+    }
+}
+
+/// When a ray may be hidden from the eye by the nearest surface of its
+/// whole pixel (with sub-pixels only; see [`Pending::hidden_by`]).
+#[derive(Clone, Copy, Debug)]
+struct Hiding {
+    shift: u32,
+    tolerance: f32,
+    footprint: f32,
+}
+
+impl Hiding {
+    /// True when `p` may be hidden, given each pixel's nearest depth.
+    #[inline]
+    fn hides<I: PixelIndex>(&self, index: &I, near: &[f32], p: &Pending) -> bool {
+        self.shift > 0 && p.hidden_by(near[index.block(p.key, self.shift)], self.tolerance, self.footprint)
+    }
+}
+
+/// Merges `rays` (all on the pixel of `e`, in arrival order) into `e` by
+/// the depth rule, skipping the hidden ones.
+#[inline]
+fn merge_run<I: PixelIndex>(e: &mut Estimate, rays: &[Pending], seen: (&I, &[f32], Hiding), tolerance: f32) -> Tally {
+    let (index, near, hiding) = seen;
+    let mut t = Tally::default();
+    for p in rays {
+        if hiding.hides(index, near, p) {
+            t.discarded += 1;
+            continue;
+        }
+        match e.fit(p.depth, p.depth, tolerance) {
+            Fit::Joins => {
+                e.add_ray(p.color, p.ray_weight(), p.depth, p.at());
+                t.merged += 1;
+            }
+            Fit::Nearer => {
+                *e = Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at());
+                t.replaced += 1;
+            }
+            Fit::Behind => t.discarded += 1,
+        }
+    }
+    t
+}
+
+impl<I: PixelIndex + Sync> Store<I> {
+    /// Adds rays: the body of [`crate::Driver::add`].
+    pub fn add(&mut self, samples: &[Sample]) {
+        self.stats.received += samples.len() as u64;
+        for chunk in samples.chunks(CHUNK) {
+            let start = Instant::now();
+            let mut projected = std::mem::take(&mut self.projected);
+            projected.clear();
+            let lens = self.lens();
+            if chunk.len() >= PARALLEL_RAYS {
+                projected.par_extend(chunk.par_iter().map(|s| lens.project(s)));
+            } else {
+                projected.extend(chunk.iter().map(|s| lens.project(s)));
+            }
+            self.projected = projected;
+            self.times.project += start.elapsed();
+            self.insert_projected();
+        }
+    }
+
+    /// Adds the stored rays of whole beams, decoded by `decoder`: the same
+    /// estimates as decoding every record into a [`Sample`] and calling
+    /// [`Store::add`] with them in this order, without the samples ever
+    /// being written out (what replay from a file does with millions of
+    /// rays a view). Records of a beam the decoder does not know count as
+    /// rejected, as samples that are not finite.
+    pub fn add_beams(&mut self, decoder: &SampleDecoder, beams: &[(BeamKey, &[RayRecord])]) {
+        // Batches of at most a chunk of rays, a beam split where it does
+        // not fit (a view's fill may put most of its rays in a few beams).
+        let mut batch: Vec<(BeamKey, &[RayRecord])> = Vec::new();
+        let mut rays = 0;
+        for &(key, mut records) in beams {
+            while !records.is_empty() {
+                let take = records.len().min(CHUNK - rays);
+                let (now, later) = records.split_at(take);
+                batch.push((key, now));
+                rays += take;
+                records = later;
+                if rays == CHUNK {
+                    self.add_batch(decoder, &batch, rays);
+                    batch.clear();
+                    rays = 0;
+                }
+            }
+        }
+        if rays > 0 {
+            self.add_batch(decoder, &batch, rays);
+        }
+    }
+
+    /// Adds one batch of [`Store::add_beams`]: `rays` records in all.
+    fn add_batch(&mut self, decoder: &SampleDecoder, beams: &[(BeamKey, &[RayRecord])], rays: usize) {
+        self.stats.received += rays as u64;
+        let start = Instant::now();
+        let mut projected = std::mem::take(&mut self.projected);
+        projected.clear();
+        projected.resize(rays, Pending::nowhere(OFF));
+        // Pieces of beams, each into its own slice of the batch, in order.
+        let mut jobs = Vec::with_capacity(beams.len());
+        let mut rest = &mut projected[..];
+        for &(key, records) in beams {
+            for piece in records.chunks(RAYS_PER_TASK) {
+                let (mine, tail) = rest.split_at_mut(piece.len());
+                jobs.push((key, piece, mine));
+                rest = tail;
+            }
+        }
+        let lens = self.lens();
+        if rays >= PARALLEL_RAYS {
+            jobs.into_par_iter()
+                .for_each(|(key, records, out)| lens.project_beam(decoder, key, records, out));
+        } else {
+            for (key, records, out) in jobs {
+                lens.project_beam(decoder, key, records, out);
+            }
+        }
+        self.projected = projected;
+        self.times.project += start.elapsed();
+        self.insert_projected();
+    }
+
+    /// How long the stages of adding rays took so far.
+    pub fn insert_times(&self) -> InsertTimes {
+        self.times
+    }
+
+    pub(super) fn lens(&self) -> Lens<'_, I> {
+        Lens {
+            eye: self.viewport.view.position,
+            projector: &self.projector,
+            index: &self.index,
+            options: &self.options,
+        }
+    }
+
+    /// Sorts the projected batch into index order and merges it.
+    fn insert_projected(&mut self) {
+        let start = Instant::now();
+        // The rays that land on a pixel, in place.
+        let mut pending = std::mem::take(&mut self.projected);
+        let mut kept = 0;
+        for i in 0..pending.len() {
+            let p = pending[i];
+            if p.key < NOT_FINITE {
+                pending[kept] = p;
+                kept += 1;
+            } else if p.key == OFF {
+                self.stats.outside += 1;
+            } else {
+                self.stats.rejected_nonfinite += 1;
+            }
+        }
+        pending.truncate(kept);
+        if pending.len() >= SORT_MIN {
+            radix_sort(&mut pending, &mut self.spare, self.index.key_bits(), |p| p.key);
+        }
+        let sorted = Instant::now();
+        self.times.sort += sorted - start;
+        self.entries.reserve(pending.len().min(self.pixel_count()));
+        // With sub-pixels, a ray that passed far from the eye may hit a point
+        // the eye does not see though no ray of its own sub-pixel shows what
+        // hides it: it must not be behind the nearest surface of its whole
+        // pixel. The batch's own rays count first.
+        let sub = self.options.subpixels;
+        let shift = sub.trailing_zeros();
+        if sub > 1 {
+            for p in &pending {
+                let at = self.index.block(p.key, shift);
+                self.near[at] = self.near[at].min(p.depth);
+            }
+        }
+        let runs = self.find_runs(&pending);
+        self.merge_runs(&pending, &runs);
+        self.runs = runs;
+        self.projected = pending;
+        self.times.merge += sorted.elapsed();
+    }
+
+    /// When rays are hidden from the eye now.
+    fn hiding(&self) -> Hiding {
+        let sub = self.options.subpixels;
+        Hiding {
+            shift: sub.trailing_zeros(),
+            tolerance: 1.0 + self.options.depth_tolerance,
+            // A pixel's width at depth 1 (a parallel view has no eye point
+            // for a ray to pass: its sky is trusted as before).
+            footprint: if self.projector.is_parallel() {
+                f32::INFINITY
+            } else {
+                (self.projector.pixel_angle(1.0) * f64::from(sub)) as f32
+            },
+        }
+    }
+
+    /// The serial part of a merge: each distinct pixel of the sorted batch
+    /// in key order, its slot found (or made, from its first ray that is
+    /// not hidden) in the index, and the rest of its rays as a run.
+    fn find_runs(&mut self, pending: &[Pending]) -> Vec<Run> {
+        let mut runs = std::mem::take(&mut self.runs);
+        runs.clear();
+        let hiding = self.hiding();
+        let mut discarded = 0u64;
+        let mut i = 0;
+        while i < pending.len() {
+            let key = pending[i].key;
+            let mut end = i + 1;
+            while end < pending.len() && pending[end].key == key {
+                end += 1;
+            }
+            let first = (i..end)
+                .find(|&k| !hiding.hides(&self.index, &self.near, &pending[k]))
+                .unwrap_or(end);
+            discarded += (first - i) as u64;
+            if first < end {
+                match self.index.find(&self.entries, key) {
+                    Spot::Free(at) => {
+                        let p = &pending[first];
+                        let slot = self.entries.len() as u32;
+                        self.entries.push(Entry {
+                            key,
+                            estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
+                        });
+                        self.index.fill(at, slot);
+                        if first + 1 < end {
+                            runs.push(Run {
+                                slot,
+                                rays: first as u32 + 1..end as u32,
+                            });
+                        }
+                    }
+                    Spot::Taken(slot) => runs.push(Run {
+                        slot,
+                        rays: first as u32..end as u32,
+                    }),
+                }
+            }
+            i = end;
+        }
+        self.stats.discarded += discarded;
+        runs
+    }
+
+    /// Merges each run into its estimate: on every core for many runs.
+    fn merge_runs(&mut self, pending: &[Pending], runs: &[Run]) {
+        let tolerance = self.options.depth_tolerance;
+        let hiding = self.hiding();
+        let mut tally = Tally::default();
+        if runs.len() >= PARALLEL_RUNS && rayon::current_num_threads() > 1 {
+            let mut merged = std::mem::take(&mut self.merged);
+            merged.clear();
+            let (entries, seen) = (&self.entries, (&self.index, &self.near[..], hiding));
+            merged.par_extend(runs.par_iter().with_min_len(RUNS_PER_TASK).map(|r| {
+                let mut e = entries[r.slot as usize].estimate;
+                let t = merge_run(
+                    &mut e,
+                    &pending[r.rays.start as usize..r.rays.end as usize],
+                    seen,
+                    tolerance,
+                );
+                (e, t)
+            }));
+            for (r, (e, t)) in runs.iter().zip(&merged) {
+                self.entries[r.slot as usize].estimate = *e;
+                tally += *t;
+            }
+            self.merged = merged;
+        } else {
+            let seen = (&self.index, &self.near[..], hiding);
+            for r in runs {
+                let e = &mut self.entries[r.slot as usize].estimate;
+                tally += merge_run(e, &pending[r.rays.start as usize..r.rays.end as usize], seen, tolerance);
+            }
+        }
+        self.stats.merged += tally.merged;
+        self.stats.replaced += tally.replaced;
+        self.stats.discarded += tally.discarded;
+    }
+}
