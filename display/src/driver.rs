@@ -24,15 +24,15 @@ pub trait Driver: Send {
     fn add(&mut self, samples: &[Sample]) {
         self.store_mut().add(samples)
     }
-    /// Adds the stored rays of whole beams, decoded by `decoder`: the same
-    /// as [`Driver::add`] with every record decoded, in order, but faster
-    /// (see [`crate::store::Store::add_beams`]).
+    /// Adds the stored rays of whole beams, decoded by `decoder`, in
+    /// chunks: the same as [`Driver::add`] once per chunk with every record
+    /// decoded, in order, but faster (see [`crate::store::Store::add_beams`]).
     fn add_beams(
         &mut self,
         decoder: &crate::SampleDecoder,
-        beams: &[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])],
+        chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]],
     ) {
-        self.store_mut().add_beams(decoder, beams)
+        self.store_mut().add_beams(decoder, chunks)
     }
     /// How long adding rays took so far, by stage.
     fn insert_times(&self) -> crate::stats::InsertTimes {

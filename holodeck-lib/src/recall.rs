@@ -21,6 +21,10 @@ use crate::Error;
 /// pictures by rounding.
 const CHUNK_RAYS: usize = 1 << 17;
 
+/// Chunks handed to the driver together, so that it can merge one while it
+/// projects the next (about 20 MB of records).
+const GROUP_CHUNKS: usize = 16;
+
 /// A display driver as chosen: its name, how pixels combine rays, the
 /// geometry the Voronoi driver culls with, and the denoiser after it.
 #[derive(Clone, Debug)]
@@ -104,28 +108,46 @@ pub fn recall(
     let start = Instant::now();
     let before = d.insert_times();
     let mut adding = Duration::ZERO;
-    // Beams are gathered into chunks; the driver decodes and projects each
-    // chunk on every core as it inserts it, so no decoded ray is stored.
-    let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * 2);
+    // Beams are gathered into chunks, and chunks into groups; the driver
+    // decodes and projects each batch of a group on every core while it
+    // merges the one before, so no decoded ray is stored.
+    let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * (GROUP_CHUNKS + 1));
     let mut beams: Vec<(BeamKey, std::ops::Range<usize>)> = Vec::new();
-    let mut flush = |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>| {
-        let at = Instant::now();
-        let slices: Vec<(BeamKey, &[RayRecord])> = beams.iter().map(|(k, r)| (*k, &records[r.clone()])).collect();
-        d.add_beams(&decoder, &slices);
-        adding += at.elapsed();
-        samples += records.len() as u64;
-        records.clear();
-        beams.clear();
-    };
+    let mut ends: Vec<usize> = Vec::new();
+    let mut flush =
+        |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>, ends: &mut Vec<usize>| {
+            let at = Instant::now();
+            let slices: Vec<(BeamKey, &[RayRecord])> = beams.iter().map(|(k, r)| (*k, &records[r.clone()])).collect();
+            let mut chunks: Vec<&[(BeamKey, &[RayRecord])]> = Vec::with_capacity(ends.len() + 1);
+            let mut from = 0;
+            for &end in ends.iter().chain(std::iter::once(&slices.len())) {
+                if end > from {
+                    chunks.push(&slices[from..end]);
+                }
+                from = end;
+            }
+            d.add_beams(&decoder, &chunks);
+            adding += at.elapsed();
+            samples += records.len() as u64;
+            records.clear();
+            beams.clear();
+            ends.clear();
+        };
+    let mut chunk_start = 0;
     file.read_beams(&keys, |k, rays| {
         let at = records.len();
         records.extend_from_slice(rays);
         beams.push((k, at..records.len()));
-        if records.len() >= CHUNK_RAYS {
-            flush(&mut records, &mut beams);
+        if records.len() - chunk_start >= CHUNK_RAYS {
+            ends.push(beams.len());
+            chunk_start = records.len();
+            if ends.len() == GROUP_CHUNKS {
+                flush(&mut records, &mut beams, &mut ends);
+                chunk_start = 0;
+            }
         }
     })?;
-    flush(&mut records, &mut beams);
+    flush(&mut records, &mut beams, &mut ends);
     let secs = start.elapsed();
     let times = d.insert_times();
     Ok((

@@ -149,8 +149,8 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
         );
         for (stage, s, m) in [
             ("read", single.read, all.read),
-            ("decode", single.decode, all.decode),
-            ("insert (project and merge)", single.insert, all.insert),
+            ("decode and project (overlaps the merge)", single.decode, all.decode),
+            ("sort and merge into estimates", single.insert, all.insert),
             ("frame", single.frame, all.frame),
         ] {
             row(

@@ -68,13 +68,13 @@ impl Driver for Denoised {
     fn add_beams(
         &mut self,
         decoder: &crate::SampleDecoder,
-        beams: &[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])],
+        chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]],
     ) {
-        if !beams.is_empty() {
+        if chunks.iter().any(|c| !c.is_empty()) {
             self.moving = false;
             self.last = None;
         }
-        self.inner.add_beams(decoder, beams)
+        self.inner.add_beams(decoder, chunks)
     }
 
     fn set_view(&mut self, viewport: Viewport) {

@@ -51,15 +51,23 @@ const PARALLEL_RUNS: usize = 1 << 12;
 /// Runs merged together by one task.
 const RUNS_PER_TASK: usize = 1 << 9;
 
-/// What projecting a ray needs: the view's constants, shared by every core.
-pub(super) struct Lens<'a, I> {
+/// What projecting a ray needs: the view's constants, shared by every core
+/// (and apart from the index, so that one batch is projected while the one
+/// before is merged). A projected ray's key is its pixel, packed by
+/// [`pack`]; merging turns it into the index's key.
+pub(super) struct Lens<'a> {
     pub(super) eye: DVec3,
     pub(super) projector: &'a Projector,
-    index: &'a I,
     options: &'a EstimatorOptions,
 }
 
-impl<I: PixelIndex> Lens<'_, I> {
+/// Pixel (`col`, `row`) as one number, until the index numbers it.
+#[inline(always)]
+fn pack(col: u32, row: u32) -> u64 {
+    u64::from(row) << 32 | u64::from(col)
+}
+
+impl Lens<'_> {
     /// Where `s` lands, with its weight and depth (its key [`OFF`] or
     /// [`NOT_FINITE`] where it lands nowhere).
     #[inline(always)]
@@ -85,7 +93,7 @@ impl<I: PixelIndex> Lens<'_, I> {
                 };
                 let miss = s.miss_distance(self.eye) as f32;
                 Pending {
-                    key: self.index.key(col, row),
+                    key: pack(col, row),
                     color: s.color,
                     weight: if miss > 0.0 { -miss } else { 1.0 },
                     depth: f32::INFINITY,
@@ -105,7 +113,7 @@ impl<I: PixelIndex> Lens<'_, I> {
         let angle = self.projector.pixel_angle(depth);
         let trusted = 2.0 * (1.0 - cos.clamp(-1.0, 1.0)) <= angle * angle;
         Pending {
-            key: self.index.key(col, row),
+            key: pack(col, row),
             color,
             weight: if trusted { w } else { -w },
             depth: depth as f32,
@@ -205,66 +213,20 @@ fn merge_run<I: PixelIndex>(e: &mut Estimate, rays: &[Pending], seen: (&I, &[f32
     t
 }
 
-impl<I: PixelIndex + Sync> Store<I> {
-    /// Adds rays: the body of [`crate::Driver::add`].
-    pub fn add(&mut self, samples: &[Sample]) {
-        self.stats.received += samples.len() as u64;
-        for chunk in samples.chunks(CHUNK) {
-            let start = Instant::now();
-            let mut projected = std::mem::take(&mut self.projected);
-            projected.clear();
-            let lens = self.lens();
-            if chunk.len() >= PARALLEL_RAYS {
-                projected.par_extend(chunk.par_iter().map(|s| lens.project(s)));
-            } else {
-                projected.extend(chunk.iter().map(|s| lens.project(s)));
-            }
-            self.projected = projected;
-            self.times.project += start.elapsed();
-            self.insert_projected();
-        }
-    }
+/// A batch of stored rays to decode and project: pieces of beams, in order,
+/// and how many records they hold.
+type Batch<'r> = (Vec<(BeamKey, &'r [RayRecord])>, usize);
 
-    /// Adds the stored rays of whole beams, decoded by `decoder`: the same
-    /// estimates as decoding every record into a [`Sample`] and calling
-    /// [`Store::add`] with them in this order, without the samples ever
-    /// being written out (what replay from a file does with millions of
-    /// rays a view). Records of a beam the decoder does not know count as
-    /// rejected, as samples that are not finite.
-    pub fn add_beams(&mut self, decoder: &SampleDecoder, beams: &[(BeamKey, &[RayRecord])]) {
-        // Batches of at most a chunk of rays, a beam split where it does
-        // not fit (a view's fill may put most of its rays in a few beams).
-        let mut batch: Vec<(BeamKey, &[RayRecord])> = Vec::new();
-        let mut rays = 0;
-        for &(key, mut records) in beams {
-            while !records.is_empty() {
-                let take = records.len().min(CHUNK - rays);
-                let (now, later) = records.split_at(take);
-                batch.push((key, now));
-                rays += take;
-                records = later;
-                if rays == CHUNK {
-                    self.add_batch(decoder, &batch, rays);
-                    batch.clear();
-                    rays = 0;
-                }
-            }
-        }
-        if rays > 0 {
-            self.add_batch(decoder, &batch, rays);
-        }
-    }
-
-    /// Adds one batch of [`Store::add_beams`]: `rays` records in all.
-    fn add_batch(&mut self, decoder: &SampleDecoder, beams: &[(BeamKey, &[RayRecord])], rays: usize) {
-        self.stats.received += rays as u64;
-        let start = Instant::now();
-        let mut projected = std::mem::take(&mut self.projected);
-        projected.clear();
-        projected.resize(rays, Pending::nowhere(OFF));
+impl Lens<'_> {
+    /// Decodes and projects one batch into `out` (one slot per record), on
+    /// every core when it is large.
+    fn project_batch(&self, decoder: &SampleDecoder, batch: &Batch<'_>, out: &mut Vec<Pending>) {
+        let (beams, rays) = batch;
+        out.clear();
+        out.resize(*rays, Pending::nowhere(OFF));
         // Pieces of beams, each into its own slice of the batch, in order.
         let mut jobs = Vec::with_capacity(beams.len());
-        let mut rest = &mut projected[..];
+        let mut rest = &mut out[..];
         for &(key, records) in beams {
             for piece in records.chunks(RAYS_PER_TASK) {
                 let (mine, tail) = rest.split_at_mut(piece.len());
@@ -272,43 +234,44 @@ impl<I: PixelIndex + Sync> Store<I> {
                 rest = tail;
             }
         }
-        let lens = self.lens();
-        if rays >= PARALLEL_RAYS {
+        if *rays >= PARALLEL_RAYS {
             jobs.into_par_iter()
-                .for_each(|(key, records, out)| lens.project_beam(decoder, key, records, out));
+                .for_each(|(key, records, out)| self.project_beam(decoder, key, records, out));
         } else {
             for (key, records, out) in jobs {
-                lens.project_beam(decoder, key, records, out);
+                self.project_beam(decoder, key, records, out);
             }
         }
-        self.projected = projected;
-        self.times.project += start.elapsed();
-        self.insert_projected();
     }
+}
 
-    /// How long the stages of adding rays took so far.
-    pub fn insert_times(&self) -> InsertTimes {
-        self.times
-    }
+/// What merging needs: the index, the estimates and the counters, borrowed
+/// apart from the [`Lens`] so that both work at once.
+struct Sink<'a, I> {
+    index: &'a mut I,
+    entries: &'a mut Vec<Entry>,
+    near: &'a mut [f32],
+    stats: &'a mut super::DriverStats,
+    runs: &'a mut Vec<Run>,
+    merged: &'a mut Vec<(Estimate, Tally)>,
+    spare: &'a mut Vec<Pending>,
+    times: &'a mut InsertTimes,
+    hiding: Hiding,
+    subpixels: u32,
+    tolerance: f32,
+    pixels: usize,
+}
 
-    pub(super) fn lens(&self) -> Lens<'_, I> {
-        Lens {
-            eye: self.viewport.view.position,
-            projector: &self.projector,
-            index: &self.index,
-            options: &self.options,
-        }
-    }
-
-    /// Sorts the projected batch into index order and merges it.
-    fn insert_projected(&mut self) {
+impl<I: PixelIndex + Sync> Sink<'_, I> {
+    /// Sorts a projected batch into index order and merges it.
+    fn insert(&mut self, pending: &mut Vec<Pending>) {
         let start = Instant::now();
-        // The rays that land on a pixel, in place.
-        let mut pending = std::mem::take(&mut self.projected);
+        // The rays that land on a pixel, in place, with the index's keys.
         let mut kept = 0;
         for i in 0..pending.len() {
-            let p = pending[i];
+            let mut p = pending[i];
             if p.key < NOT_FINITE {
+                p.key = self.index.key(p.key as u32, (p.key >> 32) as u32);
                 pending[kept] = p;
                 kept += 1;
             } else if p.key == OFF {
@@ -319,28 +282,250 @@ impl<I: PixelIndex + Sync> Store<I> {
         }
         pending.truncate(kept);
         if pending.len() >= SORT_MIN {
-            radix_sort(&mut pending, &mut self.spare, self.index.key_bits(), |p| p.key);
+            radix_sort(pending, self.spare, self.index.key_bits(), |p| p.key);
         }
         let sorted = Instant::now();
         self.times.sort += sorted - start;
-        self.entries.reserve(pending.len().min(self.pixel_count()));
+        self.entries.reserve(pending.len().min(self.pixels));
         // With sub-pixels, a ray that passed far from the eye may hit a point
         // the eye does not see though no ray of its own sub-pixel shows what
         // hides it: it must not be behind the nearest surface of its whole
         // pixel. The batch's own rays count first.
-        let sub = self.options.subpixels;
-        let shift = sub.trailing_zeros();
-        if sub > 1 {
-            for p in &pending {
+        let shift = self.subpixels.trailing_zeros();
+        if self.subpixels > 1 {
+            for p in pending.iter() {
                 let at = self.index.block(p.key, shift);
                 self.near[at] = self.near[at].min(p.depth);
             }
         }
-        let runs = self.find_runs(&pending);
-        self.merge_runs(&pending, &runs);
-        self.runs = runs;
-        self.projected = pending;
+        self.find_runs(pending);
+        self.merge_runs(pending);
         self.times.merge += sorted.elapsed();
+    }
+
+    /// The serial part of a merge: each distinct pixel of the sorted batch
+    /// in key order, its slot found (or made, from its first ray that is
+    /// not hidden) in the index, and the rest of its rays as a run.
+    fn find_runs(&mut self, pending: &[Pending]) {
+        self.runs.clear();
+        let hiding = self.hiding;
+        let mut discarded = 0u64;
+        let mut i = 0;
+        while i < pending.len() {
+            let key = pending[i].key;
+            let mut end = i + 1;
+            while end < pending.len() && pending[end].key == key {
+                end += 1;
+            }
+            let first = (i..end)
+                .find(|&k| !hiding.hides(&*self.index, self.near, &pending[k]))
+                .unwrap_or(end);
+            discarded += (first - i) as u64;
+            if first < end {
+                match self.index.find(self.entries, key) {
+                    Spot::Free(at) => {
+                        let p = &pending[first];
+                        let slot = self.entries.len() as u32;
+                        self.entries.push(Entry {
+                            key,
+                            estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
+                        });
+                        self.index.fill(at, slot);
+                        if first + 1 < end {
+                            self.runs.push(Run {
+                                slot,
+                                rays: first as u32 + 1..end as u32,
+                            });
+                        }
+                    }
+                    Spot::Taken(slot) => self.runs.push(Run {
+                        slot,
+                        rays: first as u32..end as u32,
+                    }),
+                }
+            }
+            i = end;
+        }
+        self.stats.discarded += discarded;
+    }
+
+    /// Merges each run into its estimate: on every core for many runs.
+    fn merge_runs(&mut self, pending: &[Pending]) {
+        let (tolerance, runs) = (self.tolerance, &self.runs[..]);
+        let seen = (&*self.index, &self.near[..], self.hiding);
+        let mut tally = Tally::default();
+        if runs.len() >= PARALLEL_RUNS && rayon::current_num_threads() > 1 {
+            self.merged.clear();
+            let entries = &*self.entries;
+            self.merged
+                .par_extend(runs.par_iter().with_min_len(RUNS_PER_TASK).map(|r| {
+                    let mut e = entries[r.slot as usize].estimate;
+                    let t = merge_run(
+                        &mut e,
+                        &pending[r.rays.start as usize..r.rays.end as usize],
+                        seen,
+                        tolerance,
+                    );
+                    (e, t)
+                }));
+            for (r, (e, t)) in runs.iter().zip(self.merged.iter()) {
+                self.entries[r.slot as usize].estimate = *e;
+                tally += *t;
+            }
+        } else {
+            for r in runs {
+                let e = &mut self.entries[r.slot as usize].estimate;
+                tally += merge_run(e, &pending[r.rays.start as usize..r.rays.end as usize], seen, tolerance);
+            }
+        }
+        self.stats.merged += tally.merged;
+        self.stats.replaced += tally.replaced;
+        self.stats.discarded += tally.discarded;
+    }
+}
+
+impl<I: PixelIndex + Sync + Send> Store<I> {
+    /// Adds rays: the body of [`crate::Driver::add`].
+    pub fn add(&mut self, samples: &[Sample]) {
+        self.stats.received += samples.len() as u64;
+        let mut projected = std::mem::take(&mut self.projected);
+        for chunk in samples.chunks(CHUNK) {
+            let start = Instant::now();
+            projected.clear();
+            let (lens, mut sink) = self.split();
+            if chunk.len() >= PARALLEL_RAYS {
+                projected.par_extend(chunk.par_iter().map(|s| lens.project(s)));
+            } else {
+                projected.extend(chunk.iter().map(|s| lens.project(s)));
+            }
+            sink.times.project += start.elapsed();
+            sink.insert(&mut projected);
+        }
+        self.projected = projected;
+    }
+
+    /// Adds the stored rays of whole beams, decoded by `decoder`, in
+    /// `chunks`: the same estimates as decoding every record into a
+    /// [`Sample`] and calling [`Store::add`] once per chunk with them in
+    /// this order, without the samples ever being written out (what replay
+    /// from a file does with millions of rays a view). Each chunk is taken
+    /// a batch of [`CHUNK`] rays at a time (a beam split where it does not
+    /// fit), and each batch is decoded and projected while the one before
+    /// it is merged. Records of a beam the decoder does not know count as
+    /// rejected, as samples that are not finite.
+    pub fn add_beams(&mut self, decoder: &SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
+        let mut batches: Vec<Batch<'_>> = Vec::new();
+        for chunk in chunks {
+            let mut batch = (Vec::new(), 0);
+            for &(key, mut records) in *chunk {
+                while !records.is_empty() {
+                    let take = records.len().min(CHUNK - batch.1);
+                    let (now, later) = records.split_at(take);
+                    batch.0.push((key, now));
+                    batch.1 += take;
+                    records = later;
+                    if batch.1 == CHUNK {
+                        batches.push(std::mem::take(&mut batch));
+                    }
+                }
+            }
+            if batch.1 > 0 {
+                batches.push(batch);
+            }
+        }
+        self.stats.received += batches.iter().map(|b| b.1 as u64).sum::<u64>();
+        let mut ready: Option<Vec<Pending>> = None;
+        let mut spare = Some(std::mem::take(&mut self.projected));
+        for i in 0..=batches.len() {
+            let (lens, mut sink) = self.split();
+            let mut next = spare.take().unwrap_or_default();
+            let (done, took) = rayon::join(
+                || {
+                    ready.take().map(|mut r| {
+                        sink.insert(&mut r);
+                        (r, sink)
+                    })
+                },
+                || {
+                    let start = Instant::now();
+                    if let Some(b) = batches.get(i) {
+                        lens.project_batch(decoder, b, &mut next);
+                    }
+                    start.elapsed()
+                },
+            );
+            match done {
+                Some((r, sink)) => {
+                    sink.times.project += took;
+                    spare = Some(r);
+                }
+                None => self.times.project += took,
+            }
+            if i < batches.len() {
+                ready = Some(next);
+            } else {
+                spare = spare.or(Some(next));
+            }
+        }
+        self.projected = spare.unwrap_or_default();
+    }
+
+    /// How long the stages of adding rays took so far (projecting overlaps
+    /// merging in [`Store::add_beams`], so the stages may add up to more
+    /// than the time taken).
+    pub fn insert_times(&self) -> InsertTimes {
+        self.times
+    }
+
+    /// The view's constants, to project rays with.
+    #[cfg(test)]
+    pub(super) fn lens(&self) -> Lens<'_> {
+        Lens {
+            eye: self.viewport.view.position,
+            projector: &self.projector,
+            options: &self.options,
+        }
+    }
+
+    /// The store as a [`Lens`] and a [`Sink`], which may work at once.
+    fn split(&mut self) -> (Lens<'_>, Sink<'_, I>) {
+        let hiding = self.hiding();
+        let pixels = self.pixel_count();
+        let Store {
+            viewport,
+            projector,
+            options,
+            index,
+            entries,
+            near,
+            stats,
+            runs,
+            merged,
+            spare,
+            times,
+            ..
+        } = self;
+        (
+            Lens {
+                eye: viewport.view.position,
+                projector,
+                options,
+            },
+            Sink {
+                index,
+                entries,
+                near,
+                stats,
+                runs,
+                merged,
+                spare,
+                times,
+                hiding,
+                subpixels: options.subpixels,
+                tolerance: options.depth_tolerance,
+                pixels,
+            },
+        )
     }
 
     /// When rays are hidden from the eye now.
@@ -357,89 +542,5 @@ impl<I: PixelIndex + Sync> Store<I> {
                 (self.projector.pixel_angle(1.0) * f64::from(sub)) as f32
             },
         }
-    }
-
-    /// The serial part of a merge: each distinct pixel of the sorted batch
-    /// in key order, its slot found (or made, from its first ray that is
-    /// not hidden) in the index, and the rest of its rays as a run.
-    fn find_runs(&mut self, pending: &[Pending]) -> Vec<Run> {
-        let mut runs = std::mem::take(&mut self.runs);
-        runs.clear();
-        let hiding = self.hiding();
-        let mut discarded = 0u64;
-        let mut i = 0;
-        while i < pending.len() {
-            let key = pending[i].key;
-            let mut end = i + 1;
-            while end < pending.len() && pending[end].key == key {
-                end += 1;
-            }
-            let first = (i..end)
-                .find(|&k| !hiding.hides(&self.index, &self.near, &pending[k]))
-                .unwrap_or(end);
-            discarded += (first - i) as u64;
-            if first < end {
-                match self.index.find(&self.entries, key) {
-                    Spot::Free(at) => {
-                        let p = &pending[first];
-                        let slot = self.entries.len() as u32;
-                        self.entries.push(Entry {
-                            key,
-                            estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
-                        });
-                        self.index.fill(at, slot);
-                        if first + 1 < end {
-                            runs.push(Run {
-                                slot,
-                                rays: first as u32 + 1..end as u32,
-                            });
-                        }
-                    }
-                    Spot::Taken(slot) => runs.push(Run {
-                        slot,
-                        rays: first as u32..end as u32,
-                    }),
-                }
-            }
-            i = end;
-        }
-        self.stats.discarded += discarded;
-        runs
-    }
-
-    /// Merges each run into its estimate: on every core for many runs.
-    fn merge_runs(&mut self, pending: &[Pending], runs: &[Run]) {
-        let tolerance = self.options.depth_tolerance;
-        let hiding = self.hiding();
-        let mut tally = Tally::default();
-        if runs.len() >= PARALLEL_RUNS && rayon::current_num_threads() > 1 {
-            let mut merged = std::mem::take(&mut self.merged);
-            merged.clear();
-            let (entries, seen) = (&self.entries, (&self.index, &self.near[..], hiding));
-            merged.par_extend(runs.par_iter().with_min_len(RUNS_PER_TASK).map(|r| {
-                let mut e = entries[r.slot as usize].estimate;
-                let t = merge_run(
-                    &mut e,
-                    &pending[r.rays.start as usize..r.rays.end as usize],
-                    seen,
-                    tolerance,
-                );
-                (e, t)
-            }));
-            for (r, (e, t)) in runs.iter().zip(&merged) {
-                self.entries[r.slot as usize].estimate = *e;
-                tally += *t;
-            }
-            self.merged = merged;
-        } else {
-            let seen = (&self.index, &self.near[..], hiding);
-            for r in runs {
-                let e = &mut self.entries[r.slot as usize].estimate;
-                tally += merge_run(e, &pending[r.rays.start as usize..r.rays.end as usize], seen, tolerance);
-            }
-        }
-        self.stats.merged += tally.merged;
-        self.stats.replaced += tally.replaced;
-        self.stats.discarded += tally.discarded;
     }
 }

@@ -16,7 +16,7 @@ use holodeck_protocol::{BeamDecoder, RayRecord};
 use wide::f64x4;
 
 use super::insert::{Lens, NOT_FINITE, OFF};
-use super::{Pending, PixelIndex};
+use super::Pending;
 use crate::sample::SampleDecoder;
 
 /// Rays per group.
@@ -102,8 +102,8 @@ impl Wall {
 /// (a perspective view) four at a time, as [`Lens::project`] would one by
 /// one; returns how many it did (a multiple of four: the caller does the
 /// rest). Rays that escaped are handed to [`Lens::project`] as they are.
-pub(super) fn project_perspective<I: PixelIndex>(
-    lens: &Lens<'_, I>,
+pub(super) fn project_perspective(
+    lens: &Lens<'_>,
     d: &BeamDecoder,
     records: &[RayRecord],
     out: &mut [Pending],

@@ -117,7 +117,7 @@ pub trait SampleStore: Send {
     /// The denoiser's guide ([`Store::guide`]).
     fn guide(&self) -> crate::denoise::Guide;
     /// Adds the stored rays of whole beams ([`Store::add_beams`]).
-    fn add_beams(&mut self, decoder: &crate::SampleDecoder, beams: &[(BeamKey, &[RayRecord])]);
+    fn add_beams(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]);
     /// How long adding rays took, by stage ([`Store::insert_times`]).
     fn insert_times(&self) -> InsertTimes;
 }
@@ -150,8 +150,8 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
     fn guide(&self) -> crate::denoise::Guide {
         Store::guide(self)
     }
-    fn add_beams(&mut self, decoder: &crate::SampleDecoder, beams: &[(BeamKey, &[RayRecord])]) {
-        Store::add_beams(self, decoder, beams)
+    fn add_beams(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
+        Store::add_beams(self, decoder, chunks)
     }
     fn insert_times(&self) -> InsertTimes {
         Store::insert_times(self)

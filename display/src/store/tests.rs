@@ -494,7 +494,7 @@ fn stored_beams_make_the_same_picture_as_their_decoded_samples() {
         });
         let (got, got_stats) = three.install(|| {
             let mut d = QuadtreeDriver::with_options(vp.clone(), options);
-            d.add_beams(&decoder, &slices);
+            d.add_beams(&decoder, &[&slices]);
             (d.render(), d.stats())
         });
         assert_eq!(got_stats, want_stats, "{width} pixels across");
@@ -516,7 +516,7 @@ fn stored_beams_make_the_same_picture_as_their_decoded_samples() {
 /// The store's insertion as it was first written, one ray after another
 /// on one thread (the reference the batched, parallel merge must match):
 /// projected, sorted, then each ray offered to its pixel's estimate.
-fn add_one_by_one<I: PixelIndex + Sync>(store: &mut Store<I>, samples: &[Sample]) {
+fn add_one_by_one<I: PixelIndex + Sync + Send>(store: &mut Store<I>, samples: &[Sample]) {
     store.stats.received += samples.len() as u64;
     for chunk in samples.chunks(CHUNK) {
         let lens = store.lens();
@@ -524,6 +524,9 @@ fn add_one_by_one<I: PixelIndex + Sync>(store: &mut Store<I>, samples: &[Sample]
         store.stats.outside += pending.iter().filter(|p| p.key == insert::OFF).count() as u64;
         store.stats.rejected_nonfinite += pending.iter().filter(|p| p.key == insert::NOT_FINITE).count() as u64;
         pending.retain(|p| p.key < insert::NOT_FINITE);
+        for p in &mut pending {
+            p.key = store.index.key(p.key as u32, (p.key >> 32) as u32);
+        }
         if pending.len() >= 256 {
             pending.sort_by_key(|p| p.key);
         }

@@ -147,7 +147,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         let secs = s.recall.as_secs_f64();
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
         tracing::info!(
-            "{}: read {:.1} ms, decode {:.1} ms and insert (project and merge) {:.1} ms side by side in {:.1} ms, frame {:.1} ms",
+            "{}: read {:.1} ms, decode and project {:.1} ms beside sort and merge {:.1} ms, together {:.1} ms, frame {:.1} ms",
             out.display(),
             ms(s.stages.read),
             ms(s.stages.decode),
