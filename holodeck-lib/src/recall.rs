@@ -177,6 +177,9 @@ pub struct FrameStats {
     pub render: Duration,
     /// The driver's counters.
     pub driver: DriverStats,
+    /// Heap bytes the driver held after drawing (its estimates, index and
+    /// scratch).
+    pub heap: usize,
 }
 
 /// Draws `view` from `file` with a fresh driver; returns the frame, the
@@ -204,6 +207,7 @@ pub fn draw(
             stages: recalled,
             render,
             driver: d.stats(),
+            heap: d.heap_bytes(),
         },
     ))
 }

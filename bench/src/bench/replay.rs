@@ -30,6 +30,7 @@ The file's beams are read once before timing, so the figures are those of a cach
 Examples:
   holodeck fill builtin:room room.hdk --views views.txt --rays 4M
   holodeck bench replay room.hdk --views 20 -x 1280 -y 720
+  holodeck bench replay room.hdk -x 1920 -y 1080 --memory-limit-mib 1024
   taskset -c 0 holodeck bench replay room.hdk      (one core for the whole process)")]
 pub struct Args {
     /// The holodeck file to replay.
@@ -52,6 +53,10 @@ pub struct Args {
     /// Frame height.
     #[arg(short = 'y', long, default_value_t = 720)]
     pub height: u32,
+    /// Limit the process's data memory to this many MiB (as a low-end
+    /// machine would; 0: no limit). An allocation beyond it fails.
+    #[arg(long, default_value_t = 0)]
+    pub memory_limit_mib: u64,
 }
 
 /// One walk's figures.
@@ -67,6 +72,9 @@ struct Walk {
     insert: Duration,
     frame: Duration,
     samples: u64,
+    /// The driver's heap after each view, summed, and its estimates.
+    heap: u64,
+    estimates: u64,
 }
 
 /// Draws every view of `views` from `file` with `driver`, on the current rayon pool.
@@ -82,6 +90,8 @@ fn walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> 
         insert: Duration::ZERO,
         frame: Duration::ZERO,
         samples: 0,
+        heap: 0,
+        estimates: 0,
     };
     for (i, view) in views.iter().enumerate() {
         let viewport = Viewport::new(view.clone(), size.0, size.1)?;
@@ -97,6 +107,8 @@ fn walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> 
         w.insert += s.stages.insert;
         w.frame += s.render;
         w.samples += s.samples;
+        w.heap += s.heap as u64;
+        w.estimates += s.driver.kept;
     }
     Ok(w)
 }
@@ -107,6 +119,9 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
         writable: false,
         ..OpenOptions::default()
     };
+    if a.memory_limit_mib > 0 {
+        limit_memory(a.memory_limit_mib << 20)?;
+    }
     let mut file = HoloFile::open(&a.file, &options).with_context(|| format!("opening {}", a.file.display()))?;
     let first = holodeck_cli::view_arg::parse(&a.view).context("--view")?;
     let views = holodeck::truth::walk(&first, a.views as usize, a.step, a.turn);
@@ -147,6 +162,24 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
             format!("{}/s", count(rate(&all) as u64)),
             rate(&single) / rate(&all),
         );
+        let per = |w: &Walk| w.heap as f64 / w.estimates.max(1) as f64;
+        row(
+            &format!(
+                "{driver}: store heap per view, and per estimate ({} estimates a view)",
+                count(single.estimates / u64::from(single.frames.max(1)))
+            ),
+            format!(
+                "{:.1} MiB, {:.0} B",
+                single.heap as f64 / f64::from(single.frames.max(1)) / 1048576.0,
+                per(&single)
+            ),
+            format!(
+                "{:.1} MiB, {:.0} B",
+                all.heap as f64 / f64::from(all.frames.max(1)) / 1048576.0,
+                per(&all)
+            ),
+            per(&single) / per(&all).max(1e-9),
+        );
         for (stage, s, m) in [
             ("read", single.read, all.read),
             ("decode and project (overlaps the merge)", single.decode, all.decode),
@@ -161,5 +194,38 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
             );
         }
     }
+    println!(
+        "| peak resident memory of the process{} | {} MiB | | |",
+        if a.memory_limit_mib > 0 {
+            format!(" (data limited to {} MiB)", a.memory_limit_mib)
+        } else {
+            String::new()
+        },
+        peak_resident_kib() >> 10
+    );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Limits the process's data segment (heap and private mappings) to
+/// `bytes`, as a machine with that much memory would.
+fn limit_memory(bytes: u64) -> Result<()> {
+    let limit = libc::rlimit {
+        rlim_cur: bytes as libc::rlim_t,
+        rlim_max: bytes as libc::rlim_t,
+    };
+    // SAFETY: setrlimit reads the struct we pass and nothing else.
+    if unsafe { libc::setrlimit(libc::RLIMIT_DATA, &limit) } != 0 {
+        return Err(std::io::Error::last_os_error()).context("setting the memory limit");
+    }
+    Ok(())
+}
+
+/// The most memory the process has held resident, KiB.
+fn peak_resident_kib() -> u64 {
+    // SAFETY: getrusage fills the zeroed struct we pass.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } != 0 {
+        return 0;
+    }
+    usage.ru_maxrss.max(0) as u64
 }

@@ -9,10 +9,11 @@
 //!   that the rays of one pixel are adjacent and arrive in batch order.
 //! * **Merge**: one serial pass finds each distinct pixel's slot in the
 //!   index (the index restructures as it goes, so it is walked in key
-//!   order, as before), then the runs of rays on each slot are merged into
-//!   their estimates on every core. Runs touch distinct estimates and each
-//!   run is merged in arrival order, so the estimates are bit-identical to
-//!   one ray after another on one thread.
+//!   order, as before) and merges a pixel's rays there when they are few;
+//!   the long runs of rays on one slot are then merged into their estimates
+//!   on every core. Runs touch distinct estimates and each run is merged in
+//!   arrival order, so the estimates are bit-identical to one ray after
+//!   another on one thread.
 
 use std::ops::Range;
 use std::time::Instant;
@@ -47,6 +48,10 @@ const RAYS_PER_TASK: usize = 1 << 12;
 /// Batches of at least this many runs (distinct pixels with rays to merge)
 /// merge them on every core.
 const PARALLEL_RUNS: usize = 1 << 12;
+
+/// Runs of fewer rays are merged as their estimate is found; longer ones
+/// wait to be merged on every core.
+const DEFER_MIN: usize = 8;
 
 /// Runs merged together by one task.
 const RUNS_PER_TASK: usize = 1 << 9;
@@ -310,6 +315,7 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
         self.runs.clear();
         let hiding = self.hiding;
         let mut discarded = 0u64;
+        let mut tally = Tally::default();
         let mut i = 0;
         while i < pending.len() {
             let key = pending[i].key;
@@ -331,22 +337,42 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
                             estimate: Estimate::of_ray(p.color, p.ray_weight(), p.depth, p.at()),
                         });
                         self.index.fill(at, slot);
-                        if first + 1 < end {
-                            self.runs.push(Run {
-                                slot,
-                                rays: first as u32 + 1..end as u32,
-                            });
-                        }
+                        self.run(pending, slot, first + 1..end, &mut tally);
                     }
-                    Spot::Taken(slot) => self.runs.push(Run {
-                        slot,
-                        rays: first as u32..end as u32,
-                    }),
+                    Spot::Taken(slot) => self.run(pending, slot, first..end, &mut tally),
                 }
             }
             i = end;
         }
         self.stats.discarded += discarded;
+        self.count(tally);
+    }
+
+    /// The rays `rays` of `pending` on the estimate in `slot`: merged now
+    /// when few (the estimate is in cache from the index's walk), kept as a
+    /// run for [`Sink::merge_runs`] when many.
+    #[inline]
+    fn run(&mut self, pending: &[Pending], slot: u32, rays: Range<usize>, tally: &mut Tally) {
+        if rays.len() >= DEFER_MIN {
+            self.runs.push(Run {
+                slot,
+                rays: rays.start as u32..rays.end as u32,
+            });
+        } else if !rays.is_empty() {
+            let seen = (&*self.index, &self.near[..], self.hiding);
+            *tally += merge_run(
+                &mut self.entries[slot as usize].estimate,
+                &pending[rays],
+                seen,
+                self.tolerance,
+            );
+        }
+    }
+
+    fn count(&mut self, tally: Tally) {
+        self.stats.merged += tally.merged;
+        self.stats.replaced += tally.replaced;
+        self.stats.discarded += tally.discarded;
     }
 
     /// Merges each run into its estimate: on every core for many runs.
@@ -378,9 +404,7 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
                 tally += merge_run(e, &pending[r.rays.start as usize..r.rays.end as usize], seen, tolerance);
             }
         }
-        self.stats.merged += tally.merged;
-        self.stats.replaced += tally.replaced;
-        self.stats.discarded += tally.discarded;
+        self.count(tally);
     }
 }
 

@@ -117,6 +117,7 @@ pub(super) fn project_perspective(
         V4::splat(view.direction),
     );
     let (sx, sy) = (f64x4::splat(view.sx), f64x4::splat(view.sy));
+    let (half, shift, lift) = (f64x4::splat(0.5), f64x4::splat(view.shift), f64x4::splat(view.lift));
     let groups = records.len() / LANES;
     for (recs, slots) in records.chunks_exact(LANES).zip(out.chunks_exact_mut(LANES)) {
         let recs: &[RayRecord; LANES] = recs.try_into().unwrap_or_else(|_| unreachable!());
@@ -137,12 +138,18 @@ pub(super) fn project_perspective(
         let to = hit.sub(eye);
         let (fx, fy, fz) = (to.dot(right), to.dot(up), to.dot(ahead));
         let (px, py) = (fx / fz / sx, fy / fz / sy);
+        // View coordinates, as the projector offsets them.
+        let (x, y) = (px + half - shift, py + half - lift);
         let dist = to.dot(to).sqrt();
         let cos = dir.dot(to.div(dist));
-        let (fz, px, py, dist, cos) = (
+        // Zero where the nine numbers of a lane's ray are finite (their sum
+        // is; a sum that overflows is checked one number at a time).
+        let sum = a.x + a.y + a.z + dir.x + dir.y + dir.z + hit.x + hit.y + hit.z;
+        let check = (sum * f64x4::splat(0.0)).to_array();
+        let (fz, x, y, dist, cos) = (
             fz.to_array(),
-            px.to_array(),
-            py.to_array(),
+            x.to_array(),
+            y.to_array(),
             dist.to_array(),
             cos.to_array(),
         );
@@ -153,16 +160,15 @@ pub(super) fn project_perspective(
                 continue;
             }
             let color = r.color.to_rgb();
-            let finite = a.lane(i).is_finite()
-                && dir.lane(i).is_finite()
-                && hit.lane(i).is_finite()
+            let finite = (check[i] == 0.0
+                || a.lane(i).is_finite() && dir.lane(i).is_finite() && hit.lane(i).is_finite())
                 && color.iter().all(|c| c.is_finite());
             *slot = if !finite {
                 Pending::nowhere(NOT_FINITE)
             } else if fz[i] <= 0.0 || fz[i] < view.fore || fz[i] > view.aft {
                 Pending::nowhere(OFF)
             } else {
-                match lens.projector.place(px[i] + 0.5 - view.shift, py[i] + 0.5 - view.lift) {
+                match lens.projector.place(x[i], y[i]) {
                     Some((col, row, at)) => lens.surface(col, row, at, dist[i], cos[i], color),
                     None => Pending::nowhere(OFF),
                 }
