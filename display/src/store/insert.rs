@@ -194,7 +194,7 @@ impl Hiding {
 
 /// Merges `rays` (all on the pixel of `e`, in arrival order) into `e` by
 /// the depth rule, skipping the hidden ones.
-#[inline]
+#[inline(always)]
 fn merge_run<I: PixelIndex>(e: &mut Estimate, rays: &[Pending], seen: (&I, &[f32], Hiding), tolerance: f32) -> Tally {
     let (index, near, hiding) = seen;
     let mut t = Tally::default();
@@ -351,7 +351,7 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
     /// The rays `rays` of `pending` on the estimate in `slot`: merged now
     /// when few (the estimate is in cache from the index's walk), kept as a
     /// run for [`Sink::merge_runs`] when many.
-    #[inline]
+    #[inline(always)]
     fn run(&mut self, pending: &[Pending], slot: u32, rays: Range<usize>, tally: &mut Tally) {
         if rays.len() >= DEFER_MIN {
             self.runs.push(Run {
