@@ -184,7 +184,7 @@ mod tests {
     use crate::quadtree::Tree;
     use crate::store::{EstimatorOptions, Store};
     use crate::Viewport;
-    use holodeck_protocol::{DepthCode, Rgbe, Section, SectionKind, View};
+    use holodeck_protocol::{DepthCode, Rgbe, View};
     use proptest::prelude::*;
 
     /// Every number of a projected ray, as bits.
@@ -210,7 +210,7 @@ mod tests {
             beam in 0u32..2000,
             raw in prop::collection::vec((any::<[u8; 4]>(), any::<[u8; 4]>(), any::<u16>(), 0u8..4), 1..64),
         ) {
-            let section = Section::new([-2.0, -1.0, -2.0], [[4.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 4.0]], [8, 10, 8], SectionKind::Interior).unwrap();
+            let section = crate::store::tests::test_section();
             let d = section.beam_decoder(beam % section.beam_count()).unwrap();
             let spec = format!("-vtv -vp {} {} {} -vd {dx} 1 {dz} -vu 0 0 1 -vh {h} -vv {v} -vs {sh} -vl {li} -vo {fore}", eye[0], eye[1], eye[2]);
             let vp = Viewport::new(View::parse(&spec).unwrap(), 97, 61).unwrap();

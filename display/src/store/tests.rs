@@ -399,6 +399,13 @@ fn sky_seen_from_elsewhere_stays_out_of_pixels_with_a_surface() {
     }
 }
 
+/// A section around the test eye (4 x 5 x 4, 640 cells).
+pub(super) fn test_section() -> holodeck_protocol::Section {
+    use holodeck_protocol::{Section, SectionKind};
+    let axes = [[4.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 4.0]];
+    Section::new([-2.0, -1.0, -2.0], axes, [8, 10, 8], SectionKind::Interior).unwrap()
+}
+
 /// Records of `n` random rays of `section`'s beams (some beams long enough
 /// to be split across batches, one the section does not have), with random
 /// colors and depths (escaped rays, far logarithmic codes).
@@ -454,14 +461,7 @@ fn random_beams(
 
 #[test]
 fn stored_beams_make_the_same_picture_as_their_decoded_samples() {
-    use holodeck_protocol::{Section, SectionKind};
-    let section = Section::new(
-        [-2.0, -1.0, -2.0],
-        [[4.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 4.0]],
-        [8, 10, 8],
-        SectionKind::Interior,
-    )
-    .unwrap();
+    let section = test_section();
     let decoder = crate::SampleDecoder::new(vec![section.clone()]);
     let beams = random_beams(&section, 700_000, 11);
     // Decoded one by one, as a display that receives samples does; a beam
@@ -581,14 +581,7 @@ fn add_one_by_one<I: PixelIndex + Sync + Send>(store: &mut Store<I>, samples: &[
 
 #[test]
 fn the_parallel_merge_makes_the_estimates_of_one_ray_after_another() {
-    use holodeck_protocol::{Section, SectionKind};
-    let section = Section::new(
-        [-2.0, -1.0, -2.0],
-        [[4.0, 0.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 4.0]],
-        [8, 10, 8],
-        SectionKind::Interior,
-    )
-    .unwrap();
+    let section = test_section();
     let decoder = crate::SampleDecoder::new(vec![section.clone()]);
     let mut samples = Vec::new();
     for (k, records) in random_beams(&section, 600_000, 5) {
