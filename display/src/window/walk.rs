@@ -23,6 +23,27 @@ use crate::{Driver, DriverError, Sample, Viewport};
 /// A still view that got nothing for this long asks for more at once.
 const QUIET: Duration = Duration::from_secs(1);
 
+/// Samples gathered from a source's beams before the driver takes them
+/// together: one beam's rays are too few for the store to sort them or to
+/// project them on every core.
+const GATHER: usize = 1 << 17;
+
+/// Adds `samples` to `batch`, handing the batch to `driver` once it is large.
+fn gather(batch: &mut Vec<Sample>, samples: &[Sample], driver: &mut dyn Driver) {
+    batch.extend_from_slice(samples);
+    if batch.len() >= GATHER {
+        flush(batch, driver);
+    }
+}
+
+/// Hands what `batch` holds to `driver`.
+fn flush(batch: &mut Vec<Sample>, driver: &mut dyn Driver) {
+    if !batch.is_empty() {
+        driver.add(batch);
+        batch.clear();
+    }
+}
+
 /// How a walkthrough asks for samples and shows them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WalkOptions {
@@ -98,6 +119,8 @@ pub struct Frame {
 pub struct Walkthrough {
     source: Box<dyn Source>,
     driver: Box<dyn Driver>,
+    /// Samples received and not yet handed to the driver (see [`GATHER`]).
+    batch: Vec<Sample>,
     options: WalkOptions,
     /// The view before the last settled change (`last` goes back to it).
     previous: Option<View>,
@@ -127,6 +150,7 @@ impl Walkthrough {
             refinement: Refinement::new(options.density, options.max_density),
             source,
             driver,
+            batch: Vec::new(),
             options,
             previous: None,
             settled,
@@ -239,10 +263,11 @@ impl Walkthrough {
             self.refinement
                 .asked(outstanding(&request, &|k| if resend { 0 } else { source.received(k) }));
         }
-        let driver = &mut self.driver;
+        let (driver, batch) = (&mut self.driver, &mut self.batch);
         let n = self
             .source
-            .request(&request, resend, &mut |s: &[Sample]| driver.add(s))?;
+            .request(&request, resend, &mut |s: &[Sample]| gather(batch, s, driver.as_mut()))?;
+        flush(batch, driver.as_mut());
         self.resend = false;
         self.request = Some(request);
         self.last_arrival = Instant::now();
@@ -274,8 +299,11 @@ impl Walkthrough {
     /// view's density once most of what it asked for is in. Returns the
     /// samples taken.
     pub fn poll(&mut self, deadline: Instant) -> Result<u64, WalkError> {
-        let driver = &mut self.driver;
-        let n = self.source.poll(deadline, &mut |s: &[Sample]| driver.add(s))?;
+        let (driver, batch) = (&mut self.driver, &mut self.batch);
+        let n = self
+            .source
+            .poll(deadline, &mut |s: &[Sample]| gather(batch, s, driver.as_mut()))?;
+        flush(batch, driver.as_mut());
         self.received += n;
         self.meter.add(n);
         if n > 0 {
