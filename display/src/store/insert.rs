@@ -458,11 +458,16 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
             }
         }
         self.stats.received += batches.iter().map(|b| b.1 as u64).sum::<u64>();
+        // Two buffers, kept between calls: one batch projected into one
+        // while the other is merged.
+        let mut free = vec![
+            std::mem::take(&mut self.projected),
+            std::mem::take(&mut self.projected_next),
+        ];
         let mut ready: Option<Vec<Pending>> = None;
-        let mut spare = Some(std::mem::take(&mut self.projected));
         for i in 0..=batches.len() {
             let (lens, mut sink) = self.split();
-            let mut next = spare.take().unwrap_or_default();
+            let mut next = free.pop().unwrap_or_default();
             let (done, took) = rayon::join(
                 || {
                     ready.take().map(|mut r| {
@@ -481,17 +486,18 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
             match done {
                 Some((r, sink)) => {
                     sink.times.project += took;
-                    spare = Some(r);
+                    free.push(r);
                 }
                 None => self.times.project += took,
             }
             if i < batches.len() {
                 ready = Some(next);
             } else {
-                spare = spare.or(Some(next));
+                free.push(next);
             }
         }
-        self.projected = spare.unwrap_or_default();
+        self.projected = free.pop().unwrap_or_default();
+        self.projected_next = free.pop().unwrap_or_default();
     }
 
     /// How long the stages of adding rays took so far (projecting overlaps

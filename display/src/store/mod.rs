@@ -254,6 +254,9 @@ pub struct Store<I> {
     /// second buffer.
     projected: Vec<Pending>,
     spare: Vec<Pending>,
+    /// The second batch buffer of [`Store::add_beams`], which projects one
+    /// batch while it merges another.
+    projected_next: Vec<Pending>,
     /// The runs of a batch's rays on one estimate, and their merged estimates.
     runs: Vec<insert::Run>,
     merged: Vec<(Estimate, insert::Tally)>,
@@ -312,6 +315,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             stats: DriverStats::default(),
             projected: Vec::new(),
             spare: Vec::new(),
+            projected_next: Vec::new(),
             runs: Vec::new(),
             merged: Vec::new(),
             times: InsertTimes::default(),
@@ -404,7 +408,8 @@ impl<I: PixelIndex + Sync> Store<I> {
     pub fn heap_bytes(&self) -> usize {
         self.entries.capacity() * std::mem::size_of::<Entry>()
             + self.parked.capacity() * std::mem::size_of::<Aggregate>()
-            + (self.projected.capacity() + self.spare.capacity()) * std::mem::size_of::<Pending>()
+            + (self.projected.capacity() + self.spare.capacity() + self.projected_next.capacity())
+                * std::mem::size_of::<Pending>()
             + self.runs.capacity() * std::mem::size_of::<insert::Run>()
             + self.merged.capacity() * std::mem::size_of::<(Estimate, insert::Tally)>()
             + self.index.heap_bytes()
