@@ -301,27 +301,19 @@ fn samplers_in_another_network_namespace_fill_over_tls() {
     let mut from = 0;
     let took = resumes(&server, &mut from, 10_000, "samplers across the veth pair");
     eprintln!("another namespace, over TLS: 10,000 rays stored in {took:.1?}");
+    // `admin status` from the samplers' namespace with the token alone.
+    let status = |extra: &[&str]| {
+        let args = ["admin", "--connect", &addr, "--token", TOKEN]
+            .into_iter()
+            .chain(extra.iter().copied());
+        crate::common::process::run(Namespaces::holodeck(&ns.samplers).args(args.chain(["status"])))
+    };
     // A token alone is not sent across: another host, and nothing pinned.
-    let o = crate::common::process::run(Namespaces::holodeck(&ns.samplers).args([
-        "admin",
-        "--connect",
-        &addr,
-        "--token",
-        TOKEN,
-        "status",
-    ]));
+    let o = status(&[]);
     assert!(!o.status.success());
     assert!(text(&o).contains("clear text"), "{}", text(&o));
     // Plain text insisted on: the server refuses it from another host.
-    let o = crate::common::process::run(Namespaces::holodeck(&ns.samplers).args([
-        "admin",
-        "--connect",
-        &addr,
-        "--token",
-        TOKEN,
-        "--plain-text",
-        "status",
-    ]));
+    let o = status(&["--plain-text"]);
     assert!(!o.status.success());
     assert!(text(&o).contains("over TLS only"), "{}", text(&o));
     // The admin token with the certificate pinned by hand: quit, over TLS.
