@@ -15,7 +15,7 @@ use glam::DVec3;
 use holodeck_protocol::{BeamDecoder, RayRecord};
 use wide::f64x4;
 
-use super::insert::{Lens, NOT_FINITE, OFF};
+use super::lens::{Lens, NOT_FINITE, OFF};
 use super::Pending;
 use crate::sample::SampleDecoder;
 

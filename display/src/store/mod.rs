@@ -27,6 +27,7 @@ pub mod estimate;
 pub mod index;
 mod insert;
 mod lanes;
+mod lens;
 mod radix;
 mod spread;
 #[cfg(test)]

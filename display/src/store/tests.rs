@@ -521,9 +521,9 @@ fn add_one_by_one<I: PixelIndex + Sync + Send>(store: &mut Store<I>, samples: &[
     for chunk in samples.chunks(CHUNK) {
         let lens = store.lens();
         let mut pending: Vec<Pending> = chunk.iter().map(|s| lens.project(s)).collect();
-        store.stats.outside += pending.iter().filter(|p| p.key == insert::OFF).count() as u64;
-        store.stats.rejected_nonfinite += pending.iter().filter(|p| p.key == insert::NOT_FINITE).count() as u64;
-        pending.retain(|p| p.key < insert::NOT_FINITE);
+        store.stats.outside += pending.iter().filter(|p| p.key == lens::OFF).count() as u64;
+        store.stats.rejected_nonfinite += pending.iter().filter(|p| p.key == lens::NOT_FINITE).count() as u64;
+        pending.retain(|p| p.key < lens::NOT_FINITE);
         for p in &mut pending {
             p.key = store.index.key(p.key as u32, (p.key >> 32) as u32);
         }
