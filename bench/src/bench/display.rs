@@ -227,6 +227,13 @@ fn gpu_rows(viewport: &Viewport, samples: &[Sample]) -> Result<()> {
     }
     let (random, stats) = holodeck_display::sphere::bench_insertions(1_000_000, false, 1);
     let (coherent, _) = holodeck_display::sphere::bench_insertions(1_000_000, true, 1);
+    let (sorted, _) = holodeck_display::sphere::bench_sorted_insertions(1_000_000, 1);
+    row(
+        "mesh: spherical Delaunay insertions per second, one core, 1M random directions inserted together (sorted along a Hilbert curve first, the sort timed)",
+        format!("{:.2} M/s", 1.0 / sorted),
+        format!("one at a time as they come {:.2} M/s", 1.0 / random),
+        random / sorted,
+    );
     row(
         &format!(
             "mesh: spherical Delaunay insertions per second, one core, 1M random directions ({:.2} flips each)",

@@ -29,6 +29,18 @@ pub fn bench_insertions(n: usize, coherent: bool, seed: u64) -> (f64, MeshStats)
     (start.elapsed().as_secs_f64(), mesh.stats())
 }
 
+/// Times [`SphereMesh::insert_many`] of `n` random directions into a fresh
+/// mesh (`min_angle` at its floor), the sort along the Hilbert curve
+/// included, and returns the seconds it took and the mesh's stats. Making
+/// the directions is not timed. Used by `holodeck bench display`.
+pub fn bench_sorted_insertions(n: usize, seed: u64) -> (f64, MeshStats) {
+    let dirs = random_directions(n, seed);
+    let mut mesh = SphereMesh::new(0.0);
+    let start = Instant::now();
+    let _ = mesh.insert_many(&dirs);
+    (start.elapsed().as_secs_f64(), mesh.stats())
+}
+
 /// SplitMix64: deterministic noise without a dependency.
 #[derive(Clone, Debug)]
 pub(crate) struct SplitMix(pub u64);
