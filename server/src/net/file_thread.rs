@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use holodeck_protocol::{BeamKey, RayRecord};
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::{mpsc, oneshot, OwnedSemaphorePermit, Semaphore};
 
 use holodeck_file::storage::{FileSummary, HoloFile, Result, StorageError};
 
@@ -15,7 +15,8 @@ use holodeck_file::storage::{FileSummary, HoloFile, Result, StorageError};
 pub type Beams = Vec<(BeamKey, Vec<RayRecord>)>;
 
 enum Request {
-    Append(Vec<(BeamKey, Vec<RayRecord>)>),
+    /// The packets, and their share of [`QUEUED_RAYS`], given back once stored.
+    Append(Vec<(BeamKey, Vec<RayRecord>)>, OwnedSemaphorePermit),
     Read(Vec<(BeamKey, u64)>, oneshot::Sender<Result<Beams>>),
     Lens(oneshot::Sender<Vec<Vec<u64>>>),
     Clobber(oneshot::Sender<Result<()>>),
@@ -28,10 +29,18 @@ enum Request {
 /// Requests the storage thread may have waiting.
 const QUEUE: usize = 4096;
 
+/// Rays that may wait for the storage thread. Everything else (a commit, a
+/// display's read) queues behind them, so this bounds how long those wait
+/// when samplers bring more than the disk takes: about a tenth of a second
+/// of appending.
+const QUEUED_RAYS: usize = 1 << 20;
+
 /// A handle to the storage thread; cheap to clone.
 #[derive(Clone)]
 pub struct FileThread {
     tx: mpsc::Sender<Request>,
+    /// Permits for [`QUEUED_RAYS`].
+    queued: Arc<Semaphore>,
     refusing: Arc<AtomicBool>,
     /// Why the file first refused rays.
     refusal: Arc<Mutex<Option<String>>>,
@@ -53,7 +62,7 @@ impl FileThread {
         let handle = std::thread::spawn(move || -> Result<()> {
             while let Some(req) = rx.blocking_recv() {
                 match req {
-                    Request::Append(packets) => {
+                    Request::Append(packets, _permit) => {
                         for (key, rays) in packets {
                             let Err(e) = file.append(key, &rays) else { continue };
                             // Log the first refusal only: every later packet meets the same wall.
@@ -142,7 +151,16 @@ impl FileThread {
             }
             file.close()
         });
-        (FileThread { tx, refusing, refusal }, StoreThread { handle })
+        let queued = Arc::new(Semaphore::new(QUEUED_RAYS));
+        (
+            FileThread {
+                tx,
+                queued,
+                refusing,
+                refusal,
+            },
+            StoreThread { handle },
+        )
     }
 
     fn gone() -> StorageError {
@@ -166,8 +184,9 @@ impl FileThread {
     }
 
     /// Queues rays for a beam.
-    /// Waits while the storage thread is [`QUEUE`] requests behind: samplers
-    /// are then slowed to what the disk takes, and memory stays bounded.
+    /// Waits while the storage thread is [`QUEUED_RAYS`] rays or [`QUEUE`]
+    /// requests behind: samplers are then slowed to what the disk takes,
+    /// memory stays bounded, and a commit waits for little.
     pub async fn append(&self, key: BeamKey, rays: Vec<RayRecord>) {
         self.append_many(vec![(key, rays)]).await;
     }
@@ -175,9 +194,17 @@ impl FileThread {
     /// Appends the rays of several packets, in order, in one request to the
     /// storage thread (a sampler's packets that arrived together).
     pub async fn append_many(&self, packets: Vec<(BeamKey, Vec<RayRecord>)>) {
-        if !packets.is_empty() {
-            let _ = self.tx.send(Request::Append(packets)).await;
+        if packets.is_empty() {
+            return;
         }
+        let rays: usize = packets.iter().map(|(_, r)| r.len()).sum();
+        let Ok(permit) = Arc::clone(&self.queued)
+            .acquire_many_owned(rays.clamp(1, QUEUED_RAYS) as u32)
+            .await
+        else {
+            return; // never closed
+        };
+        let _ = self.tx.send(Request::Append(packets, permit)).await;
     }
 
     /// Reads beams (in file order, through the cache), each from the given

@@ -7,11 +7,11 @@
 //! worker's own measured speed, so a slow worker holds little work hostage
 //! and a fast one never starves.
 
-use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use holodeck_protocol::wire::{Frame, Message, TracePacket, MAX_PACKET_RAYS};
 use holodeck_protocol::BeamKey;
+use rustc_hash::FxHashMap;
 use tokio::sync::mpsc;
 
 use super::connection::{Connection, ConnectionError};
@@ -182,8 +182,8 @@ pub(super) async fn serve_sampler(conn: Connection, shared: &Shared) -> Result<(
 
 /// The work a sampler holds: packets sent and not yet finished.
 struct Outstanding {
-    /// By packet id.
-    pending: HashMap<u64, Work>,
+    /// By packet id (ids are a counter: no hash flooding to fear).
+    pending: FxHashMap<u64, Work>,
     /// Rays in `pending`.
     rays: u64,
     /// The sampler's rate, measured.
@@ -192,16 +192,19 @@ struct Outstanding {
     progress: Instant,
     /// Finished packets to store, with their rays.
     done: Vec<(Work, Vec<holodeck_protocol::RayRecord>)>,
+    /// Rays in `done` not yet reported to the meter.
+    returned: u64,
 }
 
 impl Outstanding {
     fn new() -> Outstanding {
         Outstanding {
-            pending: HashMap::new(),
+            pending: FxHashMap::default(),
             rays: 0,
             meter: Meter::new(),
             progress: Instant::now(),
             done: Vec::new(),
+            returned: 0,
         }
     }
 
@@ -261,9 +264,7 @@ impl Outstanding {
                     let w = *w;
                     self.pending.remove(&id);
                     self.rays -= u64::from(w.rays);
-                    self.progress = Instant::now();
-                    self.meter
-                        .finished(u64::from(w.rays), self.progress, self.pending.is_empty());
+                    self.returned += u64::from(w.rays);
                     self.done.push((w, records));
                     return;
                 }
@@ -281,6 +282,13 @@ impl Outstanding {
         if self.done.is_empty() {
             return;
         }
+        // One reading of the clock for every frame that came together.
+        self.progress = Instant::now();
+        self.meter.finished(
+            std::mem::take(&mut self.returned),
+            self.progress,
+            self.pending.is_empty(),
+        );
         let done = std::mem::take(&mut self.done);
         let finished: Vec<Work> = done.iter().map(|(w, _)| *w).collect();
         shared

@@ -9,58 +9,56 @@
 //! entries that no longer match it are fixed up when they surface, so giving
 //! rays back or crediting rays traced for a display costs O(log n).
 
-use std::cmp::{Ordering, Reverse};
-use std::collections::{BinaryHeap, HashMap};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
 use holodeck_protocol::{BeamKey, Section, SectionError};
 
-/// One entry of the request list.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One entry of the request list, 16 bytes, ordered by its fields: ratio,
+/// then rank (larger weights first, then lower keys), so that comparing two
+/// is comparing integers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 struct Entry {
-    /// Rays stored divided by the beam's weight.
-    ratio: f64,
-    /// Larger weights first among equal ratios.
-    weight: f64,
-    key: BeamKey,
+    /// Rays stored divided by the beam's weight, as the bits of a
+    /// non-negative float (which order as the numbers do).
+    ratio: u64,
+    /// The beam's place among the weighted beams sorted by decreasing
+    /// weight, then by key.
+    rank: u32,
     /// The beam's sequence number when pushed: only the newest entry of a
     /// beam is live, so no beam is ever in the list twice.
     seq: u32,
 }
 
-impl Eq for Entry {}
-
-impl Ord for Entry {
-    fn cmp(&self, o: &Self) -> Ordering {
-        self.ratio
-            .total_cmp(&o.ratio)
-            .then(o.weight.total_cmp(&self.weight))
-            .then(self.key.cmp(&o.key))
-    }
+/// The bits of non-negative `r` that order as the numbers do (-0 made +0).
+#[inline]
+fn ratio_bits(r: f64) -> u64 {
+    (r + 0.0).to_bits()
 }
 
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
+/// Marks a rank not handed out in the current call of [`BatchSchedule::next`].
+const NOT_HANDED: u32 = u32::MAX;
 
 /// The weighted request list of a batch fill.
 pub struct BatchSchedule {
     heap: BinaryHeap<Reverse<Entry>>,
-    /// Weight of each beam, by section; 0 for beams not scheduled.
+    /// Each beam's weight (normalised to sum to 1; 0 for beams not scheduled), by section.
     weights: Vec<Vec<f64>>,
-    /// Current ratio of each beam (rays counted / weight).
-    ratios: Vec<Vec<f64>>,
-    /// Sequence number of each beam's live heap entry.
-    seqs: Vec<Vec<u32>>,
-    /// Beams scheduled.
-    beams: usize,
+    /// The rank of each beam, by section (`u32::MAX` for beams not scheduled).
+    ranks: Vec<Vec<u32>>,
+    /// By rank: the beam, its weight, its current ratio and sequence number.
+    keys: Vec<BeamKey>,
+    weight_of: Vec<f64>,
+    ratios: Vec<f64>,
+    seqs: Vec<u32>,
+    /// By rank: where the beam is in the packets of the current call.
+    handed: Vec<u32>,
 }
 
+/// Builds the list over all beams, weighted by volume; `stored` gives the
+/// rays each beam holds already.
 impl BatchSchedule {
-    /// Builds the list over all beams, weighted by volume; `stored` gives the
-    /// rays each beam holds already.
     pub fn new(sections: &[Section], stored: impl Fn(BeamKey) -> u64) -> Result<BatchSchedule, SectionError> {
         let mut weights = Vec::with_capacity(sections.len());
         for s in sections {
@@ -90,56 +88,64 @@ impl BatchSchedule {
     /// Builds the list from raw weights (0: not scheduled), normalized to sum 1.
     fn with_weights(mut weights: Vec<Vec<f64>>, stored: impl Fn(BeamKey) -> u64) -> BatchSchedule {
         let total: f64 = weights.iter().flatten().sum();
-        let mut heap = Vec::new();
-        let mut ratios = Vec::with_capacity(weights.len());
+        let mut beams: Vec<(f64, BeamKey)> = Vec::new();
         for (si, w) in weights.iter_mut().enumerate() {
-            let mut r = vec![0.0; w.len()];
             for (b, weight) in w.iter_mut().enumerate() {
                 if *weight <= 0.0 || !weight.is_finite() {
                     *weight = 0.0;
                     continue;
                 }
                 *weight = (*weight / total).max(f64::MIN_POSITIVE);
-                let key = BeamKey::new(si as u32, b as u32);
-                r[b] = stored(key) as f64 / *weight;
-                heap.push(Reverse(Entry {
-                    ratio: r[b],
-                    weight: *weight,
-                    key,
-                    seq: 0,
-                }));
+                beams.push((*weight, BeamKey::new(si as u32, b as u32)));
             }
-            ratios.push(r);
         }
-        let beams = heap.len();
-        let seqs = weights.iter().map(|w| vec![0; w.len()]).collect();
-        BatchSchedule {
-            heap: heap.into(),
+        // Larger weights first among equal ratios, then lower keys.
+        beams.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut ranks: Vec<Vec<u32>> = weights.iter().map(|w| vec![u32::MAX; w.len()]).collect();
+        let mut keys = Vec::with_capacity(beams.len());
+        let mut weight_of = Vec::with_capacity(beams.len());
+        let mut ratios = Vec::with_capacity(beams.len());
+        for (rank, &(weight, key)) in beams.iter().enumerate() {
+            ranks[key.section as usize][key.beam as usize] = rank as u32;
+            keys.push(key);
+            weight_of.push(weight);
+            ratios.push(stored(key) as f64 / weight);
+        }
+        let n = keys.len();
+        let mut schedule = BatchSchedule {
+            heap: BinaryHeap::new(),
             weights,
+            ranks,
+            keys,
+            weight_of,
             ratios,
-            seqs,
-            beams,
-        }
+            seqs: vec![0; n],
+            handed: vec![NOT_HANDED; n],
+        };
+        schedule.compact();
+        schedule
     }
 
     /// Pushes the beam's live entry for its current ratio, retiring older ones.
-    fn push(&mut self, key: BeamKey, weight: f64) {
-        let (s, b) = (key.section as usize, key.beam as usize);
-        let seq = self.seqs[s][b].wrapping_add(1);
-        self.seqs[s][b] = seq;
+    fn push(&mut self, rank: u32) {
+        let r = rank as usize;
+        let seq = self.seqs[r].wrapping_add(1);
+        self.seqs[r] = seq;
         self.heap.push(Reverse(Entry {
-            ratio: self.ratios[s][b],
-            weight,
-            key,
+            ratio: ratio_bits(self.ratios[r]),
+            rank,
             seq,
         }));
-        if self.heap.len() > 2 * self.beams + 1024 {
+        // Retired entries are dropped once they could double the heap.
+        if self.heap.len() > 2 * self.keys.len() + 1024 {
             self.compact();
         }
     }
 
-    fn ratio_mut(&mut self, key: BeamKey) -> Option<&mut f64> {
-        self.ratios.get_mut(key.section as usize)?.get_mut(key.beam as usize)
+    /// The rank of a scheduled beam.
+    fn rank(&self, key: BeamKey) -> Option<u32> {
+        let r = *self.ranks.get(key.section as usize)?.get(key.beam as usize)?;
+        (r != u32::MAX).then_some(r)
     }
 
     /// The next `count` packets' worth of work (`count` x `rays` rays), at
@@ -153,31 +159,33 @@ impl BatchSchedule {
         let rays = rays.max(1);
         let budget = count as u64 * u64::from(rays);
         let mut out: Vec<(BeamKey, u32)> = Vec::new();
-        let mut at: HashMap<BeamKey, usize> = HashMap::new();
-        // Live entries of beams whose packet is full, put back at the end.
+        let mut touched: Vec<u32> = Vec::new();
         let mut full = Vec::new();
         let mut handed = 0u64;
         while handed < budget {
             let Some(Reverse(e)) = self.heap.pop() else { break };
-            let (s, b) = (e.key.section as usize, e.key.beam as usize);
-            if self.seqs[s][b] != e.seq {
+            let r = e.rank as usize;
+            if self.seqs[r] != e.seq {
                 continue; // retired: the beam has a newer entry
             }
-            // An empty beam gets one ray first: every beam then holds rays
-            // after as few rays as there are beams.
-            let n = if e.ratio == 0.0 { 1 } else { rays };
-            let i = *at.entry(e.key).or_insert_with(|| {
-                out.push((e.key, 0));
-                out.len() - 1
-            });
+            let n = if self.ratios[r] == 0.0 { 1 } else { rays };
+            if self.handed[r] == NOT_HANDED {
+                self.handed[r] = out.len() as u32;
+                touched.push(e.rank);
+                out.push((self.keys[r], 0));
+            }
+            let i = self.handed[r] as usize;
             if out[i].1 + n > MAX_PACKET_RAYS {
                 full.push(Reverse(e));
                 continue;
             }
             out[i].1 += n;
             handed += u64::from(n);
-            self.ratios[s][b] += f64::from(n) / e.weight;
-            self.push(e.key, e.weight);
+            self.ratios[r] += f64::from(n) / self.weight_of[r];
+            self.push(e.rank);
+        }
+        for r in touched {
+            self.handed[r as usize] = NOT_HANDED;
         }
         self.heap.extend(full);
         out.retain(|o| o.1 > 0);
@@ -196,29 +204,23 @@ impl BatchSchedule {
     }
 
     fn adjust(&mut self, key: BeamKey, rays: f64) {
-        let Some(weight) = self.weight(key).filter(|w| *w > 0.0) else {
-            return;
-        };
-        let Some(r) = self.ratio_mut(key) else { return };
-        *r = (*r + rays / weight).max(0.0);
-        self.push(key, weight);
+        let Some(rank) = self.rank(key) else { return };
+        let r = rank as usize;
+        self.ratios[r] = (self.ratios[r] + rays / self.weight_of[r]).max(0.0);
+        self.push(rank);
     }
 
     /// Rebuilds the heap from the ratio table, dropping retired entries.
     fn compact(&mut self) {
-        let mut entries = Vec::with_capacity(self.beams);
-        for (si, w) in self.weights.iter().enumerate() {
-            for (b, &weight) in w.iter().enumerate() {
-                if weight > 0.0 {
-                    entries.push(Reverse(Entry {
-                        ratio: self.ratios[si][b],
-                        weight,
-                        key: BeamKey::new(si as u32, b as u32),
-                        seq: self.seqs[si][b],
-                    }));
-                }
-            }
-        }
+        let entries: Vec<Reverse<Entry>> = (0..self.keys.len())
+            .map(|r| {
+                Reverse(Entry {
+                    ratio: ratio_bits(self.ratios[r]),
+                    rank: r as u32,
+                    seq: self.seqs[r],
+                })
+            })
+            .collect();
         self.heap = entries.into();
     }
 
@@ -229,12 +231,12 @@ impl BatchSchedule {
 
     /// Number of beams in the list.
     pub fn len(&self) -> usize {
-        self.beams
+        self.keys.len()
     }
 
-    /// True when there are no beams.
+    /// Whether no beam is scheduled.
     pub fn is_empty(&self) -> bool {
-        self.beams == 0
+        self.keys.is_empty()
     }
 }
 
