@@ -104,16 +104,18 @@ pub fn how(status: ExitStatus) -> String {
     }
 }
 
-/// The signal (SIGINT or SIGTERM) that asked `run` to stop, 0 for none.
+/// The signal (SIGINT or SIGTERM) that asked the command to stop, 0 for none.
 static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
 
 extern "C" fn note_stop(signal: libc::c_int) {
     STOP_SIGNAL.store(signal, std::sync::atomic::Ordering::Relaxed);
 }
 
-/// Makes SIGINT and SIGTERM to `run` (Ctrl-C, `kill PID`) stop the run as
-/// its TIME would: the server flushes and quits, the samplers and display
-/// stop, the summary is printed, and `run` exits 128 + the signal.
+/// Makes SIGINT and SIGTERM (Ctrl-C, `kill PID`) only noted, for the
+/// command to stop as it should ([`stop_signal`]): `run` as its TIME would
+/// (the server flushes and quits, the samplers and display stop, the
+/// summary is printed), `sample` saying what it traced; both exit 128 + the
+/// signal.
 pub fn stop_on_signals() {
     for signal in [libc::SIGINT, libc::SIGTERM] {
         // SAFETY: the handler only stores to an atomic, which is
@@ -127,7 +129,7 @@ pub fn stop_on_signals() {
     }
 }
 
-/// The signal that asked the run to stop, if one did.
+/// The signal that asked the command to stop, if one did.
 pub fn stop_signal() -> Option<libc::c_int> {
     match STOP_SIGNAL.load(std::sync::atomic::Ordering::Relaxed) {
         0 => None,

@@ -3,6 +3,7 @@
 //! Blocking I/O on one connection per worker thread: tracing, not the network,
 //! is what takes the time.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -57,12 +58,22 @@ const GATHER_RAYS: u64 = 2 * crate::shade::AUTO_MIN_PATHS as u64;
 /// Traces packets from the server at `addr` until it closes the connection;
 /// returns the rays traced. `scene` is the content hash of `tracer`'s scene.
 pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<u64, WorkerError> {
-    run_session(addr, tracer, scene, token, seed).map(|(traced, _)| traced)
+    let traced = AtomicU64::new(0);
+    run_session(addr, tracer, scene, token, seed, &traced).map(|_| traced.into_inner())
 }
 
-/// One connection's work: the rays traced, and whether it ended because an
-/// admin stopped the samplers (rather than the server closing).
-fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<(u64, bool), WorkerError> {
+/// One connection's work: adds every ray it traces and hands to the
+/// connection to `traced` as it goes (so that others may read the count at
+/// any time, and a session ended by an error still counts them), and says whether it ended because an admin stopped
+/// the samplers (rather than the server closing).
+fn run_session(
+    addr: &str,
+    tracer: &Tracer,
+    scene: &str,
+    token: &str,
+    seed: u64,
+    traced: &AtomicU64,
+) -> Result<bool, WorkerError> {
     let io = |source: LinkError| WorkerError::Io {
         addr: client::shown(addr).to_string(),
         source,
@@ -75,7 +86,7 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
         obstructions: welcome.obstructions,
         vdistance: welcome.vdistance,
     };
-    let mut traced = 0u64;
+    let mut session = 0u64;
     let mut n = 0u64;
     let mut last_send = Instant::now();
     // Packets that arrive together are traced as one batch where the tracer
@@ -104,7 +115,7 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
                 Frame::Message(Message::Refused { reason, retry }) => {
                     if retry {
                         tracing::warn!("{}: {reason}", client::shown(addr));
-                        return Ok((traced, true));
+                        return Ok(true);
                     }
                     return Err(WorkerError::Connect(ClientError::Refused {
                         addr: client::shown(addr).to_string(),
@@ -156,17 +167,20 @@ fn run_session(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64)
                     }
                 });
             match sent {
-                Ok(()) => traced += rays,
+                Ok(()) => {
+                    session += rays;
+                    traced.fetch_add(rays, Ordering::Relaxed);
+                }
                 Err(e) if e.is_gone() => break 'session,
                 Err(e) => return Err(io(e)),
             }
         }
     }
     tracing::info!(
-        "{}: the server closed the connection after {traced} rays",
+        "{}: the server closed the connection after {session} rays",
         client::shown(addr)
     );
-    Ok((traced, false))
+    Ok(false)
 }
 
 /// What a worker traces: a tracer of the scene, and the scene's content hash.
@@ -178,7 +192,10 @@ pub type SceneSource<'a> = dyn Fn() -> (Arc<Tracer>, String) + Sync + 'a;
 /// trying again makes sense), it keeps trying, however long that takes;
 /// `scene` is asked for the scene before every attempt, so that one edited
 /// meanwhile is the one proved next. Any other refusal, or a protocol
-/// error, ends it at once. Returns the rays traced. A worker that never
+/// error, ends it at once. Adds to `traced` every ray it traces and hands
+/// to a connection, as it goes, those of sessions a broken connection
+/// ended included (what the server did not store of them was lost in
+/// flight), so that the count can be read at any time. A worker that never
 /// reached a server fails with [`WorkerError::Unreachable`]; one whose server
 /// went away after it was reached ends normally.
 pub fn run_worker_retrying(
@@ -187,18 +204,19 @@ pub fn run_worker_retrying(
     token: &str,
     seed: u64,
     retry_for: Duration,
-) -> Result<u64, WorkerError> {
-    let (mut total, mut round, mut reached) = (0u64, 0u64, false);
+    traced: &AtomicU64,
+) -> Result<(), WorkerError> {
+    let (mut round, mut reached) = (0u64, false);
     let mut delay = Duration::from_millis(250);
     let mut lost_since: Option<Instant> = None;
     loop {
         let round_seed = seed.wrapping_add(round.wrapping_mul(0x9E37_79B9));
         let (tracer, hash) = scene();
-        let (failure, stopped) = match run_session(addr, &tracer, &hash, token, round_seed) {
-            Ok((n, stopped)) => {
+        let before = traced.load(Ordering::Relaxed);
+        let (failure, stopped) = match run_session(addr, &tracer, &hash, token, round_seed, traced) {
+            Ok(stopped) => {
                 reached = true;
-                total += n;
-                if n > 0 {
+                if traced.load(Ordering::Relaxed) > before {
                     delay = Duration::from_millis(250);
                     lost_since = None;
                 }
@@ -231,7 +249,7 @@ pub fn run_worker_retrying(
                     retried: retry_for,
                     error: Box::new(error),
                 }),
-                _ => Ok(total),
+                _ => Ok(()),
             };
         }
         tracing::info!("{}: server unavailable; retrying in {delay:?}", client::shown(addr));
@@ -260,7 +278,7 @@ mod tests {
             .unwrap()
             .to_string();
         let scene = || (Arc::clone(&tracer), "scene".to_string());
-        let e = run_worker_retrying(&addr, &scene, "token", 1, Duration::ZERO).unwrap_err();
+        let e = run_worker_retrying(&addr, &scene, "token", 1, Duration::ZERO, &AtomicU64::new(0)).unwrap_err();
         let WorkerError::Unreachable {
             addr: at,
             retried,

@@ -1,8 +1,9 @@
 //! `holodeck sample`: a sampler worker for a holodeck server on any host.
 
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::SystemTime;
+use std::time::{Duration, SystemTime};
 
 use anyhow::{bail, Context, Result};
 use holodeck_file::settings::parse_duration;
@@ -22,7 +23,9 @@ say), each worker retries with growing delays for --retry-for before ending. Whi
 has stopped the samplers (`holodeck admin ... kill`), workers wait to be let in again, and
 reload the scene file first if it changed (for `holodeck admin ... adopt` after an edit). A sampler
 that never reached the server in that time fails, naming the address. Workers are stateless: start and
-stop them at any time, on any host that can reach the server.
+stop them at any time, on any host that can reach the server. It ends by saying how many rays it
+traced and handed to the server; SIGINT or SIGTERM ends it at once, saying the same (exit status
+130 or 143). Work it held is given to other samplers.
 
 Examples:
   holodeck sample builtin:room --connect 127.0.0.1:7777 --token-file room.hdk.token
@@ -117,10 +120,13 @@ pub fn run(a: Args) -> Result<ExitCode> {
         || std::thread::available_parallelism().map_or(1, |n| n.get()),
         |j| j as usize,
     );
-    let results: Vec<Option<Result<u64, WorkerError>>> = std::thread::scope(|s| {
+    // Rays traced and handed to the server, by every worker.
+    let traced = AtomicU64::new(0);
+    crate::supervise::stop_on_signals();
+    let results: Vec<Option<Result<(), WorkerError>>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..jobs)
             .map(|j| {
-                let (scene, token, addr) = (&scene, &token, &addr);
+                let (scene, token, addr, traced) = (&scene, &token, &addr, &traced);
                 s.spawn(move || {
                     run_worker_retrying(
                         addr,
@@ -128,20 +134,33 @@ pub fn run(a: Args) -> Result<ExitCode> {
                         token,
                         a.seed.wrapping_mul(1000).wrapping_add(j as u64),
                         retry_for,
+                        traced,
                     )
                 })
             })
             .collect();
+        // Stopped by a signal: say what was done, and end every worker.
+        while !handles.iter().all(|h| h.is_finished()) {
+            if let Some(signal) = crate::supervise::stop_signal() {
+                let name = if signal == libc::SIGINT { "SIGINT" } else { "SIGTERM" };
+                summary!(
+                    "traced {} rays for {} (stopped by {name})",
+                    count(traced.load(Ordering::Relaxed)),
+                    a.connect
+                );
+                std::process::exit(128 + signal);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         handles.into_iter().map(|h| h.join().ok()).collect()
     });
-    let mut rays = 0;
     for r in results {
         match r {
-            Some(Ok(n)) => rays += n,
+            Some(Ok(())) => {}
             Some(Err(e)) => bail!(e),
             None => bail!("a worker thread failed; see the message above"),
         }
     }
-    summary!("traced {} rays for {}", count(rays), a.connect);
+    summary!("traced {} rays for {}", count(traced.into_inner()), a.connect);
     Ok(ExitCode::SUCCESS)
 }

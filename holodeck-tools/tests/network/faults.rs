@@ -3,7 +3,9 @@
 //! reset, a 30 s partition), a sampler frozen by SIGSTOP, and (where the
 //! test may) samplers in another network namespace across a veth pair. After each
 //! fault the server still answers a display, the fill resumes, no ray is
-//! stored twice, and the file checks clean. What each fault cost is printed
+//! stored twice, and the file checks clean; at the end the rays the
+//! samplers say they traced, less those stored, are the rays lost in flight
+//! (none where no connection broke). What each fault cost is printed
 //! (`cargo test -p holodeck-tools --test network faults -- --nocapture`).
 
 use std::collections::{HashMap, HashSet};
@@ -11,7 +13,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use holodeck_file::{HoloFile, OpenOptions};
-use holodeck_protocol::wire::Role;
+use holodeck_protocol::wire::{client, Control, Role};
 use holodeck_protocol::BeamKey;
 
 use crate::common::process::Proc;
@@ -99,14 +101,37 @@ fn resumes(server: &Proc, from: &mut usize, more: u64, what: &str) -> Duration {
     start.elapsed()
 }
 
-/// Quits the server and the samplers, and checks the file: clean, no ray
-/// stored twice. Returns the rays stored.
-fn close_and_check(mut server: Proc, addr: &str, samplers: Vec<Proc>, file: &Path, what: &str) -> u64 {
+/// The rays a sampler says it traced and handed to the server
+/// (`traced N rays for ADDR`, its last words however it ended).
+fn traced_rays(output: &str) -> Option<u64> {
+    let line = output.lines().rev().find_map(|l| l.strip_prefix("traced "))?;
+    line.split_once(" rays")?.0.replace(',', "").parse().ok()
+}
+
+/// What became of the samplers' rays.
+struct Account {
+    /// Rays the samplers added to the file.
+    stored: u64,
+    /// Rays the samplers traced and handed to their connections that the
+    /// file does not hold: in flight when a connection broke.
+    lost: u64,
+}
+
+/// Pauses the fill until nothing more arrives (the samplers return what
+/// they hold), quits the server and the samplers, and checks the file:
+/// clean, no ray stored twice, and every ray stored beyond the `initial`
+/// ones a ray a sampler traced. Returns what became of the samplers' rays.
+fn close_and_check(server: Proc, addr: &str, samplers: Vec<Proc>, file: &Path, initial: u64, what: &str) -> Account {
+    let mut server = server;
+    client::send_control(addr, TOKEN, Control::Pause).unwrap();
+    let mut at = server.text().lines().count();
+    steady(&server, &mut at, 2, "the paused fill to settle");
     quit(addr, TOKEN);
     assert!(server.wait().success(), "{}", server.text());
+    let mut traced = 0;
     for s in samplers {
-        // A sampler retrying longer than the test waits is ended by SIGTERM;
-        // any other end must be a success.
+        // A sampler still retrying is ended by SIGTERM, and says what it
+        // traced as it goes; any other end must be a success.
         let mut s = s;
         let deadline = Instant::now() + Duration::from_secs(15);
         while s.try_wait().is_none() && Instant::now() < deadline {
@@ -116,30 +141,36 @@ fn close_and_check(mut server: Proc, addr: &str, samplers: Vec<Proc>, file: &Pat
             s.signal(libc::SIGTERM);
         }
         let o = s.finish();
-        let by_us = std::os::unix::process::ExitStatusExt::signal(&o.status) == Some(libc::SIGTERM);
-        assert!(o.status.success() || by_us, "{}", text(&o));
+        assert!(o.status.success() || o.status.code() == Some(143), "{}", text(&o));
+        traced += traced_rays(&String::from_utf8_lossy(&o.stdout))
+            .unwrap_or_else(|| panic!("a sampler did not say what it traced: {}", text(&o)));
     }
     assert_clean(file);
     let (rays, copies) = duplicates(file);
-    eprintln!("{what}: {rays} rays stored, {copies} stored twice");
     assert_eq!(copies, 0, "{what}: rays stored twice");
-    rays
+    let stored = rays - initial;
+    assert!(stored <= traced, "{what}: {stored} rays stored, only {traced} traced");
+    let lost = traced - stored;
+    eprintln!("{what}: {traced} rays traced, {stored} stored, {lost} lost in flight, none stored twice");
+    Account { stored, lost }
 }
 
 /// A server of a small room file reporting every second, with `extra`
-/// flags: its folder (kept while the test runs), file, process and address.
-fn served(extra: &[&str]) -> (tempfile::TempDir, std::path::PathBuf, Proc, String) {
+/// flags: its folder (kept while the test runs), file, process, address,
+/// and the rays the file held before it started.
+fn served(extra: &[&str]) -> (tempfile::TempDir, std::path::PathBuf, Proc, String, u64) {
     let dir = tempfile::tempdir().unwrap();
     let file = small_room(dir.path());
+    let initial = rays_in(&file);
     let mut flags = vec!["--report", "1s"];
     flags.extend_from_slice(extra);
     let (server, addr) = start_server_with(file.to_str().unwrap(), "127.0.0.1:0", TOKEN, &flags);
-    (dir, file, server, addr)
+    (dir, file, server, addr, initial)
 }
 
 #[test]
 fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
-    let (_dir, file, server, addr) = served(&[]);
+    let (_dir, file, server, addr, initial) = served(&[]);
     let proxy = Proxy::start(&addr);
     proxy.set(Faults {
         latency: Duration::from_millis(50),
@@ -154,12 +185,15 @@ fn latency_and_a_slow_link_slow_the_fill_and_lose_nothing() {
     let took = resumes(&server, &mut from, 5_000, "a fill over 50 ms and 200 KiB/s");
     eprintln!("latency 50 ms, 200 KiB/s: 5,000 rays stored in {took:.1?}");
     display_is_served(&addr);
-    close_and_check(server, &addr, samplers, &file, "latency and a slow link");
+    let account = close_and_check(server, &addr, samplers, &file, initial, "latency and a slow link");
+    // No connection broke: every ray traced was stored.
+    assert_eq!(account.lost, 0);
+    assert!(account.stored >= 5_000);
 }
 
 #[test]
 fn after_every_connection_is_reset_and_a_30_s_partition_the_fill_resumes() {
-    let (_dir, file, server, addr) = served(&["--stall-timeout", "5s"]);
+    let (_dir, file, server, addr, initial) = served(&["--stall-timeout", "5s"]);
     let proxy = Proxy::start(&addr);
     // Longer than the partition: they keep trying across it.
     let samplers = vec![
@@ -189,12 +223,13 @@ fn after_every_connection_is_reset_and_a_30_s_partition_the_fill_resumes() {
     proxy.set(Faults::default());
     let took = resumes(&server, &mut from, 10_000, "the fill after a 30 s partition");
     eprintln!("30 s partition healed: 10,000 more rays stored {took:.1?} later");
-    close_and_check(server, &addr, samplers, &file, "resets and a partition");
+    let account = close_and_check(server, &addr, samplers, &file, initial, "resets and a partition");
+    assert!(account.stored >= 30_000);
 }
 
 #[test]
 fn a_frozen_sampler_host_loses_its_work_to_the_others() {
-    let (_dir, file, server, addr) = served(&["--stall-timeout", "3s"]);
+    let (_dir, file, server, addr, initial) = served(&["--stall-timeout", "3s"]);
     let frozen = sampler_via(&addr, &file, 1, RETRY);
     let mut samplers = vec![sampler_via(&addr, &file, 2, RETRY)];
     let mut from = 0;
@@ -211,7 +246,8 @@ fn a_frozen_sampler_host_loses_its_work_to_the_others() {
     display_is_served(&addr);
     frozen.signal(libc::SIGCONT);
     samplers.push(frozen);
-    close_and_check(server, &addr, samplers, &file, "a frozen sampler");
+    let account = close_and_check(server, &addr, samplers, &file, initial, "a frozen sampler");
+    assert!(account.stored >= 10_000);
 }
 
 /// Two network namespaces joined by a veth pair (the server's end
