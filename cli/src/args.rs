@@ -220,6 +220,7 @@ impl FrameArgs {
             options: self.estimator.options()?,
             geometry,
             denoise: Denoiser::parse(&self.denoise).context("--denoise")?,
+            neighbours: false,
         })
     }
 }

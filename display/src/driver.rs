@@ -34,6 +34,19 @@ pub trait Driver: Send {
     ) {
         self.store_mut().add_beams(decoder, chunks)
     }
+    /// [`Driver::add_beams`], but only pixels that have no estimate yet take
+    /// rays (see [`crate::store::Store::add_beams_where_empty`]).
+    fn add_beams_where_empty(
+        &mut self,
+        decoder: &crate::SampleDecoder,
+        chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]],
+    ) {
+        self.store_mut().add_beams_where_empty(decoder, chunks)
+    }
+    /// Which pixels of the frame have no estimate, row-major, top row first.
+    fn empty_pixels(&self) -> Vec<bool> {
+        self.store().empty_pixels()
+    }
     /// How long adding rays took so far, by stage.
     fn insert_times(&self) -> crate::stats::InsertTimes {
         self.store().insert_times()

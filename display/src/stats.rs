@@ -3,7 +3,7 @@
 
 /// What a driver has seen and done. Every ray received is counted once, as
 /// `kept` (it started a pixel's estimate), `merged`, `replaced`, `discarded`,
-/// `outside` or `rejected_nonfinite`.
+/// `outside`, `rejected_nonfinite` or `passed_over`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DriverStats {
     /// Rays given to [`Driver::add`](crate::Driver::add).
@@ -22,6 +22,9 @@ pub struct DriverStats {
     pub rejected_nonfinite: u64,
     /// Rays that reproject outside the frame (or behind the eye).
     pub outside: u64,
+    /// Rays offered only to pixels without an estimate (a neighbouring
+    /// beam's, drawing from a sparse file) that landed on a pixel with one.
+    pub passed_over: u64,
     /// Estimates whose brightest ray was cut as a firefly in the last frame.
     pub fireflies: u64,
     /// Times the stored estimates were dropped after a large rotation.

@@ -37,6 +37,12 @@ pub struct DriverChoice {
     pub geometry: Option<std::sync::Arc<Geometry>>,
     /// What cleans its frames.
     pub denoise: Denoiser,
+    /// Pixels that the view's beams leave without a ray (a sparse file)
+    /// take the rays of the beams next to theirs, which pass near the eye;
+    /// pixels with a ray are not changed. Off unless asked for: the
+    /// window's replay does not do it, and a picture and the window show
+    /// the same.
+    pub neighbours: bool,
 }
 
 impl DriverChoice {
@@ -47,6 +53,7 @@ impl DriverChoice {
             options,
             geometry: None,
             denoise: Denoiser::Off,
+            neighbours: false,
         }
     }
 
@@ -83,10 +90,17 @@ pub struct Recalled {
     /// Sorting the projected rays by pixel and merging them into the
     /// pixels' estimates.
     pub insert: Duration,
+    /// Beams next to the view's read for pixels that had no ray (see
+    /// [`DriverChoice::neighbours`]).
+    pub neighbour_beams: usize,
+    /// Pixels that had no ray from the view's beams and have one from
+    /// their neighbours.
+    pub filled: u64,
 }
 
 /// A fresh driver for `viewport` holding every stored ray of the beams the
-/// view sees, ready to draw.
+/// view sees (and, where that leaves pixels without a ray, of the beams
+/// next to theirs: [`DriverChoice::neighbours`]), ready to draw.
 pub fn recall(
     file: &mut HoloFile,
     viewport: Viewport,
@@ -102,11 +116,95 @@ pub fn recall(
     let request = BeamRequest::for_viewport(&sections, &viewport, &options, seed);
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
-    let decoder = SampleDecoder::new(sections);
-    let mut d = driver.make(viewport)?;
-    let mut samples = 0u64;
+    let decoder = SampleDecoder::new(sections.clone());
+    let mut d = driver.make(viewport.clone())?;
     let start = Instant::now();
     let before = d.insert_times();
+    let (mut samples, mut adding) = feed(file, &keys, &decoder, d.as_mut(), false)?;
+    let (mut neighbour_beams, mut filled) = (0, 0);
+    if driver.neighbours {
+        let empty = d.empty_pixels();
+        let gaps = empty.iter().filter(|e| **e).count() as u64;
+        if gaps > 0 {
+            let near = neighbours_of_gaps(&sections, &viewport, &empty, &keys);
+            neighbour_beams = near.len();
+            let (n, t) = feed(file, &near, &decoder, d.as_mut(), true)?;
+            samples += n;
+            adding += t;
+            filled = gaps - d.empty_pixels().iter().filter(|e| **e).count() as u64;
+        }
+    }
+    let secs = start.elapsed();
+    let times = d.insert_times();
+    Ok((
+        d,
+        Recalled {
+            beams: keys.len(),
+            samples,
+            secs,
+            read: secs.saturating_sub(adding),
+            decode: times.project.saturating_sub(before.project),
+            insert: (times.sort + times.merge).saturating_sub(before.sort + before.merge),
+            neighbour_beams,
+            filled,
+        },
+    ))
+}
+
+/// The beams next to those that the view's rays through the centres of
+/// pixels without a ray (`empty`, row-major, top row first) pass through,
+/// less the beams already read (`read`, sorted).
+fn neighbours_of_gaps(
+    sections: &[holodeck_protocol::Section],
+    viewport: &Viewport,
+    empty: &[bool],
+    read: &[BeamKey],
+) -> Vec<BeamKey> {
+    let (w, h) = (viewport.width as usize, viewport.height as usize);
+    let rays = viewport.view.rays();
+    let around = holodeck_protocol::select::usable_sections(sections, viewport.view.position);
+    let mut through: Vec<BeamKey> = Vec::new();
+    for (p, _) in empty.iter().enumerate().filter(|(_, e)| **e) {
+        // The view's y runs bottom to top; the frame's rows top to bottom.
+        let x = ((p % w) as f64 + 0.5) / w as f64;
+        let y = 1.0 - ((p / w) as f64 + 0.5) / h as f64;
+        let Some((origin, dir)) = rays.ray(x, y) else { continue };
+        for &si in &around {
+            if let Some(at) = sections[si].locate(origin, dir) {
+                through.push(BeamKey::new(si as u32, at.beam));
+            }
+        }
+    }
+    through.sort_unstable();
+    through.dedup();
+    let mut near: Vec<BeamKey> = through
+        .iter()
+        .flat_map(|k| {
+            sections
+                .get(k.section as usize)
+                .and_then(|s| s.neighbour_beams(k.beam).ok())
+                .unwrap_or_default()
+                .into_iter()
+                .map(move |b| BeamKey::new(k.section, b))
+        })
+        .filter(|k| read.binary_search(k).is_err())
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    near
+}
+
+/// Reads the beams `keys` (sorted) and hands their rays to `d` (only to
+/// its pixels without an estimate with `where_empty`); returns the rays
+/// read and the time the driver took.
+fn feed(
+    file: &mut HoloFile,
+    keys: &[BeamKey],
+    decoder: &SampleDecoder,
+    d: &mut dyn Driver,
+    where_empty: bool,
+) -> Result<(u64, Duration), Error> {
+    let mut samples = 0u64;
     let mut adding = Duration::ZERO;
     // Beams are gathered into chunks, and chunks into groups; the driver
     // decodes and projects each batch of a group on every core while it
@@ -126,7 +224,11 @@ pub fn recall(
                 }
                 from = end;
             }
-            d.add_beams(&decoder, &chunks);
+            if where_empty {
+                d.add_beams_where_empty(decoder, &chunks);
+            } else {
+                d.add_beams(decoder, &chunks);
+            }
             adding += at.elapsed();
             samples += records.len() as u64;
             records.clear();
@@ -134,7 +236,7 @@ pub fn recall(
             ends.clear();
         };
     let mut chunk_start = 0;
-    file.read_beams(&keys, |k, rays| {
+    file.read_beams(keys, |k, rays| {
         let at = records.len();
         records.extend_from_slice(rays);
         beams.push((k, at..records.len()));
@@ -148,19 +250,7 @@ pub fn recall(
         }
     })?;
     flush(&mut records, &mut beams, &mut ends);
-    let secs = start.elapsed();
-    let times = d.insert_times();
-    Ok((
-        d,
-        Recalled {
-            beams: keys.len(),
-            samples,
-            secs,
-            read: secs.saturating_sub(adding),
-            decode: times.project.saturating_sub(before.project),
-            insert: (times.sort + times.merge).saturating_sub(before.sort + before.merge),
-        },
-    ))
+    Ok((samples, adding))
 }
 
 /// What drawing one frame took.

@@ -51,3 +51,51 @@ fn a_scene_that_cannot_be_loaded_says_which_and_why() {
     let e = SceneInput::open("builtin:nothing", None, None).err().unwrap();
     assert!(matches!(e, Error::Generate { .. }), "{e:?}");
 }
+
+#[test]
+fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams() {
+    let scene = SceneInput::open("builtin:room", None, None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sparse.hdk");
+    let settings = Settings::with_sections(scene.sections().to_vec());
+    HoloFile::create(&path, &settings).unwrap();
+    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
+    // A fill by volume: a few rays in every beam of the room.
+    let options = FillOptions {
+        rays: Some(300_000),
+        ..FillOptions::default()
+    };
+    fill(&scene.tracer(Default::default()), &mut file, &options, &|_| {}).unwrap();
+    let view = View::parse(holodeck::ROOM_VIEW).unwrap();
+    let viewport = Viewport::new(view, 160, 120).unwrap();
+    let mut choice = DriverChoice::plain("quadtree", Default::default());
+    assert!(!choice.neighbours, "off unless asked for");
+    let (alone, by_itself) = recall(&mut file, viewport.clone(), &choice, 2, 1).unwrap();
+    choice.neighbours = true;
+    let (helped, with) = recall(&mut file, viewport, &choice, 2, 1).unwrap();
+    let empty = |d: &dyn holodeck_display::Driver| d.empty_pixels().iter().filter(|e| **e).count() as u64;
+    let (before, after) = (empty(alone.as_ref()), empty(helped.as_ref()));
+    assert_eq!((by_itself.neighbour_beams, by_itself.filled), (0, 0));
+    assert!(
+        before > 160 * 120 / 4,
+        "{before} pixels without a ray: the file is not sparse"
+    );
+    assert!(with.neighbour_beams > 0);
+    // What the pixels filled are, counted both ways; at least twice the
+    // pixels have a ray (4.5 times, measured).
+    assert_eq!(with.filled, before - after);
+    let pixels = 160 * 120;
+    assert!(
+        pixels - after >= 2 * (pixels - before),
+        "{before} then {after} pixels without a ray"
+    );
+    assert!(with.samples > by_itself.samples);
+    // Estimates were added where there were none (the store's own tests
+    // check that those already there do not change).
+    let (a, h) = (alone.stats(), helped.stats());
+    assert!(h.kept > a.kept, "{a:?} {h:?}");
+    assert!(
+        h.passed_over > 0,
+        "neighbouring rays landing on pixels with rays are passed over: {h:?}"
+    );
+}

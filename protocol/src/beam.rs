@@ -213,6 +213,39 @@ impl Section {
         })
     }
 
+    /// The beams whose entry cell is the beam's or next to it on the same
+    /// wall (diagonals included), and whose exit cell is too: the beam
+    /// itself left out. Their rays run nearly as the beam's do, so that
+    /// where a sparse file left a view's pixels without a ray, rays of these
+    /// can fill them.
+    pub fn neighbour_beams(&self, beam: BeamIndex) -> Result<Vec<BeamIndex>, SectionError> {
+        let pair = self.beam_cells(beam)?;
+        let around = |c: WallCell| -> Vec<WallCell> {
+            let [u, v] = c.wall.cell_axes();
+            let (gu, gv) = (i32::from(self.grid()[u]), i32::from(self.grid()[v]));
+            let (cu, cv) = (i32::from(c.cell[0]), i32::from(c.cell[1]));
+            (cu - 1..=cu + 1)
+                .flat_map(|a| (cv - 1..=cv + 1).map(move |b| (a, b)))
+                .filter(|&(a, b)| a >= 0 && b >= 0 && a < gu && b < gv)
+                .map(|(a, b)| WallCell {
+                    wall: c.wall,
+                    cell: [a as u16, b as u16],
+                })
+                .collect()
+        };
+        let exits = around(pair.exit);
+        let mut out = Vec::with_capacity(9 * exits.len());
+        for entry in around(pair.entry) {
+            for &exit in &exits {
+                let b = self.beam_index(CellPair { entry, exit })?;
+                if b != beam {
+                    out.push(b);
+                }
+            }
+        }
+        Ok(out)
+    }
+
     /// World volume swept between a beam's two cells, used to weight batch filling:
     /// half the sum of each cell's area projected onto the line joining the cell
     /// centers, times that line's length. Exact for a prism between facing cells.
@@ -276,6 +309,42 @@ mod tests {
             }
             assert!(s.beam_cells(s.beam_count()).is_err());
         }
+    }
+
+    #[test]
+    fn a_beams_neighbours_are_the_beams_of_the_cells_around_its_two() {
+        let s = room([4, 5, 6]);
+        let step = |a: WallCell, b: WallCell| {
+            a.wall == b.wall && (0..2).all(|k| (i32::from(a.cell[k]) - i32::from(b.cell[k])).abs() <= 1)
+        };
+        let mut counts = std::collections::BTreeMap::new();
+        for beam in (0..s.beam_count()).step_by(7) {
+            let cells = s.beam_cells(beam).unwrap();
+            let n = s.neighbour_beams(beam).unwrap();
+            let mut unique = n.clone();
+            unique.sort_unstable();
+            unique.dedup();
+            assert_eq!(unique.len(), n.len(), "beam {beam}: a neighbour twice");
+            assert!(!n.contains(&beam));
+            for &b in &n {
+                let c = s.beam_cells(b).unwrap();
+                assert!(step(c.entry, cells.entry) && step(c.exit, cells.exit), "{beam} -> {b}");
+            }
+            // Every beam that qualifies is there: 3 x 3 cells at each end,
+            // fewer at the edges of a wall, less the beam itself.
+            let qualifying = (0..s.beam_count())
+                .filter(|&b| b != beam)
+                .filter(|&b| {
+                    let c = s.beam_cells(b).unwrap();
+                    step(c.entry, cells.entry) && step(c.exit, cells.exit)
+                })
+                .count();
+            assert_eq!(n.len(), qualifying, "beam {beam}");
+            *counts.entry(n.len()).or_insert(0) += 1;
+        }
+        // Cells inside a wall have 8 neighbours: 81 - 1 beams.
+        assert!(counts.contains_key(&80), "{counts:?}");
+        assert!(s.neighbour_beams(s.beam_count()).is_err());
     }
 
     #[test]

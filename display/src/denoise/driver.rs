@@ -77,6 +77,22 @@ impl Driver for Denoised {
         self.inner.add_beams(decoder, chunks)
     }
 
+    fn add_beams_where_empty(
+        &mut self,
+        decoder: &crate::SampleDecoder,
+        chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]],
+    ) {
+        if chunks.iter().any(|c| !c.is_empty()) {
+            self.moving = false;
+            self.last = None;
+        }
+        self.inner.add_beams_where_empty(decoder, chunks)
+    }
+
+    fn empty_pixels(&self) -> Vec<bool> {
+        self.inner.empty_pixels()
+    }
+
     fn set_view(&mut self, viewport: Viewport) {
         if viewport != *self.inner.viewport() {
             self.moving = true;

@@ -183,6 +183,8 @@ struct Sink<'a, I> {
     subpixels: u32,
     tolerance: f32,
     pixels: usize,
+    /// Estimates in slots below this take no rays.
+    sealed: u32,
 }
 
 impl<I: PixelIndex + Sync> Sink<'_, I> {
@@ -257,6 +259,7 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
                         self.index.fill(at, slot);
                         self.run(pending, slot, first + 1..end, &mut tally);
                     }
+                    Spot::Taken(slot) if slot < self.sealed => self.stats.passed_over += (end - first) as u64,
                     Spot::Taken(slot) => self.run(pending, slot, first..end, &mut tally),
                 }
             }
@@ -418,6 +421,18 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
         self.projected_next = free.pop().unwrap_or_default();
     }
 
+    /// [`Store::add_beams`], but only pixels that had no estimate when it
+    /// was called take rays: a ray that lands on a pixel with one is
+    /// counted as passed over. For rays of beams next to the ones a view
+    /// sees, which pass near the eye rather than through it: where a sparse
+    /// file left pixels without a ray, they fill them (as Radiance's rhpict
+    /// fills from neighbours), and nowhere else do they change a thing.
+    pub fn add_beams_where_empty(&mut self, decoder: &SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
+        self.sealed = self.entries.len() as u32;
+        self.add_beams(decoder, chunks);
+        self.sealed = 0;
+    }
+
     /// How long the stages of adding rays took so far (projecting overlaps
     /// merging in [`Store::add_beams`], so the stages may add up to more
     /// than the time taken).
@@ -451,6 +466,7 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
             merged,
             spare,
             times,
+            sealed,
             ..
         } = self;
         (
@@ -472,6 +488,7 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
                 subpixels: options.subpixels,
                 tolerance: options.depth_tolerance,
                 pixels,
+                sealed: *sealed,
             },
         )
     }

@@ -9,7 +9,7 @@
 //! * A ray joins the estimate of the pixel it reprojects to only if it hit
 //!   the estimate's surface (see [`estimate`]); counters account for every
 //!   ray received: `received = kept + merged + replaced + discarded + outside
-//!   + rejected_nonfinite` until the first view change or clear.
+//!   + rejected_nonfinite + passed_over` until the first view change or clear.
 //! * A view change turns each estimate into a world point (the centroid of
 //!   its rays within the pixel, at their mean depth) carrying its sums,
 //!   reprojects it, and merges estimates that meet on one pixel by the same
@@ -119,6 +119,11 @@ pub trait SampleStore: Send {
     fn guide(&self) -> crate::denoise::Guide;
     /// Adds the stored rays of whole beams ([`Store::add_beams`]).
     fn add_beams(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]);
+    /// Adds stored rays only to pixels that have no estimate yet
+    /// ([`Store::add_beams_where_empty`]).
+    fn add_beams_where_empty(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]);
+    /// Which pixels have no estimate ([`Store::empty_pixels`]).
+    fn empty_pixels(&self) -> Vec<bool>;
     /// How long adding rays took, by stage ([`Store::insert_times`]).
     fn insert_times(&self) -> InsertTimes;
 }
@@ -153,6 +158,12 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
     }
     fn add_beams(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
         Store::add_beams(self, decoder, chunks)
+    }
+    fn add_beams_where_empty(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
+        Store::add_beams_where_empty(self, decoder, chunks)
+    }
+    fn empty_pixels(&self) -> Vec<bool> {
+        Store::empty_pixels(self)
     }
     fn insert_times(&self) -> InsertTimes {
         Store::insert_times(self)
@@ -258,6 +269,9 @@ pub struct Store<I> {
     /// The second batch buffer of [`Store::add_beams`], which projects one
     /// batch while it merges another.
     projected_next: Vec<Pending>,
+    /// Estimates in slots below this take no more rays (while
+    /// [`Store::add_beams_where_empty`] adds rays; 0 otherwise).
+    sealed: u32,
     /// The runs of a batch's rays on one estimate, and their merged estimates.
     runs: Vec<insert::Run>,
     merged: Vec<(Estimate, insert::Tally)>,
@@ -317,6 +331,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             projected: Vec::new(),
             spare: Vec::new(),
             projected_next: Vec::new(),
+            sealed: 0,
             runs: Vec::new(),
             merged: Vec::new(),
             times: InsertTimes::default(),
@@ -389,6 +404,20 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// How rays combine.
     pub fn options(&self) -> &EstimatorOptions {
         &self.options
+    }
+
+    /// Which pixels of the frame have no estimate, row-major, top row first.
+    pub fn empty_pixels(&self) -> Vec<bool> {
+        let (w, h) = (self.viewport.width as usize, self.viewport.height as usize);
+        let sub = self.options.subpixels;
+        let mut empty = vec![true; w * h];
+        for e in &self.entries {
+            let (col, row) = self.index.pixel(e.key);
+            if let Some(p) = empty.get_mut((row / sub) as usize * w + (col / sub) as usize) {
+                *p = false;
+            }
+        }
+        empty
     }
 
     /// Counters, with `kept` as of now.

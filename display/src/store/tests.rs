@@ -605,3 +605,54 @@ fn the_parallel_merge_makes_the_estimates_of_one_ray_after_another() {
         assert_eq!(got.entries(), want.entries(), "{width} pixels across");
     }
 }
+
+#[test]
+fn rays_offered_where_empty_fill_empty_pixels_and_change_no_estimate() {
+    let section = test_section();
+    let decoder = crate::SampleDecoder::new(vec![section.clone()]);
+    let beams = random_beams(&section, 600_000, 17);
+    let all: Vec<_> = beams.iter().map(|(k, r)| (*k, &r[..])).collect();
+    // The second offer holds the first's rays again, which all land on
+    // pixels with an estimate.
+    let (first, second) = (&all[..all.len() / 2], &all[..]);
+    let vp = viewport(EYE_VIEW, 96, 72);
+    let options = EstimatorOptions {
+        subpixels: 1,
+        ..EstimatorOptions::default()
+    };
+    let mut store = Store::new(vp, crate::quadtree::Tree::default(), true, options);
+    store.add_beams(&decoder, &[first]);
+    let before: Vec<Entry> = store.entries().to_vec();
+    let empty_before = store.empty_pixels();
+    let gaps = empty_before.iter().filter(|e| **e).count();
+    assert!(gaps > 100, "{gaps} empty pixels to fill");
+    store.add_beams_where_empty(&decoder, &[second]);
+    // Every estimate there was is as it was, in its slot.
+    assert!(store.entries()[..before.len()] == before[..], "an estimate changed");
+    assert!(store.entries().len() > before.len());
+    // The new ones are on pixels that were empty, and only there.
+    let empty_after = store.empty_pixels();
+    let filled = empty_before
+        .iter()
+        .zip(&empty_after)
+        .filter(|(b, a)| **b && !**a)
+        .count();
+    assert!(filled > 0);
+    assert!(
+        empty_before.iter().zip(&empty_after).all(|(b, a)| *b || !*a),
+        "a pixel lost its estimates"
+    );
+    // Every ray is accounted for, those passed over included.
+    let s = store.stats();
+    assert!(s.passed_over > 0, "{s:?}");
+    assert_eq!(
+        s.received,
+        s.kept + s.merged + s.replaced + s.discarded + s.outside + s.rejected_nonfinite + s.passed_over,
+        "{s:?}"
+    );
+    // Afterwards, rays go anywhere again.
+    let kept = store.stats().kept;
+    store.add_beams(&decoder, &[first]);
+    assert_eq!(store.stats().kept, kept, "the same rays again make no new estimates");
+    assert!(store.stats().merged > s.merged);
+}

@@ -22,11 +22,16 @@ Reads FILE directly (no server: to draw from a file a server holds, use `holodec
 beams each view sees, reconstructs the picture with a display driver and writes it: .hdr
 (Radiance RGBE, linear, nothing lost) or .png (tone mapped: camera, human or exposure:X).
 With --views, every line of the file is one frame and OUTPUT holds %d or %04d for its number.
+With --neighbour-beams, pixels the view's beams give no ray (a sparse file) take the rays of the
+beams next to theirs, which pass near the eye; pixels with a ray are left as they are, and the
+summary says how many were filled that way. Without it, the driver fills them by interpolation,
+as the window does.
 
 Examples:
   holodeck pict room.hdk -o room.png
   holodeck pict room.hdk --view '-vtv -vp 1 2 1.5 -vd 1 0 0 -vu 0 0 1 -vh 60 -vv 45' -o v.hdr
   holodeck pict room.hdk --views walk.vf -o frames/walk_%04d.png --tone human
+  holodeck pict sparse.hdk --neighbour-beams -o sparse.png    # a short fill by volume
   holodeck pict room.hdk --window --driver quadtree     # walk through it, no server
 
 With --window there is no output file: the view opens in a window with the walkthrough's input
@@ -49,6 +54,11 @@ pub struct Args {
     /// Beam selection: one view ray per this many pixels across and down.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(holodeck_cli::args::SIDE))]
     stride: u32,
+    /// Fill pixels that the view's beams give no ray (a sparse file) from
+    /// the rays of the beams next to theirs, which pass near the eye; pixels
+    /// with a ray are left as they are.
+    #[arg(long, conflicts_with = "window")]
+    neighbour_beams: bool,
     /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
     #[arg(short, long, required_unless_present = "window")]
     output: Option<PathBuf>,
@@ -111,7 +121,8 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let Some(output) = &a.output else {
         bail!("-o is needed without --window");
     };
-    let driver = a.frame.driver_choice()?;
+    let mut driver = a.frame.driver_choice()?;
+    driver.neighbours = a.neighbour_beams;
     for (i, view) in views.into_iter().enumerate() {
         let out = if a.views.is_some() {
             numbered(output, i + 1)?
@@ -159,8 +170,17 @@ pub fn run(a: Args) -> Result<ExitCode> {
             Denoiser::Off => String::new(),
             d => format!(" (denoised: {})", d.name()),
         };
+        let neighbours = if s.stages.filled > 0 {
+            format!(
+                "; {} pixels without a ray filled from {} neighbouring beams",
+                count(s.stages.filled),
+                count(s.stages.neighbour_beams as u64)
+            )
+        } else {
+            String::new()
+        };
         summary!(
-            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms{denoised}; {} pixel estimates, {} rays behind a nearer surface",
+            "{}: {} samples from {} beams read and drawn in {:.1} ms ({}/s), frame in {:.1} ms{denoised}; {} pixel estimates, {} rays behind a nearer surface{neighbours}",
             out.display(),
             count(s.samples),
             count(s.beams as u64),
