@@ -204,17 +204,42 @@ fn feed(
     d: &mut dyn Driver,
     where_empty: bool,
 ) -> Result<(u64, Duration), Error> {
-    let mut samples = 0u64;
     let mut adding = Duration::ZERO;
-    // Beams are gathered into chunks, and chunks into groups; the driver
-    // decodes and projects each batch of a group on every core while it
-    // merges the one before, so no decoded ray is stored.
+    let samples = read_in_chunks(
+        file,
+        keys,
+        |_, _| 0,
+        |chunks| {
+            let at = Instant::now();
+            if where_empty {
+                d.add_beams_where_empty(decoder, chunks);
+            } else {
+                d.add_beams(decoder, chunks);
+            }
+            adding += at.elapsed();
+        },
+    )?;
+    Ok((samples, adding))
+}
+
+/// Reads the beams `keys` (sorted), each past the records `skip` says (it
+/// is given the beam and its length), and hands their records to `take` in
+/// chunks of about [`CHUNK_RAYS`], [`GROUP_CHUNKS`] chunks at a time, so
+/// that a driver merges one batch while it projects the next; returns the
+/// records handed over. The chunks are part of what makes a picture (see
+/// [`CHUNK_RAYS`]): `pict` and the window's replay cut them alike.
+pub(crate) fn read_in_chunks(
+    file: &mut HoloFile,
+    keys: &[BeamKey],
+    mut skip: impl FnMut(BeamKey, usize) -> usize,
+    mut take: impl FnMut(&[&[(BeamKey, &[RayRecord])]]),
+) -> Result<u64, holodeck_file::StorageError> {
+    let mut samples = 0u64;
     let mut records: Vec<RayRecord> = Vec::with_capacity(CHUNK_RAYS * (GROUP_CHUNKS + 1));
     let mut beams: Vec<(BeamKey, std::ops::Range<usize>)> = Vec::new();
     let mut ends: Vec<usize> = Vec::new();
     let mut flush =
         |records: &mut Vec<RayRecord>, beams: &mut Vec<(BeamKey, std::ops::Range<usize>)>, ends: &mut Vec<usize>| {
-            let at = Instant::now();
             let slices: Vec<(BeamKey, &[RayRecord])> = beams.iter().map(|(k, r)| (*k, &records[r.clone()])).collect();
             let mut chunks: Vec<&[(BeamKey, &[RayRecord])]> = Vec::with_capacity(ends.len() + 1);
             let mut from = 0;
@@ -224,12 +249,9 @@ fn feed(
                 }
                 from = end;
             }
-            if where_empty {
-                d.add_beams_where_empty(decoder, &chunks);
-            } else {
-                d.add_beams(decoder, &chunks);
+            if !chunks.is_empty() {
+                take(&chunks);
             }
-            adding += at.elapsed();
             samples += records.len() as u64;
             records.clear();
             beams.clear();
@@ -237,8 +259,12 @@ fn feed(
         };
     let mut chunk_start = 0;
     file.read_beams(keys, |k, rays| {
+        let from = skip(k, rays.len()).min(rays.len());
+        if from == rays.len() {
+            return;
+        }
         let at = records.len();
-        records.extend_from_slice(rays);
+        records.extend_from_slice(&rays[from..]);
         beams.push((k, at..records.len()));
         if records.len() - chunk_start >= CHUNK_RAYS {
             ends.push(beams.len());
@@ -250,7 +276,7 @@ fn feed(
         }
     })?;
     flush(&mut records, &mut beams, &mut ends);
-    Ok((samples, adding))
+    Ok(samples)
 }
 
 /// What drawing one frame took.

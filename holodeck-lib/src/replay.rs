@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use holodeck_display::request::BeamRequest;
-use holodeck_display::window::{Source, SourceError};
+use holodeck_display::window::{Delivery, Source, SourceError};
 use holodeck_display::{Sample, SampleDecoder};
 use holodeck_file::HoloFile;
 use holodeck_protocol::wire::Control;
@@ -21,7 +21,6 @@ pub struct FileSource {
     name: String,
     decoder: SampleDecoder,
     sent: HashMap<BeamKey, u64>,
-    scratch: Vec<Sample>,
 }
 
 impl FileSource {
@@ -33,7 +32,6 @@ impl FileSource {
             name,
             decoder,
             sent: HashMap::new(),
-            scratch: Vec::new(),
         }
     }
 }
@@ -47,7 +45,7 @@ impl Source for FileSource {
         &mut self,
         request: &BeamRequest,
         resend: bool,
-        sink: &mut dyn FnMut(&[Sample]),
+        sink: &mut dyn FnMut(Delivery<'_>),
     ) -> Result<u64, SourceError> {
         if resend {
             self.sent.clear();
@@ -65,19 +63,21 @@ impl Source for FileSource {
             })
             .collect();
         keys.sort_unstable();
-        let (decoder, sent, scratch) = (&self.decoder, &mut self.sent, &mut self.scratch);
-        let mut total = 0u64;
-        self.file
-            .read_beams(&keys, |k, rays| {
+        let (decoder, sent) = (&self.decoder, &mut self.sent);
+        // Records past those sent, in the chunks `holodeck pict` cuts, so
+        // that a view drawn whole is the picture `pict` draws.
+        let total = crate::recall::read_in_chunks(
+            &mut self.file,
+            &keys,
+            |k, len| {
                 let had = sent.entry(k).or_default();
-                let from = (*had as usize).min(rays.len());
-                scratch.clear();
-                decoder.decode(k.section, k.beam, &rays[from..], scratch);
-                *had = rays.len() as u64;
-                total += scratch.len() as u64;
-                sink(scratch);
-            })
-            .map_err(|e| SourceError::File(format!("{}: {e}", self.name)))?;
+                let from = *had as usize;
+                *had = len as u64;
+                from
+            },
+            |chunks| sink(Delivery::Beams(decoder, chunks)),
+        )
+        .map_err(|e| SourceError::File(format!("{}: {e}", self.name)))?;
         Ok(total)
     }
 

@@ -17,7 +17,7 @@ pub mod source;
 pub mod walk;
 
 pub use app::{run, WindowOptions};
-pub use source::{ServerSource, Source, SourceError};
+pub use source::{Delivery, ServerSource, Source, SourceError};
 pub use walk::{WalkError, WalkOptions, Walkthrough};
 
 /// Why the window failed.

@@ -6,11 +6,21 @@
 use std::time::Instant;
 
 use holodeck_protocol::wire::{Control, Progress};
-use holodeck_protocol::{BeamKey, Section};
+use holodeck_protocol::{BeamKey, RayRecord, Section};
 
 use crate::client::{ClientError, DisplaySession};
 use crate::request::BeamRequest;
-use crate::sample::Sample;
+use crate::sample::{Sample, SampleDecoder};
+
+/// What a source hands the window's driver.
+pub enum Delivery<'a> {
+    /// Decoded samples (a server's, as they arrive).
+    Samples(&'a [Sample]),
+    /// Stored records of whole beams, in chunks, with what decodes them (a
+    /// file's): the driver decodes them as it projects them
+    /// ([`crate::Driver::add_beams`]), as `holodeck pict` does.
+    Beams(&'a SampleDecoder, &'a [&'a [(BeamKey, &'a [RayRecord])]]),
+}
 
 /// Why a source failed.
 #[derive(Debug, thiserror::Error)]
@@ -37,7 +47,7 @@ pub trait Source {
         &mut self,
         request: &BeamRequest,
         resend: bool,
-        sink: &mut dyn FnMut(&[Sample]),
+        sink: &mut dyn FnMut(Delivery<'_>),
     ) -> Result<u64, SourceError>;
     /// Raises the counts of the current view's beams (more samples wanted).
     fn raise(&mut self, request: &BeamRequest) -> Result<(), SourceError>;
@@ -78,9 +88,12 @@ impl Source for ServerSource {
         &mut self,
         request: &BeamRequest,
         resend: bool,
-        sink: &mut dyn FnMut(&[Sample]),
+        sink: &mut dyn FnMut(Delivery<'_>),
     ) -> Result<u64, SourceError> {
-        Ok(self.session.request(request, resend, sink)?.samples)
+        Ok(self
+            .session
+            .request(request, resend, &mut |s: &[Sample]| sink(Delivery::Samples(s)))?
+            .samples)
     }
 
     fn raise(&mut self, request: &BeamRequest) -> Result<(), SourceError> {

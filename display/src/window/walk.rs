@@ -14,7 +14,7 @@ use holodeck_protocol::{Picture, View};
 
 use holodeck_protocol::wire::Progress;
 
-use super::source::{Source, SourceError};
+use super::source::{Delivery, Source, SourceError};
 use crate::output::parse_tone;
 use crate::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use crate::tonemap::{DisplayRange, Histogram, ToneMap};
@@ -33,6 +33,18 @@ fn gather(batch: &mut Vec<Sample>, samples: &[Sample], driver: &mut dyn Driver) 
     batch.extend_from_slice(samples);
     if batch.len() >= GATHER {
         flush(batch, driver);
+    }
+}
+
+/// Hands what a source delivered to `driver`: samples through `batch`,
+/// stored beams at once (after the samples before them).
+fn deliver(batch: &mut Vec<Sample>, delivery: Delivery<'_>, driver: &mut dyn Driver) {
+    match delivery {
+        Delivery::Samples(s) => gather(batch, s, driver),
+        Delivery::Beams(decoder, chunks) => {
+            flush(batch, driver);
+            driver.add_beams(decoder, chunks);
+        }
     }
 }
 
@@ -264,9 +276,9 @@ impl Walkthrough {
                 .asked(outstanding(&request, &|k| if resend { 0 } else { source.received(k) }));
         }
         let (driver, batch) = (&mut self.driver, &mut self.batch);
-        let n = self
-            .source
-            .request(&request, resend, &mut |s: &[Sample]| gather(batch, s, driver.as_mut()))?;
+        let n = self.source.request(&request, resend, &mut |d: Delivery<'_>| {
+            deliver(batch, d, driver.as_mut())
+        })?;
         flush(batch, driver.as_mut());
         self.resend = false;
         self.request = Some(request);
