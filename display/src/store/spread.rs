@@ -7,7 +7,8 @@
 //! Light is conserved exactly at pixel level: a pixel's excess is divided by
 //! the number of filled pixels its square reaches before the squares are
 //! summed, so empty pixels take nothing and every share lands somewhere.
-//! Box sums by running totals cost the same whatever the radius.
+//! Box sums by running totals, and counts of filled pixels from a
+//! summed-area table, cost the same whatever the radius.
 
 use rayon::prelude::*;
 
@@ -19,12 +20,15 @@ const PARALLEL_ROWS: usize = 64;
 pub(super) struct Spread {
     grid: Vec<[f32; 4]>,
     across: Vec<[f32; 4]>,
+    /// The summed-area table of filled pixels.
+    table: Vec<u32>,
 }
 
 impl Spread {
     /// Heap bytes held.
     pub fn heap_bytes(&self) -> usize {
         (self.grid.capacity() + self.across.capacity()) * std::mem::size_of::<[f32; 4]>()
+            + self.table.capacity() * std::mem::size_of::<u32>()
     }
 
     /// Shares out the excess of pixels over the filled pixels within
@@ -48,8 +52,10 @@ impl Spread {
             g[2] += e[2];
             g[3] = 1.0;
         }
-        // How many filled pixels each pixel's square reaches.
-        box_sum(&mut self.grid, &mut self.across, w, h, radius, 3..4);
+        // How many filled pixels each pixel's square reaches, from a
+        // summed-area table of them: whole numbers, exactly what running
+        // sums of ones and zeros give.
+        self.count_filled(w, h, radius);
         // Divided among them: the light each filled pixel gives out per receiver.
         // (The counts ride in channel 3; the excess in 0..3 was not summed.)
         self.grid.par_iter_mut().for_each(|g| {
@@ -62,6 +68,42 @@ impl Spread {
         });
         box_sum(&mut self.grid, &mut self.across, w, h, radius, 0..3);
         &self.grid
+    }
+}
+
+impl Spread {
+    /// Replaces channel 3 of the grid (1 where a pixel is filled, else 0)
+    /// by the number of filled pixels within `radius` of each pixel.
+    fn count_filled(&mut self, w: usize, h: usize, radius: usize) {
+        // table[(r + 1) * (w + 1) + c + 1]: filled pixels in rows 0..=r, columns 0..=c.
+        let stride = w + 1;
+        self.table.clear();
+        self.table.resize(stride * (h + 1), 0);
+        for r in 0..h {
+            let (done, rest) = self.table.split_at_mut((r + 1) * stride);
+            let above = &done[r * stride..];
+            let mut run = 0u32;
+            for c in 0..w {
+                run += u32::from(self.grid[r * w + c][3] > 0.0);
+                rest[c + 1] = above[c + 1] + run;
+            }
+        }
+        let table = &self.table;
+        let count = |(r, row): (usize, &mut [[f32; 4]])| {
+            let (r0, r1) = (r.saturating_sub(radius), (r + radius + 1).min(h));
+            for (c, g) in row.iter_mut().enumerate() {
+                let (c0, c1) = (c.saturating_sub(radius), (c + radius + 1).min(w));
+                let n = table[r1 * stride + c1] + table[r0 * stride + c0]
+                    - table[r0 * stride + c1]
+                    - table[r1 * stride + c0];
+                g[3] = n as f32;
+            }
+        };
+        if h >= PARALLEL_ROWS {
+            self.grid.par_chunks_mut(w).enumerate().for_each(count);
+        } else {
+            self.grid.chunks_mut(w).enumerate().for_each(count);
+        }
     }
 }
 
@@ -163,6 +205,32 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn counts_from_the_summed_area_table_are_the_box_sums_of_the_filled() {
+        // Tall enough to count on every core; radii past the frame too.
+        let (w, h) = (37, PARALLEL_ROWS + 5);
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let grid: Vec<[f32; 4]> = (0..w * h)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                [1.5, 0.0, 2.0, if x.is_multiple_of(3) { 1.0 } else { 0.0 }]
+            })
+            .collect();
+        for radius in [0, 1, 3, 40, 200] {
+            let mut want = grid.clone();
+            box_sum(&mut want, &mut Vec::new(), w, h, radius, 3..4);
+            let mut s = Spread {
+                grid: grid.clone(),
+                ..Spread::default()
+            };
+            s.count_filled(w, h, radius);
+            let bits = |g: &[[f32; 4]]| g.iter().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<u32>>();
+            assert!(bits(&s.grid) == bits(&want), "radius {radius}");
         }
     }
 
