@@ -3,6 +3,7 @@
 //! not handed out yet. Nothing new ever arrives, and there is no server to
 //! command. (With the `window` feature.)
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -63,22 +64,25 @@ impl Source for FileSource {
             })
             .collect();
         keys.sort_unstable();
-        let (decoder, sent) = (&self.decoder, &mut self.sent);
         // Records past those sent, in the chunks `holodeck pict` cuts, so
-        // that a view drawn whole is the picture `pict` draws.
-        let total = crate::recall::read_in_chunks(
+        // that a view drawn whole is the picture `pict` draws; a beam counts
+        // as sent once its records are handed over.
+        let sent = RefCell::new(std::mem::take(&mut self.sent));
+        let decoder = &self.decoder;
+        let read = crate::recall::read_in_chunks(
             &mut self.file,
             &keys,
-            |k, len| {
-                let had = sent.entry(k).or_default();
-                let from = *had as usize;
-                *had = len as u64;
-                from
+            |k, _| sent.borrow().get(&k).copied().unwrap_or(0) as usize,
+            |chunks| {
+                sink(Delivery::Beams(decoder, chunks));
+                let mut sent = sent.borrow_mut();
+                for &(k, records) in chunks.iter().copied().flatten() {
+                    *sent.entry(k).or_default() += records.len() as u64;
+                }
             },
-            |chunks| sink(Delivery::Beams(decoder, chunks)),
-        )
-        .map_err(|e| SourceError::File(format!("{}: {e}", self.name)))?;
-        Ok(total)
+        );
+        self.sent = sent.into_inner();
+        read.map_err(|e| SourceError::File(format!("{}: {e}", self.name)))
     }
 
     fn raise(&mut self, _request: &BeamRequest) -> Result<(), SourceError> {

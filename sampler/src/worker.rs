@@ -58,14 +58,14 @@ const GATHER_RAYS: u64 = 2 * crate::shade::AUTO_MIN_PATHS as u64;
 /// Traces packets from the server at `addr` until it closes the connection;
 /// returns the rays traced. `scene` is the content hash of `tracer`'s scene.
 pub fn run_worker(addr: &str, tracer: &Tracer, scene: &str, token: &str, seed: u64) -> Result<u64, WorkerError> {
-    let traced = AtomicU64::new(0);
-    run_session(addr, tracer, scene, token, seed, &traced).map(|_| traced.into_inner())
+    run_session(addr, tracer, scene, token, seed, &AtomicU64::new(0)).map(|(traced, _)| traced)
 }
 
 /// One connection's work: adds every ray it traces and hands to the
 /// connection to `traced` as it goes (so that others may read the count at
-/// any time, and a session ended by an error still counts them), and says whether it ended because an admin stopped
-/// the samplers (rather than the server closing).
+/// any time, and a session ended by an error still counts them), and
+/// returns the rays this session traced and whether it ended because an
+/// admin stopped the samplers (rather than the server closing).
 fn run_session(
     addr: &str,
     tracer: &Tracer,
@@ -73,7 +73,7 @@ fn run_session(
     token: &str,
     seed: u64,
     traced: &AtomicU64,
-) -> Result<bool, WorkerError> {
+) -> Result<(u64, bool), WorkerError> {
     let io = |source: LinkError| WorkerError::Io {
         addr: client::shown(addr).to_string(),
         source,
@@ -115,7 +115,7 @@ fn run_session(
                 Frame::Message(Message::Refused { reason, retry }) => {
                     if retry {
                         tracing::warn!("{}: {reason}", client::shown(addr));
-                        return Ok(true);
+                        return Ok((session, true));
                     }
                     return Err(WorkerError::Connect(ClientError::Refused {
                         addr: client::shown(addr).to_string(),
@@ -180,7 +180,7 @@ fn run_session(
         "{}: the server closed the connection after {session} rays",
         client::shown(addr)
     );
-    Ok(false)
+    Ok((session, false))
 }
 
 /// What a worker traces: a tracer of the scene, and the scene's content hash.
@@ -212,11 +212,11 @@ pub fn run_worker_retrying(
     loop {
         let round_seed = seed.wrapping_add(round.wrapping_mul(0x9E37_79B9));
         let (tracer, hash) = scene();
-        let before = traced.load(Ordering::Relaxed);
         let (failure, stopped) = match run_session(addr, &tracer, &hash, token, round_seed, traced) {
-            Ok(stopped) => {
+            Ok((n, stopped)) => {
                 reached = true;
-                if traced.load(Ordering::Relaxed) > before {
+                // This worker's own progress (others share `traced`).
+                if n > 0 {
                     delay = Duration::from_millis(250);
                     lost_since = None;
                 }

@@ -183,8 +183,10 @@ struct Sink<'a, I> {
     subpixels: u32,
     tolerance: f32,
     pixels: usize,
-    /// Estimates in slots below this take no rays.
-    sealed: u32,
+    /// Per pixel of the frame, whether it takes no rays (empty: all do).
+    sealed: &'a [bool],
+    /// The frame's width in pixels.
+    width: usize,
 }
 
 impl<I: PixelIndex + Sync> Sink<'_, I> {
@@ -196,7 +198,18 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
         for i in 0..pending.len() {
             let mut p = pending[i];
             if p.key < NOT_FINITE {
-                p.key = self.index.key(p.key as u32, (p.key >> 32) as u32);
+                let (col, row) = (p.key as u32, (p.key >> 32) as u32);
+                // A pixel that takes no rays: nothing of it changes, its
+                // nearest depth included.
+                if !self.sealed.is_empty() {
+                    let sub = self.subpixels;
+                    let pixel = (row / sub) as usize * self.width + (col / sub) as usize;
+                    if self.sealed.get(pixel).copied().unwrap_or(true) {
+                        self.stats.passed_over += 1;
+                        continue;
+                    }
+                }
+                p.key = self.index.key(col, row);
                 pending[kept] = p;
                 kept += 1;
             } else if p.key == OFF {
@@ -259,7 +272,6 @@ impl<I: PixelIndex + Sync> Sink<'_, I> {
                         self.index.fill(at, slot);
                         self.run(pending, slot, first + 1..end, &mut tally);
                     }
-                    Spot::Taken(slot) if slot < self.sealed => self.stats.passed_over += (end - first) as u64,
                     Spot::Taken(slot) => self.run(pending, slot, first..end, &mut tally),
                 }
             }
@@ -428,9 +440,9 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
     /// file left pixels without a ray, they fill them (as Radiance's rhpict
     /// fills from neighbours), and nowhere else do they change a thing.
     pub fn add_beams_where_empty(&mut self, decoder: &SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
-        self.sealed = self.entries.len() as u32;
+        self.sealed = self.empty_pixels().into_iter().map(|empty| !empty).collect();
         self.add_beams(decoder, chunks);
-        self.sealed = 0;
+        self.sealed = Vec::new();
     }
 
     /// How long the stages of adding rays took so far (projecting overlaps
@@ -488,7 +500,8 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
                 subpixels: options.subpixels,
                 tolerance: options.depth_tolerance,
                 pixels,
-                sealed: *sealed,
+                sealed,
+                width: viewport.width as usize,
             },
         )
     }

@@ -269,9 +269,10 @@ pub struct Store<I> {
     /// The second batch buffer of [`Store::add_beams`], which projects one
     /// batch while it merges another.
     projected_next: Vec<Pending>,
-    /// Estimates in slots below this take no more rays (while
-    /// [`Store::add_beams_where_empty`] adds rays; 0 otherwise).
-    sealed: u32,
+    /// Per pixel of the frame, whether it takes no rays: those that had an
+    /// estimate when [`Store::add_beams_where_empty`] was called (empty
+    /// otherwise).
+    sealed: Vec<bool>,
     /// The runs of a batch's rays on one estimate, and their merged estimates.
     runs: Vec<insert::Run>,
     merged: Vec<(Estimate, insert::Tally)>,
@@ -331,7 +332,7 @@ impl<I: PixelIndex + Sync> Store<I> {
             projected: Vec::new(),
             spare: Vec::new(),
             projected_next: Vec::new(),
-            sealed: 0,
+            sealed: Vec::new(),
             runs: Vec::new(),
             merged: Vec::new(),
             times: InsertTimes::default(),

@@ -616,11 +616,10 @@ fn rays_offered_where_empty_fill_empty_pixels_and_change_no_estimate() {
     // pixels with an estimate.
     let (first, second) = (&all[..all.len() / 2], &all[..]);
     let vp = viewport(EYE_VIEW, 96, 72);
-    let options = EstimatorOptions {
-        subpixels: 1,
-        ..EstimatorOptions::default()
-    };
-    let mut store = Store::new(vp, crate::quadtree::Tree::default(), true, options);
+    // Sub-pixels (4 x 4 at this size): a pixel with an estimate in one of
+    // them takes no ray in the others either.
+    let mut store = Store::new(vp, crate::quadtree::Tree::default(), true, EstimatorOptions::default());
+    assert!(store.options().subpixels > 1);
     store.add_beams(&decoder, &[first]);
     let before: Vec<Entry> = store.entries().to_vec();
     let empty_before = store.empty_pixels();
@@ -642,6 +641,12 @@ fn rays_offered_where_empty_fill_empty_pixels_and_change_no_estimate() {
         empty_before.iter().zip(&empty_after).all(|(b, a)| *b || !*a),
         "a pixel lost its estimates"
     );
+    let sub = store.options().subpixels;
+    for e in &store.entries()[before.len()..] {
+        let (col, row) = store.index.pixel(e.key);
+        let pixel = (row / sub) as usize * 96 + (col / sub) as usize;
+        assert!(empty_before[pixel], "a new estimate in pixel {pixel}, which had one");
+    }
     // Every ray is accounted for, those passed over included.
     let s = store.stats();
     assert!(s.passed_over > 0, "{s:?}");

@@ -25,7 +25,8 @@ reload the scene file first if it changed (for `holodeck admin ... adopt` after 
 that never reached the server in that time fails, naming the address. Workers are stateless: start and
 stop them at any time, on any host that can reach the server. It ends by saying how many rays it
 traced and handed to the server; SIGINT or SIGTERM ends it at once, saying the same (exit status
-130 or 143). Work it held is given to other samplers.
+130 or 143; rays handed over in its last 20 ms may not have left the process). Work it held is
+given to other samplers.
 
 Examples:
   holodeck sample builtin:room --connect 127.0.0.1:7777 --token-file room.hdk.token

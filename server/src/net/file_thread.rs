@@ -31,8 +31,8 @@ const QUEUE: usize = 4096;
 
 /// Rays that may wait for the storage thread. Everything else (a commit, a
 /// display's read) queues behind them, so this bounds how long those wait
-/// when samplers bring more than the disk takes: about a tenth of a second
-/// of appending.
+/// when samplers bring more than the disk takes: a fifth of a second of
+/// appending or so.
 const QUEUED_RAYS: usize = 1 << 20;
 
 /// A handle to the storage thread; cheap to clone.

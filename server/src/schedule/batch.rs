@@ -56,9 +56,9 @@ pub struct BatchSchedule {
     handed: Vec<u32>,
 }
 
-/// Builds the list over all beams, weighted by volume; `stored` gives the
-/// rays each beam holds already.
 impl BatchSchedule {
+    /// Builds the list over all beams, weighted by volume; `stored` gives the
+    /// rays each beam holds already.
     pub fn new(sections: &[Section], stored: impl Fn(BeamKey) -> u64) -> Result<BatchSchedule, SectionError> {
         let mut weights = Vec::with_capacity(sections.len());
         for s in sections {
