@@ -66,17 +66,7 @@ pub fn run_sampler(a: &SamplerArgs) -> Result<ExitCode> {
     let addr = a.token.address(&a.connect)?;
     let (mut link, _) = client::open(&addr, client::hello(Role::Sampler, &token, SCENE, false))?;
     let mut rng = StdRng::seed_from_u64(a.seed);
-    let pool: Vec<RayRecord> = (0..1 << 16)
-        .map(|_| {
-            let b: [u8; 6] = rng.gen();
-            RayRecord::new(
-                [b[0], b[1]],
-                [b[2], b[3]],
-                Rgbe([b[4], b[5], 128, 128]),
-                DepthCode(1000),
-            )
-        })
-        .collect();
+    let pool = random_records(&mut rng, 1 << 16);
     let mut sent = 0u64;
     while let Ok(Some(frame)) = link.read() {
         let Frame::Message(Message::Trace(t)) = frame else {
@@ -99,6 +89,22 @@ pub fn run_sampler(a: &SamplerArgs) -> Result<ExitCode> {
     }
     println!("sent {sent}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// `n` rays of random positions and colours at one depth: what the light
+/// samplers send, and what the engine alone appends.
+fn random_records(rng: &mut StdRng, n: usize) -> Vec<RayRecord> {
+    (0..n)
+        .map(|_| {
+            let b: [u8; 6] = rng.gen();
+            RayRecord::new(
+                [b[0], b[1]],
+                [b[2], b[3]],
+                Rgbe([b[4], b[5], 128, 128]),
+                DepthCode(1000),
+            )
+        })
+        .collect()
 }
 
 /// The scene the light samplers claim (the bench's files record it).
@@ -190,17 +196,7 @@ fn engine_on_schedule(dir: &Path, a: &Args) -> Result<f64> {
     )?;
     let mut schedule = holodeck_server::schedule::BatchSchedule::new(file.sections(), |_| 0)?;
     let mut rng = StdRng::seed_from_u64(7);
-    let pool: Vec<RayRecord> = (0..4096)
-        .map(|_| {
-            let b: [u8; 6] = rng.gen();
-            RayRecord::new(
-                [b[0], b[1]],
-                [b[2], b[3]],
-                Rgbe([b[4], b[5], 128, 128]),
-                DepthCode(1000),
-            )
-        })
-        .collect();
+    let pool = random_records(&mut rng, 4096);
     let start = Instant::now();
     let warm = Duration::from_secs(1);
     let end = warm + Duration::from_secs_f64(a.seconds);

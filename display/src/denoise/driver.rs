@@ -39,6 +39,20 @@ impl Denoised {
             last: None,
         }
     }
+
+    /// New rays arrive (`any`): the view is still, and the last cleaned
+    /// frame is stale.
+    fn arriving(&mut self, any: bool) {
+        if any {
+            self.moving = false;
+            self.last = None;
+        }
+    }
+}
+
+/// Whether `chunks` hold any beam.
+fn any_beams(chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]]) -> bool {
+    chunks.iter().any(|c| !c.is_empty())
 }
 
 impl Driver for Denoised {
@@ -58,10 +72,7 @@ impl Driver for Denoised {
     }
 
     fn add(&mut self, samples: &[Sample]) {
-        if !samples.is_empty() {
-            self.moving = false;
-            self.last = None;
-        }
+        self.arriving(!samples.is_empty());
         self.inner.add(samples)
     }
 
@@ -70,10 +81,7 @@ impl Driver for Denoised {
         decoder: &crate::SampleDecoder,
         chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]],
     ) {
-        if chunks.iter().any(|c| !c.is_empty()) {
-            self.moving = false;
-            self.last = None;
-        }
+        self.arriving(any_beams(chunks));
         self.inner.add_beams(decoder, chunks)
     }
 
@@ -82,10 +90,7 @@ impl Driver for Denoised {
         decoder: &crate::SampleDecoder,
         chunks: &[&[(holodeck_protocol::BeamKey, &[holodeck_protocol::RayRecord])]],
     ) {
-        if chunks.iter().any(|c| !c.is_empty()) {
-            self.moving = false;
-            self.last = None;
-        }
+        self.arriving(any_beams(chunks));
         self.inner.add_beams_where_empty(decoder, chunks)
     }
 

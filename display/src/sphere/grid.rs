@@ -138,14 +138,7 @@ impl Grid {
     /// then the gnomonic coordinates on that face.
     #[inline]
     fn cell(&self, p: DVec3) -> usize {
-        let a = p.abs();
-        let (face, u, v, major) = if a.x >= a.y && a.x >= a.z {
-            (usize::from(p.x < 0.0), p.y, p.z, a.x)
-        } else if a.y >= a.z {
-            (2 + usize::from(p.y < 0.0), p.z, p.x, a.y)
-        } else {
-            (4 + usize::from(p.z < 0.0), p.x, p.y, a.z)
-        };
+        let (face, u, v, major) = cube_face(p);
         let n = self.side;
         let half = 0.5 * n as f64;
         let scale = half / major;
@@ -153,5 +146,20 @@ impl Grid {
         let i = ((u * scale + half) as usize).min(n - 1);
         let j = ((v * scale + half) as usize).min(n - 1);
         (face * n + j) * n + i
+    }
+}
+
+/// The cube face a direction points through (0..6: +x, -x, +y, -y, +z,
+/// -z, by its largest component), its two other components in the
+/// face's order, and the largest component's magnitude.
+#[inline(always)]
+pub(super) fn cube_face(p: DVec3) -> (usize, f64, f64, f64) {
+    let a = p.abs();
+    if a.x >= a.y && a.x >= a.z {
+        (usize::from(p.x < 0.0), p.y, p.z, a.x)
+    } else if a.y >= a.z {
+        (2 + usize::from(p.y < 0.0), p.z, p.x, a.y)
+    } else {
+        (4 + usize::from(p.z < 0.0), p.x, p.y, a.z)
     }
 }

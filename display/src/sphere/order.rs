@@ -18,20 +18,13 @@ pub fn hilbert_key(dir: DVec3) -> u64 {
     if !dir.is_finite() {
         return u64::MAX;
     }
-    let a = dir.abs();
-    let (face, u, v, m) = if a.x >= a.y && a.x >= a.z {
-        (u64::from(dir.x < 0.0), dir.y, dir.z, a.x)
-    } else if a.y >= a.z {
-        (2 + u64::from(dir.y < 0.0), dir.z, dir.x, a.y)
-    } else {
-        (4 + u64::from(dir.z < 0.0), dir.x, dir.y, a.z)
-    };
+    let (face, u, v, m) = super::grid::cube_face(dir);
     if m == 0.0 {
         return u64::MAX;
     }
     let side = f64::from((1u32 << BITS) - 1);
     let cell = |c: f64| ((c / m + 1.0) * 0.5 * side).clamp(0.0, side) as u32;
-    face << (2 * BITS) | hilbert_index(cell(u), cell(v))
+    (face as u64) << (2 * BITS) | hilbert_index(cell(u), cell(v))
 }
 
 /// The index of cell (`x`, `y`) along the Hilbert curve through the
