@@ -12,6 +12,7 @@
 //! * `compare` — the yardstick: FLIP, SSIM, relative errors, light kept per region.
 //! * `denoise` — the denoisers after reconstruction: à-trous (CPU, GPU), OIDN (feature `oidn`).
 //! * `driver` — the `Driver` trait every image representation implements.
+//! * `gather` — samples that arrive a beam at a time, batched for a driver.
 //! * `geometry` — scene triangles for the Voronoi driver's depth pass, simplified to a budget.
 //! * `gpu` — the wgpu device, render targets and view uniforms the GPU drivers share.
 //! * `image_io` — Radiance `.hdr` and PNG pictures read and written.
@@ -34,6 +35,7 @@ pub mod client;
 pub mod compare;
 pub mod denoise;
 pub mod driver;
+pub mod gather;
 pub mod geometry;
 pub mod gpu;
 pub mod image_io;

@@ -15,6 +15,7 @@ use holodeck_protocol::{Picture, View};
 use holodeck_protocol::wire::Progress;
 
 use super::source::{Delivery, Source, SourceError};
+use crate::gather::Gather;
 use crate::output::parse_tone;
 use crate::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use crate::tonemap::{DisplayRange, Histogram, ToneMap};
@@ -23,36 +24,15 @@ use crate::{Driver, DriverError, Sample, Viewport};
 /// A still view that got nothing for this long asks for more at once.
 const QUIET: Duration = Duration::from_secs(1);
 
-/// Samples gathered from a source's beams before the driver takes them
-/// together: one beam's rays are too few for the store to sort them or to
-/// project them on every core.
-const GATHER: usize = 1 << 17;
-
-/// Adds `samples` to `batch`, handing the batch to `driver` once it is large.
-fn gather(batch: &mut Vec<Sample>, samples: &[Sample], driver: &mut dyn Driver) {
-    batch.extend_from_slice(samples);
-    if batch.len() >= GATHER {
-        flush(batch, driver);
-    }
-}
-
 /// Hands what a source delivered to `driver`: samples through `batch`,
 /// stored beams at once (after the samples before them).
-fn deliver(batch: &mut Vec<Sample>, delivery: Delivery<'_>, driver: &mut dyn Driver) {
+fn deliver(batch: &mut Gather, delivery: Delivery<'_>, driver: &mut dyn Driver) {
     match delivery {
-        Delivery::Samples(s) => gather(batch, s, driver),
+        Delivery::Samples(s) => batch.add(s, driver),
         Delivery::Beams(decoder, chunks) => {
-            flush(batch, driver);
+            batch.flush(driver);
             driver.add_beams(decoder, chunks);
         }
-    }
-}
-
-/// Hands what `batch` holds to `driver`.
-fn flush(batch: &mut Vec<Sample>, driver: &mut dyn Driver) {
-    if !batch.is_empty() {
-        driver.add(batch);
-        batch.clear();
     }
 }
 
@@ -131,8 +111,8 @@ pub struct Frame {
 pub struct Walkthrough {
     source: Box<dyn Source>,
     driver: Box<dyn Driver>,
-    /// Samples received and not yet handed to the driver (see [`GATHER`]).
-    batch: Vec<Sample>,
+    /// Samples received and not yet handed to the driver.
+    batch: Gather,
     options: WalkOptions,
     /// The view before the last settled change (`last` goes back to it).
     previous: Option<View>,
@@ -162,7 +142,7 @@ impl Walkthrough {
             refinement: Refinement::new(options.density, options.max_density),
             source,
             driver,
-            batch: Vec::new(),
+            batch: Gather::default(),
             options,
             previous: None,
             settled,
@@ -279,7 +259,7 @@ impl Walkthrough {
         let n = self.source.request(&request, resend, &mut |d: Delivery<'_>| {
             deliver(batch, d, driver.as_mut())
         })?;
-        flush(batch, driver.as_mut());
+        batch.flush(driver.as_mut());
         self.resend = false;
         self.request = Some(request);
         self.last_arrival = Instant::now();
@@ -314,8 +294,8 @@ impl Walkthrough {
         let (driver, batch) = (&mut self.driver, &mut self.batch);
         let n = self
             .source
-            .poll(deadline, &mut |s: &[Sample]| gather(batch, s, driver.as_mut()))?;
-        flush(batch, driver.as_mut());
+            .poll(deadline, &mut |s: &[Sample]| batch.add(s, driver.as_mut()))?;
+        batch.flush(driver.as_mut());
         self.received += n;
         self.meter.add(n);
         if n > 0 {

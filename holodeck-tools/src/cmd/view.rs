@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use holodeck_display::client::DisplaySession;
+use holodeck_display::gather::Gather;
 use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use holodeck_display::tonemap::Histogram;
 use holodeck_display::{output, Sample, Viewport};
@@ -132,6 +133,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         wait,
         session,
         driver,
+        batch: Gather::default(),
         hist: Histogram::new(),
     };
     for (i, view) in views.into_iter().enumerate() {
@@ -149,6 +151,8 @@ struct Headless<'a> {
     wait: Duration,
     session: DisplaySession,
     driver: Box<dyn holodeck_display::Driver>,
+    /// Samples received and not yet handed to the driver.
+    batch: Gather,
     /// Luminance of every sample received, for the tone map.
     hist: Histogram,
 }
@@ -208,14 +212,16 @@ impl Headless<'_> {
             refining(self.driver.as_ref(), &self.session, a.density)
         };
         let t = {
-            let (driver, hist) = (&mut self.driver, &mut self.hist);
+            let (driver, hist, batch) = (&mut self.driver, &mut self.hist, &mut self.batch);
             let mut sink = |s: &[Sample]| {
                 hist.add_many(s.iter().map(|x| x.color));
-                driver.add(s);
+                batch.add(s, driver.as_mut());
             };
             let session = &self.session;
             refinement.asked(outstanding(&request, &|k| if resend { 0 } else { session.received(k) }));
-            self.session.request(&request, resend, &mut sink)?
+            let t = self.session.request(&request, resend, &mut sink)?;
+            self.batch.flush(self.driver.as_mut());
+            t
         };
         let mut received = t.samples;
         let name = |step: u32| format!("view{:04}_{step:02}.{}", i + 1, a.format);
@@ -230,12 +236,13 @@ impl Headless<'_> {
             let deadline = start + self.wait / steps;
             let mut new = 0u64;
             while Instant::now() < deadline {
-                let (driver, hist) = (&mut self.driver, &mut self.hist);
+                let (driver, hist, batch) = (&mut self.driver, &mut self.hist, &mut self.batch);
                 let mut sink = |s: &[Sample]| {
                     hist.add_many(s.iter().map(|x| x.color));
-                    driver.add(s);
+                    batch.add(s, driver.as_mut());
                 };
                 let n = self.session.refine((Instant::now() + TICK).min(deadline), &mut sink)?;
+                self.batch.flush(self.driver.as_mut());
                 new += n;
                 if n > 0 {
                     last = Instant::now();
