@@ -195,8 +195,9 @@ pub struct FrameArgs {
     /// Tone mapping for PNG: camera, human, exposure:X or exposure:auto.
     #[arg(long, default_value = "camera")]
     pub tone: String,
-    /// Denoiser run on every frame after reconstruction: atrous (edge-avoiding wavelets
-    /// steered by each pixel's noise, on the CPU), atrous-gpu (the same filter on the GPU,
+    /// Denoiser run on every frame after reconstruction: auto (the atrous filter on the
+    /// GPU where the machine has a hardware one, else on the CPU), atrous (edge-avoiding
+    /// wavelets steered by each pixel's noise, on the CPU), atrous-gpu (the same filter on the GPU,
     /// or on Mesa's software Vulkan where there is none; the CPU's where no device runs it),
     /// oidn (Intel Open Image Denoise; a build with --features oidn) or off.
     #[arg(long, default_value = DEFAULT_DENOISER)]
@@ -206,7 +207,7 @@ pub struct FrameArgs {
 }
 
 /// The denoiser displays run unless told otherwise.
-pub const DEFAULT_DENOISER: &str = "atrous";
+pub const DEFAULT_DENOISER: &str = "auto";
 
 impl FrameArgs {
     /// The driver these flags choose, with its geometry loaded.

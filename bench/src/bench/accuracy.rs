@@ -54,7 +54,8 @@ References are rendered once and kept under --dir.
 Examples:
   holodeck bench accuracy                                  (one view, light kept, a 10-view walk)
   holodeck bench accuracy --paths 250K --paths 1M --repeats 3 --walk-views 0 --light-scenes none
-  holodeck bench accuracy --paths 1M --walk-views 0 --reference-spp 4096 -x 160 -y 120")]
+  holodeck bench accuracy --paths 1M --walk-views 0 --reference-spp 4096 -x 160 -y 120
+  holodeck bench accuracy --paths 250K --walk-views 0 --light-scenes blind --reference-time 30")]
 pub struct Args {
     /// Paths per budget (repeat for several).
     #[arg(long, value_parser = holodeck_cli::human::count_in(1, u64::from(u32::MAX)), default_values = ["62.5K", "250K", "1M", "4M"])]
@@ -74,6 +75,11 @@ pub struct Args {
     /// Samples per pixel of the references (rendered once, kept in --dir).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..))]
     pub reference_spp: u32,
+    /// Instead of --reference-spp: the seconds each reference may take (its samples per
+    /// pixel found by timing a pass of its view; a reference kept in --dir is used again
+    /// only where the count comes out the same).
+    #[arg(long, conflicts_with = "reference_spp", value_parser = holodeck_cli::args::non_negative)]
+    pub reference_time: Option<f64>,
     /// Independent runs averaged per budget.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeats: u32,
@@ -112,6 +118,7 @@ pub fn run_args(a: &Args) -> Result<std::process::ExitCode> {
         height: a.height,
         paths: a.paths.clone(),
         reference_spp: a.reference_spp,
+        reference_time: a.reference_time,
         repeats: a.repeats,
         walk_views: usize::from(a.walk_views),
         light_scenes: a
@@ -146,6 +153,8 @@ pub struct AccuracyBench {
     pub paths: Vec<u64>,
     /// Samples per pixel of the references.
     pub reference_spp: u32,
+    /// Instead: the seconds each reference may take.
+    pub reference_time: Option<f64>,
     /// Independent runs averaged per budget.
     pub repeats: u32,
     /// Views in the walkthrough (0: skip it).
@@ -174,30 +183,24 @@ impl AccuracyBench {
     /// The reference of `view` of `scene`, rendered once in two halves and
     /// kept under `--dir`.
     fn truth_of(&self, scene: &str, tracer: &Tracer, view: &View, name: &str) -> Result<Truth> {
-        let key = blake3::hash(
-            format!(
-                "{} {} {}x{} {}",
-                scene,
-                view.to_spec(),
-                self.width,
-                self.height,
-                self.reference_spp
-            )
-            .as_bytes(),
-        )
-        .to_hex();
+        let spp = match self.reference_time {
+            Some(secs) => holodeck::truth::spp_for_time(tracer, view, (self.width, self.height), secs)?,
+            None => self.reference_spp,
+        };
+        let key =
+            blake3::hash(format!("{} {} {}x{} {}", scene, view.to_spec(), self.width, self.height, spp).as_bytes())
+                .to_hex();
         let paths = ["a", "b"].map(|h| self.dir.join(format!("reference-{}-{h}.hdr", &key[..16])));
         let halves = match (read_picture(&paths[0]), read_picture(&paths[1])) {
             (Ok(a), Ok(b)) => (a, b),
             _ => {
                 eprintln!(
                     "rendering the reference of {name} ({} spp in two halves, kept as {} and -b)...",
-                    self.reference_spp,
+                    spp,
                     paths[0].display()
                 );
                 let size = (self.width, self.height);
-                let halves =
-                    holodeck::truth::reference_halves(tracer, view, size, self.reference_spp, 0x005e_ed0f_7e57)?;
+                let halves = holodeck::truth::reference_halves(tracer, view, size, spp, 0x005e_ed0f_7e57)?;
                 for (p, path) in [&halves.0, &halves.1].into_iter().zip(&paths) {
                     write_hdr(p, path).with_context(|| format!("writing {}", path.display()))?;
                 }
@@ -205,6 +208,14 @@ impl AccuracyBench {
             }
         };
         Ok(Truth::new(tracer, view, halves)?)
+    }
+
+    /// How the references are sized, in words ("1024-spp", "20 s").
+    fn reference_words(&self) -> String {
+        match self.reference_time {
+            Some(secs) => format!("{secs} s"),
+            None => format!("{}-spp", self.reference_spp),
+        }
     }
 
     fn viewport(&self, view: &View) -> Result<Viewport> {
@@ -295,14 +306,14 @@ impl AccuracyBench {
     fn one_view(&self, tracer: &Tracer) -> Result<()> {
         let truth = self.truth(tracer, &self.view, "the view")?;
         out!(
-            "\nOne view ({}x{}, {}) against a {}-spp reference (its own clamped relative RMSE {:.4}), mean of {} \
+            "\nOne view ({}x{}, {}) against a {} reference (its own clamped relative RMSE {:.4}), mean of {} \
              run(s). Holodeck: `fill --views` then `pict` (fill), raw and denoised, and a display session that \
              asks for rays where its pixels need them (session); direct renders with the same paths, raw and \
              cleaned by OIDN with albedo and normals:",
             self.width,
             self.height,
             self.view.to_spec(),
-            self.reference_spp,
+            self.reference_words(),
             truth.yardstick.noise().map_or(f64::NAN, |n| n.clamped_relative_rmse),
             self.repeats
         );
@@ -365,10 +376,10 @@ impl AccuracyBench {
     fn light_kept(&self) -> Result<()> {
         out!(
             "\nLight kept: each scene's view filled with {} rays and drawn by the quadtree (raw, and with the \
-             default denoiser), against a {}-spp reference of two halves (its regions chosen on one half and \
+             default denoiser), against a {} reference of two halves (its regions chosen on one half and \
              measured against the other); a direct render with the same paths beside them:\n",
             count(self.light_rays),
-            self.reference_spp
+            self.reference_words()
         );
         out!("| scene | method | FLIP | clamped rel. RMSE | dark | middle | bright | band | peak | reference noise |");
         out!("|---|---|---|---|---|---|---|---|---|---|");
@@ -777,6 +788,7 @@ pub fn fast(ctx: &super::fast::Fast) -> Result<Vec<super::report::Figure>> {
         height: 72,
         paths: vec![250_000],
         reference_spp: 256,
+        reference_time: None,
         repeats: 1,
         walk_views: 0,
         light_scenes: Vec::new(),

@@ -31,6 +31,9 @@ pub struct Denoised {
 impl Denoised {
     /// `inner`'s frames cleaned by `denoiser`.
     pub fn new(inner: Box<dyn Driver>, denoiser: Denoiser) -> Denoised {
+        if let Denoiser::Auto(_) = denoiser {
+            crate::gpu::GpuContext::probe_in_background();
+        }
         Denoised {
             inner,
             denoiser,

@@ -316,4 +316,29 @@ mod tests {
             assert_ne!(cpu, picture, "the filter changed the picture");
         }
     }
+
+    #[test]
+    fn auto_runs_the_gpu_filter_only_on_a_hardware_gpu() {
+        use crate::denoise::Denoiser;
+        let auto = Denoiser::parse("auto").unwrap();
+        let o = AtrousOptions::default();
+        let expected = if GpuContext::hardware_present() {
+            Denoiser::AtrousGpu(o)
+        } else {
+            Denoiser::Atrous(o)
+        };
+        assert_eq!(auto.resolved(), expected);
+        assert_eq!(Denoiser::Atrous(o).resolved(), Denoiser::Atrous(o));
+        let (picture, guide) = scene(37, 23);
+        assert_eq!(
+            auto.apply(&picture, &guide).unwrap(),
+            expected.apply(&picture, &guide).unwrap()
+        );
+        // Mesa's software Vulkan (all CI has) is not a hardware GPU.
+        if let Ok(ctx) = GpuContext::shared() {
+            if ctx.is_software() {
+                assert!(!GpuContext::hardware_present(), "{}", ctx.describe());
+            }
+        }
+    }
 }

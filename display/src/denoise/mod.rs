@@ -31,12 +31,16 @@ pub enum Denoiser {
     Atrous(AtrousOptions),
     /// The same filter on the GPU (the CPU's where no device can run it).
     AtrousGpu(AtrousOptions),
+    /// The same filter where it runs fastest: on the GPU where the machine
+    /// has a hardware one, on the CPU where it has only a software
+    /// rasterizer or none (the frames agree within float rounding).
+    Auto(AtrousOptions),
     /// Intel Open Image Denoise (with the `oidn` feature).
     Oidn,
 }
 
 /// The names [`Denoiser::parse`] knows.
-pub const DENOISERS: [&str; 4] = ["off", "atrous", "atrous-gpu", "oidn"];
+pub const DENOISERS: [&str; 5] = ["off", "auto", "atrous", "atrous-gpu", "oidn"];
 
 /// Why a frame could not be denoised.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -59,6 +63,7 @@ impl Denoiser {
             "off" => Ok(Denoiser::Off),
             "atrous" => Ok(Denoiser::Atrous(AtrousOptions::default())),
             "atrous-gpu" => Ok(Denoiser::AtrousGpu(AtrousOptions::default())),
+            "auto" => Ok(Denoiser::Auto(AtrousOptions::default())),
             "oidn" if cfg!(feature = "oidn") => Ok(Denoiser::Oidn),
             "oidn" => Err(DenoiseError::NoOidn),
             other => Err(DenoiseError::Unknown(other.to_string())),
@@ -71,13 +76,26 @@ impl Denoiser {
             Denoiser::Off => "off",
             Denoiser::Atrous(_) => "atrous",
             Denoiser::AtrousGpu(_) => "atrous-gpu",
+            Denoiser::Auto(_) => "auto",
             Denoiser::Oidn => "oidn",
+        }
+    }
+
+    /// What [`Denoiser::Auto`] runs on this machine: the GPU filter where
+    /// a hardware GPU is found, the CPU filter otherwise; any other
+    /// denoiser is itself.
+    pub fn resolved(&self) -> Denoiser {
+        match *self {
+            Denoiser::Auto(o) if crate::gpu::GpuContext::hardware_present() => Denoiser::AtrousGpu(o),
+            Denoiser::Auto(o) => Denoiser::Atrous(o),
+            other => other,
         }
     }
 
     /// `picture` denoised, guided by `guide` (the same frame's).
     pub fn apply(&self, picture: &Picture, guide: &Guide) -> Result<Picture, DenoiseError> {
         match self {
+            Denoiser::Auto(_) => self.resolved().apply(picture, guide),
             Denoiser::Off => Ok(picture.clone()),
             Denoiser::Atrous(o) => Ok(atrous(picture, guide, o)),
             Denoiser::AtrousGpu(o) => match gpu::GpuAtrous::shared().and_then(|g| g.filter(picture, guide, o)) {

@@ -102,6 +102,39 @@ impl GpuContext {
         slot.get_or_insert_with(|| GpuContext::new().map(Arc::new)).clone()
     }
 
+    /// Whether this machine has a hardware GPU (not a software rasterizer)
+    /// on Vulkan, Metal or DX12, or on the backend `WGPU_BACKEND` names:
+    /// the adapters are listed without opening a device, once per process.
+    /// Displays ask it to choose the GPU filter only where it is the faster.
+    pub fn hardware_present() -> bool {
+        static FOUND: OnceLock<bool> = OnceLock::new();
+        *FOUND.get_or_init(|| {
+            let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
+            let mut desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+            desc.backends = backends;
+            let instance = wgpu::Instance::new(desc);
+            let adapters = pollster::block_on(instance.enumerate_adapters(backends));
+            let hardware = adapters.iter().map(|a| a.get_info()).find(|i| {
+                matches!(
+                    i.device_type,
+                    wgpu::DeviceType::DiscreteGpu | wgpu::DeviceType::IntegratedGpu | wgpu::DeviceType::VirtualGpu
+                )
+            });
+            match &hardware {
+                Some(info) => tracing::debug!("hardware GPU found: {}", describe(info)),
+                None => tracing::debug!("no hardware GPU among {} adapter(s)", adapters.len()),
+            }
+            hardware.is_some()
+        })
+    }
+
+    /// Starts [`GpuContext::hardware_present`]'s probe on a thread of its
+    /// own, so that its cost (a fifth of a second where Mesa's software
+    /// Vulkan loads) overlaps the work before the first frame.
+    pub fn probe_in_background() {
+        std::thread::spawn(GpuContext::hardware_present);
+    }
+
     /// The adapter in words ("llvmpipe (LLVM 15.0.6, 256 bits) on Vulkan,
     /// software").
     pub fn describe(&self) -> String {

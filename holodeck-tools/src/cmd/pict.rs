@@ -168,7 +168,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         );
         let denoised = match driver.denoise {
             Denoiser::Off => String::new(),
-            d => format!(" (denoised: {})", d.name()),
+            d => format!(" (denoised: {})", d.resolved().name()),
         };
         let neighbours = if s.stages.filled > 0 {
             format!(

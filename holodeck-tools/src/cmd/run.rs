@@ -88,7 +88,8 @@ pub struct Args {
     /// Frame height.
     #[arg(short = 'y', long, default_value_t = 384, value_parser = clap::value_parser!(u32).range(SIDE))]
     height: u32,
-    /// The display's denoiser: atrous, oidn (a build with --features oidn) or off.
+    /// The display's denoiser: auto (the atrous filter on a hardware GPU where there is
+    /// one, else on the CPU), atrous, atrous-gpu, oidn (a build with --features oidn) or off.
     #[arg(long, default_value = holodeck_cli::args::DEFAULT_DENOISER)]
     denoise: String,
     /// Largest number of bounces.
