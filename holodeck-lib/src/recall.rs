@@ -2,6 +2,8 @@
 //! file, decoded on all cores and handed to a display driver, which draws
 //! the frame; what `holodeck pict` and replay do, and Radiance's rhpict.
 
+use std::cell::RefCell;
+use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use holodeck_display::denoise::{Denoised, Denoiser};
@@ -277,6 +279,91 @@ pub(crate) fn read_in_chunks(
     })?;
     flush(&mut records, &mut beams, &mut ends);
     Ok(samples)
+}
+
+/// Reads the records of the beams `keys` (sorted) that `sent` (records
+/// per beam handed over so far) has not seen, hands them to `take` in the
+/// chunks [`read_in_chunks`] cuts, and counts them into `sent` once handed
+/// over; returns the records handed over. A beam sent in full is not read
+/// again (its length is in the file's directory, in memory). The window's
+/// replay and [`follow`] share it.
+pub fn read_unsent(
+    file: &mut HoloFile,
+    keys: &[BeamKey],
+    sent: &mut HashMap<BeamKey, u64>,
+    mut take: impl FnMut(&[&[(BeamKey, &[RayRecord])]]),
+) -> Result<u64, holodeck_file::StorageError> {
+    let fresh: Vec<BeamKey> = keys
+        .iter()
+        .copied()
+        .filter(|&k| {
+            file.beam_len(k)
+                .map_or(true, |n| n > sent.get(&k).copied().unwrap_or(0))
+        })
+        .collect();
+    let counts = RefCell::new(std::mem::take(sent));
+    let read = read_in_chunks(
+        file,
+        &fresh,
+        |k, _| counts.borrow().get(&k).copied().unwrap_or(0) as usize,
+        |chunks| {
+            take(chunks);
+            let mut counts = counts.borrow_mut();
+            for &(k, records) in chunks.iter().copied().flatten() {
+                *counts.entry(k).or_default() += records.len() as u64;
+            }
+        },
+    );
+    *sent = counts.into_inner();
+    read
+}
+
+/// What [`follow`] did for one view.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Followed {
+    /// Beams the view selected.
+    pub beams: usize,
+    /// Samples read and handed over (those of beams not given before).
+    pub samples: u64,
+    /// Moving the driver's estimates to the new view.
+    pub reproject: Duration,
+    /// Reading, decoding and inserting the new samples.
+    pub recall: Duration,
+}
+
+/// Moves `driver` to `viewport` (its estimates reprojected, as a window
+/// does when the user moves) and hands it the stored rays of the view's
+/// beams it has not been given yet (`given`: records per beam so far), as
+/// the window's replay does once the view settles: a walk through a file
+/// in one driver, each view costing what is new in it.
+pub fn follow(
+    file: &mut HoloFile,
+    driver: &mut dyn Driver,
+    viewport: Viewport,
+    given: &mut HashMap<BeamKey, u64>,
+    stride: u32,
+    seed: u64,
+) -> Result<Followed, Error> {
+    let sections = file.sections().to_vec();
+    let options = RequestOptions {
+        stride,
+        ..RequestOptions::default()
+    };
+    let request = BeamRequest::for_viewport(&sections, &viewport, &options, seed);
+    let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+    keys.sort_unstable();
+    let start = Instant::now();
+    driver.set_view(viewport);
+    let reproject = start.elapsed();
+    let decoder = SampleDecoder::new(sections);
+    let start = Instant::now();
+    let samples = read_unsent(file, &keys, given, |chunks| driver.add_beams(&decoder, chunks))?;
+    Ok(Followed {
+        beams: keys.len(),
+        samples,
+        reproject,
+        recall: start.elapsed(),
+    })
 }
 
 /// What drawing one frame took.

@@ -3,7 +3,6 @@
 //! not handed out yet. Nothing new ever arrives, and there is no server to
 //! command. (With the `window` feature.)
 
-use std::cell::RefCell;
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -51,37 +50,15 @@ impl Source for FileSource {
         if resend {
             self.sent.clear();
         }
-        // Beams already sent in full are not read again (their lengths are
-        // in the file's directory, in memory).
-        let (file, sent) = (&self.file, &self.sent);
-        let mut keys: Vec<BeamKey> = request
-            .beams
-            .iter()
-            .map(|b| b.0)
-            .filter(|&k| {
-                file.beam_len(k)
-                    .map_or(true, |n| n > sent.get(&k).copied().unwrap_or(0))
-            })
-            .collect();
-        keys.sort_unstable();
         // Records past those sent, in the chunks `holodeck pict` cuts, so
         // that a view drawn whole is the picture `pict` draws; a beam counts
         // as sent once its records are handed over.
-        let sent = RefCell::new(std::mem::take(&mut self.sent));
+        let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+        keys.sort_unstable();
         let decoder = &self.decoder;
-        let read = crate::recall::read_in_chunks(
-            &mut self.file,
-            &keys,
-            |k, _| sent.borrow().get(&k).copied().unwrap_or(0) as usize,
-            |chunks| {
-                sink(Delivery::Beams(decoder, chunks));
-                let mut sent = sent.borrow_mut();
-                for &(k, records) in chunks.iter().copied().flatten() {
-                    *sent.entry(k).or_default() += records.len() as u64;
-                }
-            },
-        );
-        self.sent = sent.into_inner();
+        let read = crate::recall::read_unsent(&mut self.file, &keys, &mut self.sent, |chunks| {
+            sink(Delivery::Beams(decoder, chunks))
+        });
         read.map_err(|e| SourceError::File(format!("{}: {e}", self.name)))
     }
 

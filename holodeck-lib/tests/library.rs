@@ -99,3 +99,50 @@ fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams
         "neighbouring rays landing on pixels with rays are passed over: {h:?}"
     );
 }
+
+#[test]
+fn a_walk_in_one_driver_reads_each_ray_once_and_draws_what_a_fresh_recall_draws() {
+    let scene = SceneInput::open("builtin:room", None, None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("room.hdk");
+    let settings = Settings::with_sections(scene.sections().to_vec());
+    HoloFile::create(&path, &settings).unwrap();
+    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
+    let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
+    let walk = holodeck::truth::walk(&view, 3, 0.3, 8.0);
+    let fills = ViewFill::new(&settings.sections, &walk, RequestOptions::default().eye_radius);
+    let mut options = FillOptions::default();
+    (options.rays, options.views) = (Some(60_000), Some(fills));
+    fill(&scene.tracer(Default::default()), &mut file, &options, &|_| {}).unwrap();
+    let choice = DriverChoice::plain("quadtree", Default::default());
+    let (w, h) = (128, 96);
+    let viewport = |v: &View| Viewport::new(v.clone(), w, h).unwrap();
+
+    // The first view, followed by a fresh driver: every ray a recall reads,
+    // and the same picture.
+    let (mut fresh, recalled) = recall(&mut file, viewport(&walk[0]), &choice, 2, 0).unwrap();
+    let mut d = choice.make(viewport(&walk[0])).unwrap();
+    let mut given = std::collections::HashMap::new();
+    let first = holodeck::recall::follow(&mut file, d.as_mut(), viewport(&walk[0]), &mut given, 2, 0).unwrap();
+    assert_eq!(first.samples, recalled.samples);
+    assert_eq!(first.beams, recalled.beams);
+    assert_eq!(d.render(), fresh.render());
+
+    // The same view again: nothing is read twice.
+    let again = holodeck::recall::follow(&mut file, d.as_mut(), viewport(&walk[0]), &mut given, 2, 0).unwrap();
+    assert_eq!(again.samples, 0);
+
+    // Further views: only the rays of beams not given before, and every ray
+    // given counted once.
+    let mut total = first.samples;
+    for v in &walk[1..] {
+        let next = holodeck::recall::follow(&mut file, d.as_mut(), viewport(v), &mut given, 2, 0).unwrap();
+        let (_, whole) = recall(&mut file, viewport(v), &choice, 2, 0).unwrap();
+        assert!(next.samples < whole.samples, "{} of {}", next.samples, whole.samples);
+        total += next.samples;
+        let lit = d.render().pixels.iter().filter(|p| p.max_element() > 0.0).count();
+        assert!(lit > (w * h) as usize * 8 / 10, "{lit} of {} pixels lit", w * h);
+    }
+    assert_eq!(total, given.values().sum::<u64>());
+    assert!(total <= file.summary().rays());
+}

@@ -113,6 +113,60 @@ fn walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> 
     Ok(w)
 }
 
+/// The walk as the window replays it: one driver for every view, moved to
+/// each (its estimates reprojected) and given only the rays of beams it has
+/// not had yet, then a frame.
+struct Following {
+    frames: u32,
+    total: Duration,
+    worst: Duration,
+    reproject: Duration,
+    recall: Duration,
+    frame: Duration,
+    /// New samples over the walk (the first view's included).
+    samples: u64,
+    /// Those of the first view.
+    first: u64,
+}
+
+/// Walks `views` in one `driver`, on the current rayon pool.
+fn follow_walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> Result<Following> {
+    let choice = DriverChoice::plain(driver, Default::default());
+    let mut d = choice.make(Viewport::new(views[0].clone(), size.0, size.1)?)?;
+    let mut given = std::collections::HashMap::new();
+    let mut f = Following {
+        frames: 0,
+        total: Duration::ZERO,
+        worst: Duration::ZERO,
+        reproject: Duration::ZERO,
+        recall: Duration::ZERO,
+        frame: Duration::ZERO,
+        samples: 0,
+        first: 0,
+    };
+    for (i, view) in views.iter().enumerate() {
+        let viewport = Viewport::new(view.clone(), size.0, size.1)?;
+        let start = Instant::now();
+        let got = holodeck::recall::follow(file, d.as_mut(), viewport, &mut given, 2, i as u64)?;
+        let at = Instant::now();
+        std::hint::black_box(d.render());
+        let frame = at.elapsed();
+        let took = start.elapsed();
+        if i == 0 {
+            f.first = got.samples;
+            continue;
+        }
+        f.frames += 1;
+        f.total += took;
+        f.worst = f.worst.max(took);
+        f.reproject += got.reproject;
+        f.recall += got.recall;
+        f.frame += frame;
+        f.samples += got.samples;
+    }
+    Ok(f)
+}
+
 /// Runs `holodeck bench replay`.
 pub fn run_args(a: &Args) -> Result<ExitCode> {
     let options = OpenOptions {
@@ -184,6 +238,48 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
             ("read", single.read, all.read),
             ("decode and project (overlaps the merge)", single.decode, all.decode),
             ("sort and merge into estimates", single.insert, all.insert),
+            ("frame", single.frame, all.frame),
+        ] {
+            row(
+                &format!("{driver}: {stage}, per view"),
+                ms(s, single.frames),
+                ms(m, all.frames),
+                s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+            );
+        }
+    }
+    println!(
+        "| measurement (the same walk in one driver, as the window replays it: each view's \
+         estimates reprojected, only rays of beams not given before read, then a frame; \
+         the first view left out) | one core | all {cores} cores | ratio |"
+    );
+    println!("|---|---|---|---|");
+    for driver in ["quadtree", "splat"] {
+        let single = one.install(|| follow_walk(&mut file, &views, size, driver))?;
+        let all = follow_walk(&mut file, &views, size, driver)?;
+        let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
+        let fps = |w: &Following| f64::from(w.frames) / w.total.as_secs_f64().max(1e-9);
+        row(
+            &format!("{driver}: frames per second along the walk"),
+            format!("{:.1}", fps(&single)),
+            format!("{:.1}", fps(&all)),
+            fps(&single) / fps(&all).max(1e-9),
+        );
+        row(
+            &format!("{driver}: view change to a complete picture, mean (slowest)"),
+            format!("{} ({})", ms(single.total, single.frames), ms(single.worst, 1)),
+            format!("{} ({})", ms(all.total, all.frames), ms(all.worst, 1)),
+            single.total.as_secs_f64() / all.total.as_secs_f64().max(1e-9),
+        );
+        row(
+            &format!("{driver}: new samples a view (the first view: {})", count(single.first)),
+            count(single.samples / u64::from(single.frames.max(1))),
+            count(all.samples / u64::from(all.frames.max(1))),
+            single.samples as f64 / all.samples.max(1) as f64,
+        );
+        for (stage, s, m) in [
+            ("reprojection", single.reproject, all.reproject),
+            ("new samples read and merged", single.recall, all.recall),
             ("frame", single.frame, all.frame),
         ] {
             row(

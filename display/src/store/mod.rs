@@ -174,6 +174,13 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
 /// frame before the last view change.
 pub const NO_SLOT: u32 = u32::MAX;
 
+/// In reprojection, the key of an estimate that leaves the frame.
+const OFF: u64 = u64::MAX - 1;
+
+/// In reprojection, the key of an estimate whose pixel has no ray in the
+/// old view (dropped).
+const GONE: u64 = u64::MAX;
+
 /// A projected ray waiting in a batch: everything insertion needs, so that
 /// inserting in index order never reads the rays out of order.
 #[derive(Clone, Copy, Debug, Default)]
@@ -505,91 +512,128 @@ impl<I: PixelIndex + Sync> Store<I> {
         }
         let grid = sub_grid(&viewport, self.options.subpixels);
         let old = std::mem::replace(&mut self.projector, Projector::new(&grid));
-        // Visible estimates first, so the most recently seen are parked
-        // first when the limit bites.
-        let (index, entries) = (&self.index, &self.entries);
-        let aggregate = |(slot, e): (usize, &Entry)| -> Option<Aggregate> {
-            let (col, row) = index.pixel(e.key);
-            let (origin, dir) = old.ray(col, row, e.estimate.centroid())?;
-            let depth = e.estimate.depth();
-            // What the old view's rays say becomes history for the new one.
-            let mut estimate = e.estimate;
-            estimate.settle();
-            Some(if depth.is_finite() {
-                Aggregate {
-                    point: origin + dir * f64::from(depth),
-                    escaped: false,
-                    estimate,
-                    from: slot as u32,
-                }
-            } else {
-                Aggregate {
-                    point: dir,
-                    escaped: true,
-                    estimate,
-                    from: slot as u32,
-                }
-            })
-        };
-        let mut moving: Vec<Aggregate> = if entries.len() >= PARALLEL_MIN {
-            entries.par_iter().enumerate().filter_map(aggregate).collect()
+        // Each estimate's pixel in the old view, before the index forgets it.
+        let index = &self.index;
+        let pixels: Vec<(u32, u32)> = if self.entries.len() >= PARALLEL_MIN {
+            self.entries.par_iter().map(|e| index.pixel(e.key)).collect()
         } else {
-            entries.iter().enumerate().filter_map(aggregate).collect()
+            self.entries.iter().map(|e| index.pixel(e.key)).collect()
         };
-        for p in &mut self.parked {
-            p.from = NO_SLOT;
-        }
-        moving.append(&mut self.parked);
-        self.viewport = viewport;
         self.index.reset(grid.width, grid.height);
+        self.viewport = viewport;
         self.grid = grid;
-        self.entries.clear();
-        self.moved_from.clear();
         if turn > CACHE_DROP_DEGREES {
-            if !moving.is_empty() {
+            if !self.entries.is_empty() || !self.parked.is_empty() {
                 self.stats.cache_drops += 1;
             }
+            self.entries.clear();
+            self.parked.clear();
+            self.moved_from.clear();
         } else {
-            self.insert_aggregates(moving);
+            self.reproject(&old, &pixels);
         }
         self.rebuild_near();
     }
 
-    /// Reprojects estimates into the current view.
-    fn insert_aggregates(&mut self, mut moving: Vec<Aggregate>) {
+    /// Moves every estimate, on the frame (`old` and `pixels`, slot by
+    /// slot, place them) and parked off it, into the current view: each estimate's new
+    /// key is found where it lies, without copying it, and the estimates are
+    /// then moved once into their new slots in key order (estimates that
+    /// meet on one pixel merge by the depth rule); those that leave the
+    /// frame are parked, the most recently seen first.
+    fn reproject(&mut self, old: &Projector, pixels: &[(u32, u32)]) {
+        // Where an estimate's rays were: a world point, or for rays that
+        // escaped, a direction.
+        let point = |(col, row): (u32, u32), e: &Entry| -> Option<(DVec3, bool)> {
+            let (origin, dir) = old.ray(col, row, e.estimate.centroid())?;
+            let depth = e.estimate.depth();
+            Some(if depth.is_finite() {
+                (origin + dir * f64::from(depth), false)
+            } else {
+                (dir, true)
+            })
+        };
         let eye = self.viewport.view.position;
         let (projector, index) = (&self.projector, &self.index);
-        // Each estimate's new key (u64::MAX: off the frame), moved to its
-        // new place in the pixel and its new depth.
-        let place = |a: &mut Aggregate| -> u64 {
-            let target = if a.escaped { eye + a.point * 1e9 } else { a.point };
+        // An estimate's key in the new view (it moves to its new place in
+        // the pixel and its new depth), or OFF where it leaves the frame.
+        let place = |point: DVec3, escaped: bool, estimate: &mut Estimate| -> u64 {
+            let target = if escaped { eye + point * 1e9 } else { point };
             let Some((col, row, at, depth)) = projector.locate(target) else {
-                return u64::MAX;
+                return OFF;
             };
-            a.estimate.move_to(at);
-            if !a.escaped {
-                a.estimate.move_to_depth(depth as f32);
+            estimate.move_to(at);
+            if !escaped {
+                estimate.move_to_depth(depth as f32);
             }
             index.key(col, row)
         };
-        let keys: Vec<u64> = if moving.len() >= PARALLEL_MIN {
-            moving.par_iter_mut().map(place).collect()
-        } else {
-            moving.iter_mut().map(place).collect()
+        // What the old view's rays say becomes history for the new one.
+        let on_frame = |(e, &at): (&mut Entry, &(u32, u32))| -> u64 {
+            match point(at, e) {
+                Some((p, escaped)) => {
+                    e.estimate.settle();
+                    place(p, escaped, &mut e.estimate)
+                }
+                None => GONE,
+            }
         };
+        let mut keys: Vec<u64> = if self.entries.len() >= PARALLEL_MIN {
+            self.entries.par_iter_mut().zip(pixels).map(on_frame).collect()
+        } else {
+            self.entries.iter_mut().zip(pixels).map(on_frame).collect()
+        };
+        let parked_place = |a: &mut Aggregate| place(a.point, a.escaped, &mut a.estimate);
+        if self.parked.len() >= PARALLEL_MIN {
+            keys.par_extend(self.parked.par_iter_mut().map(parked_place));
+        } else {
+            keys.extend(self.parked.iter_mut().map(parked_place));
+        }
+        // Estimates on the frame, in key order (then in the order above:
+        // the frame's by slot, then the parked).
+        let mut order: Vec<(u64, u32)> = keys
+            .iter()
+            .enumerate()
+            .filter(|(_, &k)| k < OFF)
+            .map(|(i, &k)| (k, i as u32))
+            .collect();
+        radix_sort(&mut order, &mut Vec::new(), self.index.key_bits(), |p| p.0);
+        // Those that left it, parked up to the limit in the same order.
         let limit = self.park_limit();
-        let mut order: Vec<(u64, u32)> = Vec::with_capacity(moving.len());
-        for (i, &key) in keys.iter().enumerate() {
-            if key != u64::MAX {
-                order.push((key, i as u32));
-            } else if self.parked.len() < limit {
-                self.parked.push(moving[i]);
+        let n = self.entries.len();
+        let mut parked = Vec::new();
+        for (i, _) in keys.iter().enumerate().filter(|(_, &k)| k == OFF) {
+            if parked.len() >= limit {
+                break;
+            }
+            if i < n {
+                let e = &self.entries[i];
+                if let Some((point, escaped)) = point(pixels[i], e) {
+                    parked.push(Aggregate {
+                        point,
+                        escaped,
+                        estimate: e.estimate,
+                        from: NO_SLOT,
+                    });
+                }
+            } else {
+                let mut a = self.parked[i - n];
+                a.from = NO_SLOT;
+                parked.push(a);
             }
         }
-        radix_sort(&mut order, &mut Vec::new(), self.index.key_bits(), |p| p.0);
+        let old_entries = std::mem::take(&mut self.entries);
+        let old_parked = std::mem::replace(&mut self.parked, parked);
+        self.entries.reserve(order.len());
+        self.moved_from.clear();
         let tolerance = self.options.depth_tolerance;
         for (key, i) in order {
-            let incoming = moving[i as usize].estimate;
+            let i = i as usize;
+            let (incoming, from) = if i < n {
+                (old_entries[i].estimate, i as u32)
+            } else {
+                (old_parked[i - n].estimate, NO_SLOT)
+            };
             match self.index.find(&self.entries, key) {
                 Spot::Free(at) => {
                     let slot = self.entries.len() as u32;
@@ -597,7 +641,7 @@ impl<I: PixelIndex + Sync> Store<I> {
                         key,
                         estimate: incoming,
                     });
-                    self.moved_from.push(moving[i as usize].from);
+                    self.moved_from.push(from);
                     self.index.fill(at, slot);
                 }
                 Spot::Taken(slot) => {
@@ -607,7 +651,7 @@ impl<I: PixelIndex + Sync> Store<I> {
                         Fit::Joins => e.merge(&incoming),
                         Fit::Nearer => {
                             *e = incoming;
-                            self.moved_from[slot as usize] = moving[i as usize].from;
+                            self.moved_from[slot as usize] = from;
                         }
                         Fit::Behind => {}
                     }
