@@ -268,13 +268,29 @@ fn point(dir: &Path, n: u32, tls: bool, a: &Args) -> Result<Point> {
     std::thread::sleep(Duration::from_secs_f64(a.seconds));
     let (rays1, cpu1) = (stored(&addr)?, cpu_seconds(pid)?);
     let secs = start.elapsed().as_secs_f64();
+    // The samplers leave first, so that the server logs each one's queue as
+    // it goes (a server told to quit first drops them unlogged).
+    for s in &samplers {
+        // SAFETY: kill only sends a signal to the sampler we started.
+        unsafe { libc::kill(s.id() as libc::pid_t, libc::SIGTERM) };
+    }
+    for mut s in samplers {
+        s.wait()?;
+    }
+    let logged = || {
+        lines
+            .lock()
+            .map(|v| v.iter().filter(|l| l.contains("(queue ")).count())
+            .unwrap_or(0)
+    };
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while logged() < n as usize && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
     client::send_control(&addr, "bench", holodeck_protocol::wire::Control::Quit)?;
     let status = server.wait()?;
     if !status.success() {
         bail!("the server failed: {status}");
-    }
-    for mut s in samplers {
-        s.wait()?;
     }
     let lines = lines
         .lock()
