@@ -893,8 +893,10 @@ impl<I: PixelIndex + Sync> Store<I> {
         }
         let base = self.options.firefly_spread.round().max(1.0) as usize;
         let limit = self.options.firefly_ratio;
-        // Each pixel's share of the light and the widest of the radii it needs.
-        let mut wave = [false; WIDER];
+        // Each pixel's share of the light and the widest of the radii it
+        // needs; each radius's senders' bounds (rows, then columns: first,
+        // last), so that a radius few pixels need costs its reach, not a frame.
+        let mut wave: [Option<[usize; 4]>; WIDER] = [None; WIDER];
         f.pixel_wave.clear();
         f.pixel_wave.resize(w * h, 0);
         for p in 0..w * h {
@@ -915,24 +917,43 @@ impl<I: PixelIndex + Sync> Store<I> {
                 .find(|&k| (2 * (base << k) + 1) as f32 >= side)
                 .unwrap_or(WIDER - 1);
             f.pixel_wave[p] = k as u8;
-            wave[k] = true;
+            let (row, col) = (p / w, p % w);
+            let b = wave[k].get_or_insert([row, row, col, col]);
+            *b = [b[0].min(row), b[1].max(row), b[2].min(col), b[3].max(col)];
         }
         f.received.clear();
         f.received.resize(w * h, [0.0; 3]);
-        for (k, _) in wave.iter().enumerate().filter(|(_, &any)| any) {
+        for (k, bounds) in wave.iter().enumerate() {
+            let Some([first_row, last_row, first_col, last_col]) = *bounds else {
+                continue;
+            };
+            // The window the senders' squares reach: outside it nothing is
+            // received, and inside it every filled pixel counts as in the
+            // whole frame (the squares lie within it).
+            let radius = base << k;
+            let (r0, r1) = (first_row.saturating_sub(radius), (last_row + radius + 1).min(h));
+            let (c0, c1) = (first_col.saturating_sub(radius), (last_col + radius + 1).min(w));
+            let bw = c1 - c0;
             let (per_pixel, pixel_excess, pixel_wave) = (&f.per_pixel, &f.pixel_excess, &f.pixel_wave);
-            let items = (0..w * h).filter(|&p| per_pixel[p] > 0).map(|p| {
-                let x = if pixel_wave[p] as usize == k {
-                    pixel_excess[p]
-                } else {
-                    [0.0; 3]
-                };
-                (p, x)
-            });
-            let got = f.spread.run(w, h, base << k, items);
-            for (r, g) in f.received.iter_mut().zip(got) {
-                for c in 0..3 {
-                    r[c] += g[c];
+            let items = (r0..r1)
+                .flat_map(|r| (c0..c1).map(move |c| (r, c)))
+                .filter(|&(r, c)| per_pixel[r * w + c] > 0)
+                .map(|(r, c)| {
+                    let p = r * w + c;
+                    let x = if pixel_wave[p] as usize == k {
+                        pixel_excess[p]
+                    } else {
+                        [0.0; 3]
+                    };
+                    ((r - r0) * bw + (c - c0), x)
+                });
+            let got = f.spread.run(bw, r1 - r0, radius, items);
+            for (row, line) in got.chunks(bw).enumerate() {
+                let at = (r0 + row) * w + c0;
+                for (r, g) in f.received[at..at + bw].iter_mut().zip(line) {
+                    for c in 0..3 {
+                        r[c] += g[c];
+                    }
                 }
             }
         }

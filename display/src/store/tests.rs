@@ -117,6 +117,52 @@ fn one_lucky_ray_becomes_a_faint_glow_and_keeps_its_light() {
     assert!((lost - want).abs() < 1e-3, "{lost} against {want}");
 }
 
+#[test]
+fn a_firefly_near_a_corner_glows_within_its_reach_only_and_keeps_its_light() {
+    // A 96 x 96 frame of 0.5 and one ray of 10,000 in pixel (5, 5): its
+    // light needs the radius of 12 (the third of the spread's radii), so it
+    // is shared over the pixels within 12 of it, the frame's corner
+    // clipping the square, and reaches no pixel beyond.
+    let (w, h) = (96u32, 96u32);
+    let vp = grid_viewport(w, h);
+    let mut rays = Vec::new();
+    for i in 0..20 {
+        for p in 0..w * h {
+            let (px, py) = (f64::from(p % w) + 0.05 * f64::from(i) + 0.02, f64::from(p / w) + 0.5);
+            rays.push(grid_sample(w, h, px, py, 5.0, 0.0, [0.5; 3]));
+        }
+    }
+    rays.push(grid_sample(w, h, 5.5, 5.5, 5.0, 0.0, [1e4; 3]));
+    let one = EstimatorOptions {
+        subpixels: 1,
+        ..EstimatorOptions::default()
+    };
+    let mut d = SplatDriver::with_options(vp.clone(), one);
+    d.add(&rays);
+    let pic = d.render();
+    assert_eq!(d.stats().fireflies, 1);
+    let mut plain = SplatDriver::with_options(
+        vp,
+        EstimatorOptions {
+            firefly_ratio: f32::INFINITY,
+            ..one
+        },
+    );
+    plain.add(&rays);
+    let plain_pic = plain.render();
+    let total = |p: &Picture| p.pixels.iter().map(|v| f64::from(v.x)).sum::<f64>();
+    assert!((total(&pic) / total(&plain_pic) - 1.0).abs() < 1e-4);
+    for (p, v) in pic.pixels.iter().enumerate() {
+        let (x, y) = ((p % 96) as i32, (p / 96) as i32);
+        let reach = (x - 5).abs().max((y - 5).abs());
+        if reach > 12 {
+            assert_eq!(*v, Vec3::splat(0.5), "({x}, {y}) is beyond the glow");
+        } else if reach > 0 {
+            assert!(v.x > 0.5 && v.x < 2.0, "({x}, {y}) = {}", v.x);
+        }
+    }
+}
+
 /// The thin-wall scene: a wall at y = 3 (color 0.2) with a hole |x| < 0.323,
 /// |z| < 0.29 (its edges cross pixels of the 48 x 48 test view with about
 /// 70% of the pixel in the hole), and a bright light plane at y = 4.5
