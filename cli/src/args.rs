@@ -186,7 +186,9 @@ pub struct FrameArgs {
     #[arg(long, default_value = "quadtree", value_parser = clap::builder::PossibleValuesParser::new(holodeck_display::DRIVERS))]
     pub driver: String,
     /// Scene whose geometry the voronoi driver culls samples by and stops cones at
-    /// (a scene file or builtin:NAME; the scene the holodeck was filled from).
+    /// (a scene file or builtin:NAME; the scene the holodeck was filled from). With
+    /// --denoise oidn, the albedo of the surfaces each view sees is traced from it and
+    /// guides OIDN beside the normals.
     #[arg(long, value_name = "SCENE")]
     pub geometry: Option<String>,
     /// Most triangles of --geometry drawn: larger scenes are simplified to it.
@@ -212,16 +214,27 @@ pub const DEFAULT_DENOISER: &str = "auto";
 impl FrameArgs {
     /// The driver these flags choose, with its geometry loaded.
     pub fn driver_choice(&self) -> Result<DriverChoice> {
-        let geometry = match &self.geometry {
-            Some(spec) => Some(std::sync::Arc::new(load_geometry(spec, self.geometry_budget as usize)?)),
-            None => None,
+        let denoise = Denoiser::parse(&self.denoise).context("--denoise")?;
+        let budget = self.geometry_budget as usize;
+        // OIDN takes the albedo of the surfaces seen beside the normals: a
+        // display given the scene traces it for each view.
+        let (geometry, scene) = match &self.geometry {
+            Some(spec) if denoise == Denoiser::Oidn => {
+                let scene = holodeck::load(spec, None)?;
+                let geometry = geometry_of(&scene, spec, budget);
+                let tracer = holodeck_sampler::Tracer::new(scene, holodeck_sampler::TraceOptions::default());
+                (Some(std::sync::Arc::new(geometry)), Some(std::sync::Arc::new(tracer)))
+            }
+            Some(spec) => (Some(std::sync::Arc::new(load_geometry(spec, budget)?)), None),
+            None => (None, None),
         };
         Ok(DriverChoice {
             name: self.driver.clone(),
             options: self.estimator.options()?,
             geometry,
-            denoise: Denoiser::parse(&self.denoise).context("--denoise")?,
+            denoise,
             neighbours: false,
+            scene,
         })
     }
 }
@@ -229,7 +242,12 @@ impl FrameArgs {
 /// Loads a scene's triangles for a display, simplified to `budget`; thin
 /// glass and mirrors are left out (a display culls by what hides).
 pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
-    let scene = holodeck::load(spec, None)?;
+    Ok(geometry_of(&holodeck::load(spec, None)?, spec, budget))
+}
+
+/// The triangles of `scene` (loaded from `spec`) a display culls by,
+/// simplified to `budget`.
+fn geometry_of(scene: &holodeck_sampler::Scene, spec: &str, budget: usize) -> Geometry {
     // Windows and mirrors hide nothing a holodeck shows through them: with
     // virtual distances their samples lie beyond them, and culling by them
     // would black out every window.
@@ -249,7 +267,7 @@ pub fn load_geometry(spec: &str, budget: usize) -> Result<Geometry> {
         g.triangles.len(),
         g.source_triangles
     );
-    Ok(g)
+    g
 }
 
 /// How a display combines the rays of a pixel (see docs/DISPLAY.md).

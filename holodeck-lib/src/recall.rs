@@ -29,7 +29,7 @@ const GROUP_CHUNKS: usize = 16;
 
 /// A display driver as chosen: its name, how pixels combine rays, the
 /// geometry the Voronoi driver culls with, and the denoiser after it.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct DriverChoice {
     /// The driver's name.
     pub name: String,
@@ -45,6 +45,24 @@ pub struct DriverChoice {
     /// window's replay does not do it, and a picture and the window show
     /// the same.
     pub neighbours: bool,
+    /// The scene, whose albedo guides the denoiser (OIDN takes an albedo
+    /// beside the normals): each view's albedo traced from it, as
+    /// [`crate::demo::methods::scene_albedo`] does. None: the store's
+    /// guide alone.
+    pub scene: Option<std::sync::Arc<holodeck_sampler::Tracer>>,
+}
+
+impl std::fmt::Debug for DriverChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DriverChoice")
+            .field("name", &self.name)
+            .field("options", &self.options)
+            .field("geometry", &self.geometry.as_ref().map(|g| g.triangles.len()))
+            .field("denoise", &self.denoise)
+            .field("neighbours", &self.neighbours)
+            .field("scene", &self.scene.is_some())
+            .finish()
+    }
 }
 
 impl DriverChoice {
@@ -56,6 +74,7 @@ impl DriverChoice {
             geometry: None,
             denoise: Denoiser::Off,
             neighbours: false,
+            scene: None,
         }
     }
 
@@ -69,9 +88,18 @@ impl DriverChoice {
                 geometry: self.geometry.as_deref(),
             },
         )?;
-        Ok(match self.denoise {
-            Denoiser::Off => driver,
-            d => Box::new(Denoised::new(driver, d)),
+        Ok(match (self.denoise, &self.scene) {
+            (Denoiser::Off, _) => driver,
+            (d, None) => Box::new(Denoised::new(driver, d)),
+            (d, Some(scene)) => {
+                let scene = std::sync::Arc::clone(scene);
+                let source = move |v: &Viewport| {
+                    crate::demo::methods::scene_albedo(&scene, &v.view, (v.width, v.height), 0x00a1_bed0)
+                        .map_err(|e| tracing::warn!("the scene's albedo could not be traced: {e}"))
+                        .ok()
+                };
+                Box::new(Denoised::new(driver, d).with_albedo(Box::new(source)))
+            }
         })
     }
 }

@@ -153,7 +153,7 @@ impl Demo {
 
         let kinds = methods::methods();
         let filled = self.fill(&tracer, &mut file, &views, &truths[0], &kinds)?;
-        let mut columns = self.draw_walk(&mut file, &views, &truths, &kinds)?;
+        let mut columns = self.draw_walk(&tracer, &mut file, &views, &truths, &kinds)?;
         file.close()?;
 
         // Each view traced directly from scratch in its share of the
@@ -205,6 +205,7 @@ impl Demo {
     /// not asked again, its columns saying why.
     fn draw_walk(
         &self,
+        tracer: &holodeck_sampler::Tracer,
         file: &mut holodeck_file::HoloFile,
         views: &[View],
         truths: &[Truth],
@@ -224,7 +225,7 @@ impl Demo {
                 if mine.iter().all(|&k| columns[k].failed.is_some()) {
                     continue;
                 }
-                match methods::draw_holodeck(file, self.viewport(view)?, driver, kinds, truth, self.seed) {
+                match methods::draw_holodeck(file, self.viewport(view)?, driver, kinds, truth, self.seed, Some(tracer)) {
                     Ok(shots) => {
                         for (k, shot) in shots {
                             columns[k].shots.resize_with(i, || None);
@@ -378,7 +379,15 @@ impl Demo {
                 if mine.iter().all(|&c| failed[c]) {
                     continue;
                 }
-                match methods::draw_holodeck(file, self.viewport(&views[0])?, driver, &charted, first, self.seed) {
+                match methods::draw_holodeck(
+                    file,
+                    self.viewport(&views[0])?,
+                    driver,
+                    &charted,
+                    first,
+                    self.seed,
+                    Some(tracer),
+                ) {
                     Ok(shots) => {
                         for (c, shot) in shots {
                             convergence[c]

@@ -298,6 +298,7 @@ mod tests {
             depth: vec![2.0; w * h],
             normal: vec![[0.0, 0.0, 1.0]; w * h],
             variance: vec![var; w * h],
+            albedo: Vec::new(),
         }
     }
 
@@ -434,6 +435,7 @@ fn atrous_speed() {
         depth: (0..w * h).map(|i| if i % w < 600 { 2.0 } else { 5.0 }).collect(),
         normal: vec![[0.0, 0.0, 1.0]; w * h],
         variance: vec![0.05; w * h],
+        albedo: Vec::new(),
     };
     for _ in 0..3 {
         let start = std::time::Instant::now();

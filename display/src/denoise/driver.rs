@@ -15,6 +15,10 @@ use holodeck_protocol::Picture;
 use super::{Denoiser, Guide};
 use crate::{Driver, DriverStats, Sample, Viewport};
 
+/// Where a display that knows the scene gets the albedo of the surfaces a
+/// view sees (a picture of the viewport's size), for the denoiser's guide.
+pub type AlbedoSource = Box<dyn Fn(&Viewport) -> Option<Picture> + Send>;
+
 /// A driver whose frames pass through a denoiser.
 pub struct Denoised {
     inner: Box<dyn Driver>,
@@ -26,6 +30,10 @@ pub struct Denoised {
     moving: bool,
     /// The last denoised frame, while nothing changed since.
     last: Option<Picture>,
+    /// The scene's albedo for the guide, if the display has the scene.
+    albedo_source: Option<AlbedoSource>,
+    /// The albedo of the current view, once asked for.
+    albedo: Option<Picture>,
 }
 
 impl Denoised {
@@ -40,6 +48,30 @@ impl Denoised {
             failed: false,
             moving: false,
             last: None,
+            albedo_source: None,
+            albedo: None,
+        }
+    }
+
+    /// The same, its denoiser guided also by the albedo `source` gives for
+    /// each view (asked once per view, when a frame is first denoised).
+    pub fn with_albedo(mut self, source: AlbedoSource) -> Denoised {
+        self.albedo_source = Some(source);
+        self
+    }
+
+    /// The guide of the current frame, with the scene's albedo where known.
+    fn full_guide(&mut self) -> Guide {
+        let guide = self.inner.guide();
+        let Some(source) = &self.albedo_source else {
+            return guide;
+        };
+        if self.albedo.is_none() {
+            self.albedo = source(self.inner.viewport());
+        }
+        match &self.albedo {
+            Some(a) => guide.with_albedo(a),
+            None => guide,
         }
     }
 
@@ -105,6 +137,7 @@ impl Driver for Denoised {
         if viewport != *self.inner.viewport() {
             self.moving = true;
             self.last = None;
+            self.albedo = None;
         }
         self.inner.set_view(viewport)
     }
@@ -121,7 +154,8 @@ impl Driver for Denoised {
         if self.failed || self.moving {
             return picture;
         }
-        match self.denoiser.apply(&picture, &self.inner.guide()) {
+        let guide = self.full_guide();
+        match self.denoiser.apply(&picture, &guide) {
             Ok(p) => {
                 self.last = Some(p.clone());
                 p
@@ -189,5 +223,43 @@ mod tests {
         d.add(&samples[..100]);
         assert_ne!(d.render(), plain.render(), "new samples: denoised again");
         assert_eq!((d.name(), d.stats()), (plain.name(), plain.stats()));
+    }
+
+    #[test]
+    fn the_scenes_albedo_is_asked_once_a_view_and_guides_the_denoiser() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::Arc;
+        let vp = viewport(EYE_VIEW, 32, 24);
+        let asked = Arc::new(AtomicUsize::new(0));
+        let counter = Arc::clone(&asked);
+        // The albedo of a view: its width in every channel, so that each
+        // view's is told apart.
+        let source: AlbedoSource = Box::new(move |v: &Viewport| {
+            counter.fetch_add(1, Ordering::SeqCst);
+            let (w, h) = (v.width as usize, v.height as usize);
+            Some(Picture {
+                width: w,
+                height: h,
+                pixels: vec![glam::Vec3::splat(v.view.position.x as f32 + 0.5); w * h],
+            })
+        });
+        let raw = crate::new_driver("splat", vp.clone()).unwrap();
+        let mut d = Denoised::new(raw, Denoiser::Atrous(AtrousOptions::default())).with_albedo(source);
+        let samples = random_plane_samples(&vp.view, 32 * 24 * 4, 5);
+        d.add(&samples);
+        d.render();
+        assert_eq!(asked.load(Ordering::SeqCst), 1);
+        d.add(&samples[..50]);
+        d.render();
+        assert_eq!(asked.load(Ordering::SeqCst), 1, "the same view: not asked again");
+        assert_eq!(d.full_guide().albedo, vec![[0.5; 3]; 32 * 24]);
+        let moved = viewport(&format!("{EYE_VIEW} -vp 0.25 0 0"), 32, 24);
+        d.set_view(moved);
+        d.add(&samples[..50]);
+        d.render();
+        assert_eq!(asked.load(Ordering::SeqCst), 2, "a new view: asked once more");
+        assert_eq!(d.full_guide().albedo, vec![[0.75; 3]; 32 * 24]);
+        // Without a source the guide has no albedo, and OIDN a constant one.
+        assert!(d.inner.guide().albedo.is_empty());
     }
 }

@@ -291,6 +291,7 @@ mod tests {
             depth,
             normal,
             variance,
+            albedo: Vec::new(),
         };
         (picture, guide)
     }

@@ -23,6 +23,10 @@ pub struct Guide {
     pub normal: Vec<[f32; 3]>,
     /// Variance of the pixel's mean luminance (NaN where unknown).
     pub variance: Vec<f32>,
+    /// Albedo (0..=1) of the surface seen, where a display was given it
+    /// (from the scene: [`Guide::with_albedo`]); empty where unknown, as
+    /// the store's rays carry none.
+    pub albedo: Vec<[f32; 3]>,
 }
 
 /// A pixel's ray sums, as the store keeps them: weight, weighted luminance
@@ -52,7 +56,18 @@ impl Guide {
             depth,
             normal,
             variance,
+            albedo: Vec::new(),
         }
+    }
+
+    /// The same guide with the albedo of the surface each pixel sees
+    /// (row-major, top row first); a picture of another size is ignored.
+    pub fn with_albedo(mut self, albedo: &holodeck_protocol::Picture) -> Guide {
+        if (albedo.width, albedo.height) == (self.width, self.height) && albedo.pixels.len() == self.width * self.height
+        {
+            self.albedo = albedo.pixels.iter().map(|p| p.to_array()).collect();
+        }
+        self
     }
 }
 

@@ -83,8 +83,9 @@ fn flat_normal(p: &Picture) -> Vec<f32> {
         .collect()
 }
 
-/// A display frame denoised by OIDN with the guide's normals (the store
-/// knows no albedo: a constant one, which OIDN needs beside a normal).
+/// A display frame denoised by OIDN with the guide's normals and its
+/// albedo where it has one (the store's rays carry none: then a constant
+/// one, which OIDN needs beside a normal).
 pub fn denoise_guided(color: &Picture, guide: &Guide) -> Result<Picture, DenoiseError> {
     let (w, h) = (color.width, color.height);
     if guide.width != w || guide.height != h {
@@ -93,7 +94,11 @@ pub fn denoise_guided(color: &Picture, guide: &Guide) -> Result<Picture, Denoise
     let albedo = Picture {
         width: w,
         height: h,
-        pixels: vec![Vec3::splat(0.5); w * h],
+        pixels: if guide.albedo.len() == w * h {
+            guide.albedo.iter().map(|&a| Vec3::from_array(a)).collect()
+        } else {
+            vec![Vec3::splat(0.5); w * h]
+        },
     };
     let normal = Picture {
         width: w,

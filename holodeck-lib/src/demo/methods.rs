@@ -32,6 +32,9 @@ pub enum Kind {
         driver: &'static str,
         /// The denoiser.
         denoise: Denoiser,
+        /// The denoiser is guided by the albedo of the scene's surfaces (a
+        /// display given the scene), not by the store alone.
+        scene: bool,
     },
     /// Traced directly in the view's share of the holodeck's time, and
     /// cleaned by Open Image Denoise if `oidn`.
@@ -48,8 +51,14 @@ impl Kind {
             Kind::Holodeck {
                 driver,
                 denoise: Denoiser::Off,
+                ..
             } => driver.to_string(),
-            Kind::Holodeck { driver, denoise } => format!("{driver} + {}", denoise.name()),
+            Kind::Holodeck {
+                driver,
+                denoise,
+                scene: true,
+            } => format!("{driver} + {} with the scene's albedo", denoise.name()),
+            Kind::Holodeck { driver, denoise, .. } => format!("{driver} + {}", denoise.name()),
             Kind::Direct { oidn: false } => "direct, same time".into(),
             Kind::Direct { oidn: true } => "direct + oidn, same time".into(),
         }
@@ -61,8 +70,14 @@ impl Kind {
             Kind::Holodeck {
                 driver,
                 denoise: Denoiser::Off,
+                ..
             } => driver.to_string(),
-            Kind::Holodeck { driver, denoise } => format!("{driver}-{}", denoise.name()),
+            Kind::Holodeck {
+                driver,
+                denoise,
+                scene: true,
+            } => format!("{driver}-{}-albedo", denoise.name()),
+            Kind::Holodeck { driver, denoise, .. } => format!("{driver}-{}", denoise.name()),
             Kind::Direct { oidn: false } => "direct".into(),
             Kind::Direct { oidn: true } => "direct-oidn".into(),
         }
@@ -77,17 +92,22 @@ pub fn methods() -> Vec<Kind> {
         out.push(Kind::Holodeck {
             driver,
             denoise: Denoiser::Off,
+            scene: false,
         });
         out.push(Kind::Holodeck {
             driver,
             denoise: Denoiser::Atrous(AtrousOptions::default()),
+            scene: false,
         });
     }
     if cfg!(feature = "oidn") {
-        out.push(Kind::Holodeck {
-            driver: "quadtree",
-            denoise: Denoiser::Oidn,
-        });
+        for scene in [false, true] {
+            out.push(Kind::Holodeck {
+                driver: "quadtree",
+                denoise: Denoiser::Oidn,
+                scene,
+            });
+        }
     }
     out.push(Kind::Direct { oidn: false });
     out.push(Kind::Direct { oidn: true });
@@ -100,6 +120,7 @@ pub fn default_method() -> Kind {
     Kind::Holodeck {
         driver: "quadtree",
         denoise: Denoiser::Atrous(AtrousOptions::default()),
+        scene: false,
     }
 }
 
@@ -160,7 +181,9 @@ impl Column {
 
 /// Draws `view` from `file` with every holodeck method of `kinds` that
 /// uses `driver`: one recall, the raw frame, and each denoiser after it.
-/// Returns (method index, shot) pairs.
+/// The methods marked `scene` are guided by the albedo of the surfaces the
+/// view sees in `scene`, as a display given the scene has it
+/// ([`scene_albedo`], its time counted in the method's). Returns (method index, shot) pairs.
 pub fn draw_holodeck(
     file: &mut HoloFile,
     viewport: Viewport,
@@ -168,7 +191,10 @@ pub fn draw_holodeck(
     kinds: &[Kind],
     truth: &Truth,
     seed: u64,
+    scene: Option<&Tracer>,
 ) -> Result<Vec<(usize, Shot)>> {
+    let view = viewport.view.clone();
+    let size = (viewport.width, viewport.height);
     let choice = DriverChoice::plain(driver, EstimatorOptions::default());
     let (mut d, recalled) = crate::recall(file, viewport, &choice, 2, seed)?;
     let start = Instant::now();
@@ -177,16 +203,25 @@ pub fn draw_holodeck(
     let guide = d.guide();
     let mut out = Vec::new();
     for (k, kind) in kinds.iter().enumerate() {
-        let Kind::Holodeck { driver: dk, denoise } = kind else {
+        let Kind::Holodeck {
+            driver: dk,
+            denoise,
+            scene: with_scene,
+        } = kind
+        else {
             continue;
         };
         if *dk != driver {
             continue;
         }
         let start = Instant::now();
-        let picture = match denoise {
-            Denoiser::Off => raw.clone(),
-            dn => dn.apply(&raw, &guide)?,
+        let picture = match (denoise, scene.filter(|_| *with_scene)) {
+            (Denoiser::Off, _) => raw.clone(),
+            (dn, Some(tracer)) => {
+                let albedo = scene_albedo(tracer, &view, size, seed)?;
+                dn.apply(&raw, &guide.clone().with_albedo(&albedo))?
+            }
+            (dn, None) => dn.apply(&raw, &guide)?,
         };
         let secs = base + start.elapsed().as_secs_f64();
         out.push((
@@ -200,6 +235,18 @@ pub fn draw_holodeck(
         ));
     }
     Ok(out)
+}
+
+/// The albedo of the surfaces `view` sees at `size`, each pixel the mean
+/// over 4 positions in it: what a display with the scene guides OIDN by.
+pub fn scene_albedo(tracer: &Tracer, view: &View, size: (u32, u32), seed: u64) -> Result<Picture> {
+    let o = RenderOptions {
+        width: size.0,
+        height: size.1,
+        spp: 4,
+        seed,
+    };
+    Ok(render_aovs(tracer, view, &o)?.0)
 }
 
 /// A direct render of `view` in passes of one sample per pixel until
