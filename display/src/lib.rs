@@ -31,7 +31,9 @@
 //! * `voronoi` — the Voronoi-cone driver (paper 2.4.4).
 //! * `window` — the interactive walkthrough window (feature `window`).
 
+#[cfg(feature = "native")]
 pub mod client;
+#[cfg(feature = "native")]
 pub mod compare;
 pub mod denoise;
 pub mod driver;

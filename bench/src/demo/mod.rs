@@ -225,7 +225,15 @@ impl Demo {
                 if mine.iter().all(|&k| columns[k].failed.is_some()) {
                     continue;
                 }
-                match methods::draw_holodeck(file, self.viewport(view)?, driver, kinds, truth, self.seed, Some(tracer)) {
+                match methods::draw_holodeck(
+                    file,
+                    self.viewport(view)?,
+                    driver,
+                    kinds,
+                    truth,
+                    self.seed,
+                    Some(tracer),
+                ) {
                     Ok(shots) => {
                         for (k, shot) in shots {
                             columns[k].shots.resize_with(i, || None);

@@ -106,7 +106,12 @@ impl GpuContext {
     /// on Vulkan, Metal or DX12, or on the backend `WGPU_BACKEND` names:
     /// the adapters are listed without opening a device, once per process.
     /// Displays ask it to choose the GPU filter only where it is the faster.
+    /// In a web page (WebAssembly) it is false: nothing may block there,
+    /// and the page chooses its own back end.
     pub fn hardware_present() -> bool {
+        if cfg!(target_arch = "wasm32") {
+            return false;
+        }
         static FOUND: OnceLock<bool> = OnceLock::new();
         *FOUND.get_or_init(|| {
             let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
@@ -131,8 +136,11 @@ impl GpuContext {
     /// Starts [`GpuContext::hardware_present`]'s probe on a thread of its
     /// own, so that its cost (a fifth of a second where Mesa's software
     /// Vulkan loads) overlaps the work before the first frame.
+    /// (Not in a web page, which has no threads to start.)
     pub fn probe_in_background() {
-        std::thread::spawn(GpuContext::hardware_present);
+        if !cfg!(target_arch = "wasm32") {
+            std::thread::spawn(GpuContext::hardware_present);
+        }
     }
 
     /// The adapter in words ("llvmpipe (LLVM 15.0.6, 256 bits) on Vulkan,

@@ -4,10 +4,12 @@
 //! pure; [`client`] alone opens sockets, for the blocking peers' side of the
 //! handshake, over TLS ([`tls`]) where the address asks for it. Every decoder takes untrusted bytes and never panics.
 
+#[cfg(feature = "net")]
 pub mod client;
 mod frame;
 mod link;
 mod message;
+#[cfg(feature = "net")]
 pub mod tls;
 
 pub use frame::{decode_frame, encode_frame, Frame, FrameBuffer, FrameError, FRAME_HEADER, MAX_FRAME};
