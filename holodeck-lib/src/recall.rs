@@ -363,7 +363,9 @@ pub struct Followed {
 /// does when the user moves) and hands it the stored rays of the view's
 /// beams it has not been given yet (`given`: records per beam so far), as
 /// the window's replay does once the view settles: a walk through a file
-/// in one driver, each view costing what is new in it.
+/// in one driver, each view costing what is new in it. A turn that makes
+/// the driver drop its estimates (more than the paper's 20 degrees) makes
+/// every beam of the view new again, as the window asks for them again.
 pub fn follow(
     file: &mut HoloFile,
     driver: &mut dyn Driver,
@@ -381,7 +383,11 @@ pub fn follow(
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
     let start = Instant::now();
+    let drops = driver.stats().cache_drops;
     driver.set_view(viewport);
+    if driver.stats().cache_drops > drops {
+        given.clear();
+    }
     let reproject = start.elapsed();
     let decoder = SampleDecoder::new(sections);
     let start = Instant::now();

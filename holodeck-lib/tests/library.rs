@@ -145,4 +145,20 @@ fn a_walk_in_one_driver_reads_each_ray_once_and_draws_what_a_fresh_recall_draws(
     }
     assert_eq!(total, given.values().sum::<u64>());
     assert!(total <= file.summary().rays());
+
+    // A turn far past the paper's 20 degrees drops the estimates: the new view
+    // is read whole, as a fresh recall reads it.
+    let mut turned = walk[0].clone();
+    let d0 = turned.direction;
+    let (c, s) = (90f64.to_radians().cos(), 90f64.to_radians().sin());
+    turned.direction = glam::DVec3::new(d0.x * c - d0.y * s, d0.x * s + d0.y * c, d0.z);
+    let drops = d.stats().cache_drops;
+    holodeck::recall::follow(&mut file, d.as_mut(), viewport(&turned), &mut given, 2, 0).unwrap();
+    assert_eq!(d.stats().cache_drops, drops + 1);
+    // Turning back to the first view, whose beams were all given before the
+    // drop, reads them all again.
+    let back = holodeck::recall::follow(&mut file, d.as_mut(), viewport(&walk[0]), &mut given, 2, 0).unwrap();
+    let (mut whole, recalled) = recall(&mut file, viewport(&walk[0]), &choice, 2, 0).unwrap();
+    assert_eq!(back.samples, recalled.samples);
+    assert_eq!(d.render(), whole.render());
 }

@@ -274,9 +274,9 @@ fn point(dir: &Path, n: u32, tls: bool, a: &Args) -> Result<Point> {
         // SAFETY: kill only sends a signal to the sampler we started.
         unsafe { libc::kill(s.id() as libc::pid_t, libc::SIGTERM) };
     }
-    for mut s in samplers {
-        s.wait()?;
-    }
+    // Every sampler is waited for, and the server told to quit, before
+    // any failure is reported.
+    let waited: Vec<std::io::Result<std::process::ExitStatus>> = samplers.iter_mut().map(Child::wait).collect();
     let logged = || {
         lines
             .lock()
@@ -291,6 +291,9 @@ fn point(dir: &Path, n: u32, tls: bool, a: &Args) -> Result<Point> {
     let status = server.wait()?;
     if !status.success() {
         bail!("the server failed: {status}");
+    }
+    for w in waited {
+        w.context("waiting for a sampler")?;
     }
     let lines = lines
         .lock()

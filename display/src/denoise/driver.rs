@@ -32,8 +32,9 @@ pub struct Denoised {
     last: Option<Picture>,
     /// The scene's albedo for the guide, if the display has the scene.
     albedo_source: Option<AlbedoSource>,
-    /// The albedo of the current view, once asked for.
-    albedo: Option<Picture>,
+    /// The albedo of the current view, once asked for (the outer `None`:
+    /// not asked yet; the inner: the source had none).
+    albedo: Option<Option<Picture>>,
 }
 
 impl Denoised {
@@ -66,10 +67,8 @@ impl Denoised {
         let Some(source) = &self.albedo_source else {
             return guide;
         };
-        if self.albedo.is_none() {
-            self.albedo = source(self.inner.viewport());
-        }
-        match &self.albedo {
+        let viewport = self.inner.viewport();
+        match self.albedo.get_or_insert_with(|| source(viewport)) {
             Some(a) => guide.with_albedo(a),
             None => guide,
         }
@@ -232,8 +231,8 @@ mod tests {
         let vp = viewport(EYE_VIEW, 32, 24);
         let asked = Arc::new(AtomicUsize::new(0));
         let counter = Arc::clone(&asked);
-        // The albedo of a view: its width in every channel, so that each
-        // view's is told apart.
+        // The albedo of a view: its eye's x + 0.5 in every channel, so
+        // that each view's is told apart.
         let source: AlbedoSource = Box::new(move |v: &Viewport| {
             counter.fetch_add(1, Ordering::SeqCst);
             let (w, h) = (v.width as usize, v.height as usize);

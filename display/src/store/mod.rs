@@ -87,8 +87,6 @@ struct Aggregate {
     point: DVec3,
     escaped: bool,
     estimate: Estimate,
-    /// The slot it had before the view change ([`NO_SLOT`] when parked).
-    from: u32,
 }
 
 /// How far from a pixel (in pixels) [`crate::Driver::point_at`] looks for
@@ -535,9 +533,10 @@ impl<I: PixelIndex + Sync> Store<I> {
         self.rebuild_near();
     }
 
-    /// Moves every estimate, on the frame (`old` and `pixels`, slot by
-    /// slot, place them) and parked off it, into the current view: each estimate's new
-    /// key is found where it lies, without copying it, and the estimates are
+    /// Moves every estimate into the current view: those on the old frame
+    /// (`old` is its projector and `pixels` each slot's old pixel) and those
+    /// parked off it. Each estimate's new key is found where it lies,
+    /// without copying it, and the estimates are
     /// then moved once into their new slots in key order (estimates that
     /// meet on one pixel merge by the depth rule); those that leave the
     /// frame are parked, the most recently seen first.
@@ -613,13 +612,10 @@ impl<I: PixelIndex + Sync> Store<I> {
                         point,
                         escaped,
                         estimate: e.estimate,
-                        from: NO_SLOT,
                     });
                 }
             } else {
-                let mut a = self.parked[i - n];
-                a.from = NO_SLOT;
-                parked.push(a);
+                parked.push(self.parked[i - n]);
             }
         }
         let old_entries = std::mem::take(&mut self.entries);
