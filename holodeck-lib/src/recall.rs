@@ -139,13 +139,7 @@ pub fn recall(
     seed: u64,
 ) -> Result<(Box<dyn holodeck_display::Driver>, Recalled), Error> {
     let sections = file.sections().to_vec();
-    let options = RequestOptions {
-        stride,
-        ..RequestOptions::default()
-    };
-    let request = BeamRequest::for_viewport(&sections, &viewport, &options, seed);
-    let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
-    keys.sort_unstable();
+    let keys = view_keys(&sections, &viewport, stride, seed);
     let decoder = SampleDecoder::new(sections.clone());
     let mut d = driver.make(viewport.clone())?;
     let start = Instant::now();
@@ -179,6 +173,19 @@ pub fn recall(
             filled,
         },
     ))
+}
+
+/// The beams `viewport` sees, found by one view ray per `stride` pixels
+/// across and down (placed by `seed`), sorted.
+fn view_keys(sections: &[holodeck_protocol::Section], viewport: &Viewport, stride: u32, seed: u64) -> Vec<BeamKey> {
+    let options = RequestOptions {
+        stride,
+        ..RequestOptions::default()
+    };
+    let request = BeamRequest::for_viewport(sections, viewport, &options, seed);
+    let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
+    keys.sort_unstable();
+    keys
 }
 
 /// The beams next to those that the view's rays through the centres of
@@ -375,13 +382,7 @@ pub fn follow(
     seed: u64,
 ) -> Result<Followed, Error> {
     let sections = file.sections().to_vec();
-    let options = RequestOptions {
-        stride,
-        ..RequestOptions::default()
-    };
-    let request = BeamRequest::for_viewport(&sections, &viewport, &options, seed);
-    let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
-    keys.sort_unstable();
+    let keys = view_keys(&sections, &viewport, stride, seed);
     let start = Instant::now();
     let drops = driver.stats().cache_drops;
     driver.set_view(viewport);

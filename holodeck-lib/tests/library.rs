@@ -8,15 +8,21 @@ use holodeck_display::Viewport;
 use holodeck_file::{HoloFile, OpenOptions, Settings};
 use holodeck_protocol::View;
 
-#[test]
-fn a_file_filled_for_a_view_draws_that_view_with_every_ray() {
+/// The built-in room, and a new empty holodeck file of it in `dir`.
+fn empty_room(dir: &std::path::Path) -> (SceneInput, Settings, HoloFile) {
     let scene = SceneInput::open("builtin:room", None, None).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("room.hdk");
+    let path = dir.join("room.hdk");
     let settings = Settings::with_sections(scene.sections().to_vec());
     HoloFile::create(&path, &settings).unwrap();
-    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
-    let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
+    let file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
+    (scene, settings, file)
+}
+
+#[test]
+fn a_file_filled_for_a_view_draws_that_view_with_every_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, settings, mut file) = empty_room(dir.path());
+    let view = View::parse(holodeck::ROOM_VIEW).unwrap();
     let views = ViewFill::new(
         &settings.sections,
         std::slice::from_ref(&view),
@@ -102,13 +108,9 @@ fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams
 
 #[test]
 fn a_walk_in_one_driver_reads_each_ray_once_and_draws_what_a_fresh_recall_draws() {
-    let scene = SceneInput::open("builtin:room", None, None).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("room.hdk");
-    let settings = Settings::with_sections(scene.sections().to_vec());
-    HoloFile::create(&path, &settings).unwrap();
-    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
-    let view = View::parse("-vtv -vp 0.7 2 1.5 -vd 1 0 -0.1 -vu 0 0 1 -vh 75 -vv 56").unwrap();
+    let (scene, settings, mut file) = empty_room(dir.path());
+    let view = View::parse(holodeck::ROOM_VIEW).unwrap();
     let walk = holodeck::truth::walk(&view, 3, 0.3, 8.0);
     let fills = ViewFill::new(&settings.sections, &walk, RequestOptions::default().eye_radius);
     let mut options = FillOptions::default();

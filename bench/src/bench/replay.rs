@@ -60,6 +60,7 @@ pub struct Args {
 }
 
 /// One walk's figures.
+#[derive(Default)]
 struct Walk {
     frames: u32,
     /// Every view's recall and frame.
@@ -80,19 +81,7 @@ struct Walk {
 /// Draws every view of `views` from `file` with `driver`, on the current rayon pool.
 fn walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> Result<Walk> {
     let choice = DriverChoice::plain(driver, Default::default());
-    let mut w = Walk {
-        frames: 0,
-        total: Duration::ZERO,
-        worst: Duration::ZERO,
-        recall: Duration::ZERO,
-        read: Duration::ZERO,
-        decode: Duration::ZERO,
-        insert: Duration::ZERO,
-        frame: Duration::ZERO,
-        samples: 0,
-        heap: 0,
-        estimates: 0,
-    };
+    let mut w = Walk::default();
     for (i, view) in views.iter().enumerate() {
         let viewport = Viewport::new(view.clone(), size.0, size.1)?;
         let start = Instant::now();
@@ -116,6 +105,7 @@ fn walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &str) -> 
 /// The walk as the window replays it: one driver for every view, moved to
 /// each (its estimates reprojected) and given only the rays of beams it has
 /// not had yet, then a frame.
+#[derive(Default)]
 struct Following {
     frames: u32,
     total: Duration,
@@ -134,16 +124,7 @@ fn follow_walk(file: &mut HoloFile, views: &[View], size: (u32, u32), driver: &s
     let choice = DriverChoice::plain(driver, Default::default());
     let mut d = choice.make(Viewport::new(views[0].clone(), size.0, size.1)?)?;
     let mut given = std::collections::HashMap::new();
-    let mut f = Following {
-        frames: 0,
-        total: Duration::ZERO,
-        worst: Duration::ZERO,
-        reproject: Duration::ZERO,
-        recall: Duration::ZERO,
-        frame: Duration::ZERO,
-        samples: 0,
-        first: 0,
-    };
+    let mut f = Following::default();
     for (i, view) in views.iter().enumerate() {
         let viewport = Viewport::new(view.clone(), size.0, size.1)?;
         let start = Instant::now();

@@ -61,11 +61,17 @@ fn error_halves_when_the_rays_quadruple() {
     assert!(errors[3] < 0.08, "{errors:?}");
 }
 
-#[test]
-fn one_lucky_ray_becomes_a_faint_glow_and_keeps_its_light() {
-    // 20 rays of 0.5 in every pixel of a 32 x 32 frame, and one lucky ray
-    // of 10,000 in pixel (12, 14).
-    let (w, h) = (32u32, 32u32);
+/// One sub-pixel a pixel, the other estimator options at their defaults.
+fn one_subpixel() -> EstimatorOptions {
+    EstimatorOptions {
+        subpixels: 1,
+        ..EstimatorOptions::default()
+    }
+}
+
+/// A `w` x `h` frame of 20 rays of 0.5 in every pixel, and one lucky ray of
+/// 10,000 in pixel `at`.
+fn one_lucky_ray(w: u32, h: u32, at: (u32, u32)) -> (Viewport, Vec<Sample>) {
     let vp = grid_viewport(w, h);
     let mut rays = Vec::new();
     for i in 0..20 {
@@ -74,11 +80,18 @@ fn one_lucky_ray_becomes_a_faint_glow_and_keeps_its_light() {
             rays.push(grid_sample(w, h, px, py, 5.0, 0.0, [0.5; 3]));
         }
     }
-    rays.push(grid_sample(w, h, 12.5, 14.5, 5.0, 0.0, [1e4; 3]));
-    let one = EstimatorOptions {
-        subpixels: 1,
-        ..EstimatorOptions::default()
-    };
+    let (x, y) = (f64::from(at.0) + 0.5, f64::from(at.1) + 0.5);
+    rays.push(grid_sample(w, h, x, y, 5.0, 0.0, [1e4; 3]));
+    (vp, rays)
+}
+
+#[test]
+fn one_lucky_ray_becomes_a_faint_glow_and_keeps_its_light() {
+    // 20 rays of 0.5 in every pixel of a 32 x 32 frame, and one lucky ray
+    // of 10,000 in pixel (12, 14).
+    let (w, h) = (32u32, 32u32);
+    let (vp, rays) = one_lucky_ray(w, h, (12, 14));
+    let one = one_subpixel();
     let mut d = SplatDriver::with_options(vp.clone(), one);
     d.add(&rays);
     let pic = d.render();
@@ -124,19 +137,8 @@ fn a_firefly_near_a_corner_glows_within_its_reach_only_and_keeps_its_light() {
     // is shared over the pixels within 12 of it, the frame's corner
     // clipping the square, and reaches no pixel beyond.
     let (w, h) = (96u32, 96u32);
-    let vp = grid_viewport(w, h);
-    let mut rays = Vec::new();
-    for i in 0..20 {
-        for p in 0..w * h {
-            let (px, py) = (f64::from(p % w) + 0.05 * f64::from(i) + 0.02, f64::from(p / w) + 0.5);
-            rays.push(grid_sample(w, h, px, py, 5.0, 0.0, [0.5; 3]));
-        }
-    }
-    rays.push(grid_sample(w, h, 5.5, 5.5, 5.0, 0.0, [1e4; 3]));
-    let one = EstimatorOptions {
-        subpixels: 1,
-        ..EstimatorOptions::default()
-    };
+    let (vp, rays) = one_lucky_ray(w, h, (5, 5));
+    let one = one_subpixel();
     let mut d = SplatDriver::with_options(vp.clone(), one);
     d.add(&rays);
     let pic = d.render();
