@@ -47,7 +47,7 @@ pub struct DriverChoice {
     pub neighbours: bool,
     /// The scene, whose albedo guides the denoiser (OIDN takes an albedo
     /// beside the normals): each view's albedo traced from it, as
-    /// [`crate::demo::methods::scene_albedo`] does. None: the store's
+    /// [`crate::truth::scene_albedo`] does. None: the store's
     /// guide alone.
     pub scene: Option<std::sync::Arc<holodeck_sampler::Tracer>>,
 }
@@ -94,7 +94,7 @@ impl DriverChoice {
             (d, Some(scene)) => {
                 let scene = std::sync::Arc::clone(scene);
                 let source = move |v: &Viewport| {
-                    crate::demo::methods::scene_albedo(&scene, &v.view, (v.width, v.height), 0x00a1_bed0)
+                    crate::truth::scene_albedo(&scene, &v.view, (v.width, v.height), 0x00a1_bed0)
                         .map_err(|e| tracing::warn!("the scene's albedo could not be traced: {e}"))
                         .ok()
                 };

@@ -180,6 +180,18 @@ pub fn lod_ratio(pixels: f64, view: &View, width: u32) -> f32 {
     (r_max / lambda) as f32
 }
 
+/// The albedo of the surfaces `view` sees at `size`, each pixel the mean
+/// over 4 positions in it: what a display with the scene guides OIDN by.
+pub fn scene_albedo(tracer: &Tracer, view: &View, size: (u32, u32), seed: u64) -> Result<Picture> {
+    let o = RenderOptions {
+        width: size.0,
+        height: size.1,
+        spp: 4,
+        seed,
+    };
+    Ok(holodeck_sampler::render::render_aovs(tracer, view, &o)?.0)
+}
+
 /// `picture` cleaned by Open Image Denoise with its albedo and normals.
 #[cfg(feature = "oidn")]
 pub fn denoise_oidn(

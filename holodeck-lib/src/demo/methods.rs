@@ -183,7 +183,7 @@ impl Column {
 /// uses `driver`: one recall, the raw frame, and each denoiser after it.
 /// The methods marked `scene` are guided by the albedo of the surfaces the
 /// view sees in `scene`, as a display given the scene has it
-/// ([`scene_albedo`], its time counted in the method's). Returns (method index, shot) pairs.
+/// ([`crate::truth::scene_albedo`], its time counted in the method's). Returns (method index, shot) pairs.
 pub fn draw_holodeck(
     file: &mut HoloFile,
     viewport: Viewport,
@@ -218,7 +218,7 @@ pub fn draw_holodeck(
         let picture = match (denoise, scene.filter(|_| *with_scene)) {
             (Denoiser::Off, _) => raw.clone(),
             (dn, Some(tracer)) => {
-                let albedo = scene_albedo(tracer, &view, size, seed)?;
+                let albedo = crate::truth::scene_albedo(tracer, &view, size, seed)?;
                 dn.apply(&raw, &guide.clone().with_albedo(&albedo))?
             }
             (dn, None) => dn.apply(&raw, &guide)?,
@@ -235,18 +235,6 @@ pub fn draw_holodeck(
         ));
     }
     Ok(out)
-}
-
-/// The albedo of the surfaces `view` sees at `size`, each pixel the mean
-/// over 4 positions in it: what a display with the scene guides OIDN by.
-pub fn scene_albedo(tracer: &Tracer, view: &View, size: (u32, u32), seed: u64) -> Result<Picture> {
-    let o = RenderOptions {
-        width: size.0,
-        height: size.1,
-        spp: 4,
-        seed,
-    };
-    Ok(render_aovs(tracer, view, &o)?.0)
 }
 
 /// A direct render of `view` in passes of one sample per pixel until
