@@ -390,13 +390,7 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
                 batches.push(batch);
             }
         }
-        let incoming: usize = batches.iter().map(|b| b.1).sum();
-        self.stats.received += incoming as u64;
-        // Room for the estimates these rays can make at once (at most one a
-        // sub-pixel), so that the list grows once rather than by doubling,
-        // copying every estimate each time.
-        let room = self.pixel_count().saturating_sub(self.entries.len()).min(incoming);
-        self.entries.reserve(room);
+        self.stats.received += batches.iter().map(|b| b.1 as u64).sum::<u64>();
         // Two buffers, kept between calls: one batch projected into one
         // while the other is merged.
         let mut free = vec![
