@@ -9,6 +9,7 @@
 //! through [`gpu`], on a real GPU or on Mesa's software Vulkan.
 //!
 //! * `client` — the connection to a server: handshake, beam requests, samples.
+//! * `command` — the walkthrough's commands, as keys and as text lines.
 //! * `compare` — the yardstick: FLIP, SSIM, relative errors, light kept per region.
 //! * `denoise` — the denoisers after reconstruction: à-trous (CPU, GPU), OIDN (feature `oidn`).
 //! * `driver` — the `Driver` trait every image representation implements.
@@ -17,6 +18,7 @@
 //! * `gpu` — the wgpu device, render targets and view uniforms the GPU drivers share.
 //! * `image_io` — Radiance `.hdr` and PNG pictures read and written.
 //! * `mesh` — the spherical Delaunay mesh driver (paper 2.4.5).
+//! * `navigate` — the paper's input model as view arithmetic (the window's and the web page's).
 //! * `output` — writing frames.
 //! * `project` — world points to pixels and back.
 //! * `quadtree` — the image-plane quadtree driver (paper 2.4.3).
@@ -25,6 +27,7 @@
 //! * `sphere` — the Delaunay triangulation on the view sphere.
 //! * `splat` — point splatting, the benchmark baseline.
 //! * `stats` — what a driver has seen and done (`DriverStats`).
+//! * `status` — the walkthrough's status line (the window's and the web page's).
 //! * `store` — the sample store: one running estimate per pixel, shared by every driver.
 //! * `tonemap` — radiance to display values.
 //! * `viewport` — a view and its frame size, checked; why a driver refuses one.
@@ -33,6 +36,7 @@
 
 #[cfg(feature = "native")]
 pub mod client;
+pub mod command;
 #[cfg(feature = "native")]
 pub mod compare;
 pub mod denoise;
@@ -42,6 +46,7 @@ pub mod geometry;
 pub mod gpu;
 pub mod image_io;
 pub mod mesh;
+pub mod navigate;
 pub mod output;
 pub mod project;
 pub mod quadtree;
@@ -50,6 +55,7 @@ pub mod sample;
 pub mod sphere;
 pub mod splat;
 pub mod stats;
+pub mod status;
 pub mod store;
 #[cfg(test)]
 pub(crate) mod testkit;

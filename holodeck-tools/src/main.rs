@@ -6,6 +6,7 @@
 //! * `cmd` — one module per command: its arguments and a `run` over the libraries.
 //! * `parent` — living and dying with a parent process.
 //! * `supervise` — child processes a command starts and watches, and stop signals.
+//! * `web` — the web display's page and WebAssembly, embedded for `serve --web`.
 //! * `window` — what `view` and `pict --window` share to open the walkthrough window.
 
 use std::process::ExitCode;
@@ -18,6 +19,7 @@ extern crate holodeck_cli;
 mod cmd;
 mod parent;
 mod supervise;
+mod web;
 mod window;
 
 /// Interactive walkthroughs of globally illuminated scenes from a persistent ray cache.

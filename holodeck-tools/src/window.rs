@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use holodeck_display::request::RequestOptions;
 use holodeck_display::window::{self, Source, WalkOptions, WindowOptions};
 use holodeck_display::Viewport;
-use holodeck_protocol::{Section, View};
+use holodeck_protocol::View;
 
 use holodeck_cli::args::FrameArgs;
 
@@ -22,17 +22,6 @@ pub struct WindowArgs {
     /// Beam selection: one view ray per this many pixels across and down.
     #[arg(long, default_value_t = RequestOptions::default().stride, value_parser = clap::value_parser!(u32).range(holodeck_cli::args::SIDE))]
     pub stride: u32,
-}
-
-/// A view from the middle of `section` along its first axis, level, 75 x 56 degrees.
-pub fn default_view(section: &Section) -> String {
-    let [x, y, z] = section.axes();
-    let c = section.origin() + (x + y + z) * 0.5;
-    let d = x.normalize_or_zero();
-    format!(
-        "-vtv -vp {} {} {} -vd {} {} {} -vu 0 0 1 -vh 75 -vv 56",
-        c.x, c.y, c.z, d.x, d.y, d.z
-    )
 }
 
 /// Opens the window on `source`, starting at `view`, and runs it until the

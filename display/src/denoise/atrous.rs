@@ -438,7 +438,7 @@ fn atrous_speed() {
         albedo: Vec::new(),
     };
     for _ in 0..3 {
-        let start = std::time::Instant::now();
+        let start = web_time::Instant::now();
         std::hint::black_box(atrous(&picture, &guide, &AtrousOptions::default()));
         eprintln!("atrous 1024x768: {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
     }

@@ -89,7 +89,7 @@ impl GpuAtrous {
                 "a {w} x {h} frame needs {bytes} bytes per buffer, more than the device's {limit}"
             )));
         }
-        let start = std::time::Instant::now();
+        let start = web_time::Instant::now();
         let (src, normals, depths) = guide_arrays(picture, guide);
         let prepared = start.elapsed();
         let device = &self.ctx.device;

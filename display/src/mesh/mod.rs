@@ -354,7 +354,7 @@ impl Driver for MeshDriver {
     }
 
     fn render(&mut self) -> Picture {
-        let start = std::time::Instant::now();
+        let start = web_time::Instant::now();
         self.store.update_colors();
         self.sync();
         self.visible_triangles();

@@ -16,7 +16,7 @@
 //!   another on one thread.
 
 use std::ops::Range;
-use std::time::Instant;
+use web_time::Instant;
 
 use holodeck_protocol::{BeamKey, RayRecord, ViewType};
 use rayon::prelude::*;

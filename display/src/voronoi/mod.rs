@@ -94,7 +94,7 @@ impl Driver for VoronoiDriver {
     }
 
     fn render(&mut self) -> Picture {
-        let start = std::time::Instant::now();
+        let start = web_time::Instant::now();
         self.store.update_colors();
         let vp = self.store.viewport().clone();
         let sub = self.store.subpixels();

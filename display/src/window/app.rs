@@ -30,8 +30,7 @@ use super::present::Presenter;
 use super::walk::Walkthrough;
 use super::WindowError;
 
-/// Most motion steps per second.
-pub const STEP_RATE: f64 = 30.0;
+pub use crate::navigate::STEP_RATE;
 
 /// How long one poll for new samples may hold the event loop.
 const POLL: Duration = Duration::from_millis(15);
@@ -461,39 +460,19 @@ impl App {
             }
         }
         let (received, rate) = self.walk.received();
-        let mut s = format!(
-            "{} samples/s  {} received  {} shown  frame {:.0} ms",
-            human(rate),
-            human(received as f64),
-            human(self.walk.driver().stats().kept as f64),
-            self.frame_time.as_secs_f64() * 1e3
-        );
-        if let Some(server) = self.walk.server() {
-            s.push_str(&format!(
-                "  server {} rays, {}/s, {} samplers{}",
-                human(server.rays as f64),
-                human(server.rays_per_second),
-                server.samplers,
-                if server.paused { ", paused" } else { "" }
-            ));
+        crate::status::Status {
+            rate,
+            received,
+            shown: self.walk.driver().stats().kept,
+            frame_ms: self.frame_time.as_secs_f64() * 1e3,
+            server: self.walk.server(),
+            head_fixed: self.walk.head_fixed,
         }
-        if self.walk.head_fixed {
-            s.push_str("  head fixed");
-        }
-        s
+        .line()
     }
 }
 
 /// 1234567 as "1.2M".
-fn human(v: f64) -> String {
-    match v {
-        v if v >= 1e9 => format!("{:.1}G", v / 1e9),
-        v if v >= 1e6 => format!("{:.1}M", v / 1e6),
-        v if v >= 1e4 => format!("{:.0}k", v / 1e3),
-        v => format!("{v:.0}"),
-    }
-}
-
 /// Writes a frame as a PNG.
 fn save(path: &Path, frame: &super::walk::Frame) -> Result<(), WindowError> {
     crate::image_io::write_rgb8(path, frame.width as usize, frame.height as usize, &frame.rgb)?;

@@ -3,14 +3,14 @@
 //! samples, a live server or a holodeck file.
 //!
 //! [`navigate`] is the view arithmetic of each motion step, [`walk`] the
-//! walkthrough's state (what is asked for when), [`command`] the commands
-//! as keys and as text lines, [`overlay`] the grids and the status line,
+//! walkthrough's state (what is asked for when), [`command`] winit's keys
+//! as the walkthrough's commands ([`crate::command`]), [`overlay`] the grids and the status line,
 //! [`present`] the surface, [`source`] where samples come from, and
 //! [`app`] ties them to window events.
 
 pub mod app;
 pub mod command;
-pub mod navigate;
+pub use crate::navigate;
 pub mod overlay;
 pub mod present;
 pub mod source;

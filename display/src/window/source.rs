@@ -133,15 +133,4 @@ impl Source for ServerSource {
     }
 }
 
-/// A control command as the window's commands name it.
-pub fn command_name(c: &Control) -> &'static str {
-    match c {
-        Control::Pause => "pause",
-        Control::Resume => "resume",
-        Control::KillSamplers => "kill",
-        Control::Restart => "restart",
-        Control::Clobber => "clobber",
-        Control::Quit => "quit",
-        Control::Adopt { .. } => "adopt",
-    }
-}
+pub use crate::command::command_name;

@@ -244,7 +244,7 @@ impl Plan {
                 let view = if a.scene == "builtin:room" {
                     holodeck::ROOM_VIEW.to_string()
                 } else {
-                    crate::window::default_view(&file.sections()[0])
+                    holodeck_display::navigate::default_view(&file.sections()[0]).to_spec()
                 };
                 std::fs::create_dir_all(&a.frames).with_context(|| format!("creating {}", a.frames.display()))?;
                 let path = a.frames.join("views.vf");

@@ -11,7 +11,7 @@ use holodeck_file::settings::{parse_duration, parse_size};
 use holodeck_file::{HoloFile, OpenOptions};
 use holodeck_protocol::wire::tls::Pin;
 use holodeck_protocol::wire::MAX_PACKET_RAYS;
-use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tls, Tokens};
+use holodeck_server::net::{serve, Fill, Listener, ServerConfig, Tls, Tokens, WebListener};
 use holodeck_server::schedule::Share;
 use rand::Rng;
 
@@ -39,13 +39,20 @@ Examples:
   holodeck serve room.hdk --listen 0.0.0.0:7777
   holodeck sample builtin:room --connect server:7777 --token-file room.hdk.token
   holodeck serve room.hdk --unix /tmp/room.sock --views walk.vf --time 1h
-  holodeck serve room.hdk --no-fill                       # display-only replay")]
+  holodeck serve room.hdk --no-fill                       # display-only replay
+  holodeck serve room.hdk --web 127.0.0.1:8080            # and a page: open the link it prints")]
 pub struct Args {
     /// The holodeck file (it must record its scene: create it with `holodeck fill`).
     file: PathBuf,
     /// Address to listen on (port 0 picks a free one; the address is printed).
     #[arg(long, default_value = "127.0.0.1:7777")]
     listen: String,
+    /// Also serve the web display here (HOST:PORT; port 0 picks a free one): a
+    /// page anyone opens with a link, speaking the display protocol over a
+    /// WebSocket on the same port, with the same tokens. Plain HTTP: beyond
+    /// this machine it needs --plain-text-on-network.
+    #[arg(long, value_name = "ADDR")]
+    web: Option<String>,
     /// Also listen on this Unix socket (peers connect to unix:PATH).
     #[arg(long)]
     unix: Option<PathBuf>,
@@ -114,6 +121,18 @@ pub struct Args {
     /// certificate); this machine may always speak plain.
     #[arg(long)]
     plain_text_on_network: bool,
+}
+
+/// A token as a link's fragment carries it (tokens are URL-safe already;
+/// anything else is percent-encoded).
+fn token_link(token: &str) -> String {
+    token
+        .bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => (b as char).to_string(),
+            other => format!("%{other:02X}"),
+        })
+        .collect()
 }
 
 /// Values of `--request-share`.
@@ -315,6 +334,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         (None, false) => Fill::All,
     };
+    let viewer_link_token = tokens.viewer.clone().unwrap_or_default();
     let config = ServerConfig {
         packet: a.packet,
         request_packet: a.request_packet,
@@ -342,6 +362,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         for l in &listeners {
             println!("listening on {}", l.address());
+        }
+        if let Some(addr) = &a.web {
+            let web = Listener::Web(
+                WebListener::bind(addr, crate::web::assets()?)
+                    .await
+                    .with_context(|| format!("serving the web display on {addr}"))?,
+            );
+            if !web.local_only() && !a.plain_text_on_network {
+                anyhow::bail!(
+                    "--web {addr} reaches other hosts over plain HTTP: the tokens pages present, and the rays,                      would cross the network in clear text. Serve it on 127.0.0.1 (and reach it through an                      SSH tunnel or a TLS proxy), or add --plain-text-on-network to insist"
+                );
+            }
+            let page = web.address();
+            let viewer = token_link(&viewer_link_token);
+            println!("web display on {page} (a viewer's link: {page}#token={viewer})");
+            listeners.push(web);
         }
         std::io::stdout().flush()?;
         serve(listeners, file, config)

@@ -273,7 +273,7 @@ fn windowed(a: Args) -> Result<ExitCode> {
         Some(path) => holodeck_cli::view_arg::read_views(path)?.remove(0),
         None => {
             let first = session.sections().first().context("the holodeck has no sections")?;
-            View::parse(&crate::window::default_view(first))?
+            holodeck_display::navigate::default_view(first)
         }
     };
     let source = holodeck_display::window::ServerSource::new(session, a.connect.clone());

@@ -160,6 +160,15 @@ impl Proc {
             .unwrap_or_else(|e| panic!("telling {} {line:?}: {e}\n{}", self.name, self.tail()));
     }
 
+    /// [`Proc::say`] that reports failure instead of failing the test (for
+    /// a goodbye said while a test unwinds).
+    pub fn try_say(&mut self, line: &str) -> bool {
+        use std::io::Write as _;
+        self.stdin
+            .as_mut()
+            .is_some_and(|stdin| writeln!(stdin, "{line}").and_then(|()| stdin.flush()).is_ok())
+    }
+
     /// The child's process id.
     pub fn id(&self) -> u32 {
         self.child.id()

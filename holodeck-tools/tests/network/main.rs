@@ -8,6 +8,7 @@
 mod common;
 
 mod admin;
+mod browser;
 mod displays;
 mod faults;
 mod harness;
@@ -16,4 +17,5 @@ mod proxy;
 mod scene_file;
 mod scenes;
 mod tls;
+mod web;
 mod window;

@@ -1,5 +1,6 @@
-//! Where peers connect: a TCP port (any host) or a Unix socket (this host;
-//! file permissions guard it as well as the token).
+//! Where peers connect: a TCP port (any host), a Unix socket (this host;
+//! file permissions guard it as well as the token), or the web display's
+//! HTTP port (pages, over WebSockets).
 
 use std::path::{Path, PathBuf};
 
@@ -13,6 +14,8 @@ pub enum Accepted {
     Tcp(TcpStream, std::net::SocketAddr),
     /// Over the Unix socket at this address.
     Unix(UnixStream, String),
+    /// A web page's WebSocket, from this address.
+    Web(Box<dyn super::connection::Stream>, std::net::SocketAddr),
 }
 
 impl Accepted {
@@ -21,6 +24,7 @@ impl Accepted {
         match self {
             Accepted::Tcp(_, a) => a.to_string(),
             Accepted::Unix(_, p) => p.clone(),
+            Accepted::Web(_, a) => format!("web page {a}"),
         }
     }
 }
@@ -31,6 +35,8 @@ pub enum Listener {
     Tcp(TcpListener),
     /// A Unix socket, removed again when the listener is dropped.
     Unix(UnixListener, UnixSocketPath),
+    /// The web display's HTTP port (the page, and displays over WebSockets).
+    Web(super::web::WebListener),
 }
 
 /// A Unix socket's path, unlinked on drop so a restarted server can bind it again.
@@ -77,6 +83,7 @@ impl Listener {
         match self {
             Listener::Tcp(l) => l.local_addr().map(|a| a.to_string()).unwrap_or_else(|e| e.to_string()),
             Listener::Unix(_, p) => format!("unix:{}", p.0.display()),
+            Listener::Web(w) => format!("http://{}/", w.local_addr()),
         }
     }
 
@@ -92,6 +99,10 @@ impl Listener {
                 let (s, _) = l.accept().await?;
                 Ok(Accepted::Unix(s, format!("unix:{}", p.0.display())))
             }
+            Listener::Web(w) => {
+                let (s, peer) = w.accept().await?;
+                Ok(Accepted::Web(s, peer))
+            }
         }
     }
 
@@ -101,6 +112,7 @@ impl Listener {
         match self {
             Listener::Tcp(l) => l.local_addr().is_ok_and(|a| a.ip().is_loopback()),
             Listener::Unix(..) => true,
+            Listener::Web(w) => w.local_addr().ip().is_loopback(),
         }
     }
 }

@@ -6,7 +6,8 @@
 //! (and the control commands that change it); [`service`] checks each peer's
 //! handshake and hands it to the sampler or display loop; [`rate`] smooths the
 //! rays-per-second reports; [`tls`] is the certificate and the first byte
-//! that tells TLS from the plain protocol.
+//! that tells TLS from the plain protocol; [`web`] is the web display's
+//! HTTP port, whose WebSockets are displays like any other.
 
 pub mod config;
 pub mod connection;
@@ -18,9 +19,11 @@ mod sampler;
 pub mod service;
 mod state;
 pub mod tls;
+pub mod web;
 
 pub use config::{Fill, ServerConfig, Tokens};
 pub use listener::Listener;
 pub use service::serve;
 pub use state::ControlError;
 pub use tls::{Tls, TlsError};
+pub use web::{WebAsset, WebListener};

@@ -419,6 +419,8 @@ fn check(hello: &Hello, shared: &Shared) -> Result<Access, Refusal> {
 async fn spoken(accepted: Accepted, shared: &Shared) -> Option<(Box<dyn Stream>, bool)> {
     match accepted {
         Accepted::Unix(s, _) => Some((Box::new(s), false)),
+        // Plain HTTP: from another host, the token crossed the network in clear text.
+        Accepted::Web(s, peer) => Some((s, !peer.ip().is_loopback())),
         Accepted::Tcp(s, peer) => match super::tls::accept(s, peer, shared.config.tls.as_ref()).await? {
             Spoken::Tls(s) => Some((s, false)),
             Spoken::Plain { stream, network } => Some((stream, network)),

@@ -14,11 +14,33 @@
 //! eye's height along the view's up vector.
 
 use glam::{DQuat, DVec3};
-use holodeck_protocol::{View, ViewType};
+use holodeck_protocol::{Section, View, ViewType};
+
+/// Where a display starts when it is given no view: at the center of
+/// `section`, looking along its first axis, with a 75 by 56 degree
+/// perspective frame and the world's z up.
+pub fn default_view(section: &Section) -> View {
+    let [x, y, z] = section.axes();
+    let c = section.origin() + (x + y + z) * 0.5;
+    let d = x.normalize_or_zero();
+    View {
+        kind: ViewType::Perspective,
+        position: c,
+        direction: d,
+        up: DVec3::Z,
+        horizontal: 75.0,
+        vertical: 56.0,
+        ..View::default()
+    }
+}
 
 /// The fraction of the distance to the point under the cursor one forward
 /// (or backward) step covers.
 pub const MOVE_FRACTION: f64 = 0.1;
+
+/// Most motion steps per second while a button is held (so that a fast
+/// machine does not fly).
+pub const STEP_RATE: f64 = 30.0;
 
 /// Degrees one orbit step swings the eye around the point under the cursor.
 pub const ORBIT_DEGREES: f64 = 5.0;

@@ -1,0 +1,248 @@
+//! The web display in a real browser (see [`crate::browser`]): a page that
+//! joins a live server with a link draws what `holodeck pict` draws from the
+//! same file, moves by the native window's rule, is refused what its token
+//! does not allow, keeps its picture across a server restart, and cannot
+//! harm the server with bad WebSocket messages.
+
+use std::path::Path;
+
+use holodeck_display::compare::relative_rmse;
+use holodeck_display::image_io::read_picture;
+use holodeck_protocol::View;
+use serde_json::json;
+
+use crate::browser::Browser;
+use crate::common::holodeck;
+use crate::common::process::Proc;
+use crate::harness::*;
+
+/// The view the tests fill and look at: into the built-in room, toward its window.
+const VIEW: &str = "-vtv -vp 3 2 1.4 -vd 1 0.3 -0.1 -vu 0 0 1 -vh 60 -vv 45";
+
+/// A room file filled with `rays` rays for [`VIEW`] (one bounce).
+fn room_for_view(dir: &Path, rays: &str) -> std::path::PathBuf {
+    let file = dir.join("room.hdk");
+    let views = dir.join("view.vf");
+    std::fs::write(&views, format!("{VIEW}\n")).unwrap();
+    let o = holodeck(&[
+        "fill",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "--rays",
+        rays,
+        "--bounces",
+        "1",
+        "--views",
+        views.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    file
+}
+
+/// A server of `file` (no fill: what is stored is all there is) with the
+/// web display on `web`; returns it and the page's address.
+fn web_server(file: &Path, web: &str) -> (Proc, String) {
+    let (server, _) = start_server_with(
+        file.to_str().unwrap(),
+        "127.0.0.1:0",
+        "admin-token",
+        &["--no-fill", "--web", web, "--viewer-token", "viewer-token"],
+    );
+    let page = server.wait_line("the web display's address", &mut 0, |l| {
+        Some(l.strip_prefix("web display on ")?.split_once(' ')?.0.to_string())
+    });
+    (server, page)
+}
+
+/// A link's fragment value: spaces as %20 (views have no other character
+/// a fragment's parameters would take otherwise).
+fn fragment(s: &str) -> String {
+    s.replace('%', "%25")
+        .replace(' ', "%20")
+        .replace('&', "%26")
+        .replace('+', "%2B")
+}
+
+/// The page's link: `token`, [`VIEW`], 160 x 120, no denoiser, and one
+/// request per view (a still view's refinement would select more beams,
+/// with more rays than `pict` reads).
+fn link(page: &str, token: &str) -> String {
+    format!(
+        "{page}#token={token}&view={}&width=160&height=120&denoise=off&max-density=1",
+        fragment(VIEW)
+    )
+}
+
+/// Waits until the page is welcomed and has every stored ray of its view.
+const DELIVERED: &str = "holodeck.open() && holodeck.transfers() === 0 && holodeck.samples() > 0";
+
+#[test]
+fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "150K");
+    eprintln!("the browser's WebGL2: {}", browser.ask(json!({"op": "backend"})));
+
+    // The picture: every stored ray of the view, as pict draws it (from a
+    // copy of the file: the server holds the file itself), for the view
+    // the page shows (the window's, fitted to the frame's aspect).
+    let (mut server, page) = web_server(&file, "127.0.0.1:0");
+    browser.open(&link(&page, "viewer-token"));
+    browser.wait(DELIVERED);
+    let shown = browser.picture();
+    let view = browser.eval("holodeck.where()");
+    let copy = dir.path().join("copy.hdk");
+    std::fs::copy(&file, &copy).unwrap();
+    let pict = dir.path().join("pict.hdr");
+    let o = holodeck(&[
+        "pict",
+        copy.to_str().unwrap(),
+        "--view",
+        view.as_str().unwrap(),
+        "-x",
+        "160",
+        "-y",
+        "120",
+        "--stride",
+        "8",
+        "--denoise",
+        "off",
+        "-o",
+        pict.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    let reference = read_picture(&pict).unwrap();
+    let error = relative_rmse(&shown, &reference).unwrap();
+    let light = |p: &holodeck_protocol::Picture| p.pixels.iter().map(|c| f64::from(c.x + c.y + c.z)).sum::<f64>();
+    let kept = light(&shown) / light(&reference);
+    eprintln!("the page's picture against pict's: relative RMSE {error:.4}, light {kept:.4}");
+    assert!(
+        error < 0.01,
+        "the page's picture differs from pict's: relative RMSE {error}"
+    );
+    assert!((kept - 1.0).abs() < 0.01, "the page keeps {kept} of pict's light");
+
+    // The canvas shows it: its pixels, read back, follow the picture's light.
+    let rgba: Vec<f64> = browser
+        .eval("holodeck.pixels()")
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let grey: Vec<f64> = rgba.chunks_exact(4).map(|p| (p[0] + p[1] + p[2]) / 3.0).collect();
+    let lum: Vec<f64> = shown
+        .pixels
+        .iter()
+        .map(|c| f64::from(c.x + c.y + c.z).powf(1.0 / 2.2))
+        .collect();
+    let r = correlation(&grey, &lum);
+    eprintln!("canvas against picture: correlation {r:.3}");
+    assert!(r > 0.9, "the canvas does not show the picture (correlation {r})");
+
+    // A drag with the left button moves the eye toward the point under
+    // the cursor, keeping the view direction (the window's rule).
+    let before = view_of(&browser.eval("holodeck.where()"));
+    browser.ask(json!({"op": "mouse", "action": "down", "x": 80, "y": 60, "button": "left"}));
+    browser.ask(json!({"op": "hold", "ms": 400}));
+    browser.ask(json!({"op": "mouse", "action": "up", "x": 80, "y": 60, "button": "left"}));
+    browser.wait(DELIVERED);
+    let after = view_of(&browser.eval("holodeck.where()"));
+    let moved = after.position - before.position;
+    let along = moved.normalize().dot(before.direction.normalize());
+    eprintln!(
+        "the drag moved the eye {:.3} m, {:.2} degrees off the view direction",
+        moved.length(),
+        along.clamp(-1.0, 1.0).acos().to_degrees()
+    );
+    assert!(moved.length() > 0.01, "the eye did not move: {before:?} -> {after:?}");
+    assert!(along > 0.999, "the eye moved off the line to the point: {moved:?}");
+    assert!((after.direction.normalize() - before.direction.normalize()).length() < 1e-9);
+    // `last` goes back.
+    browser.ask(json!({"op": "type", "selector": "#line", "text": "last", "enter": true}));
+    let back = view_of(&browser.wait("holodeck.where().includes('-vp 3 2 1.4') && holodeck.where()"));
+    assert!((back.position - before.position).length() < 1e-9);
+
+    // A viewer may look, never change anything: the server refuses its kill.
+    browser.ask(json!({"op": "type", "selector": "#line", "text": "kill", "enter": true}));
+    let refusal = browser.wait("holodeck.log.find((l) => l.startsWith('kill was refused'))");
+    assert!(refusal.as_str().unwrap().contains("viewer"), "{refusal}");
+
+    // A wrong token is refused with a reason, and the page asks for one.
+    browser.open("about:blank");
+    browser.open(&link(&page, "not-a-token"));
+    let why = browser.wait("holodeck.log.find((l) => l.includes('refused'))");
+    assert!(why.as_str().unwrap().contains("wrong access token"), "{why}");
+    assert_eq!(browser.eval("document.getElementById('join').hidden"), json!(false));
+
+    // Bad WebSocket messages end that socket, and nothing else.
+    let ws = page.replacen("http://", "ws://", 1) + "ws";
+    let closed = browser.eval(&format!(
+        "new Promise((done) => {{ const s = new WebSocket('{ws}'); s.binaryType = 'arraybuffer'; \
+         s.onopen = () => s.send(new Uint8Array(2 << 20)); s.onclose = (e) => done(e.code); }})"
+    ));
+    eprintln!("an oversized message closed its socket with code {closed}");
+    let refused = browser.eval(&format!(
+        "new Promise((done) => {{ const s = new WebSocket('{ws}'); s.binaryType = 'arraybuffer'; let got = 0; \
+         s.onopen = () => s.send(new Uint8Array([255, 255, 255, 127, 0, 1, 2, 3])); \
+         s.onmessage = (e) => {{ got += e.data.byteLength; }}; s.onclose = () => done(got); }})"
+    ));
+    assert!(refused.as_u64().unwrap() > 0, "a malformed frame got no refusal");
+    let text = browser.eval(&format!(
+        "new Promise((done) => {{ const s = new WebSocket('{ws}'); s.onopen = () => s.send('hello'); s.onclose = () => done('closed'); }})"
+    ));
+    assert_eq!(text, json!("closed"));
+    assert!(server.try_wait().is_none(), "the server died");
+    browser.open("about:blank");
+    browser.open(&link(&page, "viewer-token"));
+    browser.wait(DELIVERED);
+    let again = browser.picture();
+    assert!(relative_rmse(&again, &reference).unwrap() < 0.05);
+}
+
+#[test]
+fn a_page_keeps_its_picture_while_the_server_restarts_and_then_reconnects() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "60K");
+    let (mut server, page) = web_server(&file, "127.0.0.1:0");
+    browser.open(&link(&page, "viewer-token"));
+    browser.wait(DELIVERED);
+    let first = browser.picture();
+    let pixels = browser.eval("holodeck.pixels()");
+
+    server.signal(libc::SIGTERM);
+    assert!(server.wait().success());
+    browser.wait("holodeck.status().startsWith('connection lost')");
+    // While the server is gone the page still shows its picture.
+    assert_eq!(browser.eval("holodeck.pixels()"), pixels);
+
+    let port = page.trim_end_matches('/').rsplit(':').next().unwrap().to_string();
+    let (_server, again) = web_server(&file, &format!("127.0.0.1:{port}"));
+    assert_eq!(again, page);
+    browser.wait(&format!("holodeck.connects() === 2 && {DELIVERED}"));
+    let second = browser.picture();
+    let error = relative_rmse(&second, &first).unwrap();
+    assert!(
+        error < 0.05,
+        "after reconnecting the picture differs: relative RMSE {error}"
+    );
+}
+
+/// The view of a `VIEW= …` line.
+fn view_of(line: &serde_json::Value) -> View {
+    View::parse(line.as_str().unwrap()).unwrap()
+}
+
+/// Pearson's correlation of two equally long series.
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        ab += (x - ma) * (y - mb);
+        aa += (x - ma) * (x - ma);
+        bb += (y - mb) * (y - mb);
+    }
+    ab / (aa * bb).sqrt().max(1e-300)
+}

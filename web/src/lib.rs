@@ -1,0 +1,18 @@
+//! The holodeck's web display: the display's sample store and CPU drivers
+//! (quadtree, splat) and its à-trous denoiser, compiled to WebAssembly for
+//! a page that speaks the display protocol over a WebSocket.
+//!
+//! * [`session`] — a display session driven by the page's events (bytes in,
+//!   bytes out, the time passed in), testable natively.
+//! * [`motion`] — a held button as motion steps, by the native window's rule.
+//! * `bindings` — what the page's JavaScript calls (wasm32 only).
+//!
+//! `holodeck serve --web` serves the page with this crate built for
+//! `wasm32-unknown-unknown` (the `holodeck` binary embeds it).
+
+#[cfg(target_arch = "wasm32")]
+mod bindings;
+pub mod motion;
+pub mod session;
+
+pub use session::{Session, SessionError, SessionOptions};

@@ -1,0 +1,877 @@
+//! A display session driven by events, as a web page runs one: the bytes
+//! the server sends go in ([`Session::receive`]), the bytes for the server
+//! come out ([`Session::take_output`]), and nothing here blocks, opens a
+//! socket or reads a clock (the page passes the time in, in seconds).
+//!
+//! It asks for beams as the native window does: nothing while the view
+//! moves (the driver reprojects what it holds), the view's beams when it
+//! settles (the stored rays arrive at once), and, while it stays, a density
+//! doubled each time most of what was asked for has come.
+
+use std::collections::HashMap;
+
+use holodeck_display::command::{command_name, Command};
+use holodeck_display::denoise::{Denoised, Denoiser};
+use holodeck_display::gather::Gather;
+use holodeck_display::output::parse_tone;
+use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
+use holodeck_display::tonemap::{DisplayRange, Histogram, ToneMap};
+use holodeck_display::{navigate, Driver, EstimatorOptions, Sample, SampleDecoder, Viewport};
+use holodeck_protocol::wire::{
+    encode_frame, Access, Control, ControlOutcome, Frame, FrameBuffer, Hello, Message, Progress, Role, PROTOCOL_VERSION,
+};
+use holodeck_protocol::{BeamKey, Picture, Section, View};
+
+use crate::motion::{Held, Motion};
+
+/// A still view that got nothing for this long (seconds) asks for more at once.
+const QUIET: f64 = 1.0;
+
+/// How a page's display draws and asks.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionOptions {
+    /// The CPU driver: "quadtree" or "splat".
+    pub driver: String,
+    /// Clean frames with the à-trous filter.
+    pub denoise: bool,
+    /// Samples per pixel asked for when a view settles.
+    pub density: f64,
+    /// Most samples per pixel a still view asks for (its density doubles
+    /// up to this while it stays; the first density: never more).
+    pub max_density: f64,
+}
+
+impl Default for SessionOptions {
+    fn default() -> Self {
+        SessionOptions {
+            driver: "quadtree".into(),
+            denoise: true,
+            density: 1.0,
+            max_density: 1024.0,
+        }
+    }
+}
+
+/// Why the session cannot go on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SessionError {
+    /// The server refused this display (a wrong token, say).
+    #[error("the server refused this display: {0}")]
+    Refused(String),
+    /// The server sent bytes that are not the protocol.
+    #[error("the server sent a bad frame: {0}")]
+    Frame(String),
+    /// The server sent something out of turn.
+    #[error("protocol error: {0}")]
+    Protocol(String),
+    /// The frame size or view cannot be drawn.
+    #[error("{0}")]
+    Driver(String),
+    /// The driver named is not one the page has.
+    #[error("the page has no driver {0:?} (it has quadtree and splat)")]
+    UnknownDriver(String),
+}
+
+/// Where the connection is.
+enum Link {
+    /// The Hello is sent; the Welcome is due.
+    Greeting,
+    /// Welcomed.
+    Open { decoder: SampleDecoder, access: Access },
+}
+
+/// Samples received lately, per second.
+struct Meter {
+    since: f64,
+    count: u64,
+    rate: f64,
+}
+
+impl Meter {
+    fn add(&mut self, n: u64, now: f64) {
+        self.count += n;
+        if now - self.since >= 1.0 {
+            self.rate = self.count as f64 / (now - self.since);
+            self.count = 0;
+            self.since = now;
+        }
+    }
+}
+
+/// One display's session with a server, as a page runs it.
+pub struct Session {
+    driver: Box<dyn Driver>,
+    frames: FrameBuffer,
+    out: Vec<u8>,
+    link: Link,
+    batch: Gather,
+    scratch: Vec<Sample>,
+    request: Option<BeamRequest>,
+    refinement: Refinement,
+    /// Rays received per beam (since the last request that asked to resend).
+    received: HashMap<BeamKey, u64>,
+    /// Immediate transfers asked for and not yet delivered.
+    transfers: u32,
+    requests: u64,
+    /// The driver dropped its estimates: the next request must have everything sent again.
+    resend: bool,
+    /// The view before the last settled change (`last` goes back to it).
+    previous: Option<View>,
+    settled: View,
+    /// The view came in the link or a command: the Welcome does not replace it.
+    view_given: bool,
+    last_arrival: f64,
+    progress: Option<Progress>,
+    notices: Vec<String>,
+    samples: u64,
+    meter: Meter,
+    tone: Option<ToneMap>,
+    held: Option<Held>,
+    /// Keep the eye's height while moving.
+    head_fixed: bool,
+    options: SessionOptions,
+    /// The connection was lost: the next Welcome drops the estimates.
+    reconnecting: bool,
+}
+
+impl Session {
+    /// A session drawing `width` x `height` frames as `options` say; it
+    /// starts at `view` if given, else at the holodeck's default view once
+    /// the server's Welcome names the sections.
+    pub fn new(view: Option<View>, width: u32, height: u32, options: SessionOptions) -> Result<Session, SessionError> {
+        let view_given = view.is_some();
+        let view = navigate::fit_aspect(&view.unwrap_or_default(), width, height);
+        let viewport = Viewport::new(view.clone(), width, height).map_err(|e| SessionError::Driver(e.to_string()))?;
+        let estimates = EstimatorOptions::default();
+        let inner: Box<dyn Driver> = match options.driver.as_str() {
+            "quadtree" => Box::new(holodeck_display::quadtree::QuadtreeDriver::with_options(
+                viewport, estimates,
+            )),
+            "splat" => Box::new(holodeck_display::splat::SplatDriver::with_options(viewport, estimates)),
+            other => return Err(SessionError::UnknownDriver(other.to_string())),
+        };
+        let driver: Box<dyn Driver> = if options.denoise {
+            Box::new(Denoised::new(inner, Denoiser::Atrous(Default::default())))
+        } else {
+            inner
+        };
+        Ok(Session {
+            driver,
+            frames: FrameBuffer::new(),
+            out: Vec::new(),
+            link: Link::Greeting,
+            batch: Gather::default(),
+            scratch: Vec::new(),
+            request: None,
+            refinement: Refinement::new(options.density, options.max_density),
+            received: HashMap::new(),
+            transfers: 0,
+            requests: 0,
+            resend: true,
+            previous: None,
+            settled: view,
+            view_given,
+            last_arrival: 0.0,
+            progress: None,
+            notices: Vec::new(),
+            samples: 0,
+            meter: Meter {
+                since: 0.0,
+                count: 0,
+                rate: 0.0,
+            },
+            tone: None,
+            held: None,
+            head_fixed: false,
+            reconnecting: false,
+            options,
+        })
+    }
+
+    fn send(&mut self, f: &Frame) {
+        // Only messages this session makes are encoded: they always fit.
+        if let Err(e) = encode_frame(f, &mut self.out) {
+            self.notices.push(format!("could not encode a message: {e}"));
+        }
+    }
+
+    /// Greets the server with `token` (the Hello goes out with the next
+    /// [`Session::take_output`]); `read_only` asks for viewer access
+    /// whatever the token allows.
+    pub fn hello(&mut self, token: &str, read_only: bool) {
+        self.send(&Frame::Message(Message::Hello(Hello {
+            version: PROTOCOL_VERSION,
+            role: Role::Display,
+            scene: String::new(),
+            token: token.to_string(),
+            read_only,
+        })));
+    }
+
+    /// The connection was lost: the next one starts with a new [`Session::hello`].
+    /// The picture stays until the new connection's Welcome, when the
+    /// estimates are dropped and every stored ray of the view is asked for
+    /// again (the server may have more, or have been restarted on another
+    /// file).
+    pub fn reconnect(&mut self) {
+        self.frames = FrameBuffer::new();
+        self.out.clear();
+        self.link = Link::Greeting;
+        self.transfers = 0;
+        self.held = None;
+        self.reconnecting = true;
+    }
+
+    /// The bytes for the server since the last call.
+    pub fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.out)
+    }
+
+    /// Takes bytes the server sent (any split: frames are put together
+    /// here) at time `now`.
+    pub fn receive(&mut self, bytes: &[u8], now: f64) -> Result<(), SessionError> {
+        self.frames.push(bytes);
+        loop {
+            let frame = self
+                .frames
+                .next_frame()
+                .map_err(|e| SessionError::Frame(e.to_string()))?;
+            let Some(frame) = frame else { break };
+            self.take(frame, now)?;
+        }
+        Ok(())
+    }
+
+    fn take(&mut self, frame: Frame, now: f64) -> Result<(), SessionError> {
+        match frame {
+            Frame::Message(Message::Welcome { sections, access, .. }) => {
+                let sections = sections
+                    .into_iter()
+                    .map(Section::try_from)
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(|e| SessionError::Protocol(format!("a section of the Welcome: {e}")))?;
+                if std::mem::take(&mut self.reconnecting) {
+                    self.batch.flush(self.driver.as_mut());
+                    self.driver.clear();
+                    self.view_given = true;
+                }
+                if !self.view_given {
+                    if let Some(first) = sections.first() {
+                        let vp = self.driver.viewport();
+                        let view = navigate::fit_aspect(&navigate::default_view(first), vp.width, vp.height);
+                        self.set_view(view)?;
+                        self.settled = self.view().clone();
+                    }
+                }
+                self.link = Link::Open {
+                    decoder: SampleDecoder::new(sections),
+                    access,
+                };
+                self.view_given = true;
+                self.ask(true, now);
+            }
+            Frame::Message(Message::Refused { reason, .. }) => return Err(SessionError::Refused(reason)),
+            Frame::Beam { key, records } => {
+                let Link::Open { decoder, .. } = &self.link else {
+                    return Err(SessionError::Protocol("beam data before the Welcome".into()));
+                };
+                *self.received.entry(key).or_default() += records.len() as u64;
+                self.scratch.clear();
+                decoder.decode(key.section, key.beam, &records, &mut self.scratch);
+                self.batch.add(&self.scratch, self.driver.as_mut());
+                let n = records.len() as u64;
+                self.samples += n;
+                self.meter.add(n, now);
+                if n > 0 {
+                    self.last_arrival = now;
+                }
+            }
+            Frame::Message(Message::Delivered { .. }) => {
+                // The batches end where `pict`'s chunks do (the beam that
+                // reaches a chunk's size, or the transfer's end), so the
+                // page's estimates are the file's.
+                self.batch.flush(self.driver.as_mut());
+                self.transfers = self.transfers.saturating_sub(1);
+            }
+            Frame::Message(Message::Progress(p)) => self.progress = Some(p),
+            Frame::Message(Message::ControlReply(r)) => {
+                let name = command_name(&r.control);
+                self.notices.push(match r.outcome {
+                    ControlOutcome::Done => format!("{name} done"),
+                    other => format!("{name} {other}"),
+                });
+            }
+            Frame::Message(Message::Error { message }) => self.notices.push(format!("server: {message}")),
+            other => return Err(SessionError::Protocol(format!("unexpected {other:?}"))),
+        }
+        Ok(())
+    }
+
+    fn set_view(&mut self, view: View) -> Result<(), SessionError> {
+        self.batch.flush(self.driver.as_mut());
+        let vp = self.driver.viewport();
+        let viewport = Viewport::new(view, vp.width, vp.height).map_err(|e| SessionError::Driver(e.to_string()))?;
+        let drops = self.driver.stats().cache_drops;
+        self.driver.set_view(viewport);
+        self.resend |= self.driver.stats().cache_drops > drops;
+        Ok(())
+    }
+
+    /// Asks for the view's beams (all their stored rays with `resend`).
+    fn ask(&mut self, resend: bool, now: f64) {
+        let Link::Open { decoder, .. } = &self.link else { return };
+        let sections = decoder.sections();
+        self.refinement = Refinement::new(self.options.density, self.options.max_density);
+        self.requests += 1;
+        let options = RequestOptions {
+            density: self.options.density,
+            ..RequestOptions::default()
+        };
+        let viewport = self.driver.viewport().clone();
+        if resend {
+            self.received.clear();
+        }
+        let request = if resend {
+            // The same selection as `holodeck pict` makes for the view.
+            BeamRequest::for_viewport(sections, &viewport, &options, 0)
+        } else {
+            let want = self.driver.needs(options.density as f32);
+            let received = &self.received;
+            BeamRequest::refining(sections, &viewport, &options, self.requests, &want, &|k| {
+                received.get(&k).copied().unwrap_or(0)
+            })
+        };
+        self.refinement
+            .asked(outstanding(&request, &|k| self.received.get(&k).copied().unwrap_or(0)));
+        self.send(&Frame::Message(Message::BeamRequest {
+            beams: request.beams.clone(),
+            eye: request.eye,
+            replace: true,
+            resend,
+        }));
+        self.transfers += 1;
+        self.resend = false;
+        self.request = Some(request);
+        self.last_arrival = now;
+    }
+
+    /// Called about once a frame: while the view stays, raises its density
+    /// once most of what it asked for has come (or nothing came lately),
+    /// and takes motion steps while a button is held.
+    pub fn tick(&mut self, now: f64) -> Result<(), SessionError> {
+        self.step(now)?;
+        if self.held.is_some() || self.transfers > 0 {
+            return Ok(());
+        }
+        let Link::Open { decoder, .. } = &self.link else {
+            return Ok(());
+        };
+        let Some(request) = &self.request else { return Ok(()) };
+        let received = &self.received;
+        let missing = outstanding(request, &|k| received.get(&k).copied().unwrap_or(0));
+        if let Some(density) = self.refinement.raise(missing, now - self.last_arrival >= QUIET) {
+            self.last_arrival = now;
+            let options = RequestOptions {
+                density,
+                ..RequestOptions::default()
+            };
+            let want = self.driver.needs(density as f32);
+            let request = BeamRequest::refining(
+                decoder.sections(),
+                self.driver.viewport(),
+                &options,
+                self.requests,
+                &want,
+                &|k| received.get(&k).copied().unwrap_or(0),
+            );
+            self.refinement
+                .asked(outstanding(&request, &|k| received.get(&k).copied().unwrap_or(0)));
+            self.send(&Frame::Message(Message::BeamRequest {
+                beams: request.beams.clone(),
+                eye: request.eye,
+                replace: false,
+                resend: false,
+            }));
+            self.request = Some(request);
+        }
+        Ok(())
+    }
+
+    /// The view stopped moving (or jumped): its beams are asked for.
+    pub fn settle(&mut self, now: f64) {
+        let view = self.view().clone();
+        if view != self.settled {
+            self.previous = Some(std::mem::replace(&mut self.settled, view));
+        }
+        self.ask(self.resend, now);
+    }
+
+    /// Moves to `view` and settles there.
+    pub fn jump(&mut self, view: View, now: f64) -> Result<(), SessionError> {
+        let vp = self.driver.viewport();
+        let view = navigate::fit_aspect(&view, vp.width, vp.height);
+        self.set_view(view)?;
+        self.view_given = true;
+        self.settle(now);
+        Ok(())
+    }
+
+    /// Changes the frame size, keeping the horizontal field, and settles.
+    pub fn resize(&mut self, width: u32, height: u32, now: f64) -> Result<(), SessionError> {
+        let view = navigate::fit_aspect(self.view(), width, height);
+        let viewport = Viewport::new(view, width, height).map_err(|e| SessionError::Driver(e.to_string()))?;
+        self.batch.flush(self.driver.as_mut());
+        self.driver.set_view(viewport);
+        self.resend = true;
+        self.tone = None;
+        self.settle(now);
+        Ok(())
+    }
+
+    /// The current view.
+    pub fn view(&self) -> &View {
+        &self.driver.viewport().view
+    }
+
+    /// The current viewport.
+    pub fn viewport(&self) -> &Viewport {
+        self.driver.viewport()
+    }
+
+    /// A mouse button (0 left, 1 middle, 2 right, as the web numbers them)
+    /// or a touch went down at pixel (`x`, `y`); `shift` orbits instead.
+    pub fn press(&mut self, button: u32, shift: bool, x: f64, y: f64) {
+        let motion = match (button, shift) {
+            (0, false) => Motion::Forward,
+            (2, false) => Motion::Backward,
+            (1, false) => Motion::Turn,
+            (0, true) => Motion::OrbitAcross(-1.0),
+            (2, true) => Motion::OrbitAcross(1.0),
+            (1, true) => Motion::OrbitOver,
+            _ => return,
+        };
+        self.held = Some(Held::new(motion, button, (x, y)));
+    }
+
+    /// The pointer moved to pixel (`x`, `y`).
+    pub fn pointer(&mut self, x: f64, y: f64) {
+        if let Some(h) = &mut self.held {
+            h.cursor = (x, y);
+        }
+    }
+
+    /// The button was released: the motion ends and the view settles.
+    /// Returns the steps taken.
+    pub fn release(&mut self, button: u32, now: f64) -> u32 {
+        match self.held.take() {
+            Some(h) if h.button == button => {
+                self.settle(now);
+                h.steps
+            }
+            other => {
+                self.held = other;
+                0
+            }
+        }
+    }
+
+    fn step(&mut self, now: f64) -> Result<(), SessionError> {
+        let vp = self.driver.viewport();
+        let (w, h) = (vp.width, vp.height);
+        let head = self.head_fixed;
+        let view = vp.view.clone();
+        let driver = &self.driver;
+        let Some(held) = &mut self.held else { return Ok(()) };
+        let Some(next) = held.next(&view, now, w, h, head, &|c, r| driver.point_at(c, r)) else {
+            return Ok(());
+        };
+        self.set_view(next)
+    }
+
+    /// Carries out `c`; returns what the user should read (the view line
+    /// for `where`, why a command could not be carried out), if anything.
+    pub fn command(&mut self, c: Command, now: f64) -> Result<Option<String>, SessionError> {
+        let control = |s: &mut Session, c: Control| {
+            s.send(&Frame::Message(Message::Control(c)));
+            Ok(None)
+        };
+        match c {
+            Command::View(spec) => match self.view().clone().with(&spec) {
+                Ok(v) => {
+                    self.jump(v, now)?;
+                    Ok(None)
+                }
+                Err(e) => Ok(Some(format!("view: {e}"))),
+            },
+            Command::Last => match self.previous.clone() {
+                Some(v) => {
+                    self.jump(v, now)?;
+                    Ok(None)
+                }
+                None => Ok(Some("last: no earlier view".into())),
+            },
+            Command::Where => Ok(Some(format!("VIEW= {}", self.view().to_spec()))),
+            Command::Frame(rect) => {
+                let vp = self.driver.viewport();
+                let aspect = f64::from(vp.width) / f64::from(vp.height);
+                let framed = match rect {
+                    Some(r) => navigate::frame(
+                        &vp.view,
+                        navigate::ImagePoint { x: r[0], y: r[1] },
+                        navigate::ImagePoint { x: r[2], y: r[3] },
+                        aspect,
+                    ),
+                    None => navigate::turn_toward(&vp.view, navigate::ImagePoint { x: 0.5, y: 0.5 }),
+                };
+                match framed {
+                    Some(v) => {
+                        self.jump(v, now)?;
+                        Ok(None)
+                    }
+                    None => Ok(Some("frame: no valid view frames that".into())),
+                }
+            }
+            Command::Pause => control(self, Control::Pause),
+            Command::Resume => control(self, Control::Resume),
+            Command::Kill => control(self, Control::KillSamplers),
+            Command::Restart => control(self, Control::Restart),
+            Command::Clobber => control(self, Control::Clobber),
+            Command::Redraw | Command::Sync => Ok(None),
+            Command::Refresh => {
+                self.batch.flush(self.driver.as_mut());
+                self.driver.clear();
+                self.ask(true, now);
+                Ok(None)
+            }
+            Command::HeadFixed(on) => {
+                self.head_fixed = on;
+                Ok(None)
+            }
+            Command::Tone => {
+                self.tone = None;
+                Ok(None)
+            }
+            Command::Quit => Ok(Some("quit: close the page to leave".into())),
+            Command::Save(_) => Ok(Some("save: use the page's save button".into())),
+            Command::Bench(_) => Ok(Some("bench: not in the page".into())),
+        }
+    }
+
+    /// The frame in linear radiance, top row first. While an immediate
+    /// transfer is under way the frame shows its whole batches only (the
+    /// batches are part of what makes the picture); afterwards, every
+    /// sample received.
+    pub fn picture(&mut self) -> Picture {
+        if self.transfers == 0 {
+            self.batch.flush(self.driver.as_mut());
+        }
+        self.driver.render()
+    }
+
+    /// The frame tone mapped to RGBA bytes (top row first), as a canvas
+    /// takes them; the tone map is made from the first frame with light
+    /// (and again after [`Command::Tone`] or a resize).
+    pub fn frame_rgba(&mut self) -> Vec<u8> {
+        let picture = self.picture();
+        if self.tone.is_none() && picture.pixels.iter().any(|p| p.max_element() > 0.0) {
+            if let Ok(mode) = parse_tone("camera", Some(&picture)) {
+                self.tone = Some(ToneMap::new(
+                    &Histogram::from_picture(&picture),
+                    mode,
+                    DisplayRange::default(),
+                ));
+            }
+        }
+        let mut rgba = Vec::with_capacity(picture.pixels.len() * 4);
+        match &self.tone {
+            Some(map) => {
+                for px in map.apply(&picture).chunks_exact(3) {
+                    rgba.extend_from_slice(&[px[0], px[1], px[2], 255]);
+                }
+            }
+            None => {
+                for _ in 0..picture.pixels.len() {
+                    rgba.extend_from_slice(&[0, 0, 0, 255]);
+                }
+            }
+        }
+        rgba
+    }
+
+    /// What the server and this display said since the last call.
+    pub fn take_notices(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notices)
+    }
+
+    /// Whether the Welcome came.
+    pub fn is_open(&self) -> bool {
+        matches!(self.link, Link::Open { .. })
+    }
+
+    /// The access the server granted, once welcomed.
+    pub fn access(&self) -> Option<Access> {
+        match &self.link {
+            Link::Open { access, .. } => Some(*access),
+            Link::Greeting => None,
+        }
+    }
+
+    /// Immediate transfers asked for and not yet complete (0: every stored
+    /// ray of the view has arrived).
+    pub fn transfers(&self) -> u32 {
+        self.transfers
+    }
+
+    /// Samples received in all.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// The status line the native window shows (`frame_ms`: the last
+    /// frame's time, which the page measures).
+    pub fn status_line(&self, frame_ms: f64) -> String {
+        let mut line = holodeck_display::status::Status {
+            rate: self.meter.rate,
+            received: self.samples,
+            shown: self.driver.stats().kept,
+            frame_ms,
+            server: self.progress,
+            head_fixed: self.head_fixed,
+        }
+        .line();
+        if let Some(a) = self.access() {
+            line += &format!("  {a}");
+        }
+        line
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use holodeck_display::quadtree::QuadtreeDriver;
+    use holodeck_protocol::{DepthCode, RayRecord, Rgbe, SectionKind};
+
+    fn section() -> Section {
+        Section::new(
+            [0.0; 3],
+            [[4.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 4.0]],
+            [4, 4, 4],
+            SectionKind::Interior,
+        )
+        .unwrap()
+    }
+
+    fn view() -> View {
+        View::parse("-vtv -vp 2 2 2 -vd 1 0.2 0 -vu 0 0 1 -vh 60 -vv 45").unwrap()
+    }
+
+    fn frames(bytes: &[u8]) -> Vec<Frame> {
+        let mut b = FrameBuffer::new();
+        b.push(bytes);
+        std::iter::from_fn(|| b.next_frame().unwrap()).collect()
+    }
+
+    fn encode(f: &Frame) -> Vec<u8> {
+        let mut out = Vec::new();
+        encode_frame(f, &mut out).unwrap();
+        out
+    }
+
+    fn welcome(access: Access) -> Vec<u8> {
+        encode(&Frame::Message(Message::Welcome {
+            sections: vec![section().spec()],
+            obstructions: false,
+            vdistance: false,
+            access,
+        }))
+    }
+
+    /// Rays of `key`: every entry and exit cell pattern the seed gives,
+    /// each hitting a surface half a diagonal along.
+    fn records(key: BeamKey, n: usize) -> Vec<RayRecord> {
+        let diagonal = section().diagonal();
+        (0..n)
+            .map(|i| {
+                let b = (i as u32)
+                    .wrapping_mul(2_654_435_761)
+                    .wrapping_add(key.beam)
+                    .to_le_bytes();
+                let light = 0.1 + (i % 7) as f32 * 0.1;
+                RayRecord::new(
+                    [b[0], b[1]],
+                    [b[2], b[3]],
+                    Rgbe::from_rgb([light, light * 0.8, 0.5]),
+                    DepthCode::encode(diagonal * (0.3 + (i % 5) as f64 * 0.1), diagonal),
+                )
+            })
+            .collect()
+    }
+
+    fn session() -> Session {
+        Session::new(
+            Some(view()),
+            64,
+            48,
+            SessionOptions {
+                denoise: false,
+                max_density: 1.0,
+                ..SessionOptions::default()
+            },
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_session_asks_for_its_view_and_draws_what_a_driver_given_the_same_rays_draws() {
+        let mut s = session();
+        s.hello("secret", true);
+        let hello = frames(&s.take_output());
+        assert!(matches!(&hello[..], [Frame::Message(Message::Hello(h))] if h.token == "secret" && h.read_only));
+        // The Welcome split anywhere is put together.
+        let w = welcome(Access::Viewer);
+        s.receive(&w[..3], 0.0).unwrap();
+        assert!(!s.is_open());
+        s.receive(&w[3..], 0.0).unwrap();
+        assert_eq!(s.access(), Some(Access::Viewer));
+        let asked = frames(&s.take_output());
+        let sections = vec![section()];
+        let expected = BeamRequest::for_viewport(&sections, s.viewport(), &RequestOptions::default(), 0);
+        let Frame::Message(Message::BeamRequest {
+            beams, replace, resend, ..
+        }) = &asked[0]
+        else {
+            panic!("{asked:?}")
+        };
+        assert_eq!((beams, *replace, *resend), (&expected.beams, true, true));
+        assert_eq!(s.transfers(), 1);
+
+        // The server's answer, in pieces of any size: every beam, then Delivered.
+        let mut stream = Vec::new();
+        let mut reference = QuadtreeDriver::with_options(s.viewport().clone(), EstimatorOptions::default());
+        let decoder = SampleDecoder::new(sections.clone());
+        let mut all = Vec::new();
+        for &(key, _) in beams {
+            let r = records(key, 40);
+            decoder.decode(key.section, key.beam, &r, &mut all);
+            stream.extend(encode(&Frame::Beam { key, records: r }));
+        }
+        stream.extend(encode(&Frame::Message(Message::Delivered {
+            beams: beams.len() as u32,
+            rays: all.len() as u64,
+        })));
+        for piece in stream.chunks(1000) {
+            s.receive(piece, 0.5).unwrap();
+        }
+        assert_eq!(s.transfers(), 0);
+        assert_eq!(s.samples(), all.len() as u64);
+        reference.add(&all);
+        let (got, want) = (s.picture(), reference.render());
+        assert!(want.pixels.iter().filter(|p| p.max_element() > 0.0).count() > 100);
+        assert_eq!(got, want, "the page's picture is the driver's, bit for bit");
+        // Tone mapped for a canvas: RGBA, opaque, not black.
+        let rgba = s.frame_rgba();
+        assert_eq!(rgba.len(), 64 * 48 * 4);
+        assert!(rgba.chunks_exact(4).all(|p| p[3] == 255) && rgba.iter().any(|&v| v > 0 && v < 255));
+    }
+
+    #[test]
+    fn a_refusal_ends_the_session_with_the_servers_reason() {
+        let mut s = session();
+        let refused = encode(&Frame::Message(Message::Refused {
+            reason: "wrong access token".into(),
+            retry: false,
+        }));
+        assert_eq!(
+            s.receive(&refused, 0.0),
+            Err(SessionError::Refused("wrong access token".into()))
+        );
+        let bad = [255, 255, 255, 127, 0];
+        assert!(matches!(session().receive(&bad, 0.0), Err(SessionError::Frame(_))));
+    }
+
+    #[test]
+    fn a_reconnected_session_keeps_its_picture_until_welcomed_then_asks_for_everything() {
+        let mut s = session();
+        s.receive(&welcome(Access::Writer), 0.0).unwrap();
+        let Frame::Message(Message::BeamRequest { beams, .. }) = frames(&s.take_output()).remove(0) else {
+            panic!()
+        };
+        let key = beams[0].0;
+        let mut data = encode(&Frame::Beam {
+            key,
+            records: records(key, 200),
+        });
+        data.extend(encode(&Frame::Message(Message::Delivered { beams: 1, rays: 200 })));
+        s.receive(&data, 0.1).unwrap();
+        let before = s.picture();
+        s.reconnect();
+        assert_eq!(s.picture(), before, "the picture stays while the server is away");
+        assert!(!s.is_open());
+        s.hello("t", false);
+        s.receive(&welcome(Access::Writer), 5.0).unwrap();
+        let out = frames(&s.take_output());
+        assert!(matches!(
+            &out[1],
+            Frame::Message(Message::BeamRequest {
+                resend: true,
+                replace: true,
+                ..
+            })
+        ));
+        assert!(
+            s.picture().pixels.iter().all(|p| *p == glam::Vec3::ZERO),
+            "the old rays are dropped"
+        );
+        assert_eq!(s.view(), &navigate::fit_aspect(&view(), 64, 48), "the view is kept");
+    }
+
+    #[test]
+    fn commands_answer_as_the_window_does_and_controls_go_to_the_server() {
+        let mut s = session();
+        s.receive(&welcome(Access::Viewer), 0.0).unwrap();
+        s.take_output();
+        let line = s.command(Command::Where, 0.0).unwrap().unwrap();
+        assert_eq!(View::parse(&line).unwrap(), *s.view());
+        assert_eq!(s.command(Command::Last, 0.0).unwrap().unwrap(), "last: no earlier view");
+        s.command(Command::View("-vp 1 1 1".into()), 0.0).unwrap();
+        assert_eq!(s.view().position, glam::DVec3::ONE);
+        s.command(Command::Last, 0.0).unwrap();
+        assert_eq!(s.view().position, glam::DVec3::splat(2.0));
+        s.take_output();
+        s.command(Command::Kill, 0.0).unwrap();
+        let out = frames(&s.take_output());
+        assert_eq!(out, vec![Frame::Message(Message::Control(Control::KillSamplers))]);
+        let reply = encode(&Frame::Message(Message::ControlReply(
+            holodeck_protocol::wire::ControlReply {
+                control: Control::KillSamplers,
+                outcome: ControlOutcome::Refused {
+                    reason: "it needs admin access".into(),
+                },
+            },
+        )));
+        s.receive(&reply, 0.0).unwrap();
+        assert_eq!(
+            s.take_notices(),
+            vec!["kill was refused: it needs admin access".to_string()]
+        );
+    }
+
+    #[test]
+    fn a_held_button_steps_toward_the_point_at_most_thirty_times_a_second() {
+        let mut s = session();
+        s.receive(&welcome(Access::Viewer), 0.0).unwrap();
+        let eye = s.view().position;
+        let target = glam::DVec3::new(3.0, 2.0, 2.0);
+        let mut held = Held::new(Motion::Forward, 0, (32.0, 24.0));
+        let v = held.next(s.view(), 1.0, 64, 48, false, &|_, _| Some(target)).unwrap();
+        assert!((v.position - (target + (eye - target) * 0.9)).length() < 1e-12);
+        assert_eq!(v.direction, s.view().direction);
+        assert!(held.next(&v, 1.01, 64, 48, false, &|_, _| Some(target)).is_none());
+        assert!(held.next(&v, 1.04, 64, 48, false, &|_, _| Some(target)).is_some());
+        assert_eq!(held.steps, 2);
+        // Nothing under the cursor: no step.
+        let mut blind = Held::new(Motion::Backward, 2, (1.0, 1.0));
+        assert!(blind.next(s.view(), 1.0, 64, 48, false, &|_, _| None).is_none());
+    }
+}
