@@ -12,6 +12,7 @@
 //! * `recall` — pictures from a file: the beams a view sees, read, decoded and handed to a driver.
 //! * `replay` — a file replayed into the walkthrough window (feature `window`).
 //! * `scene_input` — what the commands that trace accept as a scene.
+//! * `site` — a file as a static web site's data, for the web display's replay.
 //! * `truth` — converged reference pictures in two halves that state their own noise, and direct renders.
 
 pub mod demo;
@@ -21,6 +22,7 @@ pub mod recall;
 #[cfg(feature = "window")]
 pub mod replay;
 pub mod scene_input;
+pub mod site;
 pub mod truth;
 
 pub use fill::{fill, FillOptions, FillReport, ViewFill};

@@ -75,7 +75,11 @@ fn free_port() -> u16 {
 #[test]
 fn the_readme_quick_starts_work() {
     let blocks = quick_starts();
-    assert_eq!(blocks.len(), 3, "three quick starts: a session, a batch fill, a replay");
+    assert_eq!(
+        blocks.len(),
+        4,
+        "four quick starts: a session, a batch fill, a replay, a walkthrough in the browser"
+    );
 
     // A walkthrough session, headless here: the server, two samplers and a
     // display, and a second display joining on the session's port.
@@ -130,4 +134,50 @@ fn the_readme_quick_starts_work() {
     for picture in ["room.png", "frames/walk_0001.png", "frames/walk_0002.png"] {
         assert!(batch.path().join(picture).is_file(), "{picture} was drawn");
     }
+
+    // A walkthrough in the browser: the session serves the page (fetched
+    // here over HTTP as a browser would; the browser tests drive a real
+    // one), then the file becomes a static site.
+    let web = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let lines = shortened(
+        &blocks[3],
+        &[
+            ("--time 1h", "--time 6s --bounces 1".to_string()),
+            ("--web 127.0.0.1:8080", format!("--web 127.0.0.1:{port}")),
+        ],
+    );
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    let run = Proc::start(&mut shell(web.path(), &lines[0]));
+    let link = run.wait_line("the page's link", &mut 0, |l| {
+        Some(l.split_once("a viewer's link: ")?.1.trim_end_matches(')').to_string())
+    });
+    assert!(link.starts_with(&format!("http://127.0.0.1:{port}/#token=")), "{link}");
+    let page = http_get(port, "/");
+    assert!(
+        page.starts_with("HTTP/1.1 200") && page.contains("<title>Holodeck</title>"),
+        "{page}"
+    );
+    let o = run.finish();
+    assert!(o.status.success(), "{}", text(&o));
+    ok(web.path(), &lines[1]);
+    for f in [
+        "site/index.html",
+        "site/holodeck_web_bg.wasm",
+        "site/holodeck.idx",
+        "site/beams-0000.bin",
+    ] {
+        assert!(web.path().join(f).is_file(), "the export wrote no {f}");
+    }
+}
+
+/// A plain HTTP/1.1 GET of `path` on this machine's `port`: the whole answer.
+fn http_get(port: u16, path: &str) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.set_read_timeout(Some(common::process::DEADLINE)).unwrap();
+    write!(s, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    answer
 }

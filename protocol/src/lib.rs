@@ -15,6 +15,7 @@
 //! * `rgbe` — Ward's shared-exponent colour.
 //! * `section` — section geometry, its walls, grids and text form.
 //! * `select` — which beams a view sees, and how much.
+//! * `site` — the index of a holodeck exported as a static web site.
 //! * `view` — Radiance views, parsed and written.
 //! * `wire` — messages, framing, links and the blocking client.
 
@@ -25,6 +26,7 @@ pub mod record;
 pub mod rgbe;
 pub mod section;
 pub mod select;
+pub mod site;
 pub mod view;
 pub mod wire;
 

@@ -49,6 +49,9 @@ let frameMs = 0;
 let lastDraw = 0;
 let frames = 0;
 let connects = 0;
+let bytesIn = 0;
+// Where the page's time goes (milliseconds): taking the server's bytes, drawing.
+const timing = { receive: 0, draw: 0, messages: 0 };
 
 function flush() {
   const out = display.take_output();
@@ -70,8 +73,12 @@ function connect() {
     flush();
   };
   socket.onmessage = (event) => {
+    bytesIn += event.data.byteLength;
+    const t = performance.now();
     try {
       display.receive(new Uint8Array(event.data), now());
+      timing.receive += performance.now() - t;
+      timing.messages += 1;
       backoff = 0.5;
     } catch (e) {
       refused = true;
@@ -95,11 +102,70 @@ function connect() {
   };
 }
 
+// A static site (`holodeck export web`): the file's index beside the page,
+// and its beams fetched by byte range, applied in the order asked.
+let replay = false;
+let fetched = Promise.resolve();
+let ranged = 0;
+const wholeChunks = new Map();
+async function openSite() {
+  let response;
+  try {
+    response = await fetch("holodeck.idx");
+  } catch {
+    return false;
+  }
+  if (!response.ok) return false;
+  display.open_site(new Uint8Array(await response.arrayBuffer()), now());
+  replay = true;
+  return true;
+}
+async function getRange(chunk, start, end) {
+  const name = `beams-${String(chunk).padStart(4, "0")}.bin`;
+  if (wholeChunks.has(name)) return (await wholeChunks.get(name)).subarray(start, end);
+  const response = await fetch(name, { headers: { Range: `bytes=${start}-${end - 1}` } });
+  if (!response.ok) throw new Error(`${name}: HTTP ${response.status}`);
+  if (response.status === 206) {
+    ranged += 1;
+    const b = new Uint8Array(await response.arrayBuffer());
+    bytesIn += b.length;
+    return b;
+  }
+  // The host ignores byte ranges: keep the few whole chunks lately used.
+  const whole = response.arrayBuffer().then((b) => {
+    bytesIn += b.byteLength;
+    return new Uint8Array(b);
+  });
+  wholeChunks.set(name, whole);
+  if (wholeChunks.size > 8) wholeChunks.delete(wholeChunks.keys().next().value);
+  return (await whole).subarray(start, end);
+}
+function startFetches() {
+  const f = display.take_fetches();
+  for (let i = 0; i < f.length; i += 3) {
+    const [chunk, start, end] = [f[i], f[i + 1], f[i + 2]];
+    const bytes = getRange(chunk, start, end).catch((e) => {
+      say(`fetching beams: ${e.message}`);
+      return null;
+    });
+    fetched = fetched.then(async () => {
+      const b = await bytes;
+      try {
+        display.add_fetched(chunk, start, b ?? new Uint8Array(0), b === null, now());
+      } catch (e) {
+        say(e.message);
+      }
+      dirty = true;
+    });
+  }
+}
+
 function draw() {
   const start = performance.now();
   const rgba = display.frame();
   ctx.putImageData(new ImageData(new Uint8ClampedArray(rgba.buffer, rgba.byteOffset, rgba.length), width, height), 0, 0);
   frameMs = performance.now() - start;
+  timing.draw += frameMs;
   lastDraw = now();
   frames += 1;
   dirty = false;
@@ -112,8 +178,11 @@ function loop() {
     say(e.message);
   }
   flush();
-  // While moving, every frame; while still, new samples at most ten times a second.
-  if (held !== null || (dirty && now() - lastDraw >= 0.1)) draw();
+  if (replay) startFetches();
+  // While moving, every frame. While still, new samples at most ten times a
+  // second, and drawing at most a fifth of the time, so that taking the
+  // server's samples is never starved by showing them.
+  if (held !== null || (dirty && now() - lastDraw >= Math.max(0.1, (5 * frameMs) / 1000))) draw();
   const notices = display.notices();
   if (notices) say(notices);
   requestAnimationFrame(loop);
@@ -122,6 +191,8 @@ function loop() {
 setInterval(() => {
   if (display.is_open()) statusBox.textContent = display.status(frameMs);
 }, 250);
+// The status line at once when the display opens (tests and users read it).
+statusBox.textContent = "connecting…";
 
 // Pixel of the canvas under a pointer event.
 function pixel(event) {
@@ -249,8 +320,26 @@ window.holodeck = {
   status: () => statusBox.textContent,
   frames: () => frames,
   connects: () => connects,
+  replay: () => replay,
+  bytes: () => bytesIn,
+  timing: () => ({ ...timing }),
+  // Draws `n` frames back to back: the mean milliseconds of the display's
+  // frame (drawing and tone mapping in WebAssembly) and of the whole draw.
+  benchFrames: (n) => {
+    let wasm = 0;
+    const start = performance.now();
+    for (let i = 0; i < n; i += 1) {
+      const t = performance.now();
+      display.frame();
+      wasm += performance.now() - t;
+      draw();
+    }
+    return { frame_ms: wasm / n, draw_ms: (performance.now() - start - wasm) / n };
+  },
+  ranged: () => ranged,
   log,
 };
 
-connect();
+// Beside a site's index the page replays the file; otherwise it joins the server that served it.
+if (!(await openSite())) connect();
 requestAnimationFrame(loop);

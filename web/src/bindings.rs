@@ -54,6 +54,29 @@ impl WebDisplay {
         Ok(WebDisplay { session })
     }
 
+    /// Replays a static site's file (its `holodeck.idx`) instead of joining
+    /// a server.
+    pub fn open_site(&mut self, index: &[u8], now: f64) -> Result<(), JsError> {
+        self.session.open_site(index, now).map_err(js)
+    }
+
+    /// The byte ranges to fetch now, three numbers each: chunk, first byte,
+    /// past the last byte. Their bytes go to `add_fetched` in this order.
+    pub fn take_fetches(&mut self) -> Vec<f64> {
+        self.session
+            .take_fetches()
+            .into_iter()
+            .flat_map(|(c, a, b)| [f64::from(c), a as f64, b as f64])
+            .collect()
+    }
+
+    /// The bytes of the oldest range taken (`failed`: it could not be
+    /// fetched; its beams are asked for again at the next settle).
+    pub fn add_fetched(&mut self, chunk: u32, start: f64, bytes: &[u8], failed: bool, now: f64) -> Result<(), JsError> {
+        let bytes = (!failed).then_some(bytes);
+        self.session.add_fetched(chunk, start as u64, bytes, now).map_err(js)
+    }
+
     /// Greets the server (after every connect) with the access token.
     pub fn hello(&mut self, token: &str, read_only: bool) {
         self.session.hello(token, read_only);

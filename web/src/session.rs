@@ -8,7 +8,7 @@
 //! settles (the stored rays arrive at once), and, while it stays, a density
 //! doubled each time most of what was asked for has come.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet, VecDeque};
 
 use holodeck_display::command::{command_name, Command};
 use holodeck_display::denoise::{Denoised, Denoiser};
@@ -17,11 +17,13 @@ use holodeck_display::output::parse_tone;
 use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use holodeck_display::tonemap::{DisplayRange, Histogram, ToneMap};
 use holodeck_display::{navigate, Driver, EstimatorOptions, Sample, SampleDecoder, Viewport};
+use holodeck_protocol::site::SiteIndex;
 use holodeck_protocol::wire::{
     encode_frame, Access, Control, ControlOutcome, Frame, FrameBuffer, Hello, Message, Progress, Role, PROTOCOL_VERSION,
 };
-use holodeck_protocol::{BeamKey, Picture, Section, View};
+use holodeck_protocol::{BeamKey, Picture, RayRecord, Section, View};
 
+use crate::fetch::{plan, Fetch};
 use crate::motion::{Held, Motion};
 
 /// A still view that got nothing for this long (seconds) asks for more at once.
@@ -64,6 +66,9 @@ pub enum SessionError {
     /// The server sent something out of turn.
     #[error("protocol error: {0}")]
     Protocol(String),
+    /// A replayed site's index or bytes are wrong.
+    #[error("the site: {0}")]
+    Site(String),
     /// The frame size or view cannot be drawn.
     #[error("{0}")]
     Driver(String),
@@ -72,12 +77,18 @@ pub enum SessionError {
     UnknownDriver(String),
 }
 
-/// Where the connection is.
+/// Where the samples come from.
 enum Link {
     /// The Hello is sent; the Welcome is due.
     Greeting,
-    /// Welcomed.
+    /// Welcomed by a server.
     Open { decoder: SampleDecoder, access: Access },
+    /// A static site's file, replayed: its index, and the beams fetched.
+    Site {
+        decoder: SampleDecoder,
+        index: SiteIndex,
+        loaded: HashSet<BeamKey>,
+    },
 }
 
 /// Samples received lately, per second.
@@ -132,6 +143,10 @@ pub struct Session {
     options: SessionOptions,
     /// The connection was lost: the next Welcome drops the estimates.
     reconnecting: bool,
+    /// A replay's ranges to fetch, not yet taken by the page.
+    fetches: VecDeque<Fetch>,
+    /// Ranges taken by the page, awaiting their bytes, in order.
+    awaiting: VecDeque<Fetch>,
 }
 
 impl Session {
@@ -185,6 +200,8 @@ impl Session {
             head_fixed: false,
             reconnecting: false,
             options,
+            fetches: VecDeque::new(),
+            awaiting: VecDeque::new(),
         })
     }
 
@@ -255,14 +272,7 @@ impl Session {
                     self.driver.clear();
                     self.view_given = true;
                 }
-                if !self.view_given {
-                    if let Some(first) = sections.first() {
-                        let vp = self.driver.viewport();
-                        let view = navigate::fit_aspect(&navigate::default_view(first), vp.width, vp.height);
-                        self.set_view(view)?;
-                        self.settled = self.view().clone();
-                    }
-                }
+                self.start_view(&sections)?;
                 self.link = Link::Open {
                     decoder: SampleDecoder::new(sections),
                     access,
@@ -307,6 +317,92 @@ impl Session {
         Ok(())
     }
 
+    /// Starts at the holodeck's default view unless one was given.
+    fn start_view(&mut self, sections: &[Section]) -> Result<(), SessionError> {
+        if !self.view_given {
+            if let Some(first) = sections.first() {
+                let vp = self.driver.viewport();
+                let view = navigate::fit_aspect(&navigate::default_view(first), vp.width, vp.height);
+                self.set_view(view)?;
+                self.settled = self.view().clone();
+            }
+        }
+        Ok(())
+    }
+
+    /// Replays a static site's file instead of joining a server: `index`
+    /// is its `holodeck.idx`. The view's beams are then asked for as byte
+    /// ranges ([`Session::take_fetches`]) and come in through
+    /// [`Session::add_fetched`].
+    pub fn open_site(&mut self, index: &[u8], now: f64) -> Result<(), SessionError> {
+        let index = SiteIndex::decode(index).map_err(|e| SessionError::Site(e.to_string()))?;
+        let sections = index.header.sections.clone();
+        self.start_view(&sections)?;
+        self.view_given = true;
+        self.link = Link::Site {
+            decoder: SampleDecoder::new(sections),
+            index,
+            loaded: HashSet::new(),
+        };
+        self.ask(true, now);
+        Ok(())
+    }
+
+    /// The byte ranges the page should fetch now, in order: (chunk, first
+    /// byte, past the last byte). Their bytes must come back through
+    /// [`Session::add_fetched`] in this order.
+    pub fn take_fetches(&mut self) -> Vec<(u32, u64, u64)> {
+        let taken: Vec<(u32, u64, u64)> = self.fetches.iter().map(|f| (f.chunk, f.start, f.end)).collect();
+        self.awaiting.extend(self.fetches.drain(..));
+        taken
+    }
+
+    /// The bytes of the oldest range taken ([`Session::take_fetches`]);
+    /// `None`: it could not be fetched (its beams are asked for again when
+    /// the view next settles).
+    pub fn add_fetched(&mut self, chunk: u32, start: u64, bytes: Option<&[u8]>, now: f64) -> Result<(), SessionError> {
+        let Some(fetch) = self.awaiting.pop_front() else {
+            return Err(SessionError::Site("bytes came that no range asked for".into()));
+        };
+        if (fetch.chunk, fetch.start) != (chunk, start) {
+            return Err(SessionError::Site(format!(
+                "bytes of chunk {chunk} at {start} came where chunk {} at {} was due",
+                fetch.chunk, fetch.start
+            )));
+        }
+        if let Some(bytes) = bytes {
+            if bytes.len() as u64 != fetch.end - fetch.start {
+                return Err(SessionError::Site(format!(
+                    "{} bytes of chunk {chunk} at {start} came for a range of {}",
+                    bytes.len(),
+                    fetch.end - fetch.start
+                )));
+            }
+            let Link::Site { decoder, loaded, .. } = &mut self.link else {
+                return Err(SessionError::Site("this display replays no site".into()));
+            };
+            for b in &fetch.beams {
+                let from = (u64::from(b.offset) - fetch.start) as usize;
+                let to = (b.end() - fetch.start) as usize;
+                let Some(records) = RayRecord::slice_from_bytes(&bytes[from..to]) else {
+                    return Err(SessionError::Site(format!("beam {:?}: not whole records", b.key)));
+                };
+                loaded.insert(b.key);
+                self.scratch.clear();
+                decoder.decode(b.key.section, b.key.beam, records, &mut self.scratch);
+                self.batch.add(&self.scratch, self.driver.as_mut());
+                self.samples += records.len() as u64;
+                self.meter.add(records.len() as u64, now);
+            }
+            self.last_arrival = now;
+        }
+        if fetch.closes_transfer {
+            self.batch.flush(self.driver.as_mut());
+            self.transfers = self.transfers.saturating_sub(1);
+        }
+        Ok(())
+    }
+
     fn set_view(&mut self, view: View) -> Result<(), SessionError> {
         self.batch.flush(self.driver.as_mut());
         let vp = self.driver.viewport();
@@ -319,6 +415,33 @@ impl Session {
 
     /// Asks for the view's beams (all their stored rays with `resend`).
     fn ask(&mut self, resend: bool, now: f64) {
+        if let Link::Site { decoder, index, loaded } = &mut self.link {
+            // A replay: the view's beams not fetched yet, as byte ranges.
+            if resend {
+                loaded.clear();
+            }
+            let request = BeamRequest::for_viewport(
+                decoder.sections(),
+                self.driver.viewport(),
+                &RequestOptions::default(),
+                0,
+            );
+            let mut keys: Vec<BeamKey> = request
+                .beams
+                .iter()
+                .map(|b| b.0)
+                .filter(|k| !loaded.contains(k))
+                .collect();
+            keys.sort_unstable();
+            let fetches = plan(index, &keys);
+            if !fetches.is_empty() {
+                self.transfers += 1;
+                self.fetches.extend(fetches);
+            }
+            self.resend = false;
+            self.last_arrival = now;
+            return;
+        }
         let Link::Open { decoder, .. } = &self.link else { return };
         let sections = decoder.sections();
         self.refinement = Refinement::new(self.options.density, self.options.max_density);
@@ -492,6 +615,12 @@ impl Session {
     /// for `where`, why a command could not be carried out), if anything.
     pub fn command(&mut self, c: Command, now: f64) -> Result<Option<String>, SessionError> {
         let control = |s: &mut Session, c: Control| {
+            if let Link::Site { .. } = s.link {
+                return Ok(Some(format!(
+                    "{} needs a server: this is a replay of a file",
+                    command_name(&c)
+                )));
+            }
             s.send(&Frame::Message(Message::Control(c)));
             Ok(None)
         };
@@ -603,16 +732,16 @@ impl Session {
         std::mem::take(&mut self.notices)
     }
 
-    /// Whether the Welcome came.
+    /// Whether the Welcome came (or a site's index was read).
     pub fn is_open(&self) -> bool {
-        matches!(self.link, Link::Open { .. })
+        matches!(self.link, Link::Open { .. } | Link::Site { .. })
     }
 
     /// The access the server granted, once welcomed.
     pub fn access(&self) -> Option<Access> {
         match &self.link {
             Link::Open { access, .. } => Some(*access),
-            Link::Greeting => None,
+            Link::Greeting | Link::Site { .. } => None,
         }
     }
 
@@ -639,8 +768,10 @@ impl Session {
             head_fixed: self.head_fixed,
         }
         .line();
-        if let Some(a) = self.access() {
-            line += &format!("  {a}");
+        match &self.link {
+            Link::Open { access, .. } => line += &format!("  {access}"),
+            Link::Site { .. } => line += "  replay of a file",
+            Link::Greeting => {}
         }
         line
     }
@@ -773,6 +904,61 @@ mod tests {
         let rgba = s.frame_rgba();
         assert_eq!(rgba.len(), 64 * 48 * 4);
         assert!(rgba.chunks_exact(4).all(|p| p[3] == 255) && rgba.iter().any(|&v| v > 0 && v < 255));
+    }
+
+    #[test]
+    fn a_site_replay_fetches_the_views_beams_by_range_and_draws_them() {
+        use holodeck_protocol::site::{SiteBeam, SiteHeader};
+        let sections = vec![section()];
+        let mut s = session();
+        let wanted = BeamRequest::for_viewport(&sections, s.viewport(), &RequestOptions::default(), 0);
+        let mut keys: Vec<BeamKey> = wanted.beams.iter().map(|b| b.0).collect();
+        keys.sort_unstable();
+        // Every wanted beam but the first holds rays, in one chunk.
+        let (mut chunk, mut rows, mut all) = (Vec::new(), Vec::new(), Vec::new());
+        let decoder = SampleDecoder::new(sections.clone());
+        for &key in &keys[1..] {
+            let r = records(key, 30);
+            rows.push(SiteBeam {
+                key,
+                chunk: 0,
+                offset: chunk.len() as u32,
+                rays: 30,
+            });
+            chunk.extend_from_slice(RayRecord::slice_as_bytes(&r));
+            decoder.decode(key.section, key.beam, &r, &mut all);
+        }
+        let index = SiteIndex {
+            header: SiteHeader {
+                sections: sections.clone(),
+                chunks: vec![chunk.len() as u64],
+            },
+            beams: rows,
+        };
+        s.open_site(&index.encode().unwrap(), 0.0).unwrap();
+        assert!(s.is_open() && s.transfers() == 1);
+        let fetches = s.take_fetches();
+        assert_eq!(fetches, vec![(0, 0, chunk.len() as u64)], "near beams share one range");
+        assert!(s.take_fetches().is_empty());
+        // Bytes for a range not asked for are refused.
+        let mut t = session();
+        t.open_site(&index.encode().unwrap(), 0.0).unwrap();
+        t.take_fetches();
+        assert!(matches!(
+            t.add_fetched(0, 10, Some(&chunk[10..]), 0.0),
+            Err(SessionError::Site(_))
+        ));
+        s.add_fetched(0, 0, Some(&chunk), 0.5).unwrap();
+        assert_eq!((s.transfers(), s.samples()), (0, all.len() as u64));
+        let mut reference = QuadtreeDriver::with_options(s.viewport().clone(), EstimatorOptions::default());
+        reference.add(&all);
+        assert_eq!(s.picture(), reference.render());
+        // A replay has no server to command; a still view fetches nothing more.
+        let said = s.command(Command::Pause, 1.0).unwrap().unwrap();
+        assert_eq!(said, "pause needs a server: this is a replay of a file");
+        s.settle(2.0);
+        assert!(s.take_fetches().is_empty() && s.take_output().is_empty());
+        assert!(s.status_line(1.0).ends_with("replay of a file"));
     }
 
     #[test]

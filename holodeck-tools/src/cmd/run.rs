@@ -38,6 +38,7 @@ For workers on other hosts, start `holodeck serve` and `holodeck sample` yoursel
 
 Examples:
   holodeck run builtin:room room.hdk -n 2 --time 30s
+  holodeck run builtin:room room.hdk -n 2 --time 1h --web 127.0.0.1:8080    # share the link it prints
   holodeck run builtin:room room.hdk -n 2 --driver mesh                  # a window, until q
   holodeck run builtin:room room.hdk -n 2 --driver quadtree --listen 127.0.0.1:7777
   holodeck view --connect 127.0.0.1:7777 --token-file room.hdk.viewer.token   # a second window
@@ -82,6 +83,10 @@ pub struct Args {
     /// with `holodeck view --connect`; default: a free port on this machine only.
     #[arg(long, default_value = "127.0.0.1:0")]
     listen: String,
+    /// Also serve the web display here (HOST:PORT; see `holodeck serve --help`):
+    /// the link it prints lets anyone with a browser join the session.
+    #[arg(long, value_name = "ADDR")]
+    web: Option<String>,
     /// Frame width.
     #[arg(short = 'x', long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(SIDE))]
     width: u32,
@@ -267,6 +272,7 @@ fn start_server(a: &Args, file: &str) -> Result<(Child, String)> {
     let mut cmd = me()?;
     cmd.args(["serve", file, "--listen", &a.listen])
         .args(a.accept_loss.then_some("--accept-loss"))
+        .args(a.web.iter().flat_map(|w| ["--web", w.as_str()]))
         .args(
             a.diskspace
                 .iter()
@@ -276,11 +282,25 @@ fn start_server(a: &Args, file: &str) -> Result<(Child, String)> {
         .stderr(Stdio::inherit());
     let mut server = Child::spawn("server", cmd)?;
     let mut line = String::new();
-    BufReader::new(server.process.stdout.as_mut().context("server output")?).read_line(&mut line)?;
+    let mut out = BufReader::new(server.process.stdout.as_mut().context("server output")?);
+    out.read_line(&mut line)?;
     let Some(addr) = line.trim().strip_prefix("listening on ").map(str::to_string) else {
+        drop(out);
         let why = server.finish(Duration::from_secs(5)).unwrap_or_default();
         bail!("the server did not start: {why}");
     };
+    if a.web.is_some() {
+        // The server's next line gives the page's address and a viewer's link.
+        let mut web = String::new();
+        out.read_line(&mut web)?;
+        if !web.starts_with("web display on ") {
+            drop(out);
+            let why = server.finish(Duration::from_secs(5)).unwrap_or_default();
+            bail!("the server did not start its web display: {}{why}", web.trim());
+        }
+        println!("{}", web.trim());
+    }
+    drop(out);
     Ok((server, addr))
 }
 

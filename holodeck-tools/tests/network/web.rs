@@ -74,7 +74,7 @@ fn link(page: &str, token: &str) -> String {
 }
 
 /// Waits until the page is welcomed and has every stored ray of its view.
-const DELIVERED: &str = "holodeck.open() && holodeck.transfers() === 0 && holodeck.samples() > 0";
+const DELIVERED: &str = "window.holodeck && holodeck.open() && holodeck.transfers() === 0 && holodeck.samples() > 0";
 
 #[test]
 fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
@@ -245,4 +245,124 @@ fn correlation(a: &[f64], b: &[f64]) -> f64 {
         bb += (y - mb) * (y - mb);
     }
     ab / (aa * bb).sqrt().max(1e-300)
+}
+
+#[test]
+fn a_page_joins_a_live_run_and_its_picture_fills_in_as_samplers_trace() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("live.hdk");
+    let run = Proc::start(bin().current_dir(dir.path()).args([
+        "run",
+        "builtin:room",
+        file.to_str().unwrap(),
+        "-n",
+        "2",
+        "--time",
+        "300s",
+        "--bounces",
+        "1",
+        "--web",
+        "127.0.0.1:0",
+    ]));
+    let viewer = run.wait_line("the page's link", &mut 0, |l| {
+        Some(l.split_once("a viewer's link: ")?.1.trim_end_matches(')').to_string())
+    });
+    // The link as printed, with the page's own frame size and view.
+    browser.open(&format!("{viewer}&view={}&width=160&height=120", fragment(VIEW)));
+    let first = browser.wait("window.holodeck && holodeck.open() && holodeck.samples() > 0 && holodeck.samples()");
+    let first = first.as_f64().unwrap();
+    let status = browser.wait("holodeck.status().includes('samplers') && holodeck.status()");
+    eprintln!("the page's status line: {status}");
+    // While the view stays, the samplers trace for it and the picture fills in.
+    let later = browser.wait(&format!(
+        "holodeck.samples() > 4 * {first} + 5000 && holodeck.samples()"
+    ));
+    let shown = browser.picture();
+    let lit = shown.pixels.iter().filter(|p| p.max_element() > 0.0).count();
+    eprintln!(
+        "samples {first} then {later}; {lit} of {} pixels lit",
+        shown.pixels.len()
+    );
+    assert!(lit * 10 > shown.pixels.len() * 9, "only {lit} pixels have light");
+}
+
+#[test]
+fn a_static_export_replays_the_file_in_a_page_with_no_server() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "150K");
+    let site = dir.path().join("site");
+    let o = holodeck(&[
+        "export",
+        "web",
+        file.to_str().unwrap(),
+        "-o",
+        site.to_str().unwrap(),
+        "--chunk",
+        "256K",
+    ]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    for f in [
+        "index.html",
+        "app.js",
+        "holodeck_web.js",
+        "holodeck_web_bg.wasm",
+        "holodeck.idx",
+        "beams-0000.bin",
+    ] {
+        assert!(site.join(f).is_file(), "the site has no {f}");
+    }
+    // No process serves it: the browser reads the folder as a static host would.
+    browser.ask(json!({"op": "site", "dir": site.to_str().unwrap(), "origin": "http://site.test"}));
+    browser.open(&format!(
+        "http://site.test/#view={}&width=160&height=120&denoise=off",
+        fragment(VIEW)
+    ));
+    browser.wait(DELIVERED);
+    assert_eq!(browser.eval("holodeck.replay()"), json!(true));
+    assert!(
+        browser.eval("holodeck.ranged()").as_u64().unwrap() > 0,
+        "no byte range was asked for"
+    );
+    let shown = browser.picture();
+    let view = browser.eval("holodeck.where()");
+    let pict = dir.path().join("pict.hdr");
+    let o = holodeck(&[
+        "pict",
+        file.to_str().unwrap(),
+        "--view",
+        view.as_str().unwrap(),
+        "-x",
+        "160",
+        "-y",
+        "120",
+        "--stride",
+        "8",
+        "--denoise",
+        "off",
+        "-o",
+        pict.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    let reference = read_picture(&pict).unwrap();
+    let error = relative_rmse(&shown, &reference).unwrap();
+    eprintln!(
+        "the replayed page against pict: relative RMSE {error:.4}; served {}",
+        browser.ask(json!({"op": "served"}))
+    );
+    assert!(
+        error < 0.02,
+        "the replayed picture differs from pict's: relative RMSE {error}"
+    );
+    // A command that needs a server says so.
+    browser.ask(json!({"op": "type", "selector": "#line", "text": "pause", "enter": true}));
+    browser.wait("holodeck.log.find((l) => l.includes('pause needs a server'))");
+    // Moving fetches the new view's beams.
+    let before = browser.eval("holodeck.samples()").as_f64().unwrap();
+    browser.ask(json!({"op": "type", "selector": "#line", "text": "-vd 1 -0.3 -0.1", "enter": true}));
+    let after = browser.wait(&format!(
+        "holodeck.transfers() === 0 && holodeck.samples() > {before} && holodeck.samples()"
+    ));
+    eprintln!("turning fetched {} more samples", after.as_f64().unwrap() - before);
 }

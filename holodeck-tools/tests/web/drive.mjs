@@ -8,7 +8,11 @@
 // truthy; its value) · {"op":"mouse","action":"move"|"down"|"up","x":X,"y":Y,
 // "button":"left"|"middle"|"right"} (X, Y in canvas pixels) · {"op":"hold","ms":MS}
 // · {"op":"type","selector":S,"text":T,"enter":true} · {"op":"key","key":K}
-// · {"op":"screenshot","path":P} · {"op":"backend"} · {"op":"close"}.
+// · {"op":"screenshot","path":P} · {"op":"backend"} · {"op":"close"}
+// · {"op":"site","dir":D,"origin":O} (O's pages are D's files, as a static
+// host serves them, byte ranges included: no server process at all).
+import { readFile } from "node:fs/promises";
+import { join, normalize } from "node:path";
 import { createInterface } from "node:readline";
 import { chromium } from "playwright-core";
 
@@ -26,6 +30,36 @@ const page = await browser.newPage({ viewport: { width: 1280, height: 900 } });
 const console_lines = [];
 page.on("console", (m) => console_lines.push(m.text()));
 page.on("pageerror", (e) => console_lines.push(`page error: ${e.message}`));
+
+const TYPES = { ".html": "text/html", ".js": "text/javascript", ".wasm": "application/wasm" };
+const served = { requests: 0, ranged: 0 };
+async function serveSite(dir, origin) {
+  await page.route(`${origin}/**`, async (route) => {
+    const request = route.request();
+    let path = new URL(request.url()).pathname;
+    if (path === "/") path = "/index.html";
+    const file = normalize(join(dir, path));
+    served.requests += 1;
+    let body;
+    try {
+      body = await readFile(file);
+    } catch {
+      return route.fulfill({ status: 404, body: "no such file" });
+    }
+    const type = TYPES[path.slice(path.lastIndexOf("."))] ?? "application/octet-stream";
+    const range = /^bytes=(\d+)-(\d+)$/.exec(request.headers()["range"] ?? "");
+    if (range) {
+      served.ranged += 1;
+      const [a, b] = [Number(range[1]), Math.min(Number(range[2]), body.length - 1)];
+      return route.fulfill({
+        status: 206,
+        headers: { "content-type": type, "content-range": `bytes ${a}-${b}/${body.length}` },
+        body: body.subarray(a, b + 1),
+      });
+    }
+    return route.fulfill({ status: 200, headers: { "content-type": type }, body });
+  });
+}
 
 async function canvasPoint(x, y) {
   const box = await page.locator("#view").boundingBox();
@@ -73,6 +107,11 @@ async function handle(req) {
         const info = gl.getExtension("WEBGL_debug_renderer_info");
         return info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
       });
+    case "site":
+      await serveSite(req.dir, req.origin);
+      return served;
+    case "served":
+      return served;
     case "console":
       return console_lines;
     case "close":
