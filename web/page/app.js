@@ -43,7 +43,9 @@ try {
 let socket = null;
 let refused = false;
 let backoff = 0.5;
-let dirty = true;
+// Nothing is drawn before something arrives (the first frames would run
+// before the browser has optimized the display's code).
+let dirty = false;
 let held = null;
 let frameMs = 0;
 let lastDraw = 0;
@@ -51,11 +53,16 @@ let frames = 0;
 let connects = 0;
 let bytesIn = 0;
 // Where the page's time goes (milliseconds): taking the server's bytes, drawing.
-const timing = { receive: 0, draw: 0, messages: 0 };
+const timing = { receive: 0, draw: 0, messages: 0, ready: 0, opened: 0, first: 0, last: 0 };
 
+// What the page sent, first messages only (scripts replay a page's greeting).
+const sentLog = [];
 function flush() {
   const out = display.take_output();
-  if (out.length > 0 && socket && socket.readyState === WebSocket.OPEN) socket.send(out);
+  if (out.length > 0 && socket && socket.readyState === WebSocket.OPEN) {
+    if (sentLog.length < 4) sentLog.push(out.slice());
+    socket.send(out);
+  }
 }
 
 function connect() {
@@ -65,9 +72,11 @@ function connect() {
     return;
   }
   const scheme = location.protocol === "https:" ? "wss:" : "ws:";
+  timing.connect ||= performance.now();
   socket = new WebSocket(`${scheme}//${location.host}/ws`);
   socket.binaryType = "arraybuffer";
   socket.onopen = () => {
+    timing.opened ||= performance.now();
     connects += 1;
     display.hello(token, readOnly);
     flush();
@@ -75,6 +84,8 @@ function connect() {
   socket.onmessage = (event) => {
     bytesIn += event.data.byteLength;
     const t = performance.now();
+    timing.first ||= t;
+    timing.last = t;
     try {
       display.receive(new Uint8Array(event.data), now());
       timing.receive += performance.now() - t;
@@ -180,9 +191,11 @@ function loop() {
   flush();
   if (replay) startFetches();
   // While moving, every frame. While still, new samples at most ten times a
-  // second, and drawing at most a fifth of the time, so that taking the
-  // server's samples is never starved by showing them.
-  if (held !== null || (dirty && now() - lastDraw >= Math.max(0.1, (5 * frameMs) / 1000))) draw();
+  // second, drawing at most a fifth of the time; while a view's stored rays
+  // stream in, a twentieth (the browser reads the socket only as fast as
+  // the page takes its messages, so time spent drawing slows the stream).
+  const share = display.transfers() > 0 ? 20 : 5;
+  if (held !== null || (dirty && now() - lastDraw >= Math.max(0.1, (share * frameMs) / 1000))) draw();
   const notices = display.notices();
   if (notices) say(notices);
   requestAnimationFrame(loop);
@@ -220,7 +233,11 @@ function release() {
 canvas.addEventListener("contextmenu", (e) => e.preventDefault());
 canvas.addEventListener("pointerdown", (e) => {
   canvas.focus();
-  canvas.setPointerCapture(e.pointerId);
+  try {
+    canvas.setPointerCapture(e.pointerId);
+  } catch {
+    // A pointer the browser no longer tracks: the motion goes on without capture.
+  }
   e.preventDefault();
   if (e.pointerType === "touch") {
     touches.set(e.pointerId, pixel(e));
@@ -322,6 +339,7 @@ window.holodeck = {
   connects: () => connects,
   replay: () => replay,
   bytes: () => bytesIn,
+  sentLog: () => sentLog,
   timing: () => ({ ...timing }),
   // Draws `n` frames back to back: the mean milliseconds of the display's
   // frame (drawing and tone mapping in WebAssembly) and of the whole draw.
@@ -340,6 +358,7 @@ window.holodeck = {
   log,
 };
 
+timing.ready = performance.now();
 // Beside a site's index the page replays the file; otherwise it joins the server that served it.
 if (!(await openSite())) connect();
 requestAnimationFrame(loop);

@@ -33,12 +33,14 @@ normals (a build with --features oidn; without it that row says so), and writes 
   demo.hdk, walk.vf           the holodeck file and the walk (see `holodeck pict`, `holodeck view`)
 A driver that cannot run here (no Vulkan at all) is reported and left out.
 With --window it then opens the walkthrough window on the holodeck (`holodeck run`), which
-goes on filling while you walk.
+goes on filling while you walk; with --web ADDR it serves the web display there instead (or
+as well) and prints the link to open, until Ctrl-C.
 
 Examples:
   holodeck demo
   holodeck demo -o /tmp/demo --rays 8M --views 40 --reference-spp 1024
   holodeck demo --window
+  holodeck demo --web 127.0.0.1:8080        # then open the link it prints in a browser
   holodeck demo --markdown docs/results     # what docs/RESULTS.md quotes")]
 pub struct Args {
     /// Where to write.
@@ -72,6 +74,10 @@ pub struct Args {
     /// Then open the walkthrough window on the holodeck (needs a screen).
     #[arg(long)]
     window: bool,
+    /// Then serve the web display of the holodeck here (HOST:PORT) while it
+    /// goes on filling, until Ctrl-C; the link to open is printed.
+    #[arg(long, value_name = "ADDR")]
+    web: Option<String>,
     /// Also write the summary, its charts and two comparison sheets into DIR
     /// (DIR/demo.md headed by this command, the commit and the date), and refresh
     /// the blocks quoting it in the Markdown files of DIR's parent
@@ -135,7 +141,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
     if let Some(dir) = &a.markdown {
         publish(&a, dir, &summary)?;
     }
-    if a.window {
+    if a.window || a.web.is_some() {
         let hdk = a.output.join("demo.hdk");
         let status = Command::new(std::env::current_exe().context("finding the holodeck executable")?)
             .args(holodeck_cli::verbosity::child_args())
@@ -145,15 +151,19 @@ pub fn run(a: Args) -> Result<ExitCode> {
                 "--triangles",
                 &a.triangles.to_string(),
                 "--driver",
-                "quadtree",
+                if a.window { "quadtree" } else { "none" },
                 "--vdistance",
                 "--views",
             ])
             .arg(a.output.join("walk.vf"))
+            .args(a.web.iter().flat_map(|w| ["--web", w.as_str()]))
             .status()
-            .context("starting `holodeck run` for the window")?;
-        if !status.success() {
-            anyhow::bail!("`holodeck run` for the window ended with {status}");
+            .context("starting `holodeck run` for the walkthrough")?;
+        // Ctrl-C ends a web session: that is its way to end, not a failure.
+        // (`run` exits 130 or 143 after SIGINT or SIGTERM.)
+        let ended_well = status.success() || (a.web.is_some() && matches!(status.code(), Some(130) | Some(143)));
+        if !ended_well {
+            anyhow::bail!("`holodeck run` for the walkthrough ended with {status}");
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -53,7 +53,8 @@ pub struct Args {
     #[arg(short = 'n', long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=MAX_WORKERS))]
     workers: u32,
     /// How long to fill (e.g. 30s, 10m, 2h); bounds every mode. A run with a
-    /// window may leave it out: it lasts until the window is closed (q).
+    /// window may leave it out: it lasts until the window is closed (q); so
+    /// may one with --web: it lasts until Ctrl-C.
     #[arg(long)]
     time: Option<String>,
     /// Display: none (a batch fill), or a driver (quadtree, splat, voronoi,
@@ -147,7 +148,9 @@ pub fn run(a: Args) -> Result<ExitCode> {
     let workers = (0..a.workers)
         .map(|i| Child::spawn(format!("sampler {}", i + 1), sampler_command(&a, &addr, &file, i)?))
         .collect::<Result<Vec<_>>>()?;
-    let how_long = if plan.time == Duration::MAX {
+    let how_long = if plan.time == Duration::MAX && !plan.windowed {
+        "until Ctrl-C".to_string()
+    } else if plan.time == Duration::MAX {
         "until the window is closed".to_string()
     } else {
         format!("for {:?}", plan.time)
@@ -228,8 +231,13 @@ impl Plan {
             (Some(t), _) => parse_duration(t, 1.0).context("--time")?,
             // Until the window closes.
             (None, true) => Duration::MAX,
+            // A session for browsers: until SIGINT (Ctrl-C) or SIGTERM.
+            (None, false) if a.web.is_some() => Duration::MAX,
             (None, false) => {
-                bail!("give --time: without a window nothing else ends the run (with one, closing it does: q)")
+                bail!(
+                    "give --time: without a window nothing else ends the run (with one, closing it does: q; \
+                     with --web, Ctrl-C does)"
+                )
             }
         };
         holodeck_display::denoise::Denoiser::parse(&a.denoise).context("--denoise")?;
@@ -507,7 +515,12 @@ impl Session {
         }
         if !self.server_stopped {
             if let Err(e) = quit(addr, token) {
-                self.failures.push(format!("asking the server to quit: {e:#}"));
+                // After a stop signal the server (which took it too, in the
+                // same process group) may be closing already: how it exits
+                // says whether anything failed.
+                if stop_signal().is_none() {
+                    self.failures.push(format!("asking the server to quit: {e:#}"));
+                }
             }
             self.failures.extend(self.server.finish(Duration::from_secs(60)));
         }

@@ -163,6 +163,27 @@ fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
     let back = view_of(&browser.wait("holodeck.where().includes('-vp 3 2 1.4') && holodeck.where()"));
     assert!((back.position - before.position).length() < 1e-9);
 
+    // Fingers: one moves toward the point, two back away (the window's
+    // left and right buttons).
+    let touch = |fingers: &[(u32, u32)]| {
+        let points: Vec<String> = fingers.iter().map(|(x, y)| format!("[{x}, {y}]")).collect();
+        format!(
+            "(async () => {{ const c = document.getElementById('view'); const r = c.getBoundingClientRect();              const ev = (type, [x, y], id) => new PointerEvent(type, {{ pointerId: id, pointerType: 'touch', bubbles: true,              clientX: r.left + (x + 0.5) * r.width / c.width, clientY: r.top + (y + 0.5) * r.height / c.height }});              const pts = [{}]; pts.forEach((p, i) => c.dispatchEvent(ev('pointerdown', p, 11 + i)));              await new Promise((d) => setTimeout(d, 300)); pts.forEach((p, i) => c.dispatchEvent(ev('pointerup', p, 11 + i)));              return true; }})()",
+            points.join(", ")
+        )
+    };
+    browser.eval(&touch(&[(80, 60)]));
+    browser.wait(DELIVERED);
+    let forward = view_of(&browser.eval("holodeck.where()"));
+    let ahead = (forward.position - before.position).dot(before.direction.normalize());
+    assert!(ahead > 0.01, "one finger did not move the eye forward: {ahead}");
+    browser.eval(&touch(&[(70, 60), (90, 60)]));
+    browser.wait(DELIVERED);
+    let back = view_of(&browser.eval("holodeck.where()"));
+    let behind = (back.position - forward.position).dot(before.direction.normalize());
+    eprintln!("one finger moved the eye {ahead:.3} m forward, two fingers {behind:.3} m");
+    assert!(behind < -0.01, "two fingers did not move the eye back: {behind}");
+
     // A viewer may look, never change anything: the server refuses its kill.
     browser.ask(json!({"op": "type", "selector": "#line", "text": "kill", "enter": true}));
     let refusal = browser.wait("holodeck.log.find((l) => l.startsWith('kill was refused'))");
@@ -365,4 +386,58 @@ fn a_static_export_replays_the_file_in_a_page_with_no_server() {
         "holodeck.transfers() === 0 && holodeck.samples() > {before} && holodeck.samples()"
     ));
     eprintln!("turning fetched {} more samples", after.as_f64().unwrap() - before);
+}
+
+/// The server's resident memory, kB (`VmRSS` of /proc/PID/status).
+fn resident_kb(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap_or_else(|| panic!("no VmRSS in {status}"))
+}
+
+#[test]
+fn pages_left_open_cost_the_server_no_growing_memory_and_a_missing_token_is_asked_for() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "60K");
+    let (server, page) = web_server(&file, "127.0.0.1:0");
+    // Without a token the page asks for one, and joins with it.
+    browser.open(&format!(
+        "{page}#view={}&width=160&height=120&max-density=1",
+        fragment(VIEW)
+    ));
+    assert_eq!(
+        browser.wait("window.holodeck && !document.getElementById('join').hidden"),
+        json!(true)
+    );
+    browser.ask(json!({"op": "type", "selector": "#token", "text": "viewer-token", "enter": true}));
+    browser.wait(DELIVERED);
+    // The page's greeting and request, sent again by twelve idle sockets
+    // that read every report the server sends them.
+    let pages = 12;
+    browser.eval(&format!(
+        "(() => {{ window.idle = []; const sent = holodeck.sentLog(); for (let i = 0; i < {pages}; i++) {{ \
+         const s = new WebSocket(`ws://${{location.host}}/ws`); s.binaryType = 'arraybuffer'; const w = {{ messages: 0 }}; \
+         s.onopen = () => sent.forEach((m) => s.send(m)); s.onmessage = () => {{ w.messages += 1; }}; window.idle.push(w); }} \
+         return true; }})()"
+    ));
+    let reports = |browser: &mut Browser| {
+        browser
+            .eval("Math.min(...window.idle.map((w) => w.messages))")
+            .as_u64()
+            .unwrap()
+    };
+    browser.wait("window.idle.every((w) => w.messages >= 5)");
+    let (before, at) = (resident_kb(server.id()), reports(&mut browser));
+    // A report a second: fifteen more to every page.
+    browser.wait(&format!("window.idle.every((w) => w.messages >= {})", at + 15));
+    let after = resident_kb(server.id());
+    eprintln!("the server with {pages} idle pages: {before} kB, then {after} kB after fifteen more reports each");
+    assert!(
+        after <= before + 1024,
+        "the server grew from {before} kB to {after} kB with idle pages"
+    );
 }

@@ -27,6 +27,7 @@ try {
     samples: await page.evaluate("holodeck.samples()"),
     bytes: await page.evaluate("holodeck.bytes()"),
     timing: await page.evaluate("holodeck.timing()"),
+    frames: await page.evaluate("holodeck.frames()"),
   };
   const changes = [];
   for (const line of views) {
