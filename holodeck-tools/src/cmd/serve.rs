@@ -49,8 +49,9 @@ pub struct Args {
     listen: String,
     /// Also serve the web display here (HOST:PORT; port 0 picks a free one): a
     /// page anyone opens with a link, speaking the display protocol over a
-    /// WebSocket on the same port, with the same tokens. Plain HTTP: beyond
-    /// this machine it needs --plain-text-on-network.
+    /// WebSocket on the same port, with the same tokens. HTTP and HTTPS (the
+    /// server's certificate) on one port; from other hosts HTTPS only,
+    /// unless --plain-text-on-network.
     #[arg(long, value_name = "ADDR")]
     web: Option<String>,
     /// Also listen on this Unix socket (peers connect to unix:PATH).
@@ -250,10 +251,12 @@ fn server_tls(a: &Args) -> Result<Tls> {
             if let Ok(host) = std::fs::read_to_string("/proc/sys/kernel/hostname") {
                 names.push(host.trim().to_string());
             }
-            let listen_host = a.listen.rsplit_once(':').map_or(a.listen.as_str(), |(h, _)| h);
-            let listen_host = listen_host.trim_start_matches('[').trim_end_matches(']');
-            if !matches!(listen_host, "" | "0.0.0.0" | "::") {
-                names.push(listen_host.to_string());
+            for addr in std::iter::once(&a.listen).chain(&a.web) {
+                let host = addr.rsplit_once(':').map_or(addr.as_str(), |(h, _)| h);
+                let host = host.trim_start_matches('[').trim_end_matches(']');
+                if !matches!(host, "" | "0.0.0.0" | "::") {
+                    names.push(host.to_string());
+                }
             }
             names.retain(|n| !n.is_empty());
             names.dedup();
@@ -335,6 +338,7 @@ pub fn run(a: Args) -> Result<ExitCode> {
         (None, false) => Fill::All,
     };
     let viewer_link_token = tokens.viewer.clone().unwrap_or_default();
+    let web_tls = tls.clone();
     let config = ServerConfig {
         packet: a.packet,
         request_packet: a.request_packet,
@@ -365,16 +369,22 @@ pub fn run(a: Args) -> Result<ExitCode> {
         }
         if let Some(addr) = &a.web {
             let web = Listener::Web(
-                WebListener::bind(addr, crate::web::assets()?)
+                WebListener::bind(addr, crate::web::assets()?, Some(web_tls.clone()))
                     .await
                     .with_context(|| format!("serving the web display on {addr}"))?,
             );
-            if !web.local_only() && !a.plain_text_on_network {
-                anyhow::bail!(
-                    "--web {addr} reaches other hosts over plain HTTP: the tokens pages present, and the rays,                      would cross the network in clear text. Serve it on 127.0.0.1 (and reach it through an                      SSH tunnel or a TLS proxy), or add --plain-text-on-network to insist"
+            // Beyond this machine the link is HTTPS: plain HTTP from another
+            // host is refused (unless --plain-text-on-network), as the
+            // protocol's plain peers are.
+            let mut page = web.address();
+            if !web.local_only() {
+                page = page.replacen("http://", "https://", 1);
+                println!(
+                    "the web display speaks HTTPS with the certificate whose SHA-256 fingerprint is {} \
+                     (browsers warn of a self-signed one: compare the fingerprint)",
+                    web_tls.fingerprint
                 );
             }
-            let page = web.address();
             let viewer = token_link(&viewer_link_token);
             println!("web display on {page} (a viewer's link: {page}#token={viewer})");
             listeners.push(web);

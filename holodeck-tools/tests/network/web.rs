@@ -441,3 +441,42 @@ fn pages_left_open_cost_the_server_no_growing_memory_and_a_missing_token_is_aske
         "the server grew from {before} kB to {after} kB with idle pages"
     );
 }
+
+/// This machine's first address that is not loopback, if it has one.
+fn network_address() -> Option<std::net::IpAddr> {
+    // The address a datagram socket would leave by (nothing is sent).
+    let s = std::net::UdpSocket::bind("0.0.0.0:0").ok()?;
+    s.connect("198.51.100.1:9").ok()?;
+    let ip = s.local_addr().ok()?.ip();
+    (!ip.is_loopback() && !ip.is_unspecified()).then_some(ip)
+}
+
+#[test]
+fn the_web_port_speaks_https_and_takes_pages_from_other_hosts_only_over_it() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "60K");
+    let Some(ip) = network_address() else {
+        eprintln!("this machine has no address but loopback: the web port is tested on loopback only");
+        let (_server, page) = web_server(&file, "127.0.0.1:0");
+        browser.open(&link(&page.replacen("http://", "https://", 1), "viewer-token"));
+        browser.wait(DELIVERED);
+        return;
+    };
+    let (server, page) = web_server(&file, "0.0.0.0:0");
+    let fingerprint = server.wait_line("the certificate's fingerprint", &mut 0, |l| {
+        l.contains("the web display speaks HTTPS").then(|| l.to_string())
+    });
+    assert!(page.starts_with("https://"), "{page}");
+    let port = page.trim_end_matches('/').rsplit(':').next().unwrap().to_string();
+    // Over TLS from another host's address (this one's, not loopback): served.
+    browser.open(&link(&format!("https://{ip}:{port}/"), "viewer-token"));
+    browser.wait(DELIVERED);
+    assert!(browser.eval("location.protocol").as_str() == Some("https:"));
+    // Plain HTTP from another host: the page loads, its display is refused.
+    browser.open("about:blank");
+    browser.open(&link(&format!("http://{ip}:{port}/"), "viewer-token"));
+    let why = browser.wait("window.holodeck && holodeck.log.find((l) => l.includes('refused'))");
+    assert!(why.as_str().unwrap().contains("over TLS only"), "{why}");
+    eprintln!("{fingerprint}\nplain HTTP from {ip}: {why}");
+}

@@ -21,6 +21,8 @@ const server = await chromium.launchServer({
   args: [
     "--headless=new", "--no-sandbox", "--no-first-run", "--disable-background-networking",
     "--disable-component-update", "--disable-sync", "--disable-quic", "--enable-unsafe-swiftshader",
+    // The tests' servers present self-signed certificates made for them.
+    "--ignore-certificate-errors",
   ],
 });
 // The test ends the browser's process group by this PID, whatever becomes of this driver.

@@ -14,8 +14,8 @@ pub enum Accepted {
     Tcp(TcpStream, std::net::SocketAddr),
     /// Over the Unix socket at this address.
     Unix(UnixStream, String),
-    /// A web page's WebSocket, from this address.
-    Web(Box<dyn super::connection::Stream>, std::net::SocketAddr),
+    /// A web page's WebSocket, from this address (over TLS or not).
+    Web(Box<dyn super::connection::Stream>, super::web::WebPeerAddr),
 }
 
 impl Accepted {
@@ -24,7 +24,7 @@ impl Accepted {
         match self {
             Accepted::Tcp(_, a) => a.to_string(),
             Accepted::Unix(_, p) => p.clone(),
-            Accepted::Web(_, a) => format!("web page {a}"),
+            Accepted::Web(_, a) => format!("web page {}", a.addr),
         }
     }
 }

@@ -419,8 +419,8 @@ fn check(hello: &Hello, shared: &Shared) -> Result<Access, Refusal> {
 async fn spoken(accepted: Accepted, shared: &Shared) -> Option<(Box<dyn Stream>, bool)> {
     match accepted {
         Accepted::Unix(s, _) => Some((Box::new(s), false)),
-        // Plain HTTP: from another host, the token crossed the network in clear text.
-        Accepted::Web(s, peer) => Some((s, !peer.ip().is_loopback())),
+        // Plain HTTP from another host: the token crossed the network in clear text.
+        Accepted::Web(s, peer) => Some((s, !peer.secure && !peer.addr.ip().is_loopback())),
         Accepted::Tcp(s, peer) => match super::tls::accept(s, peer, shared.config.tls.as_ref()).await? {
             Spoken::Tls(s) => Some((s, false)),
             Spoken::Plain { stream, network } => Some((stream, network)),
@@ -431,7 +431,7 @@ async fn spoken(accepted: Accepted, shared: &Shared) -> Option<(Box<dyn Stream>,
 /// What a server that takes TLS from other hosts answers a plain one.
 const PLAIN_REFUSED: &str = "this server takes peers on other hosts over TLS only (their tokens \
 would cross the network in clear text): connect with the token file `holodeck serve` wrote, which \
-pins the server's certificate";
+pins the server's certificate, or open the web display's https:// link";
 
 async fn handle(stream: Box<dyn Stream>, shared: &Shared, refuse_plain: bool) -> Result<(), ConnectionError> {
     let mut conn = Connection::new(stream);
