@@ -20,6 +20,13 @@ pub trait Driver: Send {
     fn store_mut(&mut self) -> &mut dyn SampleStore;
     /// Draws the current frame, linear radiance, top row first.
     fn render(&mut self) -> Picture;
+    /// In a web page, a GPU driver's frame is read back from the GPU only
+    /// after the page returns to the browser: while this is true,
+    /// [`Driver::render`] gave the last frame read back, and should be
+    /// called again soon for the new one. Always false natively.
+    fn frame_pending(&self) -> bool {
+        false
+    }
     /// Adds samples; they appear in the next frame.
     fn add(&mut self, samples: &[Sample]) {
         self.store_mut().add(samples)

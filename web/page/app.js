@@ -179,7 +179,8 @@ function draw() {
   timing.draw += frameMs;
   lastDraw = now();
   frames += 1;
-  dirty = false;
+  // A GPU driver's frame still on its way from the GPU: the next animation frame draws it.
+  dirty = display.frame_pending();
 }
 
 function loop() {
@@ -195,7 +196,8 @@ function loop() {
   // stream in, a twentieth (the browser reads the socket only as fast as
   // the page takes its messages, so time spent drawing slows the stream).
   const share = display.transfers() > 0 ? 20 : 5;
-  if (held !== null || (dirty && now() - lastDraw >= Math.max(0.1, (share * frameMs) / 1000))) draw();
+  const pending = display.frame_pending();
+  if (held !== null || pending || (dirty && now() - lastDraw >= Math.max(0.1, (share * frameMs) / 1000))) draw();
   const notices = display.notices();
   if (notices) say(notices);
   requestAnimationFrame(loop);
@@ -329,7 +331,15 @@ document.getElementById("save").addEventListener("click", () => {
 window.holodeck = {
   where: () => display.view_line(),
   line: (text) => { const a = display.line(text, now()); dirty = true; flush(); return a; },
-  picture: () => ({ width, height, data: Array.from(display.picture()) }),
+  // The frame in linear radiance (a GPU driver's: once it is back from the GPU).
+  picture: async () => {
+    let data = display.picture();
+    while (display.frame_pending()) {
+      await new Promise((done) => setTimeout(done, 5));
+      data = display.picture();
+    }
+    return { width, height, data: Array.from(data) };
+  },
   pixels: () => Array.from(ctx.getImageData(0, 0, width, height).data),
   transfers: () => display.transfers(),
   samples: () => display.samples(),
@@ -338,6 +348,7 @@ window.holodeck = {
   frames: () => frames,
   connects: () => connects,
   replay: () => replay,
+  driver: () => display.driver(),
   bytes: () => bytesIn,
   sentLog: () => sentLog,
   timing: () => ({ ...timing }),

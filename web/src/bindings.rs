@@ -8,6 +8,20 @@ use wasm_bindgen::prelude::*;
 
 use crate::session::{Session, SessionError, SessionOptions};
 
+#[wasm_bindgen]
+extern "C" {
+    /// The browser console's `console.error`.
+    #[wasm_bindgen(js_namespace = console, js_name = error)]
+    fn console_error(message: &str);
+}
+
+/// Run once when the module loads: a panic (a defect, never bad input) says
+/// what and where on the browser's console before the page stops.
+#[wasm_bindgen(start)]
+fn start() {
+    std::panic::set_hook(Box::new(|info| console_error(&format!("holodeck: {info}"))));
+}
+
 fn js(e: SessionError) -> JsError {
     JsError::new(&e.to_string())
 }
@@ -20,8 +34,8 @@ pub struct WebDisplay {
 
 #[wasm_bindgen]
 impl WebDisplay {
-    /// A display of `width` x `height` pixels drawn by `driver` ("quadtree"
-    /// or "splat"), denoised by the à-trous filter when `denoise`, asking
+    /// A display of `width` x `height` pixels drawn by `driver` ("quadtree",
+    /// "splat", or on WebGL2 "voronoi" or "mesh"), denoised by the à-trous filter when `denoise`, asking
     /// for `density` samples per pixel when a view settles and doubling it
     /// up to `max_density` while the view stays; it starts at `view`
     /// (Radiance view options; empty: the holodeck's default view).
@@ -189,6 +203,26 @@ impl WebDisplay {
     /// Immediate transfers not yet complete (0: every stored ray of the view is in).
     pub fn transfers(&self) -> u32 {
         self.session.transfers()
+    }
+
+    /// The driver drawing, and where: "mesh on WebGL2 (ANGLE ...)" or
+    /// "quadtree on the CPU".
+    pub fn driver(&self) -> String {
+        let name = self.session.driver_name();
+        if holodeck_display::GPU_DRIVERS.contains(&name) {
+            match holodeck_display::gpu::GpuContext::shared() {
+                Ok(gpu) => format!("{name} on {}", gpu.describe()),
+                Err(e) => format!("{name} ({e})"),
+            }
+        } else {
+            format!("{name} on the CPU")
+        }
+    }
+
+    /// A GPU driver's frame is still on the GPU: draw again at the next
+    /// animation frame (the last frame stands in meanwhile).
+    pub fn frame_pending(&self) -> bool {
+        self.session.frame_pending()
     }
 
     /// Samples received in all.

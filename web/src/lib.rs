@@ -1,6 +1,8 @@
-//! The holodeck's web display: the display's sample store and CPU drivers
-//! (quadtree, splat) and its à-trous denoiser, compiled to WebAssembly for
-//! a page that speaks the display protocol over a WebSocket.
+//! The holodeck's web display: the display's sample store, its CPU drivers
+//! (quadtree, splat), its GPU drivers (voronoi, mesh: on WebGL2, falling
+//! back to the quadtree where the browser has none) and its à-trous
+//! denoiser, compiled to WebAssembly for a page that speaks the display
+//! protocol over a WebSocket.
 //!
 //! * [`session`] — a display session driven by the page's events (bytes in,
 //!   bytes out, the time passed in), testable natively.

@@ -32,7 +32,8 @@ const QUIET: f64 = 1.0;
 /// How a page's display draws and asks.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SessionOptions {
-    /// The CPU driver: "quadtree" or "splat".
+    /// The driver: "quadtree" or "splat" (CPU), "voronoi" or "mesh" (WebGL2;
+    /// the quadtree where the page has none).
     pub driver: String,
     /// Clean frames with the à-trous filter.
     pub denoise: bool,
@@ -73,7 +74,7 @@ pub enum SessionError {
     #[error("{0}")]
     Driver(String),
     /// The driver named is not one the page has.
-    #[error("the page has no driver {0:?} (it has quadtree and splat)")]
+    #[error("the page has no driver {0:?} (it has quadtree, splat, voronoi and mesh)")]
     UnknownDriver(String),
 }
 
@@ -158,11 +159,27 @@ impl Session {
         let view = navigate::fit_aspect(&view.unwrap_or_default(), width, height);
         let viewport = Viewport::new(view.clone(), width, height).map_err(|e| SessionError::Driver(e.to_string()))?;
         let estimates = EstimatorOptions::default();
+        let mut notices = Vec::new();
+        let cpu = |viewport| holodeck_display::quadtree::QuadtreeDriver::with_options(viewport, estimates);
         let inner: Box<dyn Driver> = match options.driver.as_str() {
-            "quadtree" => Box::new(holodeck_display::quadtree::QuadtreeDriver::with_options(
-                viewport, estimates,
-            )),
+            "quadtree" => Box::new(cpu(viewport)),
             "splat" => Box::new(holodeck_display::splat::SplatDriver::with_options(viewport, estimates)),
+            name @ ("voronoi" | "mesh") => {
+                let setup = holodeck_display::DriverSetup {
+                    options: estimates,
+                    geometry: None,
+                };
+                match holodeck_display::make_driver(name, viewport.clone(), setup) {
+                    Ok(d) => d,
+                    // No WebGL2 here: the CPU draws.
+                    Err(e) => {
+                        notices.push(format!(
+                            "the {name} driver cannot run here ({e}): the quadtree draws instead"
+                        ));
+                        Box::new(cpu(viewport))
+                    }
+                }
+            }
             other => return Err(SessionError::UnknownDriver(other.to_string())),
         };
         let driver: Box<dyn Driver> = if options.denoise {
@@ -188,7 +205,7 @@ impl Session {
             view_given,
             last_arrival: 0.0,
             progress: None,
-            notices: Vec::new(),
+            notices,
             samples: 0,
             meter: Meter {
                 since: 0.0,
@@ -749,6 +766,18 @@ impl Session {
     /// ray of the view has arrived).
     pub fn transfers(&self) -> u32 {
         self.transfers
+    }
+
+    /// A GPU driver's frame is still on its way back: the last frame drawn
+    /// was the one before; draw again soon.
+    pub fn frame_pending(&self) -> bool {
+        self.driver.frame_pending()
+    }
+
+    /// The driver drawing ("quadtree", "mesh", ...): a GPU driver asked
+    /// for falls back to the quadtree where the page has no WebGL2.
+    pub fn driver_name(&self) -> &'static str {
+        self.driver.name()
     }
 
     /// Samples received in all.

@@ -153,10 +153,14 @@ impl Driver for Denoised {
         if self.failed || self.moving {
             return picture;
         }
+        // The inner frame is an old one standing in: cleaned, but not kept.
+        let pending = self.inner.frame_pending();
         let guide = self.full_guide();
         match self.denoiser.apply(&picture, &guide) {
             Ok(p) => {
-                self.last = Some(p.clone());
+                if !pending {
+                    self.last = Some(p.clone());
+                }
                 p
             }
             Err(e) => {
@@ -169,6 +173,10 @@ impl Driver for Denoised {
 
     fn stats(&self) -> DriverStats {
         self.inner.stats()
+    }
+
+    fn frame_pending(&self) -> bool {
+        self.inner.frame_pending()
     }
 
     fn clear(&mut self) {

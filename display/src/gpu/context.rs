@@ -22,6 +22,10 @@ pub enum GpuError {
     /// Reading a frame back failed (a lost device, a failed map).
     #[error("reading the frame back from the GPU failed: {0}")]
     Readback(String),
+    /// In a web page: the frame is still on the GPU; ask again after the
+    /// page has returned to the browser.
+    #[error("the frame is still on the GPU")]
+    NotReady,
 }
 
 /// A wgpu device and queue, and what they run on.
@@ -48,6 +52,9 @@ impl GpuContext {
         let chosen = wgpu::Backends::from_env();
         let tries = match chosen {
             Some(b) => vec![b],
+            // In a web page WebGL2 alone: it opens at once (WebGPU's adapter
+            // comes from a promise, and nothing may wait for one there).
+            None if cfg!(target_arch = "wasm32") => vec![wgpu::Backends::GL],
             None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::GL],
         };
         let mut failures = Vec::new();
@@ -56,10 +63,17 @@ impl GpuContext {
             let mut desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
             desc.backends = backends;
             let instance = wgpu::Instance::new(desc);
+            // WebGL2 gives an adapter only for a canvas.
+            #[cfg(target_arch = "wasm32")]
+            let surface = web_sys::OffscreenCanvas::new(1, 1)
+                .ok()
+                .and_then(|c| instance.create_surface(wgpu::SurfaceTarget::OffscreenCanvas(c)).ok());
+            #[cfg(not(target_arch = "wasm32"))]
+            let surface: Option<wgpu::Surface<'static>> = None;
             match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
                 power_preference: wgpu::PowerPreference::HighPerformance,
                 force_fallback_adapter: false,
-                compatible_surface: None,
+                compatible_surface: surface.as_ref(),
                 ..Default::default()
             })) {
                 Ok(a) => {

@@ -41,6 +41,22 @@ pub struct Target {
     readback: wgpu::Buffer,
     /// Bytes per row in the readback buffer (padded to wgpu's 256).
     padded_row: u32,
+    /// Where a read begun without waiting ([`Target::begin_read`]) is.
+    reading: std::sync::Arc<std::sync::Mutex<ReadState>>,
+}
+
+/// Where a read of the readback buffer begun without waiting is.
+#[derive(Debug, Default)]
+enum ReadState {
+    /// None begun.
+    #[default]
+    Idle,
+    /// The buffer is being mapped.
+    Waiting,
+    /// Mapped: the floats can be taken.
+    Mapped,
+    /// The map failed.
+    Failed(String),
 }
 
 impl Target {
@@ -95,6 +111,7 @@ impl Target {
             color,
             readback,
             padded_row,
+            reading: Default::default(),
         }
     }
 
@@ -142,6 +159,54 @@ impl Target {
         rx.recv()
             .map_err(|e| GpuError::Readback(e.to_string()))?
             .map_err(|e| GpuError::Readback(e.to_string()))?;
+        self.take_mapped()
+    }
+
+    /// Starts mapping the readback buffer (after [`Target::copy_out`] was
+    /// submitted) without waiting for it, as a web page must: WebGL2
+    /// finishes the GPU's work only once the page has returned to the
+    /// browser. [`Target::try_read`] gives the floats once they are there.
+    pub fn begin_read(&self) {
+        *self.lock_reading() = ReadState::Waiting;
+        let state = std::sync::Arc::clone(&self.reading);
+        self.readback.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let mut s = state.lock().unwrap_or_else(|p| p.into_inner());
+            *s = match r {
+                Ok(()) => ReadState::Mapped,
+                Err(e) => ReadState::Failed(e.to_string()),
+            };
+        });
+    }
+
+    /// Whether a read begun ([`Target::begin_read`]) was not taken yet:
+    /// the readback buffer must not be written until it is.
+    pub fn reading(&self) -> bool {
+        !matches!(*self.lock_reading(), ReadState::Idle)
+    }
+
+    /// The floats of the read begun, if the GPU has finished (asked without
+    /// waiting); `None` while it has not.
+    pub fn try_read(&self, ctx: &GpuContext) -> Option<Result<Vec<f32>, GpuError>> {
+        let _ = ctx.device.poll(wgpu::PollType::Poll);
+        let state = std::mem::take(&mut *self.lock_reading());
+        match state {
+            ReadState::Idle => None,
+            ReadState::Waiting => {
+                *self.lock_reading() = ReadState::Waiting;
+                None
+            }
+            ReadState::Failed(e) => Some(Err(GpuError::Readback(e))),
+            ReadState::Mapped => Some(self.take_mapped()),
+        }
+    }
+
+    fn lock_reading(&self) -> std::sync::MutexGuard<'_, ReadState> {
+        self.reading.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The mapped readback buffer's floats, row by row; unmaps it.
+    fn take_mapped(&self) -> Result<Vec<f32>, GpuError> {
+        let slice = self.readback.slice(..);
         let channels = match self.kind {
             TargetKind::Color => 4,
             TargetKind::Distance => 1,
@@ -159,6 +224,18 @@ impl Target {
         }
         self.readback.unmap();
         Ok(out)
+    }
+
+    /// Reads the frame back: waiting for it natively ([`Target::read`]); in
+    /// a web page, beginning the read and giving it only if the GPU already
+    /// has it ([`GpuError::NotReady`] until then: call again later).
+    pub fn read_when_ready(&self, ctx: &GpuContext) -> Result<Vec<f32>, GpuError> {
+        if cfg!(target_arch = "wasm32") {
+            self.begin_read();
+            self.try_read(ctx).unwrap_or(Err(GpuError::NotReady))
+        } else {
+            self.read(ctx)
+        }
     }
 }
 

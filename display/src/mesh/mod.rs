@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use crate::driver::{Driver, Viewport};
 use crate::gpu::target::{black, downsample, fill_holes};
-use crate::gpu::{GpuContext, ViewUniform};
+use crate::gpu::{GpuContext, GpuError, ViewUniform};
 use crate::project::Projector;
 use crate::sphere::{Insert, SphereMesh, VertexId};
 use crate::splat::Grid;
@@ -83,6 +83,9 @@ pub struct MeshDriverStats {
 /// The GPU spherical Delaunay mesh driver.
 #[derive(Debug)]
 pub struct MeshDriver {
+    /// In a web page, the last frame read back: shown while the next one
+    /// is on its way from the GPU.
+    shown: Option<Picture>,
     store: Store<Grid>,
     pipeline: MeshPipeline,
     sphere: SphereMesh,
@@ -104,6 +107,7 @@ impl MeshDriver {
         let store = Store::new(viewport, Grid::default(), true, options);
         let min_angle = SAME_DIRECTION * pixel_angle(&store);
         MeshDriver {
+            shown: None,
             store,
             pipeline: MeshPipeline::new(gpu),
             sphere: SphereMesh::new(min_angle),
@@ -353,6 +357,10 @@ impl Driver for MeshDriver {
             .collect();
     }
 
+    fn frame_pending(&self) -> bool {
+        self.pipeline.pending()
+    }
+
     fn render(&mut self) -> Picture {
         let start = web_time::Instant::now();
         self.store.update_colors();
@@ -369,6 +377,9 @@ impl Driver for MeshDriver {
                 let drawn = start.elapsed();
                 fill_holes(&mut rgba, gw, gh);
                 let picture = downsample(&rgba, vp.width, vp.height, sub);
+                if cfg!(target_arch = "wasm32") {
+                    self.shown = Some(picture.clone());
+                }
                 tracing::debug!(
                     "mesh frame: prepared and drawn in {:.1} ms ({:.1} ms on the GPU and reading back), finished in {:.1} ms",
                     drawn.as_secs_f64() * 1e3,
@@ -377,6 +388,8 @@ impl Driver for MeshDriver {
                 );
                 picture
             }
+            // A web page's frame still on the GPU: the last one meanwhile.
+            Err(GpuError::NotReady) => self.shown.clone().unwrap_or_else(|| black(vp.width, vp.height)),
             Err(e) => {
                 tracing::error!("mesh: {e}");
                 black(vp.width, vp.height)

@@ -70,6 +70,11 @@ impl MeshPipeline {
         }
     }
 
+    /// A frame drawn is still on its way back from the GPU (a web page's).
+    pub fn pending(&self) -> bool {
+        self.target.as_ref().is_some_and(|t| t.reading())
+    }
+
     /// Draws the triangles `indices` of `vertices` as `view` sees them into
     /// a `width` x `height` target and reads the frame back as RGBA floats.
     pub fn draw(
@@ -82,6 +87,10 @@ impl MeshPipeline {
     ) -> Result<Vec<f32>, GpuError> {
         let gpu = Arc::clone(&self.gpu);
         let (device, queue) = (&gpu.device, &gpu.queue);
+        // A web page's frame read back later: the one on its way comes first.
+        if let Some(t) = self.target.as_ref().filter(|t| t.reading()) {
+            return t.try_read(&gpu).unwrap_or(Err(GpuError::NotReady));
+        }
         if self
             .target
             .as_ref()
@@ -127,7 +136,7 @@ impl MeshPipeline {
         }
         target.copy_out(&mut encoder);
         queue.submit([encoder.finish()]);
-        target.read(&gpu)
+        target.read_when_ready(&gpu)
     }
 }
 

@@ -23,7 +23,7 @@ use holodeck_protocol::Picture;
 use crate::driver::{Driver, Viewport};
 use crate::geometry::Geometry;
 use crate::gpu::target::{black, downsample, fill_holes};
-use crate::gpu::GpuContext;
+use crate::gpu::{GpuContext, GpuError};
 use crate::splat::Grid;
 use crate::store::{EstimatorOptions, Store};
 use cones::Cone;
@@ -41,6 +41,9 @@ pub struct VoronoiDriver {
     cones: Vec<Cone>,
     /// Cones drawn in the last frame, by fan size.
     by_fan: [u32; 4],
+    /// In a web page, the last frame read back: shown while the next one
+    /// is on its way from the GPU.
+    shown: Option<Picture>,
 }
 
 impl VoronoiDriver {
@@ -66,6 +69,7 @@ impl VoronoiDriver {
             pipeline,
             cones: Vec::new(),
             by_fan: [0; 4],
+            shown: None,
         }
     }
 
@@ -91,6 +95,10 @@ impl Driver for VoronoiDriver {
 
     fn store_mut(&mut self) -> &mut dyn crate::store::SampleStore {
         &mut self.store
+    }
+
+    fn frame_pending(&self) -> bool {
+        self.pipeline.pending()
     }
 
     fn render(&mut self) -> Picture {
@@ -123,6 +131,9 @@ impl Driver for VoronoiDriver {
                 let drawn = start.elapsed();
                 fill_holes(&mut rgba, gw, gh);
                 let picture = downsample(&rgba, vp.width, vp.height, sub);
+                if cfg!(target_arch = "wasm32") {
+                    self.shown = Some(picture.clone());
+                }
                 tracing::debug!(
                     "voronoi frame: prepared and drawn in {:.1} ms ({:.1} ms on the GPU and reading back), finished in {:.1} ms",
                     drawn.as_secs_f64() * 1e3,
@@ -131,6 +142,8 @@ impl Driver for VoronoiDriver {
                 );
                 picture
             }
+            // A web page's frame still on the GPU: the last one meanwhile.
+            Err(GpuError::NotReady) => self.shown.clone().unwrap_or_else(|| black(vp.width, vp.height)),
             Err(e) => {
                 tracing::error!("voronoi: {e}");
                 black(vp.width, vp.height)

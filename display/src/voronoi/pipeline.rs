@@ -172,6 +172,11 @@ impl ConePipeline {
         }
     }
 
+    /// A frame drawn is still on its way back from the GPU (a web page's).
+    pub fn pending(&self) -> bool {
+        self.frame.as_ref().is_some_and(|f| f.color.reading())
+    }
+
     /// True when scene geometry culls the estimates.
     pub fn has_geometry(&self) -> bool {
         self.geometry.is_some()
@@ -190,6 +195,10 @@ impl ConePipeline {
         } = *frame;
         let gpu = Arc::clone(&self.gpu);
         let (device, queue) = (&gpu.device, &gpu.queue);
+        // A web page's frame read back later: the one on its way comes first.
+        if let Some(f) = self.frame.as_ref().filter(|f| f.color.reading()) {
+            return f.color.try_read(&gpu).unwrap_or(Err(GpuError::NotReady));
+        }
         if self
             .frame
             .as_ref()
@@ -288,7 +297,7 @@ impl ConePipeline {
         }
         frame.color.copy_out(&mut encoder);
         queue.submit([encoder.finish()]);
-        frame.color.read(&gpu)
+        frame.color.read_when_ready(&gpu)
     }
 }
 

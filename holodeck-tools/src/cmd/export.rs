@@ -38,7 +38,7 @@ Writes into DIR the page (index.html, app.js), the display in WebAssembly, the i
 holodeck.idx (the sections, and where each beam's rays are) and the rays in chunk files
 beams-0000.bin, ... (whole beams in key order, about --chunk each). The page fetches only
 the beams its view sees, by HTTP byte range (a host that ignores ranges costs whole chunks).
-Open it with a link's options after '#': view=..., driver=quadtree|splat, width=, height=.
+Open it with a link's options after '#': view=..., driver=quadtree|splat|voronoi|mesh, width=, height=.
 
 Examples:
   holodeck export web room.hdk -o site/

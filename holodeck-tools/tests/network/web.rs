@@ -184,6 +184,17 @@ fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
     eprintln!("one finger moved the eye {ahead:.3} m forward, two fingers {behind:.3} m");
     assert!(behind < -0.01, "two fingers did not move the eye back: {behind}");
 
+    // The window's keys: `v` says where the view is.
+    browser.ask(json!({"op": "key", "key": "v"}));
+    let said = browser.wait("holodeck.log.find((l) => l.startsWith('VIEW='))");
+    assert_eq!(view_of(&said).position, back.position);
+    // The save button offers the picture as a PNG of the frame's size.
+    let png = dir.path().join("saved.png");
+    let name = browser.ask(json!({"op": "download", "selector": "#save", "path": png.to_str().unwrap()}));
+    assert_eq!(name, json!("holodeck.png"));
+    let saved = image::open(&png).unwrap();
+    assert_eq!((saved.width(), saved.height()), (160, 120));
+
     // A viewer may look, never change anything: the server refuses its kill.
     browser.ask(json!({"op": "type", "selector": "#line", "text": "kill", "enter": true}));
     let refusal = browser.wait("holodeck.log.find((l) => l.startsWith('kill was refused'))");
@@ -479,4 +490,49 @@ fn the_web_port_speaks_https_and_takes_pages_from_other_hosts_only_over_it() {
     let why = browser.wait("window.holodeck && holodeck.log.find((l) => l.includes('refused'))");
     assert!(why.as_str().unwrap().contains("over TLS only"), "{why}");
     eprintln!("{fingerprint}\nplain HTTP from {ip}: {why}");
+}
+
+#[test]
+fn a_page_draws_with_the_gpu_mesh_driver_on_webgl2_as_pict_does_natively() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "150K");
+    let (_server, page) = web_server(&file, "127.0.0.1:0");
+    browser.open(&format!("{}&driver=mesh", link(&page, "viewer-token")));
+    browser.wait(DELIVERED);
+    let driver = browser.eval("holodeck.driver()");
+    eprintln!("the page's driver: {driver}");
+    let driver = driver.as_str().unwrap();
+    assert!(driver.starts_with("mesh on") && driver.contains("WebGL"), "{driver}");
+    let shown = browser.picture();
+    let view = browser.eval("holodeck.where()");
+    let copy = dir.path().join("copy.hdk");
+    std::fs::copy(&file, &copy).unwrap();
+    let pict = dir.path().join("mesh.hdr");
+    let o = holodeck(&[
+        "pict",
+        copy.to_str().unwrap(),
+        "--view",
+        view.as_str().unwrap(),
+        "-x",
+        "160",
+        "-y",
+        "120",
+        "--stride",
+        "8",
+        "--denoise",
+        "off",
+        "--driver",
+        "mesh",
+        "-o",
+        pict.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    let reference = read_picture(&pict).unwrap();
+    let error = relative_rmse(&shown, &reference).unwrap();
+    eprintln!("the page's mesh (WebGL2) against pict's mesh (Vulkan): relative RMSE {error:.4}");
+    assert!(
+        error < 0.05,
+        "the page's mesh picture differs from pict's: relative RMSE {error}"
+    );
 }

@@ -9,6 +9,7 @@
 // "button":"left"|"middle"|"right"} (X, Y in canvas pixels) · {"op":"hold","ms":MS}
 // · {"op":"type","selector":S,"text":T,"enter":true} · {"op":"key","key":K}
 // · {"op":"screenshot","path":P} · {"op":"backend"} · {"op":"close"}
+// · {"op":"download","selector":S,"path":P} (click S, save the download at P)
 // · {"op":"site","dir":D,"origin":O} (O's pages are D's files, as a static
 // host serves them, byte ranges included: no server process at all).
 import { readFile } from "node:fs/promises";
@@ -109,6 +110,12 @@ async function handle(req) {
         const info = gl.getExtension("WEBGL_debug_renderer_info");
         return info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
       });
+    case "download": {
+      // Clicks `selector` and saves what the page offers for download at `path`.
+      const [download] = await Promise.all([page.waitForEvent("download"), page.click(req.selector)]);
+      await download.saveAs(req.path);
+      return download.suggestedFilename();
+    }
     case "site":
       await serveSite(req.dir, req.origin);
       return served;
