@@ -54,6 +54,35 @@ fn web_server(file: &Path, web: &str) -> (Proc, String) {
     (server, page)
 }
 
+/// `holodeck pict` of `view` (the page's `where`) from a copy of `file` (a
+/// server holds the file itself), as the page draws it: 160 x 120, one view
+/// ray per 8 pixels selecting the beams, no denoiser; `extra` flags beside.
+fn pict(file: &Path, view: &serde_json::Value, extra: &[&str]) -> holodeck_protocol::Picture {
+    let copy = file.with_extension("copy.hdk");
+    std::fs::copy(file, &copy).unwrap();
+    let out = file.with_extension("pict.hdr");
+    let mut args = vec![
+        "pict",
+        copy.to_str().unwrap(),
+        "--view",
+        view.as_str().unwrap(),
+        "-x",
+        "160",
+        "-y",
+        "120",
+        "--stride",
+        "8",
+        "--denoise",
+        "off",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = holodeck(&args);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    read_picture(&out).unwrap()
+}
+
 /// A link's fragment value: spaces as %20 (views have no other character
 /// a fragment's parameters would take otherwise).
 fn fragment(s: &str) -> String {
@@ -90,28 +119,7 @@ fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
     browser.open(&link(&page, "viewer-token"));
     browser.wait(DELIVERED);
     let shown = browser.picture();
-    let view = browser.eval("holodeck.where()");
-    let copy = dir.path().join("copy.hdk");
-    std::fs::copy(&file, &copy).unwrap();
-    let pict = dir.path().join("pict.hdr");
-    let o = holodeck(&[
-        "pict",
-        copy.to_str().unwrap(),
-        "--view",
-        view.as_str().unwrap(),
-        "-x",
-        "160",
-        "-y",
-        "120",
-        "--stride",
-        "8",
-        "--denoise",
-        "off",
-        "-o",
-        pict.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", crate::common::text(&o));
-    let reference = read_picture(&pict).unwrap();
+    let reference = pict(&file, &browser.eval("holodeck.where()"), &[]);
     let error = relative_rmse(&shown, &reference).unwrap();
     let light = |p: &holodeck_protocol::Picture| p.pixels.iter().map(|c| f64::from(c.x + c.y + c.z)).sum::<f64>();
     let kept = light(&shown) / light(&reference);
@@ -358,26 +366,7 @@ fn a_static_export_replays_the_file_in_a_page_with_no_server() {
         "no byte range was asked for"
     );
     let shown = browser.picture();
-    let view = browser.eval("holodeck.where()");
-    let pict = dir.path().join("pict.hdr");
-    let o = holodeck(&[
-        "pict",
-        file.to_str().unwrap(),
-        "--view",
-        view.as_str().unwrap(),
-        "-x",
-        "160",
-        "-y",
-        "120",
-        "--stride",
-        "8",
-        "--denoise",
-        "off",
-        "-o",
-        pict.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", crate::common::text(&o));
-    let reference = read_picture(&pict).unwrap();
+    let reference = pict(&file, &browser.eval("holodeck.where()"), &[]);
     let error = relative_rmse(&shown, &reference).unwrap();
     eprintln!(
         "the replayed page against pict: relative RMSE {error:.4}; served {}",
@@ -505,30 +494,7 @@ fn a_page_draws_with_the_gpu_mesh_driver_on_webgl2_as_pict_does_natively() {
     let driver = driver.as_str().unwrap();
     assert!(driver.starts_with("mesh on") && driver.contains("WebGL"), "{driver}");
     let shown = browser.picture();
-    let view = browser.eval("holodeck.where()");
-    let copy = dir.path().join("copy.hdk");
-    std::fs::copy(&file, &copy).unwrap();
-    let pict = dir.path().join("mesh.hdr");
-    let o = holodeck(&[
-        "pict",
-        copy.to_str().unwrap(),
-        "--view",
-        view.as_str().unwrap(),
-        "-x",
-        "160",
-        "-y",
-        "120",
-        "--stride",
-        "8",
-        "--denoise",
-        "off",
-        "--driver",
-        "mesh",
-        "-o",
-        pict.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", crate::common::text(&o));
-    let reference = read_picture(&pict).unwrap();
+    let reference = pict(&file, &browser.eval("holodeck.where()"), &["--driver", "mesh"]);
     let error = relative_rmse(&shown, &reference).unwrap();
     eprintln!("the page's mesh (WebGL2) against pict's mesh (Vulkan): relative RMSE {error:.4}");
     assert!(
