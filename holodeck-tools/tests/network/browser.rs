@@ -34,6 +34,11 @@ impl Browser {
     /// Starts the browser, or says why it cannot (and fails where the
     /// browser tests are required).
     pub fn start() -> Option<Browser> {
+        Browser::start_with(&[])
+    }
+
+    /// [`Browser::start`] with more of chromium's flags.
+    pub fn start_with(flags: &[&str]) -> Option<Browser> {
         let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
         let dir = driver_dir();
         let node = Command::new("node")
@@ -63,7 +68,8 @@ impl Browser {
             Command::new("node")
                 .arg("drive.mjs")
                 .current_dir(&dir)
-                .env("CHROMIUM", chromium),
+                .env("CHROMIUM", chromium)
+                .env("CHROMIUM_FLAGS", flags.join(" ")),
         );
         let mut from = 0;
         let pid = driver.wait_line("the browser's process id", &mut from, |l| {

@@ -501,4 +501,46 @@ fn a_page_draws_with_the_gpu_mesh_driver_on_webgl2_as_pict_does_natively() {
         error < 0.05,
         "the page's mesh picture differs from pict's: relative RMSE {error}"
     );
+    // The Voronoi cones too (no scene geometry in the page to cull them by).
+    browser.open("about:blank");
+    browser.open(&format!("{}&driver=voronoi", link(&page, "viewer-token")));
+    browser.wait(DELIVERED);
+    assert!(browser
+        .eval("holodeck.driver()")
+        .as_str()
+        .unwrap()
+        .starts_with("voronoi on"));
+    let cones = browser.picture();
+    let reference = pict(&file, &browser.eval("holodeck.where()"), &["--driver", "voronoi"]);
+    let error = relative_rmse(&cones, &reference).unwrap();
+    eprintln!("the page's voronoi (WebGL2) against pict's voronoi (Vulkan): relative RMSE {error:.4}");
+    assert!(
+        error < 0.05,
+        "the page's voronoi picture differs from pict's: relative RMSE {error}"
+    );
+}
+
+#[test]
+fn a_browser_without_webgl_draws_a_gpu_drivers_view_with_the_quadtree() {
+    let Some(mut browser) = Browser::start_with(&["--disable-gpu", "--disable-software-rasterizer"]) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = room_for_view(dir.path(), "60K");
+    let (_server, page) = web_server(&file, "127.0.0.1:0");
+    browser.open(&format!("{}&driver=mesh", link(&page, "viewer-token")));
+    browser.wait(DELIVERED);
+    assert_eq!(browser.ask(json!({"op": "backend"})), json!("no WebGL2"));
+    assert_eq!(browser.eval("holodeck.driver()"), json!("quadtree on the CPU"));
+    let said = browser.wait("holodeck.log.find((l) => l.includes('cannot run here'))");
+    assert!(
+        said.as_str().unwrap().starts_with("the mesh driver cannot run here"),
+        "{said}"
+    );
+    let reference = pict(&file, &browser.eval("holodeck.where()"), &[]);
+    let error = relative_rmse(&browser.picture(), &reference).unwrap();
+    assert!(
+        error < 0.01,
+        "the stand-in quadtree differs from pict's: relative RMSE {error}"
+    );
 }

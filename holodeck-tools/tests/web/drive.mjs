@@ -24,6 +24,8 @@ const server = await chromium.launchServer({
     "--disable-component-update", "--disable-sync", "--disable-quic", "--enable-unsafe-swiftshader",
     // The tests' servers present self-signed certificates made for them.
     "--ignore-certificate-errors",
+    // More flags for one test (a browser without WebGL, say).
+    ...(process.env.CHROMIUM_FLAGS ?? "").split(" ").filter((f) => f),
   ],
 });
 // The test ends the browser's process group by this PID, whatever becomes of this driver.
@@ -78,7 +80,9 @@ async function handle(req) {
     case "eval":
       return await page.evaluate(`(async () => (${req.js}))()`);
     case "wait": {
-      const handle = await page.waitForFunction(req.js, null, { timeout: req.timeout ?? 60000, polling: 50 });
+      // Until the page has defined what the expression reads, it is false.
+      const js = `(() => { try { return (${req.js}); } catch (e) { if (e instanceof ReferenceError) return false; throw e; } })()`;
+      const handle = await page.waitForFunction(js, null, { timeout: req.timeout ?? 60000, polling: 50 });
       return await handle.jsonValue();
     }
     case "mouse": {
