@@ -353,6 +353,11 @@ fn a_static_export_replays_the_file_in_a_page_with_no_server() {
     ] {
         assert!(site.join(f).is_file(), "the site has no {f}");
     }
+    // A folder that holds files is never written over.
+    let again = holodeck(&["export", "web", file.to_str().unwrap(), "-o", site.to_str().unwrap()]);
+    assert!(!again.status.success());
+    let said = crate::common::text(&again);
+    assert!(said.contains("is not an empty folder"), "{said}");
     // No process serves it: the browser reads the folder as a static host would.
     browser.ask(json!({"op": "site", "dir": site.to_str().unwrap(), "origin": "http://site.test"}));
     browser.open(&format!(
