@@ -18,6 +18,7 @@
 //! * `gpu` — the wgpu device, render targets and view uniforms the GPU drivers share.
 //! * `image_io` — Radiance `.hdr` and PNG pictures read and written.
 //! * `mesh` — the spherical Delaunay mesh driver (paper 2.4.5).
+//! * `motion` — a held button or finger as motion steps (the window's and the web page's).
 //! * `navigate` — the paper's input model as view arithmetic (the window's and the web page's).
 //! * `output` — writing frames.
 //! * `project` — world points to pixels and back.
@@ -46,6 +47,7 @@ pub mod geometry;
 pub mod gpu;
 pub mod image_io;
 pub mod mesh;
+pub mod motion;
 pub mod navigate;
 pub mod output;
 pub mod project;

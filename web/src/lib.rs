@@ -7,7 +7,6 @@
 //! * [`session`] — a display session driven by the page's events (bytes in,
 //!   bytes out, the time passed in), testable natively.
 //! * [`fetch`] — a replayed site's beams as byte ranges of its chunk files.
-//! * [`motion`] — a held button as motion steps, by the native window's rule.
 //! * `bindings` — what the page's JavaScript calls (wasm32 only).
 //!
 //! `holodeck serve --web` serves the page with this crate built for
@@ -18,7 +17,6 @@
 #[cfg(target_arch = "wasm32")]
 mod bindings;
 pub mod fetch;
-pub mod motion;
 pub mod session;
 
 pub use session::{Session, SessionError, SessionOptions};

@@ -13,6 +13,7 @@ use std::collections::{HashMap, HashSet, VecDeque};
 use holodeck_display::command::{command_name, Command};
 use holodeck_display::denoise::{Denoised, Denoiser};
 use holodeck_display::gather::Gather;
+use holodeck_display::motion::{Held, Motion};
 use holodeck_display::output::parse_tone;
 use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
 use holodeck_display::tonemap::{DisplayRange, Histogram, ToneMap};
@@ -24,7 +25,6 @@ use holodeck_protocol::wire::{
 use holodeck_protocol::{BeamKey, Picture, RayRecord, Section, View};
 
 use crate::fetch::{plan, Fetch};
-use crate::motion::{Held, Motion};
 
 /// A still view that got nothing for this long (seconds) asks for more at once.
 const QUIET: f64 = 1.0;
@@ -138,7 +138,8 @@ pub struct Session {
     samples: u64,
     meter: Meter,
     tone: Option<ToneMap>,
-    held: Option<Held>,
+    /// A motion in progress, and the button holding it.
+    held: Option<(Held, u32)>,
     /// Keep the eye's height while moving.
     head_fixed: bool,
     options: SessionOptions,
@@ -581,21 +582,14 @@ impl Session {
     /// A mouse button (0 left, 1 middle, 2 right, as the web numbers them)
     /// or a touch went down at pixel (`x`, `y`); `shift` orbits instead.
     pub fn press(&mut self, button: u32, shift: bool, x: f64, y: f64) {
-        let motion = match (button, shift) {
-            (0, false) => Motion::Forward,
-            (2, false) => Motion::Backward,
-            (1, false) => Motion::Turn,
-            (0, true) => Motion::OrbitAcross(-1.0),
-            (2, true) => Motion::OrbitAcross(1.0),
-            (1, true) => Motion::OrbitOver,
-            _ => return,
-        };
-        self.held = Some(Held::new(motion, button, (x, y)));
+        if let Some(motion) = Motion::of_button(button, shift) {
+            self.held = Some((Held::new(motion, (x, y)), button));
+        }
     }
 
     /// The pointer moved to pixel (`x`, `y`).
     pub fn pointer(&mut self, x: f64, y: f64) {
-        if let Some(h) = &mut self.held {
+        if let Some((h, _)) = &mut self.held {
             h.cursor = (x, y);
         }
     }
@@ -604,7 +598,7 @@ impl Session {
     /// Returns the steps taken.
     pub fn release(&mut self, button: u32, now: f64) -> u32 {
         match self.held.take() {
-            Some(h) if h.button == button => {
+            Some((h, b)) if b == button => {
                 self.settle(now);
                 h.steps
             }
@@ -621,7 +615,7 @@ impl Session {
         let head = self.head_fixed;
         let view = vp.view.clone();
         let driver = &self.driver;
-        let Some(held) = &mut self.held else { return Ok(()) };
+        let Some((held, _)) = &mut self.held else { return Ok(()) };
         let Some(next) = held.next(&view, now, w, h, head, &|c, r| driver.point_at(c, r)) else {
             return Ok(());
         };
@@ -1070,23 +1064,5 @@ mod tests {
             s.take_notices(),
             vec!["kill was refused: it needs admin access".to_string()]
         );
-    }
-
-    #[test]
-    fn a_held_button_steps_toward_the_point_at_most_thirty_times_a_second() {
-        let mut s = session();
-        s.receive(&welcome(Access::Viewer), 0.0).unwrap();
-        let eye = s.view().position;
-        let target = glam::DVec3::new(3.0, 2.0, 2.0);
-        let mut held = Held::new(Motion::Forward, 0, (32.0, 24.0));
-        let v = held.next(s.view(), 1.0, 64, 48, false, &|_, _| Some(target)).unwrap();
-        assert!((v.position - (target + (eye - target) * 0.9)).length() < 1e-12);
-        assert_eq!(v.direction, s.view().direction);
-        assert!(held.next(&v, 1.01, 64, 48, false, &|_, _| Some(target)).is_none());
-        assert!(held.next(&v, 1.04, 64, 48, false, &|_, _| Some(target)).is_some());
-        assert_eq!(held.steps, 2);
-        // Nothing under the cursor: no step.
-        let mut blind = Held::new(Motion::Backward, 2, (1.0, 1.0));
-        assert!(blind.next(s.view(), 1.0, 64, 48, false, &|_, _| None).is_none());
     }
 }

@@ -13,7 +13,6 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
 use holodeck_protocol::wire::Control;
 use holodeck_protocol::View;
 use winit::application::ApplicationHandler;
@@ -24,11 +23,12 @@ use winit::keyboard::ModifiersState;
 use winit::window::{Window, WindowId};
 
 use super::command::{self, Command};
-use super::navigate::{self, ImagePoint, Step};
+use super::navigate::{self, ImagePoint};
 use super::overlay::{self, Canvas};
 use super::present::Presenter;
 use super::walk::Walkthrough;
 use super::WindowError;
+use crate::motion;
 
 pub use crate::navigate::STEP_RATE;
 
@@ -60,25 +60,12 @@ enum UserEvent {
     End,
 }
 
-/// What a held mouse button does.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Motion {
-    Forward,
-    Backward,
-    Turn,
-    OrbitAcross(f64),
-    OrbitOver,
-}
-
-/// A motion in progress.
+/// A motion in progress: its steps (the rule the web page shares), and
+/// what the window reports of it.
 #[derive(Debug)]
 struct Held {
-    motion: Motion,
+    step: motion::Held,
     button: MouseButton,
-    /// The point under the cursor, and the cursor position it was found at.
-    target: Option<(DVec3, (f64, f64))>,
-    steps: u32,
-    last_step: Option<Instant>,
     pressed: Instant,
     /// From the press to the first frame that showed a step.
     first_shown: Option<Duration>,
@@ -101,6 +88,8 @@ struct App {
     /// Samples came in or the view changed since the last frame.
     dirty: bool,
     last_frame: Instant,
+    /// When the window opened: the origin of [`App::clock`].
+    opened: Instant,
     frame_time: Duration,
     /// The server's last answer, and when it came.
     notice: Option<(String, Instant)>,
@@ -139,6 +128,7 @@ pub fn run(walk: Walkthrough, options: WindowOptions) -> Result<(), WindowError>
         focus: None,
         dirty: true,
         last_frame: Instant::now(),
+        opened: Instant::now(),
         frame_time: Duration::ZERO,
         settled_at: None,
         notice: None,
@@ -271,46 +261,20 @@ impl App {
         }
     }
 
+    /// Seconds since the window opened: the clock of the motion steps.
+    fn clock(&self) -> f64 {
+        self.opened.elapsed().as_secs_f64()
+    }
+
     /// One motion step, if one is due.
     fn step(&mut self) -> Result<(), WindowError> {
-        let cursor = self.cursor;
-        let at = self.image_point(cursor);
-        let (col, row) = (cursor.0.max(0.0) as u32, cursor.1.max(0.0) as u32);
-        let head = self.walk.head_fixed;
-        let Some(held) = &mut self.held else { return Ok(()) };
-        if held
-            .last_step
-            .is_some_and(|t| t.elapsed().as_secs_f64() < 1.0 / STEP_RATE)
-        {
-            return Ok(());
-        }
+        let (w, h) = self.size();
+        let (now, head) = (self.clock(), self.walk.head_fixed);
         let view = self.walk.view().clone();
-        let next = if held.motion == Motion::Turn {
-            // As fast as the cursor is far from the center: one step's share.
-            navigate::turn_partly(&view, at, 1.0 / STEP_RATE)
-        } else {
-            // The point under the cursor, found again only when the cursor
-            // moved (it stays under the cursor as the view moves).
-            if held.target.is_none_or(|(_, c)| c != cursor) {
-                if let Some(p) = self.walk.point_at(col, row) {
-                    held.target = Some((p, cursor));
-                }
-            }
-            let Some((target, _)) = held.target else {
-                return Ok(());
-            };
-            let s = match held.motion {
-                Motion::Forward => Step::Forward,
-                Motion::Backward => Step::Backward,
-                Motion::OrbitAcross(n) => Step::OrbitAcross(n),
-                Motion::OrbitOver => Step::OrbitOver(1.0),
-                Motion::Turn => unreachable!("handled above"),
-            };
-            navigate::step(&view, target, s, head)
-        };
-        held.last_step = Some(Instant::now());
-        if let Some(v) = next {
-            held.steps += 1;
+        let walk = &self.walk;
+        let Some(held) = &mut self.held else { return Ok(()) };
+        held.step.cursor = self.cursor;
+        if let Some(v) = held.step.next(&view, now, w, h, head, &|c, r| walk.point_at(c, r)) {
             self.walk.move_to(v)?;
             self.dirty = true;
         }
@@ -325,21 +289,18 @@ impl App {
             }
             return;
         }
-        let motion = match (button, shift) {
-            (MouseButton::Left, false) => Motion::Forward,
-            (MouseButton::Right, false) => Motion::Backward,
-            (MouseButton::Middle, false) => Motion::Turn,
-            (MouseButton::Left, true) => Motion::OrbitAcross(-1.0),
-            (MouseButton::Right, true) => Motion::OrbitAcross(1.0),
-            (MouseButton::Middle, true) => Motion::OrbitOver,
+        let number = match button {
+            MouseButton::Left => 0,
+            MouseButton::Middle => 1,
+            MouseButton::Right => 2,
             _ => return,
         };
+        let Some(motion) = motion::Motion::of_button(number, shift) else {
+            return;
+        };
         self.held = Some(Held {
-            motion,
+            step: motion::Held::new(motion, self.cursor),
             button,
-            target: None,
-            steps: 0,
-            last_step: None,
             pressed: Instant::now(),
             first_shown: None,
             frames: Vec::new(),
@@ -360,9 +321,12 @@ impl App {
         if self.held.as_ref().is_some_and(|h| h.button == button) {
             if let Some(held) = self.held.take() {
                 if self.options.script {
-                    match held.target {
-                        Some((p, _)) => say(&format!("moved: {} steps about {} {} {}", held.steps, p.x, p.y, p.z)),
-                        None => say(&format!("moved: {} steps", held.steps)),
+                    match held.step.target() {
+                        Some(p) => say(&format!(
+                            "moved: {} steps about {} {} {}",
+                            held.step.steps, p.x, p.y, p.z
+                        )),
+                        None => say(&format!("moved: {} steps", held.step.steps)),
                     }
                 }
                 let frames = held.frames.len().max(1) as f64;
@@ -421,7 +385,7 @@ impl App {
         self.dirty = false;
         if let Some(held) = &mut self.held {
             held.frames.push(self.frame_time);
-            if held.steps > 0 && held.first_shown.is_none() {
+            if held.step.steps > 0 && held.first_shown.is_none() {
                 held.first_shown = Some(held.pressed.elapsed());
             }
         } else if let Some((at, n)) = self.settled_at.take() {
@@ -592,8 +556,9 @@ impl ApplicationHandler<UserEvent> for App {
         if let Some(held) = &self.held {
             // A frame per motion step while the button is held.
             let next = held
-                .last_step
-                .map_or_else(Instant::now, |t| t + Duration::from_secs_f64(1.0 / STEP_RATE));
+                .step
+                .next_step_at()
+                .map_or_else(Instant::now, |t| self.opened + Duration::from_secs_f64(t));
             if Instant::now() >= next {
                 self.redraw();
                 event_loop.set_control_flow(ControlFlow::Poll);
