@@ -83,6 +83,40 @@ fn pict(file: &Path, view: &serde_json::Value, extra: &[&str]) -> holodeck_proto
     read_picture(&out).unwrap()
 }
 
+/// How closely the page's picture `a` agrees with `pict`'s `b`: every
+/// measure of the yardstick, printed; the light kept in the darkest
+/// quarter, middle half and brightest quarter within `light` of 1, FLIP
+/// under `flip`, SSIM over `ssim`, relative RMSE under `rmse`.
+fn assert_agrees(
+    what: &str,
+    a: &holodeck_protocol::Picture,
+    b: &holodeck_protocol::Picture,
+    rmse: f64,
+    flip: f64,
+    ssim: f64,
+    light: f64,
+) {
+    let tone = holodeck_display::tonemap::ToneMap::from_picture(b, holodeck_display::tonemap::ToneMode::Camera);
+    let m = holodeck_display::compare::metrics(a, b, &tone, None).unwrap();
+    eprintln!(
+        "{what}: relative RMSE {:.4}, FLIP {:.4}, SSIM {:.4}, light kept dark {:.4} middle {:.4} bright {:.4}",
+        m.relative_rmse, m.flip, m.ssim, m.light.dark, m.light.middle, m.light.bright
+    );
+    assert!(m.relative_rmse < rmse, "{what}: relative RMSE {}", m.relative_rmse);
+    assert!(m.flip < flip, "{what}: FLIP {}", m.flip);
+    assert!(m.ssim > ssim, "{what}: SSIM {}", m.ssim);
+    for (region, kept) in [
+        ("dark", m.light.dark),
+        ("middle", m.light.middle),
+        ("bright", m.light.bright),
+    ] {
+        assert!(
+            (kept - 1.0).abs() < light,
+            "{what}: the {region} part keeps {kept} of the light"
+        );
+    }
+}
+
 /// A link's fragment value: spaces as %20 (views have no other character
 /// a fragment's parameters would take otherwise).
 fn fragment(s: &str) -> String {
@@ -129,6 +163,7 @@ fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
         "the page's picture differs from pict's: relative RMSE {error}"
     );
     assert!((kept - 1.0).abs() < 0.01, "the page keeps {kept} of pict's light");
+    assert_agrees("the page (quadtree)", &shown, &reference, 0.01, 0.02, 0.98, 0.01);
 
     // The canvas shows it: its pixels, read back, follow the picture's light.
     let rgba: Vec<f64> = browser
@@ -372,6 +407,7 @@ fn a_static_export_replays_the_file_in_a_page_with_no_server() {
     );
     let shown = browser.picture();
     let reference = pict(&file, &browser.eval("holodeck.where()"), &[]);
+    assert_agrees("the replayed page", &shown, &reference, 0.02, 0.02, 0.98, 0.01);
     let error = relative_rmse(&shown, &reference).unwrap();
     eprintln!(
         "the replayed page against pict: relative RMSE {error:.4}; served {}",
@@ -500,6 +536,15 @@ fn a_page_draws_with_the_gpu_mesh_driver_on_webgl2_as_pict_does_natively() {
     assert!(driver.starts_with("mesh on") && driver.contains("WebGL"), "{driver}");
     let shown = browser.picture();
     let reference = pict(&file, &browser.eval("holodeck.where()"), &["--driver", "mesh"]);
+    assert_agrees(
+        "the page's mesh (WebGL2, against Vulkan)",
+        &shown,
+        &reference,
+        0.05,
+        0.05,
+        0.95,
+        0.02,
+    );
     let error = relative_rmse(&shown, &reference).unwrap();
     eprintln!("the page's mesh (WebGL2) against pict's mesh (Vulkan): relative RMSE {error:.4}");
     assert!(
@@ -517,6 +562,15 @@ fn a_page_draws_with_the_gpu_mesh_driver_on_webgl2_as_pict_does_natively() {
         .starts_with("voronoi on"));
     let cones = browser.picture();
     let reference = pict(&file, &browser.eval("holodeck.where()"), &["--driver", "voronoi"]);
+    assert_agrees(
+        "the page's voronoi (WebGL2, against Vulkan)",
+        &cones,
+        &reference,
+        0.05,
+        0.05,
+        0.95,
+        0.02,
+    );
     let error = relative_rmse(&cones, &reference).unwrap();
     eprintln!("the page's voronoi (WebGL2) against pict's voronoi (Vulkan): relative RMSE {error:.4}");
     assert!(
