@@ -226,6 +226,34 @@ fn a_page_draws_what_pict_draws_moves_as_the_window_does_and_may_not_kill() {
     let behind = (back.position - forward.position).dot(before.direction.normalize());
     eprintln!("one finger moved the eye {ahead:.3} m forward, two fingers {behind:.3} m");
     assert!(behind < -0.01, "two fingers did not move the eye back: {behind}");
+    // A pinch (two fingers spreading) turns toward their middle, the eye kept.
+    let pinch = "(async () => { const c = document.getElementById('view'); const r = c.getBoundingClientRect(); \
+        const ev = (type, x, y, id) => new PointerEvent(type, { pointerId: id, pointerType: 'touch', bubbles: true, \
+        clientX: r.left + (x + 0.5) * r.width / c.width, clientY: r.top + (y + 0.5) * r.height / c.height }); \
+        c.dispatchEvent(ev('pointerdown', 120, 30, 21)); c.dispatchEvent(ev('pointerdown', 140, 30, 22)); \
+        c.dispatchEvent(ev('pointermove', 110, 30, 21)); c.dispatchEvent(ev('pointermove', 150, 30, 22)); \
+        await new Promise((d) => setTimeout(d, 300)); \
+        c.dispatchEvent(ev('pointerup', 110, 30, 21)); c.dispatchEvent(ev('pointerup', 150, 30, 22)); return true; })()";
+    browser.eval(pinch);
+    browser.wait(DELIVERED);
+    let turned = view_of(&browser.eval("holodeck.where()"));
+    let angle = turned
+        .direction
+        .normalize()
+        .dot(back.direction.normalize())
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    eprintln!("a pinch turned the view {angle:.2} degrees");
+    assert!(angle > 0.5, "a pinch did not turn the view");
+    assert!(
+        (turned.position - back.position).length() < 1e-9,
+        "a pinch moved the eye"
+    );
+    // The pinch's middle is up and to the right: the view turned that way.
+    assert!(turned.direction.z > back.direction.z, "{turned:?}");
+    browser.ask(json!({"op": "type", "selector": "#line", "text": "last", "enter": true}));
+    browser.wait(DELIVERED);
 
     // The window's keys: `v` says where the view is.
     browser.ask(json!({"op": "key", "key": "v"}));
