@@ -185,6 +185,11 @@ impl WebDisplay {
             .collect()
     }
 
+    /// Draws `n` frames afresh; the mean milliseconds of one (benchmarks).
+    pub fn bench_render(&mut self, n: u32) -> f64 {
+        self.session.bench_render(n)
+    }
+
     /// The status line (`frame_ms`: the last frame's time).
     pub fn status(&self, frame_ms: f64) -> String {
         self.session.status_line(frame_ms)

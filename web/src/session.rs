@@ -738,6 +738,20 @@ impl Session {
         rgba
     }
 
+    /// Draws `n` frames afresh (a denoiser's kept frame dropped before each)
+    /// and returns the mean milliseconds of one: what `holodeck view
+    /// --headless` reports as a frame's drawing, for benchmarks.
+    pub fn bench_render(&mut self, n: u32) -> f64 {
+        self.batch.flush(self.driver.as_mut());
+        let start = web_time::Instant::now();
+        for _ in 0..n.max(1) {
+            // Taking the store to change drops what a wrapper kept.
+            let _ = self.driver.store_mut();
+            std::hint::black_box(self.driver.render());
+        }
+        start.elapsed().as_secs_f64() * 1e3 / f64::from(n.max(1))
+    }
+
     /// What the server and this display said since the last call.
     pub fn take_notices(&mut self) -> Vec<String> {
         std::mem::take(&mut self.notices)

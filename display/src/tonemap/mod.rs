@@ -430,8 +430,42 @@ impl ToneMap {
     }
 }
 
-/// The sRGB transfer function to 8 bits, the same as `image_io` uses.
+/// The sRGB transfer function to 8 bits, the same as `image_io` uses:
+/// [`encode_srgb_exact`]'s value, found among the 255 steps where its
+/// output rises (the function rises monotonically), with no power function
+/// per value (which a web page's WebAssembly computes slowly).
 pub fn encode_srgb(v: f32) -> u8 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    srgb_steps().partition_point(|&step| step <= v) as u8
+}
+
+/// Where [`encode_srgb_exact`] rises: entry `k` is the least value in 0..=1
+/// it encodes as `k + 1` or more, found once by bisecting the float's bits.
+fn srgb_steps() -> &'static [f32; 255] {
+    static STEPS: std::sync::OnceLock<[f32; 255]> = std::sync::OnceLock::new();
+    STEPS.get_or_init(|| {
+        let mut steps = [0f32; 255];
+        for (k, step) in steps.iter_mut().enumerate() {
+            let target = k as u8 + 1;
+            // Non-negative floats order as their bits do.
+            let (mut lo, mut hi) = (0u32, 1f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if encode_srgb_exact(f32::from_bits(mid)) >= target {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            *step = f32::from_bits(lo);
+        }
+        steps
+    })
+}
+
+/// The sRGB transfer function to 8 bits, computed: what [`encode_srgb`]
+/// gives by table.
+pub fn encode_srgb_exact(v: f32) -> u8 {
     let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
     let s = if v <= 0.003_130_8 {
         12.92 * v

@@ -429,3 +429,40 @@ fn human_mode_gives_a_night_region_less_contrast_than_the_camera() {
     assert!(camera >= 60, "camera {camera}");
     assert!(2 * human <= camera, "human {human} vs camera {camera}");
 }
+
+#[test]
+fn the_srgb_table_encodes_every_value_as_the_formula_does() {
+    // Every step and its neighbours, then a sweep of the range.
+    for k in 0..=255u32 {
+        let v = (k as f32 + 0.5) / 255.0;
+        for x in [v, f32::from_bits(v.to_bits() - 1), f32::from_bits(v.to_bits() + 1)] {
+            assert_eq!(encode_srgb(x), encode_srgb_exact(x), "{x}");
+        }
+    }
+    for i in 0..=200_000u32 {
+        let v = i as f32 / 200_000.0;
+        assert_eq!(encode_srgb(v), encode_srgb_exact(v), "{v}");
+    }
+    for v in [-1.0, 0.0, 1.0, 2.0, f32::NAN, f32::INFINITY, 0.003_130_8, 1e-30] {
+        assert_eq!(encode_srgb(v), encode_srgb_exact(v), "{v}");
+    }
+}
+
+/// Every float from 0 to 1 (a billion; seconds in a release build:
+/// `cargo test --release -p holodeck-display -- --ignored srgb`).
+#[test]
+#[ignore]
+fn every_float_in_the_unit_range_encodes_as_the_formula_does() {
+    for bits in 0..=1f32.to_bits() {
+        let v = f32::from_bits(bits);
+        assert_eq!(encode_srgb(v), encode_srgb_exact(v), "{v}");
+    }
+}
+
+proptest::proptest! {
+    #[test]
+    fn any_float_encodes_as_the_formula_does(bits in proptest::prelude::any::<u32>()) {
+        let v = f32::from_bits(bits);
+        proptest::prop_assert_eq!(encode_srgb(v), encode_srgb_exact(v));
+    }
+}
