@@ -47,6 +47,33 @@ impl Status {
     }
 }
 
+/// Samples received lately, per second: the status line's rate, over
+/// windows of at least a second. The time is passed in (seconds from any
+/// fixed origin), so a web page, which has no clock here, keeps one too.
+#[derive(Clone, Debug, Default)]
+pub struct RateMeter {
+    since: f64,
+    count: u64,
+    rate: f64,
+}
+
+impl RateMeter {
+    /// Counts `n` samples received at `now`.
+    pub fn add(&mut self, n: u64, now: f64) {
+        self.count += n;
+        if now - self.since >= 1.0 {
+            self.rate = self.count as f64 / (now - self.since);
+            self.count = 0;
+            self.since = now;
+        }
+    }
+
+    /// Samples per second over the last whole window.
+    pub fn rate(&self) -> f64 {
+        self.rate
+    }
+}
+
 /// A count in few characters: 950, 12k, 3.4M, 1.2G.
 pub fn human(v: f64) -> String {
     match v {
@@ -60,6 +87,18 @@ pub fn human(v: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_rate_is_the_count_over_each_window_of_a_second_or_more() {
+        let mut m = RateMeter::default();
+        m.add(500, 0.5);
+        assert_eq!(m.rate(), 0.0);
+        m.add(1000, 1.5);
+        assert_eq!(m.rate(), 1000.0);
+        m.add(300, 2.0);
+        m.add(300, 3.5);
+        assert_eq!(m.rate(), 300.0);
+    }
 
     #[test]
     fn the_line_reads_counts_short_and_names_a_pause() {

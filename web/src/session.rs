@@ -16,6 +16,7 @@ use holodeck_display::gather::Gather;
 use holodeck_display::motion::{Held, Motion};
 use holodeck_display::output::parse_tone;
 use holodeck_display::request::{outstanding, BeamRequest, Refinement, RequestOptions};
+use holodeck_display::status::RateMeter;
 use holodeck_display::tonemap::{DisplayRange, Histogram, ToneMap};
 use holodeck_display::{navigate, Driver, EstimatorOptions, Sample, SampleDecoder, Viewport};
 use holodeck_protocol::site::SiteIndex;
@@ -92,24 +93,6 @@ enum Link {
     },
 }
 
-/// Samples received lately, per second.
-struct Meter {
-    since: f64,
-    count: u64,
-    rate: f64,
-}
-
-impl Meter {
-    fn add(&mut self, n: u64, now: f64) {
-        self.count += n;
-        if now - self.since >= 1.0 {
-            self.rate = self.count as f64 / (now - self.since);
-            self.count = 0;
-            self.since = now;
-        }
-    }
-}
-
 /// One display's session with a server, as a page runs it.
 pub struct Session {
     driver: Box<dyn Driver>,
@@ -136,7 +119,7 @@ pub struct Session {
     progress: Option<Progress>,
     notices: Vec<String>,
     samples: u64,
-    meter: Meter,
+    meter: RateMeter,
     tone: Option<ToneMap>,
     /// A motion in progress, and the button holding it.
     held: Option<(Held, u32)>,
@@ -208,11 +191,7 @@ impl Session {
             progress: None,
             notices,
             samples: 0,
-            meter: Meter {
-                since: 0.0,
-                count: 0,
-                rate: 0.0,
-            },
+            meter: RateMeter::default(),
             tone: None,
             held: None,
             head_fixed: false,
@@ -797,7 +776,7 @@ impl Session {
     /// frame's time, which the page measures).
     pub fn status_line(&self, frame_ms: f64) -> String {
         let mut line = holodeck_display::status::Status {
-            rate: self.meter.rate,
+            rate: self.meter.rate(),
             received: self.samples,
             shown: self.driver.stats().kept,
             frame_ms,

@@ -18,6 +18,7 @@ use super::source::{Delivery, Source, SourceError};
 use crate::gather::Gather;
 use crate::output::parse_tone;
 use crate::request::{outstanding, BeamRequest, Refinement, RequestOptions};
+use crate::status::RateMeter;
 use crate::tonemap::{DisplayRange, Histogram, ToneMap};
 use crate::{Driver, DriverError, Sample, Viewport};
 
@@ -74,26 +75,6 @@ pub enum WalkError {
     Tone(#[from] crate::output::ToneError),
 }
 
-/// Samples received lately, per second.
-#[derive(Debug)]
-struct Meter {
-    since: Instant,
-    count: u64,
-    rate: f64,
-}
-
-impl Meter {
-    fn add(&mut self, n: u64) {
-        self.count += n;
-        let elapsed = self.since.elapsed().as_secs_f64();
-        if elapsed >= 1.0 {
-            self.rate = self.count as f64 / elapsed;
-            self.count = 0;
-            self.since = Instant::now();
-        }
-    }
-}
-
 /// One drawn frame: tone-mapped RGB bytes, top row first.
 #[derive(Clone, Debug)]
 pub struct Frame {
@@ -128,7 +109,9 @@ pub struct Walkthrough {
     resend: bool,
     tone: Option<ToneMap>,
     received: u64,
-    meter: Meter,
+    meter: RateMeter,
+    /// When the walkthrough began: the origin of the meter's clock.
+    opened: Instant,
     /// Keep the eye's height while moving.
     pub head_fixed: bool,
 }
@@ -152,11 +135,8 @@ impl Walkthrough {
             resend: true,
             tone: None,
             received: 0,
-            meter: Meter {
-                since: Instant::now(),
-                count: 0,
-                rate: 0.0,
-            },
+            meter: RateMeter::default(),
+            opened: Instant::now(),
             head_fixed: false,
         }
     }
@@ -264,7 +244,7 @@ impl Walkthrough {
         self.request = Some(request);
         self.last_arrival = Instant::now();
         self.received += n;
-        self.meter.add(n);
+        self.meter.add(n, self.opened.elapsed().as_secs_f64());
         Ok(n)
     }
 
@@ -297,7 +277,7 @@ impl Walkthrough {
             .poll(deadline, &mut |s: &[Sample]| batch.add(s, driver.as_mut()))?;
         batch.flush(driver.as_mut());
         self.received += n;
-        self.meter.add(n);
+        self.meter.add(n, self.opened.elapsed().as_secs_f64());
         if n > 0 {
             self.last_arrival = Instant::now();
         }
@@ -366,7 +346,7 @@ impl Walkthrough {
 
     /// Samples received in all, and per second lately.
     pub fn received(&self) -> (u64, f64) {
-        (self.received, self.meter.rate)
+        (self.received, self.meter.rate())
     }
 
     /// The server's last report.
