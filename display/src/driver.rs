@@ -50,6 +50,11 @@ pub trait Driver: Send {
     ) {
         self.store_mut().add_beams_where_empty(decoder, chunks)
     }
+    /// [`Driver::add`], but only pixels that have no estimate yet take
+    /// samples (see [`crate::store::Store::add_where_empty`]).
+    fn add_where_empty(&mut self, samples: &[Sample]) {
+        self.store_mut().add_where_empty(samples)
+    }
     /// Which pixels of the frame have no estimate, row-major, top row first.
     fn empty_pixels(&self) -> Vec<bool> {
         self.store().empty_pixels()

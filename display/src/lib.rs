@@ -42,6 +42,7 @@ pub mod command;
 pub mod compare;
 pub mod denoise;
 pub mod driver;
+pub mod gaps;
 pub mod gather;
 pub mod geometry;
 pub mod gpu;

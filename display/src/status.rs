@@ -19,6 +19,8 @@ pub struct Status {
     pub server: Option<Progress>,
     /// The eye's height is kept while moving.
     pub head_fixed: bool,
+    /// Pixels of the settled view filled from neighbouring beams.
+    pub filled: u64,
 }
 
 impl Status {
@@ -39,6 +41,9 @@ impl Status {
                 server.samplers,
                 if server.paused { ", paused" } else { "" }
             ));
+        }
+        if self.filled > 0 {
+            s.push_str(&format!("  {} px from neighbouring beams", human(self.filled as f64)));
         }
         if self.head_fixed {
             s.push_str("  head fixed");
@@ -115,10 +120,21 @@ mod tests {
                 ..Progress::default()
             }),
             head_fixed: true,
+            filled: 0,
         };
         assert_eq!(
             s.line(),
             "12k samples/s  3.4M received  950 shown  frame 16 ms  server 1.2G rays, 2.5M/s, 3 samplers, paused  head fixed"
+        );
+        let sparse = Status {
+            server: None,
+            head_fixed: false,
+            filled: 2412,
+            ..s
+        };
+        assert_eq!(
+            sparse.line(),
+            "12k samples/s  3.4M received  950 shown  frame 16 ms  2412 px from neighbouring beams"
         );
     }
 }

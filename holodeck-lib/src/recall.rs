@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use holodeck_display::denoise::{Denoised, Denoiser};
+use holodeck_display::gaps;
 use holodeck_display::geometry::Geometry;
 use holodeck_display::request::{BeamRequest, RequestOptions};
 use holodeck_display::tonemap::Histogram;
@@ -41,9 +42,9 @@ pub struct DriverChoice {
     pub denoise: Denoiser,
     /// Pixels that the view's beams leave without a ray (a sparse file)
     /// take the rays of the beams next to theirs, which pass near the eye;
-    /// pixels with a ray are not changed. Off unless asked for: the
-    /// window's replay does not do it, and a picture and the window show
-    /// the same.
+    /// pixels with a ray are not changed. Off unless asked for, as in the
+    /// window's replay (`WalkOptions::neighbours`), so that a picture and
+    /// the window show the same.
     pub neighbours: bool,
     /// The scene, whose albedo guides the denoiser (OIDN takes an albedo
     /// beside the normals): each view's albedo traced from it, as
@@ -148,14 +149,14 @@ pub fn recall(
     let (mut neighbour_beams, mut filled) = (0, 0);
     if driver.neighbours {
         let empty = d.empty_pixels();
-        let gaps = empty.iter().filter(|e| **e).count() as u64;
+        let gaps = gaps::count(&empty);
         if gaps > 0 {
-            let near = neighbours_of_gaps(&sections, &viewport, &empty, &keys);
+            let near = gaps::neighbour_beams(&sections, &viewport, &empty, &keys);
             neighbour_beams = near.len();
             let (n, t) = feed(file, &near, &decoder, d.as_mut(), true)?;
             samples += n;
             adding += t;
-            filled = gaps - d.empty_pixels().iter().filter(|e| **e).count() as u64;
+            filled = gaps - gaps::count(&d.empty_pixels());
         }
     }
     let secs = start.elapsed();
@@ -186,49 +187,6 @@ fn view_keys(sections: &[holodeck_protocol::Section], viewport: &Viewport, strid
     let mut keys: Vec<BeamKey> = request.beams.iter().map(|b| b.0).collect();
     keys.sort_unstable();
     keys
-}
-
-/// The beams next to those that the view's rays through the centres of
-/// pixels without a ray (`empty`, row-major, top row first) pass through,
-/// less the beams already read (`read`, sorted).
-fn neighbours_of_gaps(
-    sections: &[holodeck_protocol::Section],
-    viewport: &Viewport,
-    empty: &[bool],
-    read: &[BeamKey],
-) -> Vec<BeamKey> {
-    let (w, h) = (viewport.width as usize, viewport.height as usize);
-    let rays = viewport.view.rays();
-    let around = holodeck_protocol::select::usable_sections(sections, viewport.view.position);
-    let mut through: Vec<BeamKey> = Vec::new();
-    for (p, _) in empty.iter().enumerate().filter(|(_, e)| **e) {
-        // The view's y runs bottom to top; the frame's rows top to bottom.
-        let x = ((p % w) as f64 + 0.5) / w as f64;
-        let y = 1.0 - ((p / w) as f64 + 0.5) / h as f64;
-        let Some((origin, dir)) = rays.ray(x, y) else { continue };
-        for &si in &around {
-            if let Some(at) = sections[si].locate(origin, dir) {
-                through.push(BeamKey::new(si as u32, at.beam));
-            }
-        }
-    }
-    through.sort_unstable();
-    through.dedup();
-    let mut near: Vec<BeamKey> = through
-        .iter()
-        .flat_map(|k| {
-            sections
-                .get(k.section as usize)
-                .and_then(|s| s.neighbour_beams(k.beam).ok())
-                .unwrap_or_default()
-                .into_iter()
-                .map(move |b| BeamKey::new(k.section, b))
-        })
-        .filter(|k| read.binary_search(k).is_err())
-        .collect();
-    near.sort_unstable();
-    near.dedup();
-    near
 }
 
 /// Reads the beams `keys` (sorted) and hands their rays to `d` (only to

@@ -62,6 +62,17 @@ impl Source for FileSource {
         read.map_err(|e| SourceError::File(format!("{}: {e}", self.name)))
     }
 
+    fn neighbours(&mut self, beams: &[BeamKey], sink: &mut dyn FnMut(Delivery<'_>)) -> Result<u64, SourceError> {
+        let decoder = &self.decoder;
+        let read = crate::recall::read_in_chunks(
+            &mut self.file,
+            beams,
+            |_, _| 0,
+            |chunks| sink(Delivery::Beams(decoder, chunks)),
+        );
+        read.map_err(|e| SourceError::File(format!("{}: {e}", self.name)))
+    }
+
     fn raise(&mut self, _request: &BeamRequest) -> Result<(), SourceError> {
         Ok(())
     }

@@ -106,6 +106,68 @@ fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams
     );
 }
 
+/// The window's replay of a sparse file fills its gaps from neighbouring
+/// beams as `pict --neighbour-beams` does: the same picture, bit for bit,
+/// and the pixels filled counted.
+#[cfg(feature = "window")]
+#[test]
+fn the_window_fills_a_sparse_files_gaps_from_neighbouring_beams_as_pict_does() {
+    use holodeck_display::window::{WalkOptions, Walkthrough};
+    let scene = SceneInput::open("builtin:room", None, None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sparse.hdk");
+    let settings = Settings::with_sections(scene.sections().to_vec());
+    HoloFile::create(&path, &settings).unwrap();
+    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
+    let options = FillOptions {
+        rays: Some(200_000),
+        ..FillOptions::default()
+    };
+    fill(&scene.tracer(Default::default()), &mut file, &options, &|_| {}).unwrap();
+    let viewport = Viewport::new(View::parse(holodeck::ROOM_VIEW).unwrap(), 128, 96).unwrap();
+    let mut choice = DriverChoice::plain("quadtree", Default::default());
+    choice.neighbours = true;
+    // `pict`'s selection for the view is the window's (seed 0).
+    let (mut pict, recalled) = recall(&mut file, viewport.clone(), &choice, 2, 0).unwrap();
+    assert!(recalled.filled > 1000, "{recalled:?}");
+    file.close().unwrap();
+
+    let walk = |neighbours: bool| {
+        let file = HoloFile::open(&path, &OpenOptions::read_only()).unwrap();
+        let source = holodeck::replay::FileSource::new(file, "sparse.hdk".into());
+        let driver = DriverChoice::plain("quadtree", Default::default())
+            .make(viewport.clone())
+            .unwrap();
+        // `pict`'s beam selection: one view ray per 2 pixels (as `pict --window` asks).
+        let mut options = WalkOptions {
+            neighbours,
+            ..Default::default()
+        };
+        options.request.stride = 2;
+        let mut w = Walkthrough::new(Box::new(source), driver, options);
+        let samples = w.settle().unwrap();
+        (w, samples)
+    };
+    let (mut plain, alone) = walk(false);
+    let (mut helped, with) = walk(true);
+    assert_eq!(plain.filled(), 0);
+    assert_eq!(helped.filled(), recalled.filled, "the pixels filled are pict's");
+    assert_eq!(with, recalled.samples, "every ray pict read, the neighbours' too");
+    assert!(with > alone);
+    let empty = |w: &Walkthrough| w.driver().empty_pixels().iter().filter(|e| **e).count() as u64;
+    assert_eq!(empty(&plain) - empty(&helped), helped.filled());
+    let (_, picture) = helped.frame().unwrap();
+    assert!(picture == pict.render(), "the window shows what pict draws");
+    let (_, without) = plain.frame().unwrap();
+    assert!(picture != without);
+    // Settling again asks for more of the view (other beams): the gaps
+    // left are fewer, and those filled again are counted anew.
+    let left = empty(&helped);
+    helped.settle().unwrap();
+    assert!(empty(&helped) <= left);
+    assert!(helped.filled() <= left, "{} of {left}", helped.filled());
+}
+
 #[test]
 fn a_walk_in_one_driver_reads_each_ray_once_and_draws_what_a_fresh_recall_draws() {
     let dir = tempfile::tempdir().unwrap();

@@ -782,6 +782,7 @@ impl Session {
             frame_ms,
             server: self.progress,
             head_fixed: self.head_fixed,
+            filled: 0,
         }
         .line();
         match &self.link {

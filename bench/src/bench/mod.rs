@@ -9,6 +9,7 @@ pub mod all;
 pub mod compare;
 pub mod display;
 pub mod fast;
+pub mod kept;
 pub mod network;
 pub mod paths;
 pub mod publish;

@@ -128,6 +128,11 @@ impl Driver for Denoised {
         self.inner.add_beams_where_empty(decoder, chunks)
     }
 
+    fn add_where_empty(&mut self, samples: &[Sample]) {
+        self.arriving(!samples.is_empty());
+        self.inner.add_where_empty(samples)
+    }
+
     fn empty_pixels(&self) -> Vec<bool> {
         self.inner.empty_pixels()
     }

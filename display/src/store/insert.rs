@@ -445,6 +445,15 @@ impl<I: PixelIndex + Sync + Send> Store<I> {
         self.sealed = Vec::new();
     }
 
+    /// [`Store::add`], but only pixels that had no estimate when it was
+    /// called take the samples, as [`Store::add_beams_where_empty`] does
+    /// with stored records (for a server's samples of neighbouring beams).
+    pub fn add_where_empty(&mut self, samples: &[Sample]) {
+        self.sealed = self.empty_pixels().into_iter().map(|empty| !empty).collect();
+        self.add(samples);
+        self.sealed = Vec::new();
+    }
+
     /// How long the stages of adding rays took so far (projecting overlaps
     /// merging in [`Store::add_beams`], so the stages may add up to more
     /// than the time taken).

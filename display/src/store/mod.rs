@@ -120,6 +120,9 @@ pub trait SampleStore: Send {
     /// Adds stored rays only to pixels that have no estimate yet
     /// ([`Store::add_beams_where_empty`]).
     fn add_beams_where_empty(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]);
+    /// Adds samples only to pixels that have no estimate yet
+    /// ([`Store::add_where_empty`]).
+    fn add_where_empty(&mut self, samples: &[Sample]);
     /// Which pixels have no estimate ([`Store::empty_pixels`]).
     fn empty_pixels(&self) -> Vec<bool>;
     /// How long adding rays took, by stage ([`Store::insert_times`]).
@@ -159,6 +162,9 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
     }
     fn add_beams_where_empty(&mut self, decoder: &crate::SampleDecoder, chunks: &[&[(BeamKey, &[RayRecord])]]) {
         Store::add_beams_where_empty(self, decoder, chunks)
+    }
+    fn add_where_empty(&mut self, samples: &[Sample]) {
+        Store::add_where_empty(self, samples)
     }
     fn empty_pixels(&self) -> Vec<bool> {
         Store::empty_pixels(self)

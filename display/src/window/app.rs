@@ -431,6 +431,7 @@ impl App {
             frame_ms: self.frame_time.as_secs_f64() * 1e3,
             server: self.walk.server(),
             head_fixed: self.walk.head_fixed,
+            filled: self.walk.filled(),
         }
         .line()
     }

@@ -49,6 +49,13 @@ pub trait Source {
         resend: bool,
         sink: &mut dyn FnMut(Delivery<'_>),
     ) -> Result<u64, SourceError>;
+    /// Hands the stored samples of `beams` (the neighbours of a view's
+    /// beams, for its pixels without a ray: [`crate::gaps`]) to `sink`,
+    /// without counting them as given, so that a later view that sees one
+    /// of these beams takes all of its rays; returns how many. Nothing is
+    /// asked traced. A source that cannot (a server, whose protocol hands
+    /// each stored ray to a display once) hands none.
+    fn neighbours(&mut self, beams: &[BeamKey], sink: &mut dyn FnMut(Delivery<'_>)) -> Result<u64, SourceError>;
     /// Raises the counts of the current view's beams (more samples wanted).
     fn raise(&mut self, request: &BeamRequest) -> Result<(), SourceError>;
     /// Hands newly traced samples to `sink` until `deadline`; returns how many.
@@ -94,6 +101,10 @@ impl Source for ServerSource {
             .session
             .request(request, resend, &mut |s: &[Sample]| sink(Delivery::Samples(s)))?
             .samples)
+    }
+
+    fn neighbours(&mut self, _beams: &[BeamKey], _sink: &mut dyn FnMut(Delivery<'_>)) -> Result<u64, SourceError> {
+        Ok(0)
     }
 
     fn raise(&mut self, request: &BeamRequest) -> Result<(), SourceError> {

@@ -37,6 +37,15 @@ fn deliver(batch: &mut Gather, delivery: Delivery<'_>, driver: &mut dyn Driver) 
     }
 }
 
+/// Hands what a source delivered for pixels without a ray to `driver`:
+/// only those pixels take it.
+fn deliver_where_empty(delivery: Delivery<'_>, driver: &mut dyn Driver) {
+    match delivery {
+        Delivery::Samples(s) => driver.add_where_empty(s),
+        Delivery::Beams(decoder, chunks) => driver.add_beams_where_empty(decoder, chunks),
+    }
+}
+
 /// How a walkthrough asks for samples and shows them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WalkOptions {
@@ -48,6 +57,10 @@ pub struct WalkOptions {
     pub request: RequestOptions,
     /// Tone mapping: camera, human, exposure:X or exposure:auto.
     pub tone: String,
+    /// Pixels that a settled view's beams leave without a ray (a sparse
+    /// file) take the stored rays of the beams next to theirs, as `holodeck
+    /// pict --neighbour-beams` does (see [`Source::neighbours`]).
+    pub neighbours: bool,
 }
 
 impl Default for WalkOptions {
@@ -57,6 +70,7 @@ impl Default for WalkOptions {
             max_density: 1024.0,
             request: RequestOptions::default(),
             tone: "camera".into(),
+            neighbours: false,
         }
     }
 }
@@ -109,6 +123,8 @@ pub struct Walkthrough {
     resend: bool,
     tone: Option<ToneMap>,
     received: u64,
+    /// Pixels the last settled view filled from neighbouring beams.
+    filled: u64,
     meter: RateMeter,
     /// When the walkthrough began: the origin of the meter's clock.
     opened: Instant,
@@ -135,6 +151,7 @@ impl Walkthrough {
             resend: true,
             tone: None,
             received: 0,
+            filled: 0,
             meter: RateMeter::default(),
             opened: Instant::now(),
             head_fixed: false,
@@ -240,12 +257,43 @@ impl Walkthrough {
             deliver(batch, d, driver.as_mut())
         })?;
         batch.flush(driver.as_mut());
+        let n = n + if self.options.neighbours {
+            self.fill_gaps(&request)?
+        } else {
+            0
+        };
         self.resend = false;
         self.request = Some(request);
         self.last_arrival = Instant::now();
         self.received += n;
         self.meter.add(n, self.opened.elapsed().as_secs_f64());
         Ok(n)
+    }
+
+    /// Pixels that `request`'s beams left without a ray take the stored
+    /// rays of the beams next to theirs; returns the samples handed over.
+    fn fill_gaps(&mut self, request: &BeamRequest) -> Result<u64, WalkError> {
+        self.filled = 0;
+        let empty = self.driver.empty_pixels();
+        let gaps = crate::gaps::count(&empty);
+        if gaps == 0 {
+            return Ok(0);
+        }
+        let mut given: Vec<holodeck_protocol::BeamKey> = request.beams.iter().map(|b| b.0).collect();
+        given.sort_unstable();
+        let near = crate::gaps::neighbour_beams(self.source.sections(), self.driver.viewport(), &empty, &given);
+        let driver = &mut self.driver;
+        let n = self
+            .source
+            .neighbours(&near, &mut |d: Delivery<'_>| deliver_where_empty(d, driver.as_mut()))?;
+        self.filled = gaps - crate::gaps::count(&self.driver.empty_pixels());
+        Ok(n)
+    }
+
+    /// Pixels the last settled view filled from the rays of neighbouring
+    /// beams (with [`WalkOptions::neighbours`]).
+    pub fn filled(&self) -> u64 {
+        self.filled
     }
 
     /// A request for `density` samples per pixel that asks each beam for

@@ -24,8 +24,8 @@ beams each view sees, reconstructs the picture with a display driver and writes 
 With --views, every line of the file is one frame and OUTPUT holds %d or %04d for its number.
 With --neighbour-beams, pixels the view's beams give no ray (a sparse file) take the rays of the
 beams next to theirs, which pass near the eye; pixels with a ray are left as they are, and the
-summary says how many were filled that way. Without it, the driver fills them by interpolation,
-as the window does.
+summary says how many were filled that way (with --window, the status line says it for each
+view once motion stops). Without it, the driver fills them by interpolation.
 
 Examples:
   holodeck pict room.hdk -o room.png
@@ -33,6 +33,7 @@ Examples:
   holodeck pict room.hdk --views walk.vf -o frames/walk_%04d.png --tone human
   holodeck pict sparse.hdk --neighbour-beams -o sparse.png    # a short fill by volume
   holodeck pict room.hdk --window --driver quadtree     # walk through it, no server
+  holodeck pict sparse.hdk --window --neighbour-beams   # the same, gaps filled from neighbours
 
 With --window there is no output file: the view opens in a window with the walkthrough's input
 model (see `holodeck view --help`), and every view's beams are read from FILE as motion stops.
@@ -57,7 +58,7 @@ pub struct Args {
     /// Fill pixels that the view's beams give no ray (a sparse file) from
     /// the rays of the beams next to theirs, which pass near the eye; pixels
     /// with a ray are left as they are.
-    #[arg(long, conflicts_with = "window")]
+    #[arg(long)]
     neighbour_beams: bool,
     /// Output picture (.png or .hdr); with --views, a name holding %d or %04d.
     #[arg(short, long, required_unless_present = "window")]
@@ -115,7 +116,11 @@ pub fn run(a: Args) -> Result<ExitCode> {
             script: a.script,
             stride: a.stride,
         };
-        crate::window::open(Box::new(source), view, &a.frame, &args, Default::default())?;
+        let walk = holodeck_display::window::WalkOptions {
+            neighbours: a.neighbour_beams,
+            ..Default::default()
+        };
+        crate::window::open(Box::new(source), view, &a.frame, &args, walk)?;
         return Ok(ExitCode::SUCCESS);
     }
     let Some(output) = &a.output else {
