@@ -31,6 +31,7 @@ Examples:
   holodeck fill builtin:room room.hdk --views views.txt --rays 4M
   holodeck bench replay room.hdk --views 20 -x 1280 -y 720
   holodeck bench replay room.hdk -x 1920 -y 1080 --memory-limit-mib 1024
+  holodeck bench replay room.hdk --walks window --drivers splat   (one walk, one driver)
   taskset -c 0 holodeck bench replay room.hdk      (one core for the whole process)")]
 pub struct Args {
     /// The holodeck file to replay.
@@ -53,6 +54,13 @@ pub struct Args {
     /// Frame height.
     #[arg(short = 'y', long, default_value_t = 720)]
     pub height: u32,
+    /// Which walks: `fresh` (a fresh driver for each view) and `window`
+    /// (one driver for the walk, as the window replays it).
+    #[arg(long, value_delimiter = ',', default_value = "fresh,window", value_parser = ["fresh", "window"])]
+    pub walks: Vec<String>,
+    /// The CPU drivers walked.
+    #[arg(long, value_delimiter = ',', default_value = "quadtree,splat", value_parser = ["quadtree", "splat"])]
+    pub drivers: Vec<String>,
     /// Limit the process's data memory to this many MiB (as a low-end
     /// machine would; 0: no limit). An allocation beyond it fails.
     #[arg(long, default_value_t = 0)]
@@ -165,110 +173,114 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
     walk(&mut file, &views, (64, 36), "splat")?;
     let cores = rayon::current_num_threads();
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    println!(
-        "| measurement ({} views of {}x{}, a fresh driver each) | one core | all {cores} cores | ratio |",
-        a.views, a.width, a.height
-    );
-    println!("|---|---|---|---|");
-    for driver in ["quadtree", "splat"] {
-        let single = one.install(|| walk(&mut file, &views, size, driver))?;
-        let all = walk(&mut file, &views, size, driver)?;
-        let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
-        let fps = |w: &Walk| f64::from(w.frames) / w.total.as_secs_f64().max(1e-9);
-        let rate = |w: &Walk| w.samples as f64 / w.recall.as_secs_f64().max(1e-9);
-        row(
-            &format!("{driver}: frames per second along the walk"),
-            format!("{:.1}", fps(&single)),
-            format!("{:.1}", fps(&all)),
-            fps(&single) / fps(&all),
+    if a.walks.iter().any(|w| w == "fresh") {
+        println!(
+            "| measurement ({} views of {}x{}, a fresh driver each) | one core | all {cores} cores | ratio |",
+            a.views, a.width, a.height
         );
-        row(
-            &format!("{driver}: view change to a complete picture, mean (slowest)"),
-            format!("{} ({})", ms(single.total, single.frames), ms(single.worst, 1)),
-            format!("{} ({})", ms(all.total, all.frames), ms(all.worst, 1)),
-            single.total.as_secs_f64() / all.total.as_secs_f64().max(1e-9),
-        );
-        row(
-            &format!(
-                "{driver}: samples recalled into the picture per second ({} samples a view)",
-                count(single.samples / u64::from(single.frames.max(1)))
-            ),
-            format!("{}/s", count(rate(&single) as u64)),
-            format!("{}/s", count(rate(&all) as u64)),
-            rate(&single) / rate(&all),
-        );
-        let per = |w: &Walk| w.heap as f64 / w.estimates.max(1) as f64;
-        row(
-            &format!(
-                "{driver}: store heap per view, and per estimate ({} estimates a view)",
-                count(single.estimates / u64::from(single.frames.max(1)))
-            ),
-            format!(
-                "{:.1} MiB, {:.0} B",
-                single.heap as f64 / f64::from(single.frames.max(1)) / 1048576.0,
-                per(&single)
-            ),
-            format!(
-                "{:.1} MiB, {:.0} B",
-                all.heap as f64 / f64::from(all.frames.max(1)) / 1048576.0,
-                per(&all)
-            ),
-            per(&single) / per(&all).max(1e-9),
-        );
-        for (stage, s, m) in [
-            ("read", single.read, all.read),
-            ("decode and project (overlaps the merge)", single.decode, all.decode),
-            ("sort and merge into estimates", single.insert, all.insert),
-            ("frame", single.frame, all.frame),
-        ] {
+        println!("|---|---|---|---|");
+        for driver in a.drivers.iter().map(String::as_str) {
+            let single = one.install(|| walk(&mut file, &views, size, driver))?;
+            let all = walk(&mut file, &views, size, driver)?;
+            let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
+            let fps = |w: &Walk| f64::from(w.frames) / w.total.as_secs_f64().max(1e-9);
+            let rate = |w: &Walk| w.samples as f64 / w.recall.as_secs_f64().max(1e-9);
             row(
-                &format!("{driver}: {stage}, per view"),
-                ms(s, single.frames),
-                ms(m, all.frames),
-                s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+                &format!("{driver}: frames per second along the walk"),
+                format!("{:.1}", fps(&single)),
+                format!("{:.1}", fps(&all)),
+                fps(&single) / fps(&all),
             );
+            row(
+                &format!("{driver}: view change to a complete picture, mean (slowest)"),
+                format!("{} ({})", ms(single.total, single.frames), ms(single.worst, 1)),
+                format!("{} ({})", ms(all.total, all.frames), ms(all.worst, 1)),
+                single.total.as_secs_f64() / all.total.as_secs_f64().max(1e-9),
+            );
+            row(
+                &format!(
+                    "{driver}: samples recalled into the picture per second ({} samples a view)",
+                    count(single.samples / u64::from(single.frames.max(1)))
+                ),
+                format!("{}/s", count(rate(&single) as u64)),
+                format!("{}/s", count(rate(&all) as u64)),
+                rate(&single) / rate(&all),
+            );
+            let per = |w: &Walk| w.heap as f64 / w.estimates.max(1) as f64;
+            row(
+                &format!(
+                    "{driver}: store heap per view, and per estimate ({} estimates a view)",
+                    count(single.estimates / u64::from(single.frames.max(1)))
+                ),
+                format!(
+                    "{:.1} MiB, {:.0} B",
+                    single.heap as f64 / f64::from(single.frames.max(1)) / 1048576.0,
+                    per(&single)
+                ),
+                format!(
+                    "{:.1} MiB, {:.0} B",
+                    all.heap as f64 / f64::from(all.frames.max(1)) / 1048576.0,
+                    per(&all)
+                ),
+                per(&single) / per(&all).max(1e-9),
+            );
+            for (stage, s, m) in [
+                ("read", single.read, all.read),
+                ("decode and project (overlaps the merge)", single.decode, all.decode),
+                ("sort and merge into estimates", single.insert, all.insert),
+                ("frame", single.frame, all.frame),
+            ] {
+                row(
+                    &format!("{driver}: {stage}, per view"),
+                    ms(s, single.frames),
+                    ms(m, all.frames),
+                    s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+                );
+            }
         }
     }
-    println!(
-        "| measurement (the same walk in one driver, as the window replays it: each view's \
-         estimates reprojected, only rays of beams not given before read, then a frame; \
-         the first view left out) | one core | all {cores} cores | ratio |"
-    );
-    println!("|---|---|---|---|");
-    for driver in ["quadtree", "splat"] {
-        let single = one.install(|| follow_walk(&mut file, &views, size, driver))?;
-        let all = follow_walk(&mut file, &views, size, driver)?;
-        let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
-        let fps = |w: &Following| f64::from(w.frames) / w.total.as_secs_f64().max(1e-9);
-        row(
-            &format!("{driver}: frames per second along the walk"),
-            format!("{:.1}", fps(&single)),
-            format!("{:.1}", fps(&all)),
-            fps(&single) / fps(&all).max(1e-9),
+    if a.walks.iter().any(|w| w == "window") {
+        println!(
+            "| measurement (the same walk in one driver, as the window replays it: each view's \
+             estimates reprojected, only rays of beams not given before read, then a frame; \
+             the first view left out) | one core | all {cores} cores | ratio |"
         );
-        row(
-            &format!("{driver}: view change to a complete picture, mean (slowest)"),
-            format!("{} ({})", ms(single.total, single.frames), ms(single.worst, 1)),
-            format!("{} ({})", ms(all.total, all.frames), ms(all.worst, 1)),
-            single.total.as_secs_f64() / all.total.as_secs_f64().max(1e-9),
-        );
-        row(
-            &format!("{driver}: new samples a view (the first view: {})", count(single.first)),
-            count(single.samples / u64::from(single.frames.max(1))),
-            count(all.samples / u64::from(all.frames.max(1))),
-            single.samples as f64 / all.samples.max(1) as f64,
-        );
-        for (stage, s, m) in [
-            ("reprojection", single.reproject, all.reproject),
-            ("new samples read and merged", single.recall, all.recall),
-            ("frame", single.frame, all.frame),
-        ] {
+        println!("|---|---|---|---|");
+        for driver in a.drivers.iter().map(String::as_str) {
+            let single = one.install(|| follow_walk(&mut file, &views, size, driver))?;
+            let all = follow_walk(&mut file, &views, size, driver)?;
+            let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
+            let fps = |w: &Following| f64::from(w.frames) / w.total.as_secs_f64().max(1e-9);
             row(
-                &format!("{driver}: {stage}, per view"),
-                ms(s, single.frames),
-                ms(m, all.frames),
-                s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+                &format!("{driver}: frames per second along the walk"),
+                format!("{:.1}", fps(&single)),
+                format!("{:.1}", fps(&all)),
+                fps(&single) / fps(&all).max(1e-9),
             );
+            row(
+                &format!("{driver}: view change to a complete picture, mean (slowest)"),
+                format!("{} ({})", ms(single.total, single.frames), ms(single.worst, 1)),
+                format!("{} ({})", ms(all.total, all.frames), ms(all.worst, 1)),
+                single.total.as_secs_f64() / all.total.as_secs_f64().max(1e-9),
+            );
+            row(
+                &format!("{driver}: new samples a view (the first view: {})", count(single.first)),
+                count(single.samples / u64::from(single.frames.max(1))),
+                count(all.samples / u64::from(all.frames.max(1))),
+                single.samples as f64 / all.samples.max(1) as f64,
+            );
+            for (stage, s, m) in [
+                ("reprojection", single.reproject, all.reproject),
+                ("new samples read and merged", single.recall, all.recall),
+                ("frame", single.frame, all.frame),
+            ] {
+                row(
+                    &format!("{driver}: {stage}, per view"),
+                    ms(s, single.frames),
+                    ms(m, all.frames),
+                    s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+                );
+            }
         }
     }
     println!(
