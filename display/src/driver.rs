@@ -83,6 +83,11 @@ pub trait Driver: Send {
     fn heap_bytes(&self) -> usize {
         self.store().heap_bytes()
     }
+    /// The sample store's part of [`Driver::heap_bytes`], by what holds it
+    /// (the rest is the driver's own: what it draws with).
+    fn store_heap_parts(&self) -> crate::store::HeapParts {
+        self.store().heap_parts()
+    }
     /// The world point seen at pixel (`col`, `row`) (top row first), or
     /// `None` where the frame shows sky or nothing near that pixel.
     fn point_at(&self, col: u32, row: u32) -> Option<glam::DVec3> {

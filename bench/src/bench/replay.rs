@@ -292,7 +292,59 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
         },
         peak_resident_kib() >> 10
     );
+    memory_at(&mut file, &views[0], a)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The frame size the store's memory is reported at.
+const MEMORY_SIZE: (u32, u32) = (1920, 1080);
+
+/// The store's memory for `view` at [`MEMORY_SIZE`], a fresh driver of each
+/// of the walked drivers holding the view's rays: in all, per estimate, and
+/// by what holds it. Prints its own table.
+fn memory_at(file: &mut HoloFile, view: &View, a: &Args) -> Result<()> {
+    use holodeck_display::store::{Entry, Estimate, HeapParts};
+    let mut columns = Vec::new();
+    for driver in &a.drivers {
+        let choice = DriverChoice::plain(driver, Default::default());
+        let viewport = Viewport::new(view.clone(), MEMORY_SIZE.0, MEMORY_SIZE.1)?;
+        let (mut d, _) = holodeck::recall(file, viewport, &choice, 2, 0)?;
+        std::hint::black_box(d.render());
+        columns.push((d.heap_bytes(), d.store_heap_parts(), d.stats().kept));
+    }
+    println!();
+    println!(
+        "The store at {} x {}, the walk's first view drawn by a fresh driver; an estimate is {} B \
+         ({} B of sums, firefly candidate, depths and centroid, and its pixel key):",
+        MEMORY_SIZE.0,
+        MEMORY_SIZE.1,
+        std::mem::size_of::<Entry>(),
+        std::mem::size_of::<Estimate>()
+    );
+    println!();
+    let head: Vec<&str> = a.drivers.iter().map(String::as_str).collect();
+    println!("| heap | {} |", head.join(" | "));
+    println!("|---|{}", "---|".repeat(head.len()));
+    let mib = |b: usize| format!("{:.1} MiB", b as f64 / 1048576.0);
+    let line = |name: &str, f: &dyn Fn(&(usize, HeapParts, u64)) -> String| {
+        let cells: Vec<String> = columns.iter().map(f).collect();
+        println!("| {name} | {} |", cells.join(" | "));
+    };
+    line("estimates on the frame", &|c| count(c.2));
+    line("in all", &|c| mib(c.0));
+    line("per estimate", &|c| format!("{:.0} B", c.0 as f64 / c.2.max(1) as f64));
+    line("estimates, with their pixel keys (the vector's capacity)", &|c| {
+        mib(c.1.estimates)
+    });
+    line("estimates parked off the frame", &|c| mib(c.1.parked));
+    line("pixel index and each pixel's nearest depth", &|c| mib(c.1.index));
+    line("batches of rays being added", &|c| mib(c.1.batches));
+    line("a frame's values, neighbourhoods and firefly light", &|c| {
+        mib(c.1.frame)
+    });
+    line("the driver's own (what it draws with)", &|c| mib(c.0 - c.1.total()));
+    println!();
+    Ok(())
 }
 
 /// Limits the process's data segment (heap and private mappings) to

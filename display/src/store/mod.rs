@@ -109,6 +109,8 @@ pub trait SampleStore: Send {
     fn clear(&mut self);
     /// Heap bytes held.
     fn heap_bytes(&self) -> usize;
+    /// Heap bytes held, by what holds them ([`Store::heap_parts`]).
+    fn heap_parts(&self) -> HeapParts;
     /// The world point nearest pixel (`col`, `row`) within `reach` pixels.
     fn point_near(&self, col: u32, row: u32, reach: u32) -> Option<DVec3>;
     /// How many more rays each pixel wants ([`Store::needs`]).
@@ -148,6 +150,9 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
     fn heap_bytes(&self) -> usize {
         Store::heap_bytes(self)
     }
+    fn heap_parts(&self) -> HeapParts {
+        Store::heap_parts(self)
+    }
     fn point_near(&self, col: u32, row: u32, reach: u32) -> Option<DVec3> {
         Store::point_near(self, col, row, reach)
     }
@@ -171,6 +176,30 @@ impl<I: PixelIndex + Sync + Send> SampleStore for Store<I> {
     }
     fn insert_times(&self) -> InsertTimes {
         Store::insert_times(self)
+    }
+}
+
+/// A store's heap bytes by what holds them ([`Store::heap_parts`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HeapParts {
+    /// The estimates on the frame, with their pixel keys (the vector's
+    /// capacity: it grows by doubling as estimates arrive).
+    pub estimates: usize,
+    /// The estimates parked off the frame, with their world points.
+    pub parked: usize,
+    /// The pixel index, and each pixel's nearest depth.
+    pub index: usize,
+    /// Rays being added: the projected batches and the runs merged.
+    pub batches: usize,
+    /// A frame's values, the neighbourhoods fireflies are judged by and
+    /// the light they spread.
+    pub frame: usize,
+}
+
+impl HeapParts {
+    /// Every part together.
+    pub fn total(&self) -> usize {
+        self.estimates + self.parked + self.index + self.batches + self.frame
     }
 }
 
@@ -448,22 +477,30 @@ impl<I: PixelIndex + Sync> Store<I> {
     /// Heap bytes held (estimates, index, scratch): bounded by the frame
     /// size whatever the number of rays received.
     pub fn heap_bytes(&self) -> usize {
-        self.entries.capacity() * std::mem::size_of::<Entry>()
-            + self.parked.capacity() * std::mem::size_of::<Aggregate>()
-            + (self.projected.capacity() + self.spare.capacity() + self.projected_next.capacity())
+        self.heap_parts().total()
+    }
+
+    /// Heap bytes held, by what holds them.
+    pub fn heap_parts(&self) -> HeapParts {
+        let f = &self.frame;
+        HeapParts {
+            estimates: self.entries.capacity() * std::mem::size_of::<Entry>(),
+            parked: self.parked.capacity() * std::mem::size_of::<Aggregate>(),
+            index: self.index.heap_bytes()
+                + (self.near.capacity() + self.moved_from.capacity()) * std::mem::size_of::<f32>(),
+            batches: (self.projected.capacity() + self.spare.capacity() + self.projected_next.capacity())
                 * std::mem::size_of::<Pending>()
-            + self.runs.capacity() * std::mem::size_of::<insert::Run>()
-            + self.merged.capacity() * std::mem::size_of::<(Estimate, insert::Tally)>()
-            + self.index.heap_bytes()
-            + self.frame.colors.capacity() * std::mem::size_of::<Vec3>()
-            + self.frame.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
-            + (self.frame.sums.capacity() + self.frame.across.capacity()) * std::mem::size_of::<[f32; 2]>()
-            + self.frame.excess.capacity() * std::mem::size_of::<[f32; 3]>()
-            + self.frame.per_pixel.capacity() * std::mem::size_of::<u32>()
-            + (self.frame.pixel_excess.capacity() + self.frame.received.capacity()) * std::mem::size_of::<[f32; 3]>()
-            + self.frame.pixel_wave.capacity()
-            + self.frame.spread.heap_bytes()
-            + (self.near.capacity() + self.moved_from.capacity()) * std::mem::size_of::<f32>()
+                + self.runs.capacity() * std::mem::size_of::<insert::Run>()
+                + self.merged.capacity() * std::mem::size_of::<(Estimate, insert::Tally)>(),
+            frame: f.colors.capacity() * std::mem::size_of::<Vec3>()
+                + f.bodies.capacity() * std::mem::size_of::<(u32, f32, f32)>()
+                + (f.sums.capacity() + f.across.capacity()) * std::mem::size_of::<[f32; 2]>()
+                + f.excess.capacity() * std::mem::size_of::<[f32; 3]>()
+                + f.per_pixel.capacity() * std::mem::size_of::<u32>()
+                + (f.pixel_excess.capacity() + f.received.capacity()) * std::mem::size_of::<[f32; 3]>()
+                + f.pixel_wave.capacity()
+                + f.spread.heap_bytes(),
+        }
     }
 
     /// Rebuilds the nearest depth of every pixel from the estimates.

@@ -339,6 +339,19 @@ fn memory_stays_bounded_for_a_hundred_million_rays() {
     let st = d.stats();
     assert_eq!(st.received, 100_000_000);
     assert_eq!(d.heap_bytes(), after_one, "memory grew with the rays");
+    // The parts add up to the whole: the quadtree's drawing stack is its own.
+    let parts = d.store_heap_parts();
+    assert!(
+        parts.total() <= after_one && after_one - parts.total() < 1 << 16,
+        "{parts:?}"
+    );
+    assert!(parts.estimates >= st.kept as usize * std::mem::size_of::<crate::store::Entry>());
+    assert!(parts.index > 0 && parts.batches > 0);
+    assert_eq!(
+        (parts.parked, parts.frame),
+        (0, 0),
+        "nothing left the frame, and none was drawn"
+    );
     // Estimates, index and one batch's scratch: a few megabytes.
     assert!(after_one < 48 << 20, "{after_one} bytes");
     assert!(st.kept <= 64 * 48 * 16);
