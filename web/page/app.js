@@ -3,7 +3,8 @@
 // into a canvas. The link's fragment (never sent to the server) carries the
 // options: #token=…&view=…&driver=quadtree|splat&denoise=off&width=…&height=…
 // &density=…&max-density=… (samples per pixel asked for, and the most a
-// still view raises it to).
+// still view raises it to)&neighbours=1 (a replayed site fills the pixels a
+// view's beams leave without a ray from the beams next to theirs).
 import init, { WebDisplay } from "./holodeck_web.js";
 
 const params = new URLSearchParams(location.hash.slice(1));
@@ -127,6 +128,7 @@ async function openSite() {
     return false;
   }
   if (!response.ok) return false;
+  display.set_neighbours(params.get("neighbours") === "1");
   display.open_site(new Uint8Array(await response.arrayBuffer()), now());
   replay = true;
   return true;

@@ -63,9 +63,16 @@ impl WebDisplay {
             denoise,
             density,
             max_density,
+            neighbours: false,
         };
         let session = Session::new(view, width, height, options).map_err(js)?;
         Ok(WebDisplay { session })
+    }
+
+    /// In a replayed site, fills the pixels a settled view's beams leave
+    /// without a ray from the beams next to theirs (see `SessionOptions::neighbours`).
+    pub fn set_neighbours(&mut self, on: bool) {
+        self.session.set_neighbours(on);
     }
 
     /// Replays a static site's file (its `holodeck.idx`) instead of joining

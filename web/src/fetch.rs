@@ -25,6 +25,10 @@ pub struct Fetch {
     pub beams: Vec<SiteBeam>,
     /// The last range of its view's transfer.
     pub closes_transfer: bool,
+    /// Its beams are the neighbours of a view's beams, fetched for the
+    /// pixels the view's own left without a ray: only those take its rays
+    /// ([`holodeck_display::gaps`]).
+    pub gaps: bool,
 }
 
 /// The ranges that hold `keys` (sorted; keys without rays are skipped), in
@@ -44,6 +48,7 @@ pub fn plan(index: &SiteIndex, keys: &[BeamKey]) -> Vec<Fetch> {
                 end: b.end(),
                 beams: vec![*b],
                 closes_transfer: false,
+                gaps: false,
             }),
         }
     }

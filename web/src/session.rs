@@ -12,6 +12,7 @@ use std::collections::{HashMap, HashSet, VecDeque};
 
 use holodeck_display::command::{command_name, Command};
 use holodeck_display::denoise::{Denoised, Denoiser};
+use holodeck_display::gaps;
 use holodeck_display::gather::Gather;
 use holodeck_display::motion::{Held, Motion};
 use holodeck_display::output::parse_tone;
@@ -43,6 +44,10 @@ pub struct SessionOptions {
     /// Most samples per pixel a still view asks for (its density doubles
     /// up to this while it stays; the first density: never more).
     pub max_density: f64,
+    /// In a replayed site, pixels that a settled view's beams leave without
+    /// a ray (a sparse file) take the rays of the beams next to theirs, as
+    /// `holodeck pict --neighbour-beams` does.
+    pub neighbours: bool,
 }
 
 impl Default for SessionOptions {
@@ -52,6 +57,7 @@ impl Default for SessionOptions {
             denoise: true,
             density: 1.0,
             max_density: 1024.0,
+            neighbours: false,
         }
     }
 }
@@ -132,6 +138,13 @@ pub struct Session {
     fetches: VecDeque<Fetch>,
     /// Ranges taken by the page, awaiting their bytes, in order.
     awaiting: VecDeque<Fetch>,
+    /// Pixels without a ray when the last gap-filling transfer was asked
+    /// for, how many it filled, and its rays so far (they join at once when
+    /// it ends, as `pict` adds a sparse file's neighbours in one go: a pixel
+    /// empty before takes the rays of every neighbouring beam).
+    gaps: u64,
+    filled: u64,
+    gap_samples: Vec<Sample>,
 }
 
 impl Session {
@@ -199,6 +212,9 @@ impl Session {
             options,
             fetches: VecDeque::new(),
             awaiting: VecDeque::new(),
+            gaps: 0,
+            filled: 0,
+            gap_samples: Vec::new(),
         })
     }
 
@@ -345,6 +361,12 @@ impl Session {
         Ok(())
     }
 
+    /// Whether a replayed site fills its views' gaps from neighbouring
+    /// beams ([`SessionOptions::neighbours`]); from the next view on.
+    pub fn set_neighbours(&mut self, on: bool) {
+        self.options.neighbours = on;
+    }
+
     /// The byte ranges the page should fetch now, in order: (chunk, first
     /// byte, past the last byte). Their bytes must come back through
     /// [`Session::add_fetched`] in this order.
@@ -384,10 +406,15 @@ impl Session {
                 let Some(records) = RayRecord::slice_from_bytes(&bytes[from..to]) else {
                     return Err(SessionError::Site(format!("beam {:?}: not whole records", b.key)));
                 };
-                loaded.insert(b.key);
-                self.scratch.clear();
-                decoder.decode(b.key.section, b.key.beam, records, &mut self.scratch);
-                self.batch.add(&self.scratch, self.driver.as_mut());
+                if fetch.gaps {
+                    // Not loaded: a view that sees this beam takes all its rays.
+                    decoder.decode(b.key.section, b.key.beam, records, &mut self.gap_samples);
+                } else {
+                    loaded.insert(b.key);
+                    self.scratch.clear();
+                    decoder.decode(b.key.section, b.key.beam, records, &mut self.scratch);
+                    self.batch.add(&self.scratch, self.driver.as_mut());
+                }
                 self.samples += records.len() as u64;
                 self.meter.add(records.len() as u64, now);
             }
@@ -396,8 +423,41 @@ impl Session {
         if fetch.closes_transfer {
             self.batch.flush(self.driver.as_mut());
             self.transfers = self.transfers.saturating_sub(1);
+            if fetch.gaps {
+                self.driver.add_where_empty(&self.gap_samples);
+                self.gap_samples = Vec::new();
+                self.filled = self.gaps.saturating_sub(gaps::count(&self.driver.empty_pixels()));
+            } else if self.options.neighbours {
+                self.fill_gaps();
+            }
         }
         Ok(())
+    }
+
+    /// In a replayed site, once a view's beams are in: the ranges of the
+    /// beams next to those its pixels without a ray look through (not
+    /// fetched as the view's own), to fill those pixels.
+    fn fill_gaps(&mut self) {
+        let Link::Site { decoder, index, loaded } = &self.link else {
+            return;
+        };
+        self.filled = 0;
+        let empty = self.driver.empty_pixels();
+        self.gaps = gaps::count(&empty);
+        if self.gaps == 0 {
+            return;
+        }
+        let mut given: Vec<BeamKey> = loaded.iter().copied().collect();
+        given.sort_unstable();
+        let near = gaps::neighbour_beams(decoder.sections(), self.driver.viewport(), &empty, &given);
+        let mut fetches = plan(index, &near);
+        for f in &mut fetches {
+            f.gaps = true;
+        }
+        if !fetches.is_empty() {
+            self.transfers += 1;
+            self.fetches.extend(fetches);
+        }
     }
 
     fn set_view(&mut self, view: View) -> Result<(), SessionError> {
@@ -782,7 +842,7 @@ impl Session {
             frame_ms,
             server: self.progress,
             head_fixed: self.head_fixed,
-            filled: 0,
+            filled: self.filled,
         }
         .line();
         match &self.link {
@@ -976,6 +1036,93 @@ mod tests {
         s.settle(2.0);
         assert!(s.take_fetches().is_empty() && s.take_output().is_empty());
         assert!(s.status_line(1.0).ends_with("replay of a file"));
+    }
+
+    #[test]
+    fn a_sparse_site_fills_its_gaps_from_neighbouring_beams_as_pict_does() {
+        use holodeck_protocol::site::{SiteBeam, SiteHeader};
+        let sections = vec![section()];
+        let decoder = SampleDecoder::new(sections.clone());
+        // Two rays in every beam of the section: a fill by volume, sparse.
+        let (mut chunk, mut rows, mut rays) = (Vec::new(), Vec::new(), HashMap::new());
+        for beam in 0..sections[0].beam_count() {
+            let key = BeamKey::new(0, beam);
+            let r = records(key, 2);
+            rows.push(SiteBeam {
+                key,
+                chunk: 0,
+                offset: chunk.len() as u32,
+                rays: 2,
+            });
+            chunk.extend_from_slice(RayRecord::slice_as_bytes(&r));
+            rays.insert(key, r);
+        }
+        let index = SiteIndex {
+            header: SiteHeader {
+                sections: sections.clone(),
+                chunks: vec![chunk.len() as u64],
+            },
+            beams: rows,
+        }
+        .encode()
+        .unwrap();
+        let replay = |neighbours: bool| {
+            let mut s = session();
+            s.set_neighbours(neighbours);
+            s.open_site(&index, 0.0).unwrap();
+            let mut rounds = 0;
+            loop {
+                let fetches = s.take_fetches();
+                if fetches.is_empty() {
+                    break;
+                }
+                rounds += 1;
+                for (c, a, b) in fetches {
+                    s.add_fetched(c, a, Some(&chunk[a as usize..b as usize]), 0.5).unwrap();
+                }
+            }
+            assert_eq!(s.transfers(), 0);
+            (s, rounds)
+        };
+        let ((mut plain, one), (mut filled, two)) = (replay(false), replay(true));
+        assert_eq!((one, two), (1, 2), "the view's beams, then their neighbours'");
+
+        // What pict does: the view's rays, then the neighbours' where empty.
+        let mut reference = QuadtreeDriver::with_options(plain.viewport().clone(), EstimatorOptions::default());
+        let wanted = BeamRequest::for_viewport(&sections, plain.viewport(), &RequestOptions::default(), 0);
+        let mut keys: Vec<BeamKey> = wanted.beams.iter().map(|b| b.0).collect();
+        keys.sort_unstable();
+        let decode = |keys: &[BeamKey]| {
+            let mut all = Vec::new();
+            for k in keys {
+                decoder.decode(k.section, k.beam, &rays[k], &mut all);
+            }
+            all
+        };
+        reference.add(&decode(&keys));
+        assert_eq!(plain.picture(), reference.render());
+        let empty = reference.empty_pixels();
+        let before = gaps::count(&empty);
+        assert!(
+            before > 64 * 48 / 4,
+            "{before} pixels without a ray: the site is not sparse"
+        );
+        let near = gaps::neighbour_beams(&sections, reference.viewport(), &empty, &keys);
+        reference.add_where_empty(&decode(&near));
+        let after = gaps::count(&reference.empty_pixels());
+        assert!(filled.picture() == reference.render(), "the page draws what pict draws");
+        // These rays hit points floating in the section, most of them off
+        // the pixels without one: a few are filled.
+        assert_eq!(filled.filled, before - after);
+        assert!(filled.filled > 0 && !near.is_empty());
+        assert!(
+            filled
+                .status_line(1.0)
+                .contains(&format!("{} px from neighbouring beams", filled.filled)),
+            "{}",
+            filled.status_line(1.0)
+        );
+        assert!(!plain.status_line(1.0).contains("neighbouring"));
     }
 
     #[test]
