@@ -58,20 +58,22 @@ fn a_scene_that_cannot_be_loaded_says_which_and_why() {
     assert!(matches!(e, Error::Generate { .. }), "{e:?}");
 }
 
-#[test]
-fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams() {
-    let scene = SceneInput::open("builtin:room", None, None).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sparse.hdk");
-    let settings = Settings::with_sections(scene.sections().to_vec());
-    HoloFile::create(&path, &settings).unwrap();
-    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
-    // A fill by volume: a few rays in every beam of the room.
+/// A file of the room in `dir` filled by volume with `rays` (a few in
+/// every beam: sparse for any one view), and its path.
+fn sparse_room(dir: &std::path::Path, rays: u64) -> (std::path::PathBuf, HoloFile) {
+    let (scene, _, mut file) = empty_room(dir);
     let options = FillOptions {
-        rays: Some(300_000),
+        rays: Some(rays),
         ..FillOptions::default()
     };
     fill(&scene.tracer(Default::default()), &mut file, &options, &|_| {}).unwrap();
+    (dir.join("room.hdk"), file)
+}
+
+#[test]
+fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, mut file) = sparse_room(dir.path(), 300_000);
     let view = View::parse(holodeck::ROOM_VIEW).unwrap();
     let viewport = Viewport::new(view, 160, 120).unwrap();
     let mut choice = DriverChoice::plain("quadtree", Default::default());
@@ -113,17 +115,8 @@ fn pixels_a_sparse_file_leaves_without_a_ray_take_the_rays_of_neighbouring_beams
 #[test]
 fn the_window_fills_a_sparse_files_gaps_from_neighbouring_beams_as_pict_does() {
     use holodeck_display::window::{WalkOptions, Walkthrough};
-    let scene = SceneInput::open("builtin:room", None, None).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sparse.hdk");
-    let settings = Settings::with_sections(scene.sections().to_vec());
-    HoloFile::create(&path, &settings).unwrap();
-    let mut file = HoloFile::open(&path, &OpenOptions::default()).unwrap();
-    let options = FillOptions {
-        rays: Some(200_000),
-        ..FillOptions::default()
-    };
-    fill(&scene.tracer(Default::default()), &mut file, &options, &|_| {}).unwrap();
+    let (path, mut file) = sparse_room(dir.path(), 200_000);
     let viewport = Viewport::new(View::parse(holodeck::ROOM_VIEW).unwrap(), 128, 96).unwrap();
     let mut choice = DriverChoice::plain("quadtree", Default::default());
     choice.neighbours = true;

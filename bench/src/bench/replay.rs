@@ -224,19 +224,16 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
                 ),
                 per(&single) / per(&all).max(1e-9),
             );
-            for (stage, s, m) in [
-                ("read", single.read, all.read),
-                ("decode and project (overlaps the merge)", single.decode, all.decode),
-                ("sort and merge into estimates", single.insert, all.insert),
-                ("frame", single.frame, all.frame),
-            ] {
-                row(
-                    &format!("{driver}: {stage}, per view"),
-                    ms(s, single.frames),
-                    ms(m, all.frames),
-                    s.as_secs_f64() / m.as_secs_f64().max(1e-9),
-                );
-            }
+            stage_rows(
+                driver,
+                (single.frames, all.frames),
+                &[
+                    ("read", single.read, all.read),
+                    ("decode and project (overlaps the merge)", single.decode, all.decode),
+                    ("sort and merge into estimates", single.insert, all.insert),
+                    ("frame", single.frame, all.frame),
+                ],
+            );
         }
     }
     if a.walks.iter().any(|w| w == "window") {
@@ -269,18 +266,15 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
                 count(all.samples / u64::from(all.frames.max(1))),
                 single.samples as f64 / all.samples.max(1) as f64,
             );
-            for (stage, s, m) in [
-                ("reprojection", single.reproject, all.reproject),
-                ("new samples read and merged", single.recall, all.recall),
-                ("frame", single.frame, all.frame),
-            ] {
-                row(
-                    &format!("{driver}: {stage}, per view"),
-                    ms(s, single.frames),
-                    ms(m, all.frames),
-                    s.as_secs_f64() / m.as_secs_f64().max(1e-9),
-                );
-            }
+            stage_rows(
+                driver,
+                (single.frames, all.frames),
+                &[
+                    ("reprojection", single.reproject, all.reproject),
+                    ("new samples read and merged", single.recall, all.recall),
+                    ("frame", single.frame, all.frame),
+                ],
+            );
         }
     }
     println!(
@@ -294,6 +288,20 @@ pub fn run_args(a: &Args) -> Result<ExitCode> {
     );
     memory_at(&mut file, &views[0], a)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// A row per stage: its time per view on one core and on all, from the
+/// stages' totals over `frames` (one core's, all cores').
+fn stage_rows(driver: &str, frames: (u32, u32), stages: &[(&str, Duration, Duration)]) {
+    let ms = |d: Duration, n: u32| format!("{:.1} ms", d.as_secs_f64() * 1e3 / f64::from(n.max(1)));
+    for &(stage, s, m) in stages {
+        row(
+            &format!("{driver}: {stage}, per view"),
+            ms(s, frames.0),
+            ms(m, frames.1),
+            s.as_secs_f64() / m.as_secs_f64().max(1e-9),
+        );
+    }
 }
 
 /// The frame size the store's memory is reported at.
