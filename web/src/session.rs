@@ -916,6 +916,32 @@ mod tests {
             .collect()
     }
 
+    /// A site of `sections` whose beams hold the rays given, in order, in
+    /// one chunk: its index and the chunk's bytes.
+    fn one_chunk_site(
+        sections: &[Section],
+        beams: impl Iterator<Item = (BeamKey, Vec<RayRecord>)>,
+    ) -> (SiteIndex, Vec<u8>) {
+        let (mut chunk, mut rows) = (Vec::new(), Vec::new());
+        for (key, r) in beams {
+            rows.push(holodeck_protocol::site::SiteBeam {
+                key,
+                chunk: 0,
+                offset: chunk.len() as u32,
+                rays: r.len() as u32,
+            });
+            chunk.extend_from_slice(RayRecord::slice_as_bytes(&r));
+        }
+        let index = SiteIndex {
+            header: holodeck_protocol::site::SiteHeader {
+                sections: sections.to_vec(),
+                chunks: vec![chunk.len() as u64],
+            },
+            beams: rows,
+        };
+        (index, chunk)
+    }
+
     fn session() -> Session {
         Session::new(
             Some(view()),
@@ -985,33 +1011,18 @@ mod tests {
 
     #[test]
     fn a_site_replay_fetches_the_views_beams_by_range_and_draws_them() {
-        use holodeck_protocol::site::{SiteBeam, SiteHeader};
         let sections = vec![section()];
         let mut s = session();
         let wanted = BeamRequest::for_viewport(&sections, s.viewport(), &RequestOptions::default(), 0);
         let mut keys: Vec<BeamKey> = wanted.beams.iter().map(|b| b.0).collect();
         keys.sort_unstable();
         // Every wanted beam but the first holds rays, in one chunk.
-        let (mut chunk, mut rows, mut all) = (Vec::new(), Vec::new(), Vec::new());
+        let mut all = Vec::new();
         let decoder = SampleDecoder::new(sections.clone());
         for &key in &keys[1..] {
-            let r = records(key, 30);
-            rows.push(SiteBeam {
-                key,
-                chunk: 0,
-                offset: chunk.len() as u32,
-                rays: 30,
-            });
-            chunk.extend_from_slice(RayRecord::slice_as_bytes(&r));
-            decoder.decode(key.section, key.beam, &r, &mut all);
+            decoder.decode(key.section, key.beam, &records(key, 30), &mut all);
         }
-        let index = SiteIndex {
-            header: SiteHeader {
-                sections: sections.clone(),
-                chunks: vec![chunk.len() as u64],
-            },
-            beams: rows,
-        };
+        let (index, chunk) = one_chunk_site(&sections, keys[1..].iter().map(|&k| (k, records(k, 30))));
         s.open_site(&index.encode().unwrap(), 0.0).unwrap();
         assert!(s.is_open() && s.transfers() == 1);
         let fetches = s.take_fetches();
@@ -1040,32 +1051,16 @@ mod tests {
 
     #[test]
     fn a_sparse_site_fills_its_gaps_from_neighbouring_beams_as_pict_does() {
-        use holodeck_protocol::site::{SiteBeam, SiteHeader};
         let sections = vec![section()];
         let decoder = SampleDecoder::new(sections.clone());
         // Two rays in every beam of the section: a fill by volume, sparse.
-        let (mut chunk, mut rows, mut rays) = (Vec::new(), Vec::new(), HashMap::new());
-        for beam in 0..sections[0].beam_count() {
-            let key = BeamKey::new(0, beam);
-            let r = records(key, 2);
-            rows.push(SiteBeam {
-                key,
-                chunk: 0,
-                offset: chunk.len() as u32,
-                rays: 2,
-            });
-            chunk.extend_from_slice(RayRecord::slice_as_bytes(&r));
-            rays.insert(key, r);
-        }
-        let index = SiteIndex {
-            header: SiteHeader {
-                sections: sections.clone(),
-                chunks: vec![chunk.len() as u64],
-            },
-            beams: rows,
-        }
-        .encode()
-        .unwrap();
+        let rays: HashMap<BeamKey, Vec<RayRecord>> = (0..sections[0].beam_count())
+            .map(|b| (BeamKey::new(0, b), records(BeamKey::new(0, b), 2)))
+            .collect();
+        let mut keys: Vec<BeamKey> = rays.keys().copied().collect();
+        keys.sort_unstable();
+        let (index, chunk) = one_chunk_site(&sections, keys.iter().map(|k| (*k, rays[k].clone())));
+        let index = index.encode().unwrap();
         let replay = |neighbours: bool| {
             let mut s = session();
             s.set_neighbours(neighbours);
