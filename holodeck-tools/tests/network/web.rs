@@ -457,6 +457,51 @@ fn a_static_export_replays_the_file_in_a_page_with_no_server() {
     eprintln!("turning fetched {} more samples", after.as_f64().unwrap() - before);
 }
 
+#[test]
+fn a_sparse_static_export_fills_its_gaps_from_neighbouring_beams_as_pict_does() {
+    let Some(mut browser) = Browser::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // A fill by volume: a few rays in every beam, sparse for any one view.
+    let file = dir.path().join("sparse.hdk");
+    let o = holodeck(&["fill", "builtin:room", file.to_str().unwrap(), "--rays", "200K", "-q"]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    let site = dir.path().join("site");
+    let o = holodeck(&["export", "web", file.to_str().unwrap(), "-o", site.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", crate::common::text(&o));
+    browser.ask(json!({"op": "site", "dir": site.to_str().unwrap(), "origin": "http://site.test"}));
+    browser.open(&format!(
+        "http://site.test/#view={}&width=160&height=120&denoise=off&neighbours=1",
+        fragment(VIEW)
+    ));
+    browser.wait(DELIVERED);
+    let status = browser.wait("holodeck.status().includes('px from neighbouring beams') && holodeck.status()");
+    let filled: u64 = status
+        .as_str()
+        .and_then(|s| {
+            s.split("  ")
+                .find_map(|p| p.strip_suffix(" px from neighbouring beams"))
+        })
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no count of filled pixels in {status}"));
+    let shown = browser.picture();
+    let at = browser.eval("holodeck.where()");
+    let filled_pict = pict(&file, &at, &["--neighbour-beams"]);
+    let plain_pict = pict(&file, &at, &[]);
+    assert_agrees(
+        "the sparse page with neighbours",
+        &shown,
+        &filled_pict,
+        0.02,
+        0.02,
+        0.98,
+        0.01,
+    );
+    let apart = relative_rmse(&shown, &plain_pict).unwrap();
+    eprintln!("{filled} pixels filled; the page against pict without neighbours: relative RMSE {apart:.4}");
+    assert!(filled > 1000, "{filled} pixels filled");
+    assert!(apart > 0.05, "the neighbours changed nothing: {apart}");
+}
+
 /// The server's resident memory, kB (`VmRSS` of /proc/PID/status).
 fn resident_kb(pid: u32) -> u64 {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
