@@ -81,12 +81,18 @@ impl BeamCache {
     }
 
     /// Changes an entry (created empty if absent) through `f`, keeping the byte count right.
+    /// One hash lookup for an entry that exists, two for a new one.
     pub fn update<R>(&mut self, key: BeamKey, f: impl FnOnce(&mut CachedBeam) -> R) -> R {
-        let existed = self.map.contains(&key);
-        let entry = self.map.get_or_insert_mut(key, CachedBeam::default);
-        let before = if existed { entry.bytes() } else { 0 };
-        let r = f(entry);
-        self.bytes = self.bytes + entry.bytes() - before;
+        if let Some(entry) = self.map.get_mut(&key) {
+            let before = entry.bytes();
+            let r = f(entry);
+            self.bytes = self.bytes + entry.bytes() - before;
+            return r;
+        }
+        let mut entry = CachedBeam::default();
+        let r = f(&mut entry);
+        self.bytes += entry.bytes();
+        self.map.push(key, entry);
         r
     }
 

@@ -157,10 +157,23 @@ fn same_range(r: &ChunkRef, c: &Chunk) -> bool {
     (r.section, r.first, r.beams) == (c.section, c.first, c.beams)
 }
 
-/// Room given to a run that must move: a quarter again its size, so that a beam
+/// Records a run of `count` records is given room for when it is written to
+/// a new place (`moved`: the beam had a run and outgrew it), so that a beam
 /// growing by small appends moves O(log n) times instead of O(n).
-fn grow(count: u32) -> u32 {
-    count.saturating_add(count / 4).max(count.saturating_add(4))
+///
+/// A beam's first run is exact: a beam written once wastes nothing, and the
+/// first runs of a flush lie end to end, written in few large writes. A run
+/// that moved has shown it grows: it gets as much room again as it holds, so
+/// a beam that keeps growing copies its rays about twice in all. Under a size
+/// limit (`limited`) it gets a quarter again (about five copies), so that
+/// reserves and the holes moves leave stay a fifth to a quarter of the file.
+/// Reserves are in memory only; closing compacts them away.
+fn room(count: u32, moved: bool, limited: bool) -> u32 {
+    match (moved, limited) {
+        (false, _) => count,
+        (true, true) => count.saturating_add(count / 4).max(count.saturating_add(4)),
+        (true, false) => count.saturating_mul(2).max(count.saturating_add(4)),
+    }
 }
 
 impl Disk {
@@ -426,7 +439,7 @@ impl Disk {
 
     /// Most bytes by which writing a beam's unwritten rays, so that it then
     /// holds `total` rays, can move the end of the allocated space (see
-    /// [`Disk::write_tail`]): nothing if they fit the run's reserve; the exact
+    /// [`Disk::write_tail`]): nothing if they fit the run's reserve; a first
     /// run for a beam with nothing on disk; else a moved run with room to grow,
     /// which is also more than growing in place can take. Valid until the
     /// beam is next written.
@@ -435,11 +448,11 @@ impl Disk {
         let count = self.dirs[s][b].count;
         let total32 = u32::try_from(total).unwrap_or(u32::MAX);
         if count == 0 {
-            total.saturating_mul(RECORD)
+            u64::from(room(total32, false, self.limit != u64::MAX)) * RECORD
         } else if total <= u64::from(self.capacity[s][b]) {
             0
         } else {
-            u64::from(grow(total32)) * RECORD
+            u64::from(room(total32, true, self.limit != u64::MAX)) * RECORD
         }
     }
 
@@ -449,7 +462,7 @@ impl Disk {
     pub(crate) fn read_into(&mut self, offset: u64, len: usize, buf: &mut Vec<u8>) -> Result<()> {
         // After a failed write the batch can never be written: read what the
         // disk holds (runs that were only in the batch then fail their checksum).
-        if !self.poisoned {
+        if !self.poisoned && self.writes.overlaps(offset, len as u64) {
             self.flush_writes()?;
         }
         if buf.len() < len {
@@ -591,12 +604,14 @@ impl Disk {
                 None => (Vec::new(), tail.len() as u32),
             };
             let kept_old = old.count > 0 && !existing.is_empty();
-            // A beam's first run is exact; only a beam that had to move has shown it grows.
-            let room = if old.count == 0 { count } else { grow(count) };
+            let room = room(count, old.count > 0, self.limit != u64::MAX);
             // The only step that can fail before anything changed: the limit.
             let offset = self.allocate(u64::from(room) * RECORD)?;
             self.push_write(offset, &existing)?;
             self.push_write(offset + existing.len() as u64, tail_bytes)?;
+            // The reserve is this run's own free space: a run placed right
+            // after it may join the same write, the reserve written as zeros.
+            self.writes.pad_to(offset + u64::from(room) * RECORD);
             if old.count > 0 {
                 self.release_run(s, b);
                 self.stats.relocations += 1;
@@ -1082,6 +1097,54 @@ mod tests {
     fn fill_holes(store: &mut Disk) {
         let end = store.extents.end();
         while store.extents.allocate_below(1, end).is_some() {}
+    }
+
+    #[test]
+    fn a_moved_run_gets_as_much_room_again_or_a_quarter_under_a_limit_and_joins_the_next_write() {
+        let dir = tempfile::tempdir().unwrap();
+        for limited in [false, true] {
+            let sub = dir.path().join(if limited { "limited" } else { "free" });
+            std::fs::create_dir(&sub).unwrap();
+            let (path, mut store) = committed_file(&sub, 3, 10);
+            if limited {
+                store.set_limit(Some(1 << 30));
+            }
+            fill_holes(&mut store);
+            // First runs are exact: nothing is reserved.
+            assert_eq!(store.reserved_bytes(), 0);
+            // Beams 0 and 1 outgrow their runs (each lies against the next):
+            // both move to the end of the file, one after the other.
+            for b in 0..2 {
+                let key = BeamKey::new(0, b);
+                store.write_tail(key, None, &pattern_rays(key, 10, 10)).unwrap();
+            }
+            let (room, reserve) = if limited { (25, 5) } else { (40, 20) };
+            assert_eq!(store.capacity[0][0], room);
+            assert_eq!(store.capacity[0][1], room);
+            assert_eq!(store.reserved_bytes(), 2 * reserve * RECORD);
+            let (first, second) = (store.dirs[0][0].offset, store.dirs[0][1].offset);
+            assert_eq!(
+                second,
+                first + u64::from(room) * RECORD,
+                "the second run follows the first's reserve"
+            );
+            // Both moves are one write still queued: the first run, its
+            // reserve as zeros, the second run.
+            assert_eq!(
+                store.writes.queued(),
+                (first, ((u64::from(room) + 20) * RECORD) as usize)
+            );
+            // Appends land in the reserve, in place.
+            let key = BeamKey::new(0, 0);
+            store.write_tail(key, None, &pattern_rays(key, 20, reserve)).unwrap();
+            assert_eq!(store.dirs[0][0].offset, first);
+            store.commit().unwrap();
+            drop(store);
+            let mut f = HoloFile::open(&path, &crate::storage::OpenOptions::read_only()).unwrap();
+            assert_eq!(f.read_beam(key).unwrap(), pattern_rays(key, 0, u64::from(room)));
+            let key = BeamKey::new(0, 1);
+            assert_eq!(f.read_beam(key).unwrap(), pattern_rays(key, 0, 20));
+        }
     }
 
     #[test]

@@ -344,21 +344,45 @@ impl HoloFile {
         // After a failed write nothing more can become durable: refuse at once
         // rather than caching rays that can never be written.
         self.store.check_usable()?;
-        if self.beam_len(key)? + rays.len() as u64 > u64::from(u32::MAX) {
-            return Err(StorageError::BeamFull { key });
+        self.check_key(key)?;
+        let n = rays.len() as u64;
+        if self.space.is_some() {
+            // The bound is charged before anything is stored.
+            if self.beam_len(key)? + n > u64::from(u32::MAX) {
+                return Err(StorageError::BeamFull { key });
+            }
+            if n > 0 {
+                self.reserve_space(key, n)?;
+            }
         }
-        if !rays.is_empty() {
-            self.reserve_space(key, rays.len() as u64)?;
-        }
-        let empty_on_disk = self.entry(key).count == 0;
-        self.cache.update(key, |e| {
+        let on_disk = u64::from(self.entry(key).count);
+        let full = self.cache.update(key, |e| {
+            let len = if e.loaded {
+                e.rays.len() as u64
+            } else {
+                on_disk + e.unwritten as u64
+            };
+            if len + n > u64::from(u32::MAX) {
+                return true;
+            }
             if e.rays.is_empty() && e.unwritten == 0 {
                 // A beam with nothing on disk is whole in memory from its first ray.
-                e.loaded = empty_on_disk;
+                e.loaded = on_disk == 0;
             }
             e.rays.extend_from_slice(rays);
             e.unwritten += rays.len();
+            false
         });
+        if full {
+            if self
+                .cache
+                .peek(&key)
+                .is_some_and(|e| e.rays.is_empty() && e.unwritten == 0)
+            {
+                self.cache.remove(&key);
+            }
+            return Err(StorageError::BeamFull { key });
+        }
         if self.cache.over_budget() {
             self.evict()?;
         }

@@ -11,19 +11,39 @@ use super::error::{Result, StorageError};
 /// Largest batch held before it is written.
 const BATCH_LIMIT: usize = 2 << 20;
 
+/// Longest gap of free space a write batch fills with zeros to join the next
+/// write: writing a few KiB more costs less than one more system call.
+const MAX_PAD: u64 = 8 << 10;
+
 /// Adjacent writes gathered into one buffer.
 #[derive(Default)]
 pub struct WriteBatch {
     start: u64,
     buf: Vec<u8>,
+    /// The bytes from the batch's end up to here are free space that no
+    /// commit refers to and nothing else will be written to (the growth
+    /// reserve of the run just queued): a write starting within them joins
+    /// the batch, the gap written as zeros.
+    pad_to: u64,
 }
 
 impl WriteBatch {
-    /// Queues `bytes` for `offset`, writing out what was queued first if it is not adjacent.
+    /// Queues `bytes` for `offset`, writing out what was queued first if it is
+    /// not adjacent (or joined to it by a short stretch declared with
+    /// [`WriteBatch::pad_to`]).
     pub fn push(&mut self, file: &File, path: &Path, offset: u64, bytes: &[u8]) -> Result<()> {
-        let adjacent = !self.buf.is_empty() && offset == self.start + self.buf.len() as u64;
-        if !adjacent || self.buf.len() + bytes.len() > BATCH_LIMIT {
+        let end = self.start + self.buf.len() as u64;
+        let pad = if !self.buf.is_empty() && offset > end && offset <= self.pad_to && offset - end <= MAX_PAD {
+            (offset - end) as usize
+        } else {
+            0
+        };
+        self.pad_to = 0;
+        let adjacent = !self.buf.is_empty() && offset == end + pad as u64;
+        if !adjacent || self.buf.len() + pad + bytes.len() > BATCH_LIMIT {
             self.flush(file, path)?;
+        } else if pad > 0 {
+            self.buf.resize(self.buf.len() + pad, 0);
         }
         if self.buf.is_empty() {
             if bytes.len() >= BATCH_LIMIT {
@@ -35,8 +55,28 @@ impl WriteBatch {
         Ok(())
     }
 
+    /// Declares the bytes from the batch's end up to `end` free space that
+    /// only zeros may be written to, until the next push: a write starting
+    /// within them then joins the batch.
+    pub fn pad_to(&mut self, end: u64) {
+        self.pad_to = end;
+    }
+
+    /// Whether any queued byte lies in `offset..offset + len`: a read there
+    /// must flush the batch first.
+    pub fn overlaps(&self, offset: u64, len: u64) -> bool {
+        !self.buf.is_empty() && offset < self.start + self.buf.len() as u64 && self.start < offset + len
+    }
+
+    /// Where the queued bytes go and how many there are.
+    #[cfg(test)]
+    pub fn queued(&self) -> (u64, usize) {
+        (self.start, self.buf.len())
+    }
+
     /// Writes out whatever is queued.
     pub fn flush(&mut self, file: &File, path: &Path) -> Result<()> {
+        self.pad_to = 0;
         if !self.buf.is_empty() {
             write_at(file, path, self.start, &self.buf)?;
             self.buf.clear();
@@ -201,5 +241,47 @@ pub fn drop_page_cache(file: &File) {
     // SAFETY: advisory call on a valid descriptor.
     unsafe {
         libc::posix_fadvise(file.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_short_declared_gap_joins_two_writes_with_zeros_and_an_undeclared_one_does_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("batch");
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .unwrap();
+        let mut batch = WriteBatch::default();
+        batch.push(&file, &path, 100, &[1; 10]).unwrap();
+        batch.pad_to(130);
+        batch.push(&file, &path, 125, &[2; 5]).unwrap();
+        assert_eq!(batch.queued(), (100, 30), "joined across the declared gap");
+        assert!(batch.overlaps(129, 5) && batch.overlaps(90, 11) && !batch.overlaps(130, 5) && !batch.overlaps(90, 10));
+        // Nothing was declared after the last push: a gap ends the batch.
+        batch.push(&file, &path, 140, &[3; 4]).unwrap();
+        assert_eq!(batch.queued(), (140, 4));
+        // A gap past what was declared, or longer than MAX_PAD, is never filled.
+        batch.pad_to(150);
+        batch.push(&file, &path, 151, &[4; 1]).unwrap();
+        assert_eq!(batch.queued(), (151, 1));
+        batch.pad_to(u64::MAX);
+        batch.push(&file, &path, 152 + MAX_PAD + 1, &[5; 1]).unwrap();
+        assert_eq!(batch.queued(), (152 + MAX_PAD + 1, 1));
+        batch.flush(&file, &path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[100..110], &[1; 10]);
+        assert_eq!(&bytes[110..125], &[0; 15]);
+        assert_eq!(&bytes[125..130], &[2; 5]);
+        assert_eq!(&bytes[140..144], &[3; 4]);
+        assert_eq!(bytes[151], 4);
+        assert_eq!(bytes[(152 + MAX_PAD + 1) as usize], 5);
     }
 }
