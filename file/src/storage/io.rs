@@ -284,4 +284,61 @@ mod tests {
         assert_eq!(bytes[151], 4);
         assert_eq!(bytes[(152 + MAX_PAD + 1) as usize], 5);
     }
+
+    /// One step of a batch's life: a write past everything written so far
+    /// (`gap` bytes on, then `pad` bytes declared free after it), or a write
+    /// over bytes already written (`back` bytes before the end).
+    #[derive(Debug, Clone)]
+    enum Step {
+        Ahead { gap: u64, len: usize, pad: Option<u64> },
+        Over { back: u64, len: usize },
+    }
+
+    fn step() -> impl proptest::strategy::Strategy<Value = Step> {
+        use proptest::prelude::*;
+        prop_oneof![
+            3 => (0u64..2 * MAX_PAD, 1usize..3000, proptest::option::of(0u64..2 * MAX_PAD))
+                .prop_map(|(gap, len, pad)| Step::Ahead { gap, len, pad }),
+            1 => (1u64..5000, 1usize..300).prop_map(|(back, len)| Step::Over { back, len }),
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Whatever the batch joins, the file ends up holding each byte's
+        /// last write, and zeros where nothing was written.
+        #[test]
+        fn the_file_holds_every_last_write_and_zeros_elsewhere(steps in proptest::collection::vec(step(), 1..40)) {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("batch");
+            let file = File::options().read(true).write(true).create(true).truncate(true).open(&path).unwrap();
+            let mut batch = WriteBatch::default();
+            let mut model: Vec<u8> = Vec::new();
+            let mut end = 0u64;
+            for (i, s) in steps.iter().enumerate() {
+                let byte = (i % 250) as u8 + 1;
+                let (offset, len, pad) = match *s {
+                    Step::Ahead { gap, len, pad } => (end + gap, len, pad),
+                    Step::Over { back, len } => (end.saturating_sub(back), len.min(back as usize).max(1), None),
+                };
+                batch.push(&file, &path, offset, &vec![byte; len]).unwrap();
+                let (start, queued) = batch.queued();
+                proptest::prop_assert_eq!(start + queued as u64, offset + len as u64);
+                let stop = offset as usize + len;
+                if model.len() < stop {
+                    model.resize(stop, 0);
+                }
+                model[offset as usize..stop].fill(byte);
+                end = end.max(stop as u64);
+                // Only the space past everything written is free to declare.
+                if let (Some(pad), true) = (pad, stop as u64 == end) {
+                    batch.pad_to(end + pad);
+                }
+            }
+            batch.flush(&file, &path).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            proptest::prop_assert_eq!(bytes.len(), model.len());
+            proptest::prop_assert!(bytes == model, "the file differs from the last writes");
+        }
+    }
 }
