@@ -439,7 +439,7 @@ impl Disk {
 
     /// Most bytes by which writing a beam's unwritten rays, so that it then
     /// holds `total` rays, can move the end of the allocated space (see
-    /// [`Disk::write_tail`]): nothing if they fit the run's reserve; a first
+    /// [`Disk::write_tail`]): nothing if they fit the run's reserve; the exact
     /// run for a beam with nothing on disk; else a moved run with room to grow,
     /// which is also more than growing in place can take. Valid until the
     /// beam is next written.
@@ -448,7 +448,7 @@ impl Disk {
         let count = self.dirs[s][b].count;
         let total32 = u32::try_from(total).unwrap_or(u32::MAX);
         if count == 0 {
-            u64::from(room(total32, false, self.limit != u64::MAX)) * RECORD
+            total.saturating_mul(RECORD)
         } else if total <= u64::from(self.capacity[s][b]) {
             0
         } else {
